@@ -1,0 +1,65 @@
+/* axis.h - the rotary axis device class: turntable, light arm, camera arm.
+ *
+ * Ops are blocking and run on the axis's bus worker (or the owner of a sync
+ * bus). Positions are in degrees; a continuous axis reports [0, 360) and moves
+ * the shortest way round. Cached state changes only after the drive confirms. */
+#pragma once
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "common/rigconf.h"
+#include "drivers/opt.h"
+
+struct bus;
+struct axis;
+
+struct axis_state {
+        double position_deg;
+        bool enabled, homed, moving, in_position, fault;
+        int fault_code; /* drive-specific, 0 when none */
+};
+
+struct axis_ops {
+        const char *name; /* backend name as written in the rig file */
+        const struct opt_desc *opts;
+        int n_opts;
+        int (*open)(struct axis *ax);   /* probe the drive, load speed/accel */
+        void (*close)(struct axis *ax);
+        int (*home)(struct axis *ax);   /* start homing */
+        int (*move_abs)(struct axis *ax, double deg); /* start a move, limits already checked */
+        int (*stop)(struct axis *ax);   /* immediate stop */
+        int (*reset)(struct axis *ax);  /* clear a drive fault */
+        int (*poll)(struct axis *ax, struct axis_state *st);
+};
+
+struct axis {
+        const struct axis_ops *ops;
+        const struct rig_axis_conf *conf; /* borrowed from the rig config */
+        struct bus *bus;                  /* borrowed */
+        void *priv;                       /* backend state */
+        struct axis_state state;          /* last confirmed state */
+};
+
+/* Creates the axis for conf with the backend named there (drivers/registry.c).
+ * Returns 0, -ENOENT for an unknown backend, or -errno. Does no I/O. */
+int axis_new(const struct rig_axis_conf *conf, struct bus *bus, struct axis **ret);
+
+/* Closes and frees; NULL is a no-op. Returns NULL. */
+struct axis *axis_free(struct axis *ax);
+
+/* Checks target against the soft limits; for continuous axes normalises it to [0, 360).
+ * Returns 0 or -ERANGE. Pure. */
+int axis_check_target(const struct axis *ax, double *deg);
+
+/* Wrappers that call the op (on the worker) and log failures as
+ * "axis 'NAME' [backend@port#unit]: ...". Each returns 0 or -errno. */
+int axis_open(struct axis *ax);
+int axis_home(struct axis *ax);
+int axis_move_abs(struct axis *ax, double deg); /* checks limits first: -ERANGE */
+int axis_stop(struct axis *ax);
+int axis_reset(struct axis *ax);
+int axis_poll(struct axis *ax); /* refreshes ax->state */
+
+/* Estimated duration of a move of delta degrees with a trapezoidal profile, in seconds. */
+double axis_move_time(double delta_deg, double max_speed, double accel);

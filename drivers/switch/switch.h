@@ -1,0 +1,42 @@
+/* switch.h - the switch device class: lamps, the laser, spare outputs.
+ *
+ * Ops are blocking and run on the switch's bus worker. The cached state changes
+ * only after the device has confirmed the write (read back). */
+#pragma once
+
+#include <stdbool.h>
+
+#include "common/rigconf.h"
+#include "drivers/opt.h"
+
+struct bus;
+struct sw;
+
+struct sw_ops {
+        const char *name; /* backend name in the rig file */
+        const struct opt_desc *opts;
+        int n_opts;
+        int (*open)(struct sw *s);
+        void (*close)(struct sw *s);
+        int (*set)(struct sw *s, bool on);
+        int (*get)(struct sw *s, bool *on);
+};
+
+struct sw {
+        const struct sw_ops *ops;
+        const struct rig_switch_conf *conf; /* borrowed */
+        struct bus *bus;                    /* borrowed */
+        void *priv;
+        bool on; /* last confirmed state */
+};
+
+/* Creates the switch for conf (drivers/registry.c). Returns 0, -ENOENT or -errno. No I/O. */
+int sw_new(const struct rig_switch_conf *conf, struct bus *bus, struct sw **ret);
+
+/* Closes and frees; NULL is a no-op. Returns NULL. */
+struct sw *sw_free(struct sw *s);
+
+/* Open/set/get wrappers that log "switch 'NAME' [...]: ..." on failure; 0 or -errno. */
+int sw_open(struct sw *s);
+int sw_set(struct sw *s, bool on); /* writes, reads back, then updates s->on */
+int sw_get(struct sw *s, bool *on);

@@ -1,0 +1,46 @@
+/* modbus_emu.h - Modbus servers that emulate the rig's controllers: axis drives
+ * (register map of docs/modbus-profile.md, with a timing model) and a relay
+ * module (coils), through the real libmodbus on a pseudo-terminal (RTU) or a
+ * loopback TCP port.
+ *
+ * DESIGN: one server thread per bus serves every unit on that bus (a multi-drop
+ * RS-485 line). The emulated devices' state is read by the frame server through
+ * sim_emu_snapshot(), under a mutex. Faults can be injected per unit. */
+#pragma once
+
+#include <stdbool.h>
+
+#include "common/rigconf.h"
+#include "sim/render/render.h"
+
+struct sim_emu;
+
+enum sim_fault {
+        SIM_FAULT_NONE,
+        SIM_FAULT_TIMEOUT,   /* unit stops answering */
+        SIM_FAULT_CRC,       /* replies with a corrupt CRC */
+        SIM_FAULT_EXCEPTION, /* replies with exception 0x04 (slave device failure) */
+        SIM_FAULT_STALL,     /* the axis stalls mid-move and reports fault code 1 */
+};
+
+/* Creates the servers for every Modbus bus of rc. For modbus-rtu buses a pty is
+ * opened and a symlink made at the bus's port path (its directory must exist);
+ * for modbus-tcp a server listens on 127.0.0.1 at the bus's tcp_port (0 = any free
+ * port, see sim_emu_tcp_port). time_scale > 1 runs motion faster than real time.
+ * Threads start immediately. Returns 0 or -errno. */
+int sim_emu_new(const struct rig_config *rc, double time_scale, struct sim_emu **ret);
+
+/* Stops the threads, removes the symlinks. NULL is a no-op. Returns NULL. */
+struct sim_emu *sim_emu_free(struct sim_emu *e);
+
+/* The emulated rig's state now (axis positions along their motion profiles). */
+void sim_emu_snapshot(struct sim_emu *e, struct sim_rig_state *st);
+
+/* The pty slave path of bus name (RTU), or NULL. Valid for the emulator's lifetime. */
+const char *sim_emu_pty(struct sim_emu *e, const char *bus);
+
+/* The TCP port of bus name (TCP), or -ENOENT. */
+int sim_emu_tcp_port(struct sim_emu *e, const char *bus);
+
+/* Injects a fault into the device at (bus, unit); SIM_FAULT_NONE clears it. 0 or -ENOENT. */
+int sim_emu_inject(struct sim_emu *e, const char *bus, int unit, enum sim_fault fault);
