@@ -60,6 +60,13 @@ static inline void fclosep(FILE **f)
         })
 
 #define ELEMENTSOF(a) (sizeof(a) / sizeof((a)[0]))
+/* <sys/param.h> (pulled in by libmodbus's header) defines MIN and MAX too: include it
+ * first so that either include order compiles. */
+#include <sys/param.h>
+#ifndef MIN
 #define MIN(a, b)     ((a) < (b) ? (a) : (b))
+#endif
+#ifndef MAX
 #define MAX(a, b)     ((a) > (b) ? (a) : (b))
+#endif
 #define CLAMP(x, lo, hi) ((x) < (lo) ? (lo) : (x) > (hi) ? (hi) : (x))

@@ -1,0 +1,349 @@
+/* yconf.c - typed, line-aware access to YAML configuration over libfyaml.
+ *
+ * Every error message has the form "FILE:LINE: key 'KEY': reason" and only the
+ * first error of a load is kept, so that the operator sees the root cause. */
+#include <errno.h>
+#include <libfyaml.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "log.h"
+#include "yconf.h"
+
+static struct fy_diag *collecting_diag(void)
+{
+        struct fy_diag_cfg dcfg;
+        struct fy_diag *diag;
+
+        fy_diag_cfg_default(&dcfg);
+        dcfg.fp = NULL;
+        dcfg.colorize = false;
+        diag = fy_diag_create(&dcfg);
+        if (diag)
+                fy_diag_set_collect_errors(diag, true);
+        return diag;
+}
+
+static int parse_failed(struct yconf *ctx, struct fy_diag *diag)
+{
+        void *iter = NULL;
+        struct fy_diag_error *e = diag ? fy_diag_errors_iterate(diag, &iter) : NULL;
+
+        if (e)
+                snprintf(ctx->err, ctx->errlen, "%s:%d: YAML syntax error: %s", ctx->path,
+                         e->line + 1, e->msg);
+        else
+                snprintf(ctx->err, ctx->errlen, "%s: cannot parse YAML", ctx->path);
+        return -EINVAL;
+}
+
+static int open_common(struct yconf *ctx, const char *path, const char *text, char *err,
+                       size_t errlen)
+{
+        struct fy_parse_cfg cfg = { .flags = FYPCF_QUIET | FYPCF_DEFAULT_PARSE };
+        struct fy_diag *diag = collecting_diag();
+        int r = 0;
+
+        memset(ctx, 0, sizeof(*ctx));
+        ctx->path = path;
+        ctx->err = err;
+        ctx->errlen = errlen;
+        if (err && errlen)
+                err[0] = 0;
+        cfg.diag = diag;
+        if (text)
+                ctx->doc = fy_document_build_from_string(&cfg, text, FY_NT);
+        else
+                ctx->doc = fy_document_build_from_file(&cfg, path);
+        if (!ctx->doc)
+                r = parse_failed(ctx, diag);
+        if (diag)
+                fy_diag_unref(diag);
+        return r;
+}
+
+int yconf_open(struct yconf *ctx, const char *path, char *err, size_t errlen)
+{
+        FILE *f = fopen(path, "re");
+
+        if (!f) {
+                int r = -errno;
+                memset(ctx, 0, sizeof(*ctx));
+                snprintf(err, errlen, "%s: %s", path, strerror(-r));
+                return r;
+        }
+        fclose(f);
+        return open_common(ctx, path, NULL, err, errlen);
+}
+
+int yconf_open_string(struct yconf *ctx, const char *name, const char *text, char *err,
+                      size_t errlen)
+{
+        return open_common(ctx, name, text, err, errlen);
+}
+
+void yconf_close(struct yconf *ctx)
+{
+        if (ctx->doc)
+                fy_document_destroy(ctx->doc);
+        ctx->doc = NULL;
+}
+
+struct fy_node *yconf_root(struct yconf *ctx)
+{
+        return ctx->doc ? fy_document_root(ctx->doc) : NULL;
+}
+
+struct fy_node *yconf_get(struct fy_node *map, const char *key)
+{
+        if (!map || fy_node_get_type(map) != FYNT_MAPPING)
+                return NULL;
+        return fy_node_mapping_lookup_by_string(map, key, FY_NT);
+}
+
+int yconf_line(struct fy_node *node)
+{
+        const struct fy_mark *m = NULL;
+        void *iter = NULL;
+
+        /* libfyaml 0.7 marks only tokens: use the first scalar inside a collection */
+        switch (node ? fy_node_get_type(node) : FYNT_SCALAR) {
+        case FYNT_SCALAR:
+                if (node && fy_node_get_scalar_token(node))
+                        m = fy_token_start_mark(fy_node_get_scalar_token(node));
+                break;
+        case FYNT_MAPPING: {
+                struct fy_node_pair *pair = fy_node_mapping_iterate(node, &iter);
+                return pair ? yconf_line(fy_node_pair_key(pair)) : 0;
+        }
+        case FYNT_SEQUENCE:
+                return yconf_line(fy_node_sequence_iterate(node, &iter));
+        }
+        return m ? (int)m->line + 1 : 0;
+}
+
+int yconf_error(struct yconf *ctx, struct fy_node *node, const char *key, const char *fmt, ...)
+{
+        char msg[512];
+        va_list ap;
+
+        if (ctx->err && ctx->err[0]) /* keep the first error */
+                return -EINVAL;
+        va_start(ap, fmt);
+        vsnprintf(msg, sizeof(msg), fmt, ap);
+        va_end(ap);
+        if (ctx->err)
+                snprintf(ctx->err, ctx->errlen, "%s:%d: key '%s': %s", ctx->path,
+                         yconf_line(node), key ? key : "(root)", msg);
+        return -EINVAL;
+}
+
+int yconf_check_keys(struct yconf *ctx, struct fy_node *map, const char *const *allowed)
+{
+        struct fy_node_pair *pair;
+        void *iter = NULL;
+
+        if (!map || fy_node_get_type(map) != FYNT_MAPPING)
+                return yconf_error(ctx, map, NULL, "expected a mapping");
+        while ((pair = fy_node_mapping_iterate(map, &iter))) {
+                struct fy_node *k = fy_node_pair_key(pair);
+                const char *name = fy_node_get_scalar0(k);
+                bool ok = false;
+
+                for (const char *const *a = allowed; name && *a; a++)
+                        ok = ok || strcmp(*a, name) == 0;
+                if (!ok)
+                        return yconf_error(ctx, k, name ? name : "?", "unknown key");
+        }
+        return 0;
+}
+
+/* Fetches the scalar text of map[key]: 0 absent, 1 found, -EINVAL not a scalar. */
+static int scalar(struct yconf *ctx, struct fy_node *map, const char *key, struct fy_node **node,
+                  const char **text)
+{
+        struct fy_node *n = yconf_get(map, key);
+
+        *node = n;
+        if (!n)
+                return 0;
+        if (fy_node_get_type(n) != FYNT_SCALAR)
+                return yconf_error(ctx, n, key, "expected a single value");
+        *text = fy_node_get_scalar0(n);
+        return *text ? 1 : yconf_error(ctx, n, key, "cannot read value");
+}
+
+int yconf_expand(const char *src, char *out, size_t outlen)
+{
+        size_t o = 0;
+
+        while (*src) {
+                if (src[0] == '$' && src[1] == '{' && strchr(src, '}')) {
+                        const char *end = strchr(src, '}');
+                        char name[128] = "", *def;
+                        size_t n = MIN((size_t)(end - src - 2), sizeof(name) - 1);
+                        const char *val;
+
+                        memcpy(name, src + 2, n);
+                        name[n] = 0;
+                        def = strstr(name, ":-");
+                        if (def)
+                                *def = 0, def += 2;
+                        val = getenv(name);
+                        if (!val || (!*val && def))
+                                val = def ? def : "";
+                        for (; *val; val++) {
+                                if (o + 1 >= outlen)
+                                        return -ENAMETOOLONG;
+                                out[o++] = *val;
+                        }
+                        src = end + 1;
+                        continue;
+                }
+                if (o + 1 >= outlen)
+                        return -ENAMETOOLONG;
+                out[o++] = *src++;
+        }
+        out[o] = 0;
+        return 0;
+}
+
+int yconf_str(struct yconf *ctx, struct fy_node *map, const char *key, char *out, size_t outlen)
+{
+        struct fy_node *n;
+        const char *text;
+        int r = scalar(ctx, map, key, &n, &text);
+
+        if (r <= 0)
+                return r;
+        if (yconf_expand(text, out, outlen) < 0)
+                return yconf_error(ctx, n, key, "value too long (at most %zu bytes)", outlen - 1);
+        return 1;
+}
+
+int yconf_str_req(struct yconf *ctx, struct fy_node *map, const char *key, char *out,
+                  size_t outlen)
+{
+        int r = yconf_str(ctx, map, key, out, outlen);
+
+        if (r == 0)
+                return yconf_error(ctx, map, key, "required key is missing");
+        if (r > 0 && !out[0])
+                return yconf_error(ctx, yconf_get(map, key), key, "must not be empty");
+        return r;
+}
+
+static int parse_double(struct yconf *ctx, struct fy_node *n, const char *key, const char *text,
+                        double min, double max, double *out)
+{
+        char *end;
+        double v;
+
+        errno = 0;
+        v = strtod(text, &end);
+        if (errno || end == text || *end || !isfinite(v))
+                return yconf_error(ctx, n, key, "'%s' is not a number", text);
+        if (v < min || v > max)
+                return yconf_error(ctx, n, key, "%g is out of range [%g, %g]", v, min, max);
+        *out = v;
+        return 1;
+}
+
+int yconf_double(struct yconf *ctx, struct fy_node *map, const char *key, double min, double max,
+                 double *out)
+{
+        struct fy_node *n;
+        const char *text;
+        int r = scalar(ctx, map, key, &n, &text);
+
+        return r <= 0 ? r : parse_double(ctx, n, key, text, min, max, out);
+}
+
+int yconf_int(struct yconf *ctx, struct fy_node *map, const char *key, long min, long max,
+              long *out)
+{
+        struct fy_node *n;
+        const char *text;
+        char *end;
+        long v;
+        int r = scalar(ctx, map, key, &n, &text);
+
+        if (r <= 0)
+                return r;
+        errno = 0;
+        v = strtol(text, &end, 0);
+        if (errno || end == text || *end)
+                return yconf_error(ctx, n, key, "'%s' is not an integer", text);
+        if (v < min || v > max)
+                return yconf_error(ctx, n, key, "%ld is out of range [%ld, %ld]", v, min, max);
+        *out = v;
+        return 1;
+}
+
+int yconf_bool(struct yconf *ctx, struct fy_node *map, const char *key, bool *out)
+{
+        static const char *const yes[] = { "true", "yes", "on", "1" };
+        static const char *const no[] = { "false", "no", "off", "0" };
+        struct fy_node *n;
+        const char *text;
+        int r = scalar(ctx, map, key, &n, &text);
+
+        if (r <= 0)
+                return r;
+        for (size_t i = 0; i < ELEMENTSOF(yes); i++) {
+                if (strcasecmp(text, yes[i]) == 0)
+                        return *out = true, 1;
+                if (strcasecmp(text, no[i]) == 0)
+                        return *out = false, 1;
+        }
+        return yconf_error(ctx, n, key, "'%s' is not a boolean (true/false)", text);
+}
+
+int yconf_seq_len(struct yconf *ctx, struct fy_node *seq, const char *key)
+{
+        if (!seq || fy_node_get_type(seq) != FYNT_SEQUENCE)
+                return yconf_error(ctx, seq, key, "expected a list");
+        return fy_node_sequence_item_count(seq);
+}
+
+struct fy_node *yconf_seq_item(struct fy_node *seq, int i)
+{
+        return fy_node_sequence_get_by_index(seq, i);
+}
+
+int yconf_doubles(struct yconf *ctx, struct fy_node *map, const char *key, double *out,
+                  size_t nmin, size_t n, size_t *count)
+{
+        struct fy_node *seq = yconf_get(map, key);
+        int len;
+
+        if (!seq)
+                return 0;
+        len = yconf_seq_len(ctx, seq, key);
+        if (len < 0)
+                return len;
+        if ((size_t)len < MIN(nmin, n) || (size_t)len > n)
+                return nmin < n ? yconf_error(ctx, seq, key, "expected %zu to %zu numbers, got %d",
+                                              nmin, n, len)
+                                : yconf_error(ctx, seq, key, "expected %zu numbers, got %d", n,
+                                              len);
+        for (int i = 0; i < len; i++) {
+                struct fy_node *item = yconf_seq_item(seq, i);
+                const char *text = fy_node_get_type(item) == FYNT_SCALAR
+                                           ? fy_node_get_scalar0(item)
+                                           : NULL;
+                int r;
+
+                if (!text)
+                        return yconf_error(ctx, item, key, "item %d is not a number", i);
+                r = parse_double(ctx, item, key, text, -INFINITY, INFINITY, &out[i]);
+                if (r < 0)
+                        return r;
+        }
+        if (count)
+                *count = len;
+        return 1;
+}

@@ -14,6 +14,7 @@
 #pragma once
 
 #include <stdbool.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #include "common/frame.h"
@@ -42,20 +43,37 @@ struct ds_capture {
 };
 
 /* Creates a new dataset directory at path (must not exist, parent must) and stores
- * rig_text as rig.yaml. Returns 0, -EEXIST, or -errno. */
+ * rig_text as rig.yaml (NULL: no rig file). Returns 0, -EEXIST, or -errno; a failed
+ * create removes what it made. */
 int ds_create(const char *path, const char *name, const char *rig_text, struct ds **ret);
 
 /* Opens an existing dataset for appending or reading. Returns 0, -ENOENT, -EBADMSG
  * (not a dataset / corrupt index) or -errno. */
 int ds_open(const char *path, struct ds **ret);
 
-/* Rewrites dataset.json, closes the index. NULL is a no-op. Returns NULL. */
+/* Rewrites dataset.json (when this handle stored captures), closes the index. NULL is a
+ * no-op. Returns NULL. */
 struct ds *ds_close(struct ds *d);
+
+/* Sets the zlib level (0-9) of the PNGs written by ds_store; the default is
+ * DS_PNG_LEVEL_DEFAULT (1, fast). Returns 0 or -EINVAL. */
+int ds_set_compression(struct ds *d, int level);
+
+/* The zlib level set by ds_set_compression. */
+int ds_get_compression(const struct ds *d);
 
 /* Encodes frame as PNG, writes it atomically, computes its SHA-256 and commits the
  * row. Fills c->id, c->file, c->sha256, c->width, c->height, c->pixfmt, c->t_stored_ns.
- * Returns 0, -ENOSPC (nothing recorded, no file left behind), or -errno. */
+ * Returns 0, -ENOSPC (nothing recorded, no file left behind), -EBUSY (another handle
+ * is the dataset's writer), or the -errno of the failing call (-EFBIG, -EDQUOT...). */
 int ds_store(struct ds *d, const struct gn_frame *frame, struct ds_capture *c);
+
+/* Like ds_store for an image already encoded with ds_png_encode (daemon/ds_png.h):
+ * png holds len bytes encoding a frame of shape's width, height, channels and bits
+ * (shape->data is not read). Lets ds_pool encode on several threads and write on one.
+ * Same returns and effects as ds_store. */
+int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_frame *shape,
+                 struct ds_capture *c);
 
 /* Number of rows. */
 int64_t ds_count(struct ds *d);

@@ -25,7 +25,8 @@ struct opt_desc {
         double min, max;
 };
 
-/* The option's name as used in the protocol ("position", "exposure", ...). */
+/* The option's name as used in the protocol ("position", "exposure", ...); "unknown" for a
+ * value outside the enum. Never NULL. */
 const char *opt_key_name(enum opt_key key);
 
 /* The entry for key in a table of n entries, or NULL when the driver lacks it. */

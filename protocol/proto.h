@@ -38,14 +38,18 @@ struct proto_lines {
         char *buf;
         size_t len, cap;
         bool discarding; /* inside an over-long line, dropping until '\n' */
+        size_t start;    /* bytes at the front of buf already handed out by _next */
 };
 
-/* Appends received bytes. Returns 0 or -ENOMEM. */
+/* Appends received bytes (a zeroed struct is an empty framer). Memory stays bounded by
+ * PROTO_MAX_LINE plus one feed as long as the caller drains with proto_lines_next after
+ * each feed. Returns 0 or -ENOMEM. */
 int proto_lines_feed(struct proto_lines *pl, const char *data, size_t n);
 
-/* Pops the next complete line (without '\n', NUL-terminated) into *line, which stays
- * valid until the next feed/next call. Returns 1 for a line, 0 when none is complete,
- * -EMSGSIZE once for each line longer than PROTO_MAX_LINE (which is dropped). */
+/* Pops the next complete line (without '\n' or a trailing '\r', NUL-terminated) into
+ * *line, which stays valid until the next feed/next call; empty lines are skipped.
+ * Returns 1 for a line, 0 when none is complete, -EMSGSIZE once for each line longer
+ * than PROTO_MAX_LINE including its '\n' (which is dropped; framing then resumes). */
 int proto_lines_next(struct proto_lines *pl, char **line, size_t *len);
 
 /* Frees the buffer. */
@@ -58,7 +62,7 @@ struct proto_msg {
         json_t *root;
         enum proto_kind kind;
         const char *method; /* request / notification */
-        json_t *params;     /* object or NULL */
+        json_t *params;     /* object, array or NULL (absent) */
         json_t *id;         /* request / response; NULL for notification */
         json_t *result;     /* response */
         json_t *error;      /* response */
@@ -66,21 +70,35 @@ struct proto_msg {
 
 /* Parses and validates one line. On failure returns PROTO_PARSE_ERROR or
  * PROTO_INVALID_REQUEST with a message in err, and *id_out (if non-NULL) gets a new
- * reference to the id when one could be read. Returns 0 on success; json_decref(msg->root). */
+ * reference to the id when one could be read (else NULL; always NULL on success).
+ * Returns 0 on success; the caller then owns msg->root (json_decref it). */
 int proto_parse(const char *line, size_t len, struct proto_msg *msg, json_t **id_out, char *err,
                 size_t errlen);
 
-/* Builders; each returns a new reference (NULL on ENOMEM). params/result are stolen. */
+/* Builders; each returns a new reference (NULL on ENOMEM). params/result/data are stolen
+ * (NULL params are omitted, a NULL result becomes {}); id is borrowed (NULL means null). */
 json_t *proto_request(json_int_t id, const char *method, json_t *params);
 json_t *proto_notification(const char *method, json_t *params);
 json_t *proto_result(json_t *id, json_t *result);
 json_t *proto_error(json_t *id, int code, const char *message, json_t *data);
 
-/* Serialises msg compactly with a trailing '\n'. Returns a malloc'd string or NULL. */
+/* Serialises msg compactly with a trailing '\n'. Returns a malloc'd string (free it) or
+ * NULL with errno ENOMEM, or EMSGSIZE when the line would exceed PROTO_MAX_LINE. */
 char *proto_dump(const json_t *msg, size_t *len);
 
-/* The JSON-RPC code for a -errno (the one table). */
+/* The JSON-RPC code for a -errno or errno (the one table); PROTO_INTERNAL_ERROR for an
+ * errno the table lacks. */
 int proto_errno_to_code(int err);
 
-/* The errno a client maps an error code back to (for exit codes). */
+/* The positive errno a client maps an error code back to (for exit codes); EPROTO for
+ * codes the table lacks. */
 int proto_code_to_errno(int code);
+
+/* An error response for -errno err: code from the table, data {"errno": "ENOENT"}.
+ * message is copied; id is borrowed. Returns a new reference or NULL (ENOMEM). */
+json_t *proto_error_errno(json_t *id, int err, const char *message);
+
+/* Writes the default socket path into buf: $GONIO_SOCKET, else
+ * $XDG_RUNTIME_DIR/gonio/goniod.sock, else /run/gonio/goniod.sock.
+ * Returns 0 or -ENAMETOOLONG (longer than size or than sun_path). */
+int proto_socket_path(char *buf, size_t size);

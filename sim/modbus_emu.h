@@ -42,5 +42,7 @@ const char *sim_emu_pty(struct sim_emu *e, const char *bus);
 /* The TCP port of bus name (TCP), or -ENOENT. */
 int sim_emu_tcp_port(struct sim_emu *e, const char *bus);
 
-/* Injects a fault into the device at (bus, unit); SIM_FAULT_NONE clears it. 0 or -ENOENT. */
+/* Injects a fault into the device at (bus, unit); SIM_FAULT_NONE clears it (a latched
+ * stall stays until the drive's reset command). Returns 0, -ENOENT for an unknown
+ * device, -EINVAL for a stall of a device that is no axis. Any thread. */
 int sim_emu_inject(struct sim_emu *e, const char *bus, int unit, enum sim_fault fault);

@@ -39,6 +39,9 @@ struct axis {
         struct bus *bus;                  /* borrowed */
         void *priv;                       /* backend state */
         struct axis_state state;          /* last confirmed state */
+        /* borrowed, optional, set by the caller before axis_open(): rig-wide tables such as
+         * Modbus register profiles; without it only built-in profiles are known */
+        const struct rig_config *rig;
 };
 
 /* Creates the axis for conf with the backend named there (drivers/registry.c).
@@ -60,6 +63,11 @@ int axis_move_abs(struct axis *ax, double deg); /* checks limits first: -ERANGE 
 int axis_stop(struct axis *ax);
 int axis_reset(struct axis *ax);
 int axis_poll(struct axis *ax); /* refreshes ax->state */
+
+/* Logs "axis 'NAME' [BACKEND@PORT#UNIT]: message" at level (GN_LOG_*); %m prints err.
+ * Returns -abs(err). Any thread. */
+int axis_log_full(const struct axis *ax, int level, int err, const char *fmt, ...)
+        __attribute__((format(printf, 4, 5)));
 
 /* Estimated duration of a move of delta degrees with a trapezoidal profile, in seconds. */
 double axis_move_time(double delta_deg, double max_speed, double accel);

@@ -38,5 +38,10 @@ struct sw *sw_free(struct sw *s);
 
 /* Open/set/get wrappers that log "switch 'NAME' [...]: ..." on failure; 0 or -errno. */
 int sw_open(struct sw *s);
-int sw_set(struct sw *s, bool on); /* writes, reads back, then updates s->on */
+int sw_set(struct sw *s, bool on); /* writes, reads back, updates s->on, waits warmup_ms if on */
 int sw_get(struct sw *s, bool *on);
+
+/* Logs "switch 'NAME' [BACKEND@PORT#UNIT]: message" at level (GN_LOG_*); %m prints err.
+ * Returns -abs(err). Any thread. */
+int sw_log_full(const struct sw *s, int level, int err, const char *fmt, ...)
+        __attribute__((format(printf, 4, 5)));

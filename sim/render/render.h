@@ -83,3 +83,13 @@ int sim_laser_plane(const struct sim_scene *s, double n[3], double *d);
 
 /* Frees the arrays of a truth struct. */
 void sim_truth_free(struct sim_truth *t);
+
+/* Projects world point p (mm) with camera geometry g (OpenCV model, same as projectPoints)
+ * into pixel coordinates uv. Returns 0, or -EDOM when p is not in front of the camera. */
+int sim_cam_project(const struct sim_cam_geom *g, const double p[3], double uv[2]);
+
+/* Pose of calibration target i (order of scene.targets) in state st: world point =
+ * R * board point + t, board frame as documented in docs/sim-render.md. Returns 0 or
+ * -EINVAL. */
+int sim_target_pose(const struct sim_scene *s, const struct sim_rig_state *st, int target,
+                    double R[9], double t[3]);

@@ -1,0 +1,213 @@
+/* args.c - gonioctl's option parser: a table of long options, values checked here,
+ * and which command accepts which option checked by cmd.c. */
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "client/args.h"
+#include "common/cleanup.h"
+
+enum opt_id {
+        O_SOCKET,
+        O_JSON,
+        O_TIMEOUT,
+        O_QUIET,
+        O_HELP,
+        O_VERSION,
+        O_RELATIVE,
+        O_NO_WAIT,
+        O_CAMERA,
+        O_EXPOSURE,
+        O_GAIN,
+        O_BITS,
+        O_COUNT,
+};
+
+static const struct {
+        const char *name;
+        enum opt_id id;
+        bool has_arg;
+        unsigned bit; /* enum arg_opt for command options, 0 for global ones */
+} options[] = {
+        { "socket", O_SOCKET, true, 0 },
+        { "json", O_JSON, false, 0 },
+        { "timeout", O_TIMEOUT, true, 0 },
+        { "quiet", O_QUIET, false, 0 },
+        { "help", O_HELP, false, 0 },
+        { "version", O_VERSION, false, 0 },
+        { "relative", O_RELATIVE, false, ARG_RELATIVE },
+        { "no-wait", O_NO_WAIT, false, ARG_NO_WAIT },
+        { "camera", O_CAMERA, true, ARG_CAMERA },
+        { "exposure", O_EXPOSURE, true, ARG_EXPOSURE },
+        { "gain", O_GAIN, true, ARG_GAIN },
+        { "bits", O_BITS, true, ARG_BITS },
+        { "count", O_COUNT, true, ARG_COUNT },
+};
+
+int args_usage_error(const char *what, const char *fmt, ...)
+{
+        va_list ap;
+
+        fprintf(stderr, "gonioctl: %s: ", what);
+        va_start(ap, fmt);
+        vfprintf(stderr, fmt, ap);
+        va_end(ap);
+        fprintf(stderr, "\nTry 'gonioctl --help'.\n");
+        return -EINVAL;
+}
+
+const char *args_opt_name(unsigned bit)
+{
+        for (size_t k = 0; k < ELEMENTSOF(options); k++)
+                if (bit != 0 && options[k].bit == bit)
+                        return options[k].name;
+        return NULL;
+}
+
+int args_parse_double(const char *s, double *ret)
+{
+        char *end;
+        double v;
+
+        errno = 0;
+        v = strtod(s, &end);
+        if (errno != 0 || end == s || *end != '\0' || !isfinite(v))
+                return -EINVAL;
+        *ret = v;
+        return 0;
+}
+
+int args_parse_long(const char *s, long min, long max, long *ret)
+{
+        char *end;
+        long v;
+
+        errno = 0;
+        v = strtol(s, &end, 10);
+        if (errno != 0 || end == s || *end != '\0' || v < min || v > max)
+                return -EINVAL;
+        *ret = v;
+        return 0;
+}
+
+/* Stores the value of option id. Returns 0 or -EINVAL (message printed). */
+static int set_value(struct args *a, enum opt_id id, const char *v)
+{
+        long l;
+
+        switch (id) {
+        case O_SOCKET:
+                a->socket = v;
+                return 0;
+        case O_TIMEOUT:
+                if (args_parse_double(v, &a->timeout_s) < 0 || a->timeout_s <= 0 ||
+                    a->timeout_s > 86400)
+                        break;
+                return 0;
+        case O_CAMERA:
+                a->camera = v;
+                return 0;
+        case O_EXPOSURE:
+                return args_parse_long(v, 1, INT_MAX, &a->exposure_us) < 0 ? -EINVAL : 0;
+        case O_GAIN:
+                if (args_parse_double(v, &a->gain) < 0 || a->gain < 0)
+                        break;
+                return 0;
+        case O_BITS:
+                if (args_parse_long(v, 8, 16, &l) < 0 || (l != 8 && l != 16))
+                        break;
+                a->bits = (int)l;
+                return 0;
+        case O_COUNT:
+                return args_parse_long(v, 1, LONG_MAX, &a->count) < 0 ? -EINVAL : 0;
+        default:
+                break;
+        }
+        return -EINVAL;
+}
+
+static void set_flag(struct args *a, enum opt_id id)
+{
+        a->json |= id == O_JSON;
+        a->quiet |= id == O_QUIET;
+        a->help |= id == O_HELP;
+        a->version |= id == O_VERSION;
+}
+
+/* Handles argv[*i] = "--name[=value]"; advances *i past a separate value. */
+static int parse_option(struct args *a, int argc, char **argv, int *i)
+{
+        const char *arg = argv[*i] + 2, *eq = strchr(arg, '=');
+        size_t n = eq ? (size_t)(eq - arg) : strlen(arg);
+
+        for (size_t k = 0; k < ELEMENTSOF(options); k++) {
+                const char *v = eq ? eq + 1 : NULL;
+
+                if (strlen(options[k].name) != n || strncmp(options[k].name, arg, n) != 0)
+                        continue;
+                a->given |= options[k].bit;
+                if (!options[k].has_arg) {
+                        if (eq)
+                                return args_usage_error(argv[*i], "takes no value");
+                        set_flag(a, options[k].id);
+                        return 0;
+                }
+                if (!v && *i + 1 >= argc)
+                        return args_usage_error(argv[*i], "needs a value");
+                if (!v)
+                        v = argv[++*i];
+                if (set_value(a, options[k].id, v) < 0)
+                        return args_usage_error(options[k].name, "invalid value '%s'", v);
+                return 0;
+        }
+        return args_usage_error(argv[*i], "unknown option");
+}
+
+/* True for words that are options: "-x" or "--x", but not numbers like "-10" or "-.5". */
+static bool is_option(const char *s)
+{
+        return s[0] == '-' && s[1] != '\0' && s[1] != '.' && (s[1] < '0' || s[1] > '9');
+}
+
+int args_parse(int argc, char **argv, struct args *a)
+{
+        bool options_done = false;
+
+        *a = (struct args){};
+        a->words = calloc((size_t)MAX(argc, 1), sizeof(char *));
+        if (!a->words)
+                return -ENOMEM;
+        for (int i = 1; i < argc; i++) {
+                const char *s = argv[i];
+                int r;
+
+                if (options_done || !is_option(s)) {
+                        a->words[a->nwords++] = argv[i];
+                        continue;
+                }
+                if (strcmp(s, "--") == 0) {
+                        options_done = true;
+                        continue;
+                }
+                if (strcmp(s, "-h") == 0) {
+                        a->help = true;
+                        continue;
+                }
+                if (s[1] != '-')
+                        return args_usage_error(s, "unknown option");
+                r = parse_option(a, argc, argv, &i);
+                if (r < 0)
+                        return r;
+        }
+        return 0;
+}
+
+void args_done(struct args *a)
+{
+        free(a->words);
+        a->words = NULL;
+}

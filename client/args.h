@@ -1,0 +1,50 @@
+/* args.h - gonioctl's command line: global and per-command long options (accepted
+ * anywhere, "--opt VALUE" or "--opt=VALUE", "--" ends options) and the positional
+ * words. Negative numbers ("-10") are positional, so `move camera_arm -10` works. */
+#pragma once
+
+#include <stdbool.h>
+
+/* Options that only some commands accept (struct cmd lists which). */
+enum arg_opt {
+        ARG_RELATIVE = 1 << 0,
+        ARG_NO_WAIT = 1 << 1,
+        ARG_CAMERA = 1 << 2,
+        ARG_EXPOSURE = 1 << 3,
+        ARG_GAIN = 1 << 4,
+        ARG_BITS = 1 << 5,
+        ARG_COUNT = 1 << 6,
+};
+
+struct args {
+        const char *socket;  /* --socket, NULL for the default path */
+        bool json, quiet, help, version;
+        double timeout_s;    /* --timeout, 0 when not given */
+        unsigned given;      /* enum arg_opt bits seen */
+        const char *camera;  /* --camera */
+        long exposure_us;    /* --exposure */
+        double gain;         /* --gain */
+        int bits;            /* --bits */
+        long count;          /* --count */
+        char **words;        /* positional words (command first); borrowed from argv */
+        int nwords;
+};
+
+/* Parses argv into a (zeroed first). Returns 0, or -EINVAL after printing the problem to
+ * stderr (exit code 2), or -ENOMEM. Free a->words with args_done. */
+int args_parse(int argc, char **argv, struct args *a);
+
+/* Frees what args_parse allocated. */
+void args_done(struct args *a);
+
+/* Prints "gonioctl: <what>: <message>" and a hint to stderr; returns -EINVAL. */
+int args_usage_error(const char *what, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+/* The long name of an enum arg_opt bit ("relative"), or NULL. */
+const char *args_opt_name(unsigned bit);
+
+/* Parses a whole decimal number (strtod rules, must be finite). Returns 0 or -EINVAL. */
+int args_parse_double(const char *s, double *ret);
+
+/* Parses a whole decimal integer in [min, max]. Returns 0 or -EINVAL. */
+int args_parse_long(const char *s, long min, long max, long *ret);

@@ -1,0 +1,445 @@
+/* cmd.c - gonioctl's subcommands as data: each row says how to build the params of one
+ * JSON-RPC method from the command line and how to print its result. One runner does
+ * the rest: connect, hello (checks the protocol version), call, print, exit code. */
+#include <errno.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <string.h>
+#include <sys/signalfd.h>
+
+#include "client/cmd.h"
+#include "client/conn.h"
+#include "client/output.h"
+#include "common/cleanup.h"
+#include "protocol/proto.h"
+
+#define TIMEOUT_S      30  /* connect, hello and quick requests */
+#define TIMEOUT_LONG_S 120 /* home, move, capture */
+#define USAGE_COL      36  /* width of the synopsis column of --help */
+
+struct cmd;
+
+/* Builds the params of c's request from its positional arguments (argv[0..argc)).
+ * Returns 0 or -EINVAL after printing a usage error. */
+typedef int (*params_fn)(const struct cmd *c, const struct args *a, char **argv, int argc,
+                         json_t **ret);
+
+struct cmd {
+        const char *group;    /* "dataset", "fault", or NULL */
+        const char *name;
+        const char *args;     /* synopsis of the arguments, for usage */
+        const char *help;
+        const char *method;   /* NULL: the first argument names it (call) */
+        int min_args, max_args;
+        unsigned opts;        /* enum arg_opt accepted */
+        int timeout_s;        /* default reply timeout */
+        params_fn params;     /* NULL: {} */
+        out_print_fn print;   /* human output */
+        const char *done;     /* human output when print is NULL */
+        bool watch;
+};
+
+/* "move", "dataset open": the words naming c, for messages. */
+static const char *cmd_title(const struct cmd *c, char *buf, size_t n)
+{
+        snprintf(buf, n, "%s%s%s", c->group ?: "", c->group ? " " : "", c->name);
+        return buf;
+}
+
+static int usage_error(const struct cmd *c, const char *fmt, ...)
+        __attribute__((format(printf, 2, 3)));
+
+static int usage_error(const struct cmd *c, const char *fmt, ...)
+{
+        char t[64], msg[256];
+        va_list ap;
+
+        va_start(ap, fmt);
+        vsnprintf(msg, sizeof(msg), fmt, ap);
+        va_end(ap);
+        return args_usage_error(cmd_title(c, t, sizeof(t)), "%s", msg);
+}
+
+/* Sets key to a stolen value; returns -ENOMEM if either is missing. */
+static int set(json_t *o, const char *key, json_t *v)
+{
+        return v && json_object_set_new(o, key, v) == 0 ? 0 : -ENOMEM;
+}
+
+static int parse_onoff(const struct cmd *c, const char *s, bool *on)
+{
+        if (strcmp(s, "on") != 0 && strcmp(s, "off") != 0)
+                return usage_error(c, "expected on or off, not '%s'", s);
+        *on = strcmp(s, "on") == 0;
+        return 0;
+}
+
+static int p_home(const struct cmd *c, const struct args *a, char **argv, int argc, json_t **ret)
+{
+        json_t *axes;
+
+        if (argc == 0)
+                return 0; /* {}: all axes */
+        axes = json_array();
+        for (int i = 0; axes && i < argc; i++)
+                if (json_array_append_new(axes, json_string(argv[i])) < 0) {
+                        json_decref(axes);
+                        return -ENOMEM;
+                }
+        return set(*ret, "axes", axes);
+}
+
+static int p_move(const struct cmd *c, const struct args *a, char **argv, int argc, json_t **ret)
+{
+        double pos;
+
+        if (args_parse_double(argv[1], &pos) < 0)
+                return usage_error(c, "invalid position '%s' (degrees)", argv[1]);
+        if (set(*ret, "axis", json_string(argv[0])) < 0 ||
+            set(*ret, "position", json_real(pos)) < 0 ||
+            set(*ret, "relative", json_boolean(a->given & ARG_RELATIVE)) < 0)
+                return -ENOMEM;
+        return set(*ret, "wait", json_boolean(!(a->given & ARG_NO_WAIT)));
+}
+
+static int p_lamp(const struct cmd *c, const struct args *a, char **argv, int argc, json_t **ret)
+{
+        bool digits = argv[0][strspn(argv[0], "0123456789")] == '\0';
+        long index;
+        bool on = false;
+
+        if (parse_onoff(c, argv[1], &on) < 0)
+                return -EINVAL;
+        if (digits && args_parse_long(argv[0], 0, INT32_MAX, &index) < 0)
+                return usage_error(c, "invalid lamp index '%s'", argv[0]);
+        if (set(*ret, "lamp", digits ? json_integer(index) : json_string(argv[0])) < 0)
+                return -ENOMEM;
+        return set(*ret, "on", json_boolean(on));
+}
+
+static int p_laser(const struct cmd *c, const struct args *a, char **argv, int argc, json_t **ret)
+{
+        bool on = false;
+
+        if (parse_onoff(c, argv[0], &on) < 0)
+                return -EINVAL;
+        return set(*ret, "on", json_boolean(on));
+}
+
+static int p_capture(const struct cmd *c, const struct args *a, char **argv, int argc,
+                     json_t **ret)
+{
+        if ((a->given & ARG_CAMERA) && set(*ret, "camera", json_string(a->camera)) < 0)
+                return -ENOMEM;
+        if ((a->given & ARG_EXPOSURE) && set(*ret, "exposure_us", json_integer(a->exposure_us)) < 0)
+                return -ENOMEM;
+        if ((a->given & ARG_GAIN) && set(*ret, "gain", json_real(a->gain)) < 0)
+                return -ENOMEM;
+        if ((a->given & ARG_BITS) && set(*ret, "bits", json_integer(a->bits)) < 0)
+                return -ENOMEM;
+        return 0;
+}
+
+/* {name} for dataset open/info, plus create:true for dataset create. */
+static int p_dataset(const struct cmd *c, const struct args *a, char **argv, int argc,
+                     json_t **ret)
+{
+        if (argc > 0 && set(*ret, "name", json_string(argv[0])) < 0)
+                return -ENOMEM;
+        if (strcmp(c->name, "create") == 0)
+                return set(*ret, "create", json_true());
+        return 0;
+}
+
+static int p_call(const struct cmd *c, const struct args *a, char **argv, int argc, json_t **ret)
+{
+        json_error_t jerr;
+        json_t *p;
+
+        if (argc < 2)
+                return 0;
+        p = json_loads(argv[1], 0, &jerr);
+        if (!json_is_object(p) && !json_is_array(p)) {
+                json_decref(p);
+                return usage_error(c, "params must be a JSON object or array: %s", argv[1]);
+        }
+        json_decref(*ret);
+        *ret = p;
+        return 0;
+}
+
+static const struct cmd commands[] = {
+        { NULL, "status", "", "rig state, axes, lamps, laser, cameras, dataset", "status", 0, 0,
+          0, TIMEOUT_S, NULL, out_print_status },
+        { NULL, "describe", "", "devices, backends and their options", "describe", 0, 0, 0,
+          TIMEOUT_S, NULL, out_print_describe },
+        { NULL, "home", "[AXIS...]", "home the given axes (default: all)", "home", 0, 64, 0,
+          TIMEOUT_LONG_S, p_home, out_print_home },
+        { NULL, "move", "AXIS DEG [--relative] [--no-wait]", "move an axis (degrees)", "move", 2,
+          2, ARG_RELATIVE | ARG_NO_WAIT, TIMEOUT_LONG_S, p_move, out_print_move },
+        { NULL, "stop", "", "stop all motion now", "stop", 0, 0, 0, TIMEOUT_S, NULL,
+          out_print_stop },
+        { NULL, "lamp", "N|NAME on|off", "switch a lamp", "lamp.set", 2, 2, 0, TIMEOUT_S, p_lamp,
+          out_print_lamp },
+        { NULL, "laser", "on|off", "switch the laser", "laser.set", 1, 1, 0, TIMEOUT_S, p_laser,
+          out_print_laser },
+        { NULL, "capture", "[--camera NAME] [--exposure US] [--gain G] [--bits 8|16]",
+          "capture into the open dataset", "capture", 0, 0,
+          ARG_CAMERA | ARG_EXPOSURE | ARG_GAIN | ARG_BITS, TIMEOUT_LONG_S, p_capture,
+          out_print_capture },
+        { "dataset", "list", "", "list the datasets", "dataset.list", 0, 0, 0, TIMEOUT_S, NULL,
+          out_print_dataset_list },
+        { "dataset", "info", "[NAME]", "a dataset (default: the open one) and its last captures",
+          "dataset.info", 0, 1, 0, TIMEOUT_S, p_dataset, out_print_dataset_info },
+        { "dataset", "open", "NAME", "open an existing dataset", "dataset.open", 1, 1, 0,
+          TIMEOUT_S, p_dataset, out_print_dataset },
+        { "dataset", "create", "NAME", "create and open a new dataset", "dataset.open", 1, 1, 0,
+          TIMEOUT_S, p_dataset, out_print_dataset },
+        { "dataset", "close", "", "close the open dataset", "dataset.close", 0, 0, 0, TIMEOUT_S,
+          NULL, NULL, "dataset closed" },
+        { "fault", "clear", "", "clear a latched fault", "fault.clear", 0, 0, 0, TIMEOUT_S, NULL,
+          NULL, "fault cleared" },
+        { NULL, "watch", "[--count N]", "print notifications until interrupted", NULL, 0, 0,
+          ARG_COUNT, TIMEOUT_S, NULL, NULL, NULL, true },
+        { NULL, "call", "METHOD [JSON-PARAMS]", "send any request, print its result", NULL, 1, 2,
+          0, TIMEOUT_S, p_call, out_print_pretty },
+};
+
+void cmd_usage(FILE *f)
+{
+        fprintf(f, "Usage: gonioctl [--socket PATH] [--json] [--timeout SEC] [--quiet] COMMAND "
+                   "[ARGS]\n\nCommands:\n");
+        for (size_t i = 0; i < ELEMENTSOF(commands); i++) {
+                const struct cmd *c = &commands[i];
+                char t[64], line[128];
+
+                snprintf(line, sizeof(line), "%s %s", cmd_title(c, t, sizeof(t)), c->args);
+                if (strlen(line) > USAGE_COL)
+                        fprintf(f, "  %s\n  %-*s %s\n", line, USAGE_COL, "", c->help);
+                else
+                        fprintf(f, "  %-*s %s\n", USAGE_COL, line, c->help);
+        }
+        fprintf(f, "\nOptions:\n"
+                   "  --socket PATH   goniod's socket (default $GONIO_SOCKET, else\n"
+                   "                  $XDG_RUNTIME_DIR/gonio/goniod.sock, else "
+                   "/run/gonio/goniod.sock)\n"
+                   "  --json          print results as one line of JSON\n"
+                   "  --timeout SEC   reply timeout (default 30, home/move/capture 120)\n"
+                   "  --quiet         print nothing on success\n"
+                   "  --help, --version\n"
+                   "\nExit codes: 0 ok, 2 usage, 3 cannot connect, 4 protocol error or timeout,\n"
+                   "5 device fault, 6 invalid/not found/out of range, 7 storage, 8 canceled,\n"
+                   "9 busy or wrong state. See gonioctl(1).\n");
+}
+
+/* Finds the command named by words; *used gets the number of words naming it. */
+static const struct cmd *find_cmd(char **words, int n, int *used)
+{
+        bool group = false;
+
+        for (size_t i = 0; i < ELEMENTSOF(commands); i++) {
+                const struct cmd *c = &commands[i];
+
+                if (!c->group && strcmp(c->name, words[0]) == 0) {
+                        *used = 1;
+                        return c;
+                }
+                if (c->group && strcmp(c->group, words[0]) == 0) {
+                        group = true;
+                        if (n > 1 && strcmp(c->name, words[1]) == 0) {
+                                *used = 2;
+                                return c;
+                        }
+                }
+        }
+        if (group && n > 1)
+                args_usage_error(words[0], "unknown subcommand '%s'", words[1]);
+        else if (group)
+                args_usage_error(words[0], "missing subcommand");
+        else
+                args_usage_error(words[0], "unknown command");
+        return NULL;
+}
+
+/* Checks options and argument count, then builds the params. Returns 0 or -EINVAL. */
+static int build_params(const struct cmd *c, const struct args *a, char **argv, int argc,
+                        json_t **ret)
+{
+        unsigned extra = a->given & ~c->opts;
+
+        if (extra)
+                return usage_error(c, "does not take --%s", args_opt_name(extra & -extra));
+        if (argc < c->min_args)
+                return usage_error(c, "missing arguments (usage: %s %s)", c->name, c->args);
+        if (argc > c->max_args)
+                return usage_error(c, "unexpected argument '%s'", argv[c->max_args]);
+        *ret = json_object();
+        if (!*ret)
+                return -ENOMEM;
+        return c->params ? c->params(c, a, argv, argc, ret) : 0;
+}
+
+int cmd_exit_for_code(int code)
+{
+        static const struct {
+                int err, exit;
+        } table[] = {
+                { EIO, EXIT_DEVICE },      { ETIMEDOUT, EXIT_DEVICE }, { EINVAL, EXIT_INVALID },
+                { ERANGE, EXIT_INVALID },  { ENOENT, EXIT_INVALID },   { ENOSYS, EXIT_INVALID },
+                { ENOSPC, EXIT_STORAGE },  { ECANCELED, EXIT_CANCELED }, { EBUSY, EXIT_BUSY },
+                { ESTALE, EXIT_BUSY },
+        };
+        int err = proto_code_to_errno(code);
+
+        for (size_t i = 0; i < ELEMENTSOF(table); i++)
+                if (table[i].err == err)
+                        return table[i].exit;
+        return EXIT_PROTOCOL;
+}
+
+/* Prints why a call of method failed and returns the exit code. */
+static int call_failed(struct out *o, const char *method, int r, const struct conn_error *e)
+{
+        if (r == -EREMOTEIO) {
+                out_error(o, method, "%s", e->message);
+                return cmd_exit_for_code(e->code);
+        }
+        if (r == -ETIMEDOUT)
+                out_error(o, method, "timed out waiting for the reply");
+        else if (r == -ECONNRESET)
+                out_error(o, method, "connection closed by goniod");
+        else if (e->message[0])
+                out_error(o, method, "%s", e->message);
+        else
+                out_error(o, method, "%s", strerror(-r));
+        return EXIT_PROTOCOL;
+}
+
+static void on_progress(const char *method, json_t *params, void *userdata)
+{
+        out_progress(userdata, method, params);
+}
+
+static void on_watch(const char *method, json_t *params, void *userdata)
+{
+        out_notification(userdata, method, params);
+}
+
+static int64_t deadline_after(double timeout_s)
+{
+        return conn_now_ms() + (int64_t)(timeout_s * 1000);
+}
+
+/* Connects and says hello. Returns EXIT_OK with *ret, or the exit code (error printed). */
+static int connect_hello(const struct args *a, struct out *o, struct conn **ret)
+{
+        char path[108];
+        struct conn_error e;
+        json_t *res = NULL, *params;
+        int64_t deadline = deadline_after(a->timeout_s > 0 ? a->timeout_s : TIMEOUT_S);
+        int r, proto;
+
+        if (a->socket)
+                r = snprintf(path, sizeof(path), "%s", a->socket) >= (int)sizeof(path)
+                            ? -ENAMETOOLONG
+                            : 0;
+        else
+                r = proto_socket_path(path, sizeof(path));
+        if (r >= 0)
+                r = conn_open(path, deadline, ret);
+        if (r < 0) {
+                out_error(o, "connect", "%s: %s", path, strerror(-r));
+                return EXIT_CONNECT;
+        }
+        params = json_pack("{s:s,s:i}", "client", "gonioctl/" GONIOCTL_VERSION, "protocol",
+                           PROTO_VERSION);
+        r = conn_call(*ret, "hello", params, deadline, NULL, NULL, &res, &e);
+        if (r < 0)
+                return call_failed(o, "hello", r, &e);
+        proto = (int)json_integer_value(json_object_get(res, "protocol"));
+        json_decref(res);
+        if (proto != PROTO_VERSION) {
+                out_error(o, "hello", "goniod speaks protocol %d, gonioctl speaks %d", proto,
+                          PROTO_VERSION);
+                return EXIT_PROTOCOL;
+        }
+        return EXIT_OK;
+}
+
+/* Prints notifications until SIGINT/SIGTERM, --count N, or --timeout. */
+static int run_watch(const struct args *a, struct out *o, struct conn *conn)
+{
+        int64_t deadline = a->timeout_s > 0 ? deadline_after(a->timeout_s) : CONN_NO_DEADLINE;
+        _cleanup_close_ int sfd = -EBADF;
+        struct conn_error e;
+        sigset_t mask;
+        long n = 0;
+
+        sigemptyset(&mask);
+        sigaddset(&mask, SIGINT);
+        sigaddset(&mask, SIGTERM);
+        if (sigprocmask(SIG_BLOCK, &mask, NULL) < 0 ||
+            (sfd = signalfd(-1, &mask, SFD_CLOEXEC)) < 0) {
+                out_error(o, "watch", "signalfd: %m");
+                return EXIT_PROTOCOL;
+        }
+        for (;;) {
+                int r = conn_wait_notification(conn, deadline, sfd, on_watch, o, &e);
+
+                if (r == -EINTR || r == -ETIMEDOUT)
+                        return EXIT_OK;
+                if (r < 0)
+                        return call_failed(o, "watch", r, &e);
+                if (a->count > 0 && ++n >= a->count)
+                        return EXIT_OK;
+        }
+}
+
+static int run_method(const struct cmd *c, const struct args *a, struct out *o,
+                      struct conn *conn, const char *method, json_t *params)
+{
+        double timeout_s = a->timeout_s > 0 ? a->timeout_s : c->timeout_s;
+        struct conn_error e;
+        json_t *res = NULL;
+        int r;
+
+        r = conn_call(conn, method, params, deadline_after(timeout_s), on_progress, o, &res, &e);
+        if (r < 0)
+                return call_failed(o, method, r, &e);
+        out_result(o, c->print, c->done, res);
+        json_decref(res);
+        return EXIT_OK;
+}
+
+int cmd_run(const struct args *a)
+{
+        _cleanup_(conn_freep) struct conn *conn = NULL;
+        const struct cmd *c;
+        json_t *params = NULL;
+        struct out o;
+        int used, r;
+
+        if (a->nwords == 0) {
+                args_usage_error("usage", "missing command");
+                return EXIT_USAGE;
+        }
+        c = find_cmd(a->words, a->nwords, &used);
+        if (!c)
+                return EXIT_USAGE;
+        r = build_params(c, a, a->words + used, a->nwords - used, &params);
+        if (r < 0) {
+                json_decref(params);
+                return r == -EINVAL ? EXIT_USAGE : EXIT_PROTOCOL;
+        }
+        out_init(&o, a->json, a->quiet);
+        r = connect_hello(a, &o, &conn);
+        if (r != EXIT_OK) {
+                json_decref(params);
+                return r;
+        }
+        if (c->watch) {
+                json_decref(params);
+                return run_watch(a, &o, conn);
+        }
+        return run_method(c, a, &o, conn, c->method ?: a->words[used], params);
+}

@@ -1,0 +1,31 @@
+/* cmd.h - gonioctl's subcommands: one table naming each command, its arguments, options,
+ * JSON-RPC method, reply timeout and printer, and the runner that connects, says hello,
+ * calls the method and maps the outcome to an exit code (docs/gonioctl.md). */
+#pragma once
+
+#include <stdio.h>
+
+#include "client/args.h"
+
+/* gonioctl's exit codes. */
+enum gonioctl_exit {
+        EXIT_OK = 0,
+        EXIT_USAGE = 2,    /* bad command line */
+        EXIT_CONNECT = 3,  /* cannot connect to goniod */
+        EXIT_PROTOCOL = 4, /* protocol error, bad reply, timeout waiting, connection lost */
+        EXIT_DEVICE = 5,   /* device fault or device timeout (-32003, -32004) */
+        EXIT_INVALID = 6,  /* invalid params, not found, out of range, no such method */
+        EXIT_STORAGE = 7,  /* storage error (-32006) */
+        EXIT_CANCELED = 8, /* canceled by stop (-32007) */
+        EXIT_BUSY = 9,     /* busy or wrong state (-32001, -32008) */
+};
+
+/* The exit code for a JSON-RPC error code from the server. */
+int cmd_exit_for_code(int code);
+
+/* Runs the command named by a->words. Returns an enum gonioctl_exit value; errors are
+ * printed to stderr as "gonioctl: <method>: <message>". */
+int cmd_run(const struct args *a);
+
+/* Prints the usage text (generated from the command table) to f. */
+void cmd_usage(FILE *f);

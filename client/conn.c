@@ -1,0 +1,273 @@
+/* conn.c - gonioctl's connection to goniod over a Unix stream socket: non-blocking I/O
+ * with poll() and a deadline on every wait, line framing and message validation from
+ * protocol/, one outstanding request at a time. */
+#include <errno.h>
+#include <poll.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <time.h>
+
+#include "client/conn.h"
+#include "common/cleanup.h"
+#include "protocol/proto.h"
+
+#define CONNECT_RETRY_MS 10 /* pause between connects while the listen backlog is full */
+
+struct conn {
+        int fd;
+        json_int_t next_id;
+        struct proto_lines lines;
+};
+
+int64_t conn_now_ms(void)
+{
+        struct timespec ts;
+
+        clock_gettime(CLOCK_MONOTONIC, &ts);
+        return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+}
+
+/* The poll() timeout left until deadline: -1 for none, else >= 0. */
+static int poll_timeout(int64_t deadline)
+{
+        int64_t left;
+
+        if (deadline == CONN_NO_DEADLINE)
+                return -1;
+        left = deadline - conn_now_ms();
+        return (int)CLAMP(left, 0, (int64_t)INT32_MAX);
+}
+
+/* Waits until fd is ready for events. Returns 0, -ETIMEDOUT, -EINTR (intr_fd readable). */
+static int wait_fd(int fd, short events, int64_t deadline, int intr_fd)
+{
+        struct pollfd p[2] = { { .fd = fd, .events = events }, { .fd = intr_fd, .events = POLLIN } };
+
+        for (;;) {
+                int r = poll(p, intr_fd >= 0 ? 2 : 1, poll_timeout(deadline));
+
+                if (r < 0 && errno == EINTR)
+                        continue;
+                if (r < 0)
+                        return -errno;
+                if (r == 0)
+                        return -ETIMEDOUT;
+                if (intr_fd >= 0 && p[1].revents)
+                        return -EINTR;
+                return 0;
+        }
+}
+
+static int connect_socket(int fd, const struct sockaddr_un *sa, int64_t deadline)
+{
+        for (;;) {
+                int err = 0;
+                socklen_t sl = sizeof(err);
+
+                if (connect(fd, (const struct sockaddr *)sa, sizeof(*sa)) == 0)
+                        return 0;
+                if (errno == EAGAIN) { /* Unix sockets: backlog full, try again shortly */
+                        if (conn_now_ms() + CONNECT_RETRY_MS > deadline)
+                                return -ETIMEDOUT;
+                        poll(NULL, 0, CONNECT_RETRY_MS);
+                        continue;
+                }
+                if (errno != EINPROGRESS)
+                        return -errno;
+                int r = wait_fd(fd, POLLOUT, deadline, -1);
+                if (r < 0)
+                        return r;
+                if (getsockopt(fd, SOL_SOCKET, SO_ERROR, &err, &sl) < 0)
+                        return -errno;
+                return -err;
+        }
+}
+
+int conn_open(const char *path, int64_t deadline, struct conn **ret)
+{
+        struct sockaddr_un sa = { .sun_family = AF_UNIX };
+        _cleanup_close_ int fd = -EBADF;
+        struct conn *c;
+        int r;
+
+        if (strlen(path) >= sizeof(sa.sun_path))
+                return -ENAMETOOLONG;
+        strcpy(sa.sun_path, path);
+        fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+        if (fd < 0)
+                return -errno;
+        r = connect_socket(fd, &sa, deadline);
+        if (r < 0)
+                return r;
+        c = calloc(1, sizeof(*c));
+        if (!c)
+                return -ENOMEM;
+        c->fd = TAKE_FD(fd);
+        c->next_id = 1;
+        *ret = c;
+        return 0;
+}
+
+struct conn *conn_free(struct conn *c)
+{
+        if (!c)
+                return NULL;
+        closep(&c->fd);
+        proto_lines_done(&c->lines);
+        free(c);
+        return NULL;
+}
+
+static int send_all(struct conn *c, const char *s, size_t n, int64_t deadline)
+{
+        while (n > 0) {
+                ssize_t k = send(c->fd, s, n, MSG_NOSIGNAL);
+
+                if (k < 0 && errno == EINTR)
+                        continue;
+                if (k < 0 && errno == EAGAIN) {
+                        int r = wait_fd(c->fd, POLLOUT, deadline, -1);
+                        if (r < 0)
+                                return r;
+                        continue;
+                }
+                if (k < 0)
+                        return errno == EPIPE ? -ECONNRESET : -errno;
+                s += k;
+                n -= (size_t)k;
+        }
+        return 0;
+}
+
+/* Reads what is available into the framer. Returns 0, -ECONNRESET on EOF, or -errno. */
+static int read_some(struct conn *c)
+{
+        char buf[16384];
+        ssize_t n = recv(c->fd, buf, sizeof(buf), 0);
+
+        if (n < 0)
+                return errno == EAGAIN || errno == EINTR ? 0 : -errno;
+        if (n == 0)
+                return -ECONNRESET;
+        return proto_lines_feed(&c->lines, buf, (size_t)n);
+}
+
+/* Reads the next valid message before deadline into *msg (json_decref(msg->root)). */
+static int read_msg(struct conn *c, int64_t deadline, int intr_fd, struct proto_msg *msg,
+                    struct conn_error *err)
+{
+        for (;;) {
+                char *line;
+                size_t len;
+                int r = proto_lines_next(&c->lines, &line, &len);
+
+                if (r == -EMSGSIZE) {
+                        snprintf(err->message, sizeof(err->message),
+                                 "message from server longer than %d bytes", PROTO_MAX_LINE);
+                        return r;
+                }
+                if (r > 0) {
+                        char why[256];
+
+                        if (proto_parse(line, len, msg, NULL, why, sizeof(why)) == 0)
+                                return 0;
+                        snprintf(err->message, sizeof(err->message), "bad message from server: %s",
+                                 why);
+                        return -EPROTO;
+                }
+                r = wait_fd(c->fd, POLLIN, deadline, intr_fd);
+                if (r >= 0)
+                        r = read_some(c);
+                if (r < 0)
+                        return r;
+        }
+}
+
+static void dispatch(const struct proto_msg *m, conn_notify_fn fn, void *userdata)
+{
+        if (fn && m->kind == PROTO_NOTIFICATION)
+                fn(m->method, json_is_object(m->params) ? m->params : NULL, userdata);
+}
+
+/* Handles the reply to request id: 0 with *result, or -EREMOTEIO with *err. */
+static int take_reply(const struct proto_msg *m, json_t **result, struct conn_error *err)
+{
+        if (m->result) {
+                *result = json_incref(m->result);
+                return 0;
+        }
+        err->code = (int)json_integer_value(json_object_get(m->error, "code"));
+        snprintf(err->message, sizeof(err->message), "%s",
+                 json_string_value(json_object_get(m->error, "message")));
+        return -EREMOTEIO;
+}
+
+static int send_request(struct conn *c, const char *method, json_t *params, int64_t deadline)
+{
+        json_t *req = proto_request(c->next_id, method, params);
+        _cleanup_free_ char *s = NULL;
+        size_t n;
+
+        if (!req)
+                return -ENOMEM;
+        s = proto_dump(req, &n);
+        json_decref(req);
+        if (!s)
+                return -errno;
+        return send_all(c, s, n, deadline);
+}
+
+int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadline,
+              conn_notify_fn fn, void *userdata, json_t **result, struct conn_error *err)
+{
+        json_int_t id = c->next_id;
+        int r;
+
+        *err = (struct conn_error){};
+        r = send_request(c, method, params, deadline);
+        c->next_id++;
+        if (r < 0)
+                return r;
+        for (;;) {
+                struct proto_msg m;
+
+                r = read_msg(c, deadline, -1, &m, err);
+                if (r < 0)
+                        return r;
+                /* A reply with id null answers a request the server could not read: ours. */
+                if (m.kind == PROTO_RESPONSE &&
+                    (json_integer_value(m.id) == id || (json_is_null(m.id) && m.error))) {
+                        r = take_reply(&m, result, err);
+                        json_decref(m.root);
+                        return r;
+                }
+                if (m.kind == PROTO_RESPONSE) {
+                        snprintf(err->message, sizeof(err->message), "reply to unknown id");
+                        r = -EPROTO;
+                } else
+                        dispatch(&m, fn, userdata);
+                json_decref(m.root);
+                if (r < 0)
+                        return r;
+        }
+}
+
+int conn_wait_notification(struct conn *c, int64_t deadline, int intr_fd, conn_notify_fn fn,
+                           void *userdata, struct conn_error *err)
+{
+        *err = (struct conn_error){};
+        for (;;) {
+                struct proto_msg m;
+                bool notification;
+                int r = read_msg(c, deadline, intr_fd, &m, err);
+
+                if (r < 0)
+                        return r;
+                notification = m.kind == PROTO_NOTIFICATION;
+                dispatch(&m, fn, userdata);
+                json_decref(m.root);
+                if (notification)
+                        return 1;
+        }
+}

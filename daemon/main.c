@@ -1,0 +1,74 @@
+/* main.c - goniod: the gonio capture daemon (see docs/goniod.md). */
+#include <errno.h>
+#include <getopt.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "common/log.h"
+#include "manager.h"
+
+static void usage(FILE *f)
+{
+        fprintf(f, "Usage: goniod --rig FILE [--socket PATH] [--data DIR] [--verbose]\n"
+                   "\n"
+                   "  --rig FILE     rig file (YAML) describing the devices\n"
+                   "  --socket PATH  control socket (default $GONIO_SOCKET, else\n"
+                   "                 $XDG_RUNTIME_DIR/gonio/goniod.sock, else /run/gonio/goniod.sock)\n"
+                   "  --data DIR     directory of datasets (default $GONIO_DATA or /var/lib/gonio)\n"
+                   "  --verbose      debug logging\n");
+}
+
+/* Picks the default socket path and creates its directory. */
+static void default_socket(char *out, size_t len)
+{
+        const char *env = getenv("GONIO_SOCKET"), *rt = getenv("XDG_RUNTIME_DIR");
+        char dir[PATH_MAX - 32];
+
+        if (env && *env) {
+                snprintf(out, len, "%s", env);
+                return;
+        }
+        snprintf(dir, sizeof(dir), "%s/gonio", rt && *rt ? rt : "/run");
+        (void)mkdir(dir, 0770);
+        snprintf(out, len, "%s/goniod.sock", dir);
+}
+
+int main(int argc, char **argv)
+{
+        static const struct option opts[] = {
+                { "rig", required_argument, NULL, 'r' },  { "socket", required_argument, NULL, 's' },
+                { "data", required_argument, NULL, 'd' }, { "verbose", no_argument, NULL, 'v' },
+                { "help", no_argument, NULL, 'h' },       {},
+        };
+        const char *rig = NULL, *data = getenv("GONIO_DATA");
+        char sock[PATH_MAX] = "";
+        struct manager *m = NULL;
+        int c, r;
+
+        gn_log_set_ident("goniod");
+        while ((c = getopt_long(argc, argv, "r:s:d:vh", opts, NULL)) >= 0) {
+                switch (c) {
+                case 'r': rig = optarg; break;
+                case 's': snprintf(sock, sizeof(sock), "%s", optarg); break;
+                case 'd': data = optarg; break;
+                case 'v': gn_log_set_level(GN_LOG_DEBUG); break;
+                case 'h': usage(stdout); return 0;
+                default: usage(stderr); return 2;
+                }
+        }
+        if (!rig || optind < argc) {
+                usage(stderr);
+                return 2;
+        }
+        if (!sock[0])
+                default_socket(sock, sizeof(sock));
+        r = manager_new(rig, sock, data && *data ? data : "/var/lib/gonio", &m);
+        if (r < 0)
+                return 1;
+        r = manager_run(m);
+        manager_free(m);
+        log_info("stopped");
+        return r < 0 ? 1 : 0;
+}

@@ -1,0 +1,42 @@
+/* manager.h - goniod's top-level object: the event loop, the rig, the control
+ * server, and the open dataset with its storage pool. */
+#pragma once
+
+#include <limits.h>
+
+#include "common/rigconf.h"
+#include "ds.h"
+#include "ds_pool.h"
+#include "rig.h"
+#include "server.h"
+
+typedef struct sd_event sd_event;
+
+struct manager {
+        sd_event *event;
+        struct rig_config *rc;
+        struct rig *rig;
+        struct server *server;
+        char data_dir[PATH_MAX];
+        struct ds *ds;        /* the open dataset, or NULL */
+        struct ds_pool *pool; /* its storage pool */
+        char ds_name[DS_NAME_MAX];
+        int64_t ds_count;     /* rows in the open dataset */
+};
+
+/* Loads the rig file, opens the rig, listens on socket_path. On a rig-file error the
+ * message (file, line, key) is logged. Returns 0 or -errno. */
+int manager_new(const char *rig_path, const char *socket_path, const char *data_dir,
+                struct manager **ret);
+
+/* Runs the loop until SIGTERM/SIGINT; sends READY=1 and watchdog pings under systemd. */
+int manager_run(struct manager *m);
+
+/* Safe state, closes everything. NULL is a no-op; returns NULL. */
+struct manager *manager_free(struct manager *m);
+
+/* The method table of the control protocol (methods.c). */
+extern const struct srv_method manager_methods[];
+
+/* Sends a notification to every client (params stolen). */
+void manager_notify(void *userdata, const char *method, json_t *params);

@@ -1,0 +1,64 @@
+/* server.h - the control server of goniod: JSON-RPC 2.0 over a Unix stream
+ * socket, one object per line (protocol/proto.h, docs/protocol.md).
+ *
+ * Runs entirely on the daemon's sd-event loop. A method handler receives a
+ * struct srv_req and answers it exactly once, at once or later (a move answers
+ * when the axis is in position); meanwhile the server keeps serving every
+ * client. Notifications are broadcast to all connected clients. */
+#pragma once
+
+#include <jansson.h>
+#include <stdbool.h>
+
+typedef struct sd_event sd_event;
+
+struct server;
+struct srv_req;
+
+/* Handles one request. Returns 0 when it took the request (and answers it with
+ * srv_reply or srv_fail, now or later), or -errno to have the server answer with that
+ * error (message from srv_req_errmsg, else strerror). params is an object (maybe empty). */
+typedef int (*srv_method_fn)(struct srv_req *req, json_t *params, void *userdata);
+
+struct srv_method {
+        const char *name;
+        srv_method_fn fn;
+};
+
+/* Listens on path (removing a stale socket; mode 0660) and serves methods (a table ending
+ * in {NULL}) with userdata. Returns 0 or -errno. */
+int server_new(sd_event *event, const char *path, const struct srv_method *methods,
+               void *userdata, struct server **ret);
+
+/* Closes every connection and the socket, unlinks the path. Pending requests get no
+ * answer. NULL is a no-op; returns NULL. */
+struct server *server_free(struct server *s);
+
+/* Sends notification method with params (stolen) to every client. */
+void server_broadcast(struct server *s, const char *method, json_t *params);
+
+/* Number of connected clients. */
+unsigned server_clients(const struct server *s);
+
+/* Answers req with result (stolen) and frees req. Safe if the client has gone. */
+void srv_reply(struct srv_req *req, json_t *result);
+
+/* Answers req with the error for -errno err and a message, and frees req. */
+void srv_fail(struct srv_req *req, int err, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+
+/* Sets the message used when the handler returns -errno. Returns err. */
+int srv_req_errmsg(struct srv_req *req, int err, const char *fmt, ...)
+        __attribute__((format(printf, 3, 4)));
+
+/* The method name of req; valid until answered. */
+const char *srv_req_method(const struct srv_req *req);
+
+/* Parameter readers: 0 when absent (out unchanged), 1 when read, or -EINVAL after setting
+ * the request's error message ("param 'x': expected ..."). */
+int srv_param_str(struct srv_req *req, json_t *params, const char *key, const char **out);
+int srv_param_double(struct srv_req *req, json_t *params, const char *key, double *out);
+int srv_param_int(struct srv_req *req, json_t *params, const char *key, long min, long max,
+                  long *out);
+int srv_param_bool(struct srv_req *req, json_t *params, const char *key, bool *out);
+/* Fails with -EINVAL if params has a key not in the NULL-terminated list. */
+int srv_params_check(struct srv_req *req, json_t *params, const char *const *allowed);

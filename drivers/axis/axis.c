@@ -1,0 +1,150 @@
+/* axis.c - the rotary axis class: backend lookup, soft limits, logging wrappers and the
+ * trapezoidal move-time model. Backends live in drivers/axis/<backend>/. */
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+
+#include "common/log.h"
+#include "drivers/axis/axis.h"
+#include "drivers/bus/bus.h"
+#include "drivers/registry.h"
+
+int axis_log_full(const struct axis *ax, int level, int err, const char *fmt, ...)
+{
+        va_list ap;
+        int r;
+
+        va_start(ap, fmt);
+        r = bus_log_dev(ax->bus, level, err, "axis", ax->conf->name, ax->ops->name, ax->conf->unit,
+                        fmt, ap);
+        va_end(ap);
+        return r;
+}
+
+int axis_new(const struct rig_axis_conf *conf, struct bus *bus, struct axis **ret)
+{
+        const struct axis_ops *ops;
+        struct axis *ax;
+
+        if (!conf || !bus || !ret)
+                return -EINVAL;
+        ops = registry_axis(conf->backend);
+        if (!ops)
+                return log_error_errno(SYNTHETIC_ERRNO(ENOENT), "axis '%s': Unknown backend '%s'",
+                                       conf->name, conf->backend);
+        ax = calloc(1, sizeof(*ax));
+        if (!ax)
+                return -ENOMEM;
+        *ax = (struct axis){.ops = ops, .conf = conf, .bus = bus};
+        *ret = ax;
+        return 0;
+}
+
+struct axis *axis_free(struct axis *ax)
+{
+        if (!ax)
+                return NULL;
+        if (ax->ops->close)
+                ax->ops->close(ax);
+        free(ax);
+        return NULL;
+}
+
+int axis_check_target(const struct axis *ax, double *deg)
+{
+        const struct rig_axis_conf *c = ax->conf;
+        double d = *deg;
+
+        if (!isfinite(d))
+                return -ERANGE;
+        if (c->continuous) {
+                d = fmod(d, 360.0);
+                if (d < 0)
+                        d += 360.0;
+                *deg = d >= 360.0 ? 0.0 : d;
+                return 0;
+        }
+        return d < c->min_deg || d > c->max_deg ? -ERANGE : 0;
+}
+
+/* Runs one argument-less op and logs its failure as "Failed to WHAT: cause". */
+static int call(struct axis *ax, int (*op)(struct axis *ax), const char *what)
+{
+        int r;
+
+        if (!op)
+                return axis_log_full(ax, GN_LOG_ERR, SYNTHETIC_ERRNO(EOPNOTSUPP),
+                                     "Cannot %s: not supported by the backend", what);
+        r = op(ax);
+        if (r < 0)
+                return axis_log_full(ax, GN_LOG_ERR, r, "Failed to %s: %m", what);
+        log_debug("axis '%s': %s", ax->conf->name, what);
+        return 0;
+}
+
+int axis_open(struct axis *ax)
+{
+        int r;
+
+        r = call(ax, ax->ops->open, "open");
+        if (r < 0)
+                return r;
+        return axis_poll(ax);
+}
+
+int axis_home(struct axis *ax)
+{
+        return call(ax, ax->ops->home, "start homing");
+}
+
+int axis_stop(struct axis *ax)
+{
+        return call(ax, ax->ops->stop, "stop");
+}
+
+int axis_reset(struct axis *ax)
+{
+        return call(ax, ax->ops->reset, "reset the drive fault");
+}
+
+int axis_move_abs(struct axis *ax, double deg)
+{
+        double target = deg;
+        int r;
+
+        if (axis_check_target(ax, &target) < 0)
+                return axis_log_full(ax, GN_LOG_ERR, SYNTHETIC_ERRNO(ERANGE),
+                                     "Target %.3f deg outside the soft limits [%.3f, %.3f]", deg,
+                                     ax->conf->min_deg, ax->conf->max_deg);
+        r = ax->ops->move_abs(ax, target);
+        if (r < 0)
+                return axis_log_full(ax, GN_LOG_ERR, r, "Failed to start move to %.3f deg: %m",
+                                     target);
+        log_debug("axis '%s': moving to %.3f deg", ax->conf->name, target);
+        return 0;
+}
+
+int axis_poll(struct axis *ax)
+{
+        struct axis_state st = {};
+        int r;
+
+        r = ax->ops->poll(ax, &st);
+        if (r < 0)
+                return axis_log_full(ax, GN_LOG_ERR, r, "Failed to read the drive state: %m");
+        ax->state = st;
+        return 0;
+}
+
+double axis_move_time(double delta_deg, double max_speed, double accel)
+{
+        double d = fabs(delta_deg);
+
+        if (!(max_speed > 0))
+                return d > 0 ? INFINITY : 0.0;
+        if (!(accel > 0) || isinf(accel))
+                return d / max_speed;
+        if (d >= max_speed * max_speed / accel) /* reaches full speed */
+                return d / max_speed + max_speed / accel;
+        return 2.0 * sqrt(d / accel);
+}

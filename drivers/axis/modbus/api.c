@@ -1,0 +1,197 @@
+/* api.c - the "modbus" axis backend: a servo/stepper drive behind a register profile
+ * (docs/modbus-profile.md), over libmodbus through the bus's retrying transactions.
+ * Runs on the bus worker; caches nothing but the profile: every state comes from the
+ * drive. */
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common/log.h"
+#include "drivers/axis/modbus/proto.h"
+#include "drivers/bus/bus.h"
+
+/* Registers read in one request when status, fault and position lie this close. */
+#define STATE_BLOCK_MAX 32
+
+struct mbax {
+        struct rig_modbus_profile prof;
+};
+
+static const struct opt_desc mbax_opts[] = {
+        {OPT_POSITION, OPT_GET | OPT_SET, .unit = "deg"},
+        {OPT_HOME, OPT_SET},
+        {OPT_STOP, OPT_SET},
+};
+
+/* The profile loaded by open, or NULL before. */
+static const struct rig_modbus_profile *prof(const struct axis *ax)
+{
+        const struct mbax *m = ax->priv;
+
+        return m ? &m->prof : NULL;
+}
+
+static int find_profile(struct axis *ax, struct rig_modbus_profile *ret)
+{
+        const char *name = ax->conf->profile;
+        const struct rig_modbus_profile *p = ax->rig ? rigconf_profile(ax->rig, name) : NULL;
+
+        if (p) {
+                *ret = *p;
+                return 0;
+        }
+        if (name[0] == '\0' || strcmp(name, "gonio-default") == 0) {
+                rigconf_default_profile(ret);
+                return 0;
+        }
+        return axis_log_full(ax, GN_LOG_ERR, SYNTHETIC_ERRNO(ENOENT),
+                             "Unknown register profile '%s'", name);
+}
+
+static int command(struct axis *ax, uint16_t cmd)
+{
+        if (!ax->priv)
+                return -ENOTCONN;
+        return bus_write_reg(ax->bus, ax->conf->unit, prof(ax)->reg_command, cmd);
+}
+
+/* Writes a rate register unless the rig file leaves it to the drive (value 0). */
+static int write_rate(struct axis *ax, uint16_t reg, double value)
+{
+        if (!(value > 0))
+                return 0;
+        return bus_write_reg(ax->bus, ax->conf->unit, reg, mbax_rate_reg(value));
+}
+
+static int mbax_open(struct axis *ax)
+{
+        struct mbax *m;
+        int r;
+
+        if (!ax->priv) {
+                m = calloc(1, sizeof(*m));
+                if (!m)
+                        return -ENOMEM;
+                ax->priv = m;
+        }
+        m = ax->priv;
+        r = find_profile(ax, &m->prof);
+        if (r < 0)
+                return r;
+        r = write_rate(ax, m->prof.reg_speed, ax->conf->max_speed);
+        if (r < 0)
+                return r;
+        return write_rate(ax, m->prof.reg_accel, ax->conf->accel);
+}
+
+static void mbax_close(struct axis *ax)
+{
+        free(ax->priv);
+        ax->priv = NULL;
+}
+
+static int mbax_home(struct axis *ax)
+{
+        return command(ax, prof(ax)->cmd_home);
+}
+
+static int mbax_stop(struct axis *ax)
+{
+        return command(ax, prof(ax)->cmd_stop);
+}
+
+static int mbax_reset(struct axis *ax)
+{
+        return command(ax, prof(ax)->cmd_reset);
+}
+
+static int read_position(struct axis *ax, int32_t *ret)
+{
+        uint16_t regs[2];
+        int r;
+
+        r = bus_read_regs(ax->bus, ax->conf->unit, prof(ax)->reg_position, 2, regs);
+        if (r < 0)
+                return r;
+        *ret = mbax_get_i32(prof(ax), regs);
+        return 0;
+}
+
+static int mbax_move_abs(struct axis *ax, double deg)
+{
+        const struct rig_modbus_profile *p = prof(ax);
+        uint16_t regs[2];
+        int32_t cur, target;
+        int r;
+
+        if (!p)
+                return -ENOTCONN;
+        if (ax->conf->continuous) {
+                r = read_position(ax, &cur);
+                if (r < 0)
+                        return r;
+                r = mbax_shortest_target(p, cur, deg, &target);
+        } else
+                r = mbax_deg_to_counts(p, deg, &target);
+        if (r < 0)
+                return r;
+        mbax_put_i32(p, target, regs);
+        r = bus_write_regs(ax->bus, ax->conf->unit, p->reg_target, 2, regs);
+        if (r < 0)
+                return r;
+        return command(ax, p->cmd_move);
+}
+
+/* Reads status, fault and both position registers, in one request when they are close. */
+static int read_state_regs(struct axis *ax, uint16_t *status, uint16_t *fault, uint16_t pos[2])
+{
+        const struct rig_modbus_profile *p = prof(ax);
+        int lo = MIN(MIN(p->reg_status, p->reg_fault), p->reg_position);
+        int hi = MAX(MAX(p->reg_status, p->reg_fault), p->reg_position + 1);
+        uint16_t block[STATE_BLOCK_MAX];
+        int unit = ax->conf->unit, r;
+
+        if (hi - lo >= STATE_BLOCK_MAX) {
+                r = bus_read_regs(ax->bus, unit, p->reg_status, 1, status);
+                if (r >= 0)
+                        r = bus_read_regs(ax->bus, unit, p->reg_fault, 1, fault);
+                return r < 0 ? r : bus_read_regs(ax->bus, unit, p->reg_position, 2, pos);
+        }
+        r = bus_read_regs(ax->bus, unit, lo, hi - lo + 1, block);
+        if (r < 0)
+                return r;
+        *status = block[p->reg_status - lo];
+        *fault = block[p->reg_fault - lo];
+        pos[0] = block[p->reg_position - lo];
+        pos[1] = block[p->reg_position + 1 - lo];
+        return 0;
+}
+
+static int mbax_poll(struct axis *ax, struct axis_state *st)
+{
+        uint16_t status, fault, pos[2];
+        int r;
+
+        if (!ax->priv)
+                return -ENOTCONN;
+        r = read_state_regs(ax, &status, &fault, pos);
+        if (r < 0)
+                return r;
+        mbax_decode_status(status, fault, st);
+        st->position_deg =
+                mbax_counts_to_deg(prof(ax), mbax_get_i32(prof(ax), pos), ax->conf->continuous);
+        return 0;
+}
+
+const struct axis_ops mbax_ops = {
+        .name = "modbus",
+        .opts = mbax_opts,
+        .n_opts = ELEMENTSOF(mbax_opts),
+        .open = mbax_open,
+        .close = mbax_close,
+        .home = mbax_home,
+        .move_abs = mbax_move_abs,
+        .stop = mbax_stop,
+        .reset = mbax_reset,
+        .poll = mbax_poll,
+};

@@ -1,0 +1,83 @@
+/* proto.c - pure encoding and decoding of the Modbus axis register profile. */
+#include <errno.h>
+#include <math.h>
+
+#include "drivers/axis/modbus/proto.h"
+
+void mbax_put_i32(const struct rig_modbus_profile *p, int32_t v, uint16_t regs[2])
+{
+        uint32_t u = (uint32_t)v;
+        uint16_t hi = (uint16_t)(u >> 16), lo = (uint16_t)(u & 0xffffu);
+
+        regs[0] = p->word_swap ? lo : hi;
+        regs[1] = p->word_swap ? hi : lo;
+}
+
+int32_t mbax_get_i32(const struct rig_modbus_profile *p, const uint16_t regs[2])
+{
+        uint32_t hi = p->word_swap ? regs[1] : regs[0];
+        uint32_t lo = p->word_swap ? regs[0] : regs[1];
+
+        return (int32_t)((hi << 16) | lo);
+}
+
+static int to_i32(double v, int32_t *ret)
+{
+        double r = round(v);
+
+        if (!isfinite(r) || r < (double)INT32_MIN || r > (double)INT32_MAX)
+                return -ERANGE;
+        *ret = (int32_t)r;
+        return 0;
+}
+
+int mbax_deg_to_counts(const struct rig_modbus_profile *p, double deg, int32_t *ret)
+{
+        if (!(p->scale > 0))
+                return -ERANGE;
+        return to_i32(deg * p->scale, ret);
+}
+
+double mbax_counts_to_deg(const struct rig_modbus_profile *p, int32_t counts, bool continuous)
+{
+        double deg = (double)counts / p->scale;
+
+        if (!continuous)
+                return deg;
+        deg = fmod(deg, 360.0);
+        if (deg < 0)
+                deg += 360.0;
+        return deg >= 360.0 ? 0.0 : deg; /* -tiny + 360 rounds to 360 */
+}
+
+int mbax_shortest_target(const struct rig_modbus_profile *p, int32_t cur, double target_deg,
+                         int32_t *ret)
+{
+        double delta;
+
+        if (!(p->scale > 0) || !isfinite(target_deg))
+                return -ERANGE;
+        delta = remainder(target_deg - (double)cur / p->scale, 360.0); /* [-180, 180] */
+        if (delta <= -180.0)
+                delta += 360.0;
+        return to_i32((double)cur + delta * p->scale, ret);
+}
+
+uint16_t mbax_rate_reg(double value)
+{
+        double r = round(value * 10.0);
+
+        if (!(r >= 1.0)) /* also NaN */
+                return 1;
+        return r > 65535.0 ? 65535 : (uint16_t)r;
+}
+
+void mbax_decode_status(uint16_t status, uint16_t fault, struct axis_state *st)
+{
+        st->enabled = status & AXIS_ST_ENABLED;
+        st->homed = status & AXIS_ST_HOMED;
+        st->moving = status & AXIS_ST_MOVING;
+        st->in_position = status & AXIS_ST_IN_POSITION;
+        st->fault = status & AXIS_ST_FAULT;
+        st->fault_code = st->fault ? fault : 0;
+}

@@ -1,0 +1,55 @@
+/* proto.h - the register profile of Modbus axis drives (docs/modbus-profile.md):
+ * pure encoding and decoding, no I/O. Shared with gonio-sim's emulated drives. */
+#pragma once
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "common/rigconf.h"
+#include "drivers/axis/axis.h"
+
+/* Bits of the status register. */
+#define AXIS_ST_ENABLED     (1u << 0)
+#define AXIS_ST_HOMED       (1u << 1)
+#define AXIS_ST_MOVING      (1u << 2)
+#define AXIS_ST_IN_POSITION (1u << 3)
+#define AXIS_ST_FAULT       (1u << 4)
+#define AXIS_ST_HOME_SWITCH (1u << 5)
+
+/* Codes of the fault register. */
+enum mbax_fault {
+        MBAX_FAULT_NONE,
+        MBAX_FAULT_STALL,
+        MBAX_FAULT_FOLLOWING,
+        MBAX_FAULT_LIMIT,
+        MBAX_FAULT_OVERTEMP,
+};
+
+/* The backend's ops (api.c), registered in drivers/registry.c as "modbus". */
+extern const struct axis_ops mbax_ops;
+
+/* Splits v into two registers in the profile's word order (high word first unless
+ * word_swap). Never fails. */
+void mbax_put_i32(const struct rig_modbus_profile *p, int32_t v, uint16_t regs[2]);
+
+/* Joins two registers in the profile's word order. Never fails. */
+int32_t mbax_get_i32(const struct rig_modbus_profile *p, const uint16_t regs[2]);
+
+/* Degrees to position counts (rounded). Returns 0, or -ERANGE beyond int32 or for a
+ * non-finite value or a scale <= 0. */
+int mbax_deg_to_counts(const struct rig_modbus_profile *p, double deg, int32_t *ret);
+
+/* Position counts to degrees; modulo 360 into [0, 360) when continuous. */
+double mbax_counts_to_deg(const struct rig_modbus_profile *p, int32_t counts, bool continuous);
+
+/* The target in counts that reaches target_deg (any value, taken modulo 360) from cur
+ * counts the shortest way round: a move of (-180, +180] degrees. Returns 0 or -ERANGE. */
+int mbax_shortest_target(const struct rig_modbus_profile *p, int32_t cur, double target_deg,
+                         int32_t *ret);
+
+/* Encodes a speed or acceleration (deg/s, deg/s^2) as the uint16 register in units of
+ * 0.1, clamped to 1..65535. */
+uint16_t mbax_rate_reg(double value);
+
+/* Fills the flags and fault code of st (not the position) from the two registers. */
+void mbax_decode_status(uint16_t status, uint16_t fault, struct axis_state *st);

@@ -1,0 +1,15 @@
+/* api.h - the "sim" camera backend: frames rendered by gonio-sim, fetched over its
+ * frame socket (docs/sim.md, "Frame socket"); the socket path is the port of the
+ * camera's bus (of type sim). */
+#pragma once
+
+#include "drivers/camera/camera.h"
+
+/* The backend's ops, registered as "sim" in drivers/registry.c. capture() blocks at most
+ * CAM_SIM_TIMEOUT_MS, reconnects once after a broken connection and returns 0,
+ * -ETIMEDOUT (also for a frame gonio-sim dropped), -ECONNREFUSED/-ENOENT (no gonio-sim),
+ * -ECONNRESET/-EPIPE, -EBADMSG (malformed reply) or the error gonio-sim names. */
+extern const struct cam_ops cam_sim_ops;
+
+/* Bound on one capture: request, render and transfer. */
+#define CAM_SIM_TIMEOUT_MS 10000

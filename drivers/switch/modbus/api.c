@@ -1,0 +1,63 @@
+/* api.c - the "modbus-coil" switch backend: a lamp or laser on one coil of a Modbus
+ * relay module. A write (FC05) counts only once a read back (FC01) confirms it. */
+#include <errno.h>
+
+#include "common/log.h"
+#include "drivers/bus/bus.h"
+#include "drivers/switch/modbus/proto.h"
+
+static const struct opt_desc mbsw_opts[] = {
+        {OPT_STATE, OPT_GET | OPT_SET},
+};
+
+static int mbsw_get(struct sw *s, bool *on)
+{
+        uint8_t v;
+        int r;
+
+        r = bus_read_coils(s->bus, s->conf->unit, s->conf->coil, 1, &v);
+        if (r < 0)
+                return r;
+        r = mbsw_decode_coil(v, on);
+        if (r < 0)
+                return sw_log_full(s, GN_LOG_ERR, r, "Coil %d read back as 0x%02x", s->conf->coil,
+                                   v);
+        return 0;
+}
+
+static int mbsw_open(struct sw *s)
+{
+        bool on;
+
+        if (mbsw_check_conf(s->conf) < 0)
+                return sw_log_full(s, GN_LOG_ERR, SYNTHETIC_ERRNO(EINVAL),
+                                   "Invalid unit %d or coil %d", s->conf->unit, s->conf->coil);
+        return mbsw_get(s, &on);
+}
+
+static int mbsw_set(struct sw *s, bool on)
+{
+        bool now;
+        int r;
+
+        r = bus_write_coil(s->bus, s->conf->unit, s->conf->coil, on);
+        if (r < 0)
+                return r;
+        r = mbsw_get(s, &now);
+        if (r < 0)
+                return r;
+        if (now != on)
+                return sw_log_full(s, GN_LOG_ERR, SYNTHETIC_ERRNO(EIO),
+                                   "Coil %d reads %s after writing %s", s->conf->coil,
+                                   now ? "on" : "off", on ? "on" : "off");
+        return 0;
+}
+
+const struct sw_ops mbsw_ops = {
+        .name = "modbus-coil",
+        .opts = mbsw_opts,
+        .n_opts = ELEMENTSOF(mbsw_opts),
+        .open = mbsw_open,
+        .set = mbsw_set,
+        .get = mbsw_get,
+};

@@ -1,0 +1,929 @@
+/* modbus_emu.c - emulated Modbus controllers of gonio-sim: axis drives of the
+ * gonio-default register profile (docs/modbus-profile.md) and relay modules,
+ * served by the real libmodbus on pseudo-terminals (RTU) or loopback TCP.
+ *
+ * DESIGN
+ * - One thread per Modbus bus serves every unit on it. A libmodbus RTU server
+ *   only answers its own slave id, so the thread frames each request itself
+ *   (RTU: slave + function code give the length, CRC16 checked here; TCP: the
+ *   MBAP header gives it), looks the unit up and lets modbus_reply() build the
+ *   answer from that unit's mapping. Unknown units get no answer, as on a real bus.
+ * - libmodbus writes its replies into one end of a socketpair; the thread moves
+ *   them to the pty or TCP client, which is where a CRC fault corrupts them.
+ * - Device state (motion profiles, registers, coils) is guarded by one mutex,
+ *   shared with sim_emu_snapshot() on the frame server's thread. Axis registers
+ *   are refreshed from the motion model right before each reply; commands take
+ *   effect right after the reply that accepted them.
+ * - Emulated time is CLOCK_MONOTONIC since creation times time_scale.
+ * - The threads poll with a short timeout and check the stop flag, so
+ *   sim_emu_free() returns promptly. */
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <poll.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <termios.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <modbus/modbus.h>
+#include <netinet/in.h>
+
+#include "common/log.h"
+#include "sim/modbus_emu.h"
+#include "sim/motion.h"
+
+#define EMU_MAX_UNITS      (RIG_MAX_AXES + RIG_MAX_LAMPS + 1)
+#define EMU_MAX_CONNS      4
+#define EMU_POLL_MS        50  /* stop-flag latency */
+#define EMU_BYTE_TIMEOUT   100 /* ms between bytes of one request before it is dropped */
+#define EMU_WRITE_TIMEOUT  1000
+#define EMU_ADU_MAX        MODBUS_TCP_MAX_ADU_LENGTH
+#define EMU_HOME_SWITCH    0.5 /* deg: half width of the home switch's cam */
+#define EMU_FAULT_STALL    1
+
+struct emu_axis {
+        const struct rig_axis_conf *conf;
+        struct rig_modbus_profile prof;
+        struct motion mo;   /* physical position (deg) over emulated time */
+        double offset;      /* physical position at drive count 0 */
+        double settle_s;
+        bool homed, homing, aborted;
+        uint16_t fault_code;
+        bool stall_armed;   /* the next move stalls half-way */
+        double stall_at;    /* emulated time of a scheduled stall, NAN if none */
+};
+
+struct emu_unit {
+        int bus; /* index into rc->buses */
+        int id;  /* Modbus unit id */
+        bool is_axis;
+        struct emu_axis axis;
+        int n_coils;
+        modbus_mapping_t *map;
+        enum sim_fault fault;
+};
+
+struct emu_bus {
+        struct sim_emu *emu;
+        int index;
+        const struct rig_bus_conf *conf;
+        modbus_t *ctx;
+        int reply[2];   /* socketpair: libmodbus writes into [0], we read [1] */
+        int master;     /* RTU: pty master */
+        int slave;      /* RTU: kept open so the master never sees a hangup */
+        char pty[RIG_PATH_MAX];
+        bool linked;    /* symlink made at conf->port */
+        int listen_fd;  /* TCP */
+        int tcp_port;
+        int conns[EMU_MAX_CONNS];
+        pthread_t thread;
+        bool started;
+};
+
+struct sim_emu {
+        const struct rig_config *rc;
+        double time_scale;
+        struct timespec epoch;
+        atomic_bool stop;
+        pthread_mutex_t lock; /* guards units[] and their mappings */
+        struct emu_unit units[EMU_MAX_UNITS];
+        size_t n_units;
+        struct emu_bus buses[RIG_MAX_BUSES];
+        size_t n_buses;
+};
+
+/* ---- time, encoding ---- */
+
+static double emu_now(const struct sim_emu *e)
+{
+        struct timespec ts;
+
+        clock_gettime(CLOCK_MONOTONIC, &ts);
+        double s = (double)(ts.tv_sec - e->epoch.tv_sec) + (ts.tv_nsec - e->epoch.tv_nsec) * 1e-9;
+        return s * e->time_scale;
+}
+
+static uint16_t crc16(const uint8_t *p, size_t n)
+{
+        uint16_t crc = 0xFFFF;
+
+        for (size_t i = 0; i < n; i++) {
+                crc ^= p[i];
+                for (int b = 0; b < 8; b++)
+                        crc = (crc & 1) ? (crc >> 1) ^ 0xA001 : crc >> 1;
+        }
+        return crc;
+}
+
+static uint16_t be16(const uint8_t *p)
+{
+        return (uint16_t)(p[0] << 8 | p[1]);
+}
+
+static double wrap360(double deg)
+{
+        double w = fmod(deg, 360.0);
+        return w < 0.0 ? w + 360.0 : w;
+}
+
+static void put_u32(uint16_t *regs, uint16_t addr, bool swap, uint32_t u)
+{
+        regs[addr + (swap ? 1 : 0)] = (uint16_t)(u >> 16);
+        regs[addr + (swap ? 0 : 1)] = (uint16_t)u;
+}
+
+static int32_t get_i32(const uint16_t *regs, uint16_t addr, bool swap)
+{
+        uint32_t hi = regs[addr + (swap ? 1 : 0)], lo = regs[addr + (swap ? 0 : 1)];
+        return (int32_t)(hi << 16 | lo);
+}
+
+/* ---- axis drive model ---- */
+
+/* A deterministic, arbitrary power-on position: the drive does not know it until homed. */
+static double start_position(const struct rig_axis_conf *c)
+{
+        uint32_t h = 2166136261u;
+        for (const char *p = c->name; *p; p++)
+                h = (h ^ (uint8_t)*p) * 16777619u;
+        double f = (h % 10007) / 10007.0;
+        if (c->continuous)
+                return 360.0 * f - 180.0;
+        return 0.5 * (c->min_deg + f * (c->max_deg - c->min_deg));
+}
+
+static double axis_phys(const struct emu_axis *a, double now)
+{
+        return motion_position(&a->mo, now);
+}
+
+/* Applies what happened since the last look: a scheduled stall, the end of homing. */
+static void axis_update(struct emu_axis *a, double now)
+{
+        if (!isnan(a->stall_at) && now >= a->stall_at) {
+                motion_halt(&a->mo, a->stall_at);
+                a->fault_code = EMU_FAULT_STALL;
+                a->aborted = true;
+                a->homing = false;
+                a->stall_at = NAN;
+        }
+        if (a->homing && !motion_moving(&a->mo, now)) {
+                a->offset = motion_target(&a->mo);
+                a->homed = true;
+                a->homing = false;
+        }
+}
+
+static uint16_t axis_status(const struct emu_axis *a, double now)
+{
+        bool moving = motion_moving(&a->mo, now);
+        bool in_pos = !moving && !a->aborted && !a->fault_code &&
+                      now >= motion_end_time(&a->mo) + a->settle_s;
+        double w = wrap360(axis_phys(a, now) + EMU_HOME_SWITCH);
+
+        return (uint16_t)(1u << 0 | (unsigned)a->homed << 1 | (unsigned)moving << 2 |
+                          (unsigned)in_pos << 3 | (unsigned)(a->fault_code != 0) << 4 |
+                          (unsigned)(w < 2 * EMU_HOME_SWITCH) << 5);
+}
+
+static void axis_refresh(struct emu_axis *a, modbus_mapping_t *map, double now)
+{
+        const struct rig_modbus_profile *p = &a->prof;
+
+        axis_update(a, now);
+        map->tab_registers[p->reg_status] = axis_status(a, now);
+        map->tab_registers[p->reg_fault] = a->fault_code;
+        long long counts = llround((axis_phys(a, now) - a->offset) * p->scale);
+        put_u32(map->tab_registers, p->reg_position, p->word_swap, (uint32_t)counts);
+}
+
+/* Schedules an armed stall half-way through the profile just planned. */
+static void axis_arm_stall(struct emu_axis *a)
+{
+        if (a->stall_armed && a->mo.t_total > 0.0) {
+                a->stall_at = a->mo.t0 + 0.5 * a->mo.t_total;
+                a->stall_armed = false;
+        }
+}
+
+/* Modbus exception for command cmd, or 0 when the drive accepts it. */
+static int axis_check(const struct emu_axis *a, const modbus_mapping_t *map, int cmd)
+{
+        const struct rig_modbus_profile *p = &a->prof;
+
+        if (cmd == p->cmd_move || cmd == p->cmd_home) {
+                if (a->fault_code)
+                        return MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE;
+                if (!map->tab_registers[p->reg_speed] || !map->tab_registers[p->reg_accel])
+                        return MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE;
+                return 0;
+        }
+        if (cmd == p->cmd_stop || cmd == p->cmd_reset)
+                return 0;
+        return MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE;
+}
+
+/* Where homing ends: the home switch at physical 0 (the nearest turn for continuous axes). */
+static double home_target(const struct emu_axis *a, double pos)
+{
+        return a->conf->continuous ? pos - remainder(pos, 360.0) : 0.0;
+}
+
+static void axis_execute(struct emu_axis *a, modbus_mapping_t *map, int cmd, double now)
+{
+        const struct rig_modbus_profile *p = &a->prof;
+        double pos = axis_phys(a, now);
+        double v = map->tab_registers[p->reg_speed] / 10.0;
+        double acc = map->tab_registers[p->reg_accel] / 10.0;
+
+        if (cmd == p->cmd_move || cmd == p->cmd_home) {
+                bool home = cmd == p->cmd_home;
+                double to = home ? home_target(a, pos)
+                                 : get_i32(map->tab_registers, p->reg_target, p->word_swap) /
+                                                   p->scale + a->offset;
+                (void)motion_plan(&a->mo, now, pos, to, v, acc); /* checked by axis_check */
+                a->homing = home;
+                a->aborted = false;
+                a->stall_at = NAN;
+                axis_arm_stall(a);
+        } else if (cmd == p->cmd_stop) {
+                motion_halt(&a->mo, now);
+                a->aborted = true;
+                a->homing = false;
+                a->stall_at = NAN;
+        } else if (cmd == p->cmd_reset) {
+                a->fault_code = 0;
+        }
+        map->tab_registers[p->reg_command] = 0;
+}
+
+/* The value a write request (at PDU offset off) puts into the command register, or -1. */
+static int command_in_request(const struct emu_axis *a, const uint8_t *req, int len, int off)
+{
+        uint16_t reg = a->prof.reg_command, addr = be16(req + off + 1);
+
+        if (req[off] == MODBUS_FC_WRITE_SINGLE_REGISTER && len >= off + 5)
+                return addr == reg ? be16(req + off + 3) : -1;
+        if (req[off] != MODBUS_FC_WRITE_MULTIPLE_REGISTERS || len < off + 6)
+                return -1;
+        uint16_t nb = be16(req + off + 3);
+        int at = off + 6 + 2 * (reg - addr);
+        if (reg < addr || reg >= addr + nb || at + 2 > len)
+                return -1;
+        return be16(req + at);
+}
+
+static int axis_reply(struct emu_unit *u, modbus_t *ctx, const uint8_t *req, int len, int off,
+                      double now)
+{
+        struct emu_axis *a = &u->axis;
+
+        axis_refresh(a, u->map, now);
+        int cmd = command_in_request(a, req, len, off);
+        if (cmd >= 0) {
+                int exc = axis_check(a, u->map, cmd);
+                if (exc)
+                        return modbus_reply_exception(ctx, req, (unsigned)exc);
+        }
+        int r = modbus_reply(ctx, req, len, u->map);
+        if (r >= 0 && cmd >= 0) {
+                axis_execute(a, u->map, cmd, now);
+                axis_refresh(a, u->map, now);
+        }
+        return r;
+}
+
+/* ---- lookups ---- */
+
+static bool is_modbus(enum rig_bus_type t)
+{
+        return t == RIG_BUS_MODBUS_RTU || t == RIG_BUS_MODBUS_TCP;
+}
+
+static int bus_index(const struct sim_emu *e, const char *name)
+{
+        const struct rig_bus_conf *b = rigconf_bus(e->rc, name);
+        return b ? (int)(b - e->rc->buses) : -ENOENT;
+}
+
+static struct emu_unit *find_unit(struct sim_emu *e, int bus, int id)
+{
+        for (size_t i = 0; i < e->n_units; i++)
+                if (e->units[i].bus == bus && e->units[i].id == id)
+                        return &e->units[i];
+        return NULL;
+}
+
+static const struct emu_bus *find_bus(const struct sim_emu *e, const char *name)
+{
+        for (size_t i = 0; i < e->n_buses; i++)
+                if (strcmp(e->buses[i].conf->name, name) == 0)
+                        return &e->buses[i];
+        return NULL;
+}
+
+/* ---- byte I/O ---- */
+
+/* Waits up to timeout_ms for fd to be readable, then reads at most n bytes.
+ * Returns the count, -ETIMEDOUT, -ECONNRESET at end of file, or -errno. */
+static int read_some(int fd, uint8_t *buf, size_t n, int timeout_ms)
+{
+        struct pollfd p = { .fd = fd, .events = POLLIN };
+
+        int r = poll(&p, 1, timeout_ms);
+        if (r < 0)
+                return errno == EINTR ? -ETIMEDOUT : -errno;
+        if (r == 0)
+                return -ETIMEDOUT;
+        ssize_t k = read(fd, buf, n);
+        if (k < 0)
+                return errno == EAGAIN || errno == EINTR ? -ETIMEDOUT : -errno;
+        return k == 0 ? -ECONNRESET : (int)k;
+}
+
+/* Reads exactly n bytes, waiting at most timeout_ms for each chunk. Returns 0 or -errno. */
+static int read_exact(int fd, uint8_t *buf, size_t n, int timeout_ms)
+{
+        while (n > 0) {
+                int r = read_some(fd, buf, n, timeout_ms);
+                if (r < 0)
+                        return r;
+                buf += r;
+                n -= (size_t)r;
+        }
+        return 0;
+}
+
+/* Writes all of buf (send() without SIGPIPE on sockets), waiting for room at most
+ * EMU_WRITE_TIMEOUT ms at a time. Returns 0 or -errno. */
+static int write_all(int fd, bool sock, const uint8_t *buf, size_t n)
+{
+        while (n > 0) {
+                ssize_t k = sock ? send(fd, buf, n, MSG_NOSIGNAL) : write(fd, buf, n);
+                if (k < 0 && errno != EAGAIN && errno != EINTR)
+                        return -errno;
+                if (k < 0) {
+                        struct pollfd p = { .fd = fd, .events = POLLOUT };
+                        if (poll(&p, 1, EMU_WRITE_TIMEOUT) == 0)
+                                return -ETIMEDOUT;
+                        continue;
+                }
+                buf += k;
+                n -= (size_t)k;
+        }
+        return 0;
+}
+
+/* Discards input until the line has been quiet for a while (resynchronises framing). */
+static void drain(int fd)
+{
+        uint8_t junk[256];
+
+        for (int i = 0; i < 64 && read_some(fd, junk, sizeof junk, 20) > 0; i++)
+                ;
+}
+
+/* ---- framing ---- */
+
+/* Length of the RTU request (with CRC) whose first have >= 2 bytes are in b, as far as
+ * those bytes tell, or -EBADMSG for a function code that cannot be sized. */
+static int rtu_request_length(const uint8_t *b, size_t have)
+{
+        switch (b[1]) {
+        case 0x01 ... 0x06:
+                return 8;
+        case 0x07:
+        case 0x0B:
+        case 0x0C:
+        case 0x11:
+                return 4;
+        case 0x16:
+                return 10;
+        case 0x0F:
+        case 0x10:
+                return have < 7 ? 7 : 9 + b[6];
+        case 0x17:
+                return have < 11 ? 11 : 13 + b[10];
+        default:
+                return -EBADMSG;
+        }
+}
+
+/* Reads one RTU request. Returns its length, -ETIMEDOUT when the line is idle or a
+ * frame stopped short, -EBADMSG for an unframeable request, or -errno. */
+static int rtu_read_frame(int fd, uint8_t *buf)
+{
+        int r = read_some(fd, buf, 1, EMU_POLL_MS);
+        if (r < 0)
+                return r;
+
+        size_t have = 1;
+        for (;;) {
+                int need = have < 2 ? 2 : rtu_request_length(buf, have);
+                if (need < 0 || need > MODBUS_RTU_MAX_ADU_LENGTH)
+                        return -EBADMSG;
+                if ((size_t)need == have)
+                        return need;
+                r = read_exact(fd, buf + have, (size_t)need - have, EMU_BYTE_TIMEOUT);
+                if (r < 0)
+                        return r;
+                have = (size_t)need;
+        }
+}
+
+/* Reads one Modbus TCP request (MBAP header + PDU). Returns its length or -errno. */
+static int tcp_read_frame(int fd, uint8_t *buf)
+{
+        int r = read_exact(fd, buf, 7, EMU_BYTE_TIMEOUT);
+        if (r < 0)
+                return r;
+        uint16_t len = be16(buf + 4);
+        if (be16(buf + 2) != 0 || len < 2 || 6 + len > EMU_ADU_MAX)
+                return -EBADMSG;
+        r = read_exact(fd, buf + 7, len - 1u, EMU_BYTE_TIMEOUT);
+        return r < 0 ? r : 6 + len;
+}
+
+/* ---- serving ---- */
+
+/* Moves the n-byte reply libmodbus wrote into the socketpair to out, corrupting it on
+ * request (RTU: the CRC; TCP, which has none: the transaction id). */
+static void forward_reply(struct emu_bus *b, int out, int n, bool corrupt)
+{
+        bool tcp = b->conf->type == RIG_BUS_MODBUS_TCP;
+        uint8_t rsp[EMU_ADU_MAX];
+
+        int r = n <= (int)sizeof rsp ? read_exact(b->reply[1], rsp, (size_t)n, EMU_BYTE_TIMEOUT)
+                                     : -EMSGSIZE;
+        if (r >= 0 && corrupt)
+                rsp[tcp ? 0 : n - 1] ^= 0xA5;
+        if (r >= 0)
+                r = write_all(out, tcp, rsp, (size_t)n);
+        if (r < 0)
+                log_warning_errno(r, "bus '%s': failed to send reply: %m", b->conf->name);
+}
+
+static void serve_request(struct emu_bus *b, int out, const uint8_t *req, int len, int unit)
+{
+        struct sim_emu *e = b->emu;
+        int off = b->conf->type == RIG_BUS_MODBUS_TCP ? 7 : 1, r = 0;
+
+        pthread_mutex_lock(&e->lock);
+        struct emu_unit *u = find_unit(e, b->index, unit);
+        enum sim_fault f = u ? u->fault : SIM_FAULT_TIMEOUT; /* unknown unit: silence */
+        if (f != SIM_FAULT_TIMEOUT) {
+                modbus_set_slave(b->ctx, unit);
+                if (f == SIM_FAULT_EXCEPTION)
+                        r = modbus_reply_exception(b->ctx, req,
+                                                   MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE);
+                else if (u->is_axis)
+                        r = axis_reply(u, b->ctx, req, len, off, emu_now(e));
+                else
+                        r = modbus_reply(b->ctx, req, len, u->map);
+        }
+        pthread_mutex_unlock(&e->lock);
+
+        if (r < 0)
+                log_warning("bus '%s' unit %d: no reply: %s", b->conf->name, unit,
+                            modbus_strerror(errno));
+        else if (r > 0)
+                forward_reply(b, out, r, f == SIM_FAULT_CRC);
+}
+
+static void rtu_serve(struct emu_bus *b)
+{
+        uint8_t req[EMU_ADU_MAX];
+
+        int n = rtu_read_frame(b->master, req);
+        if (n == -ETIMEDOUT)
+                return;
+        if (n < 0) {
+                log_debug_errno(n, "bus '%s': unframeable request dropped: %m", b->conf->name);
+                drain(b->master);
+                return;
+        }
+        if (crc16(req, (size_t)n - 2) != (req[n - 2] | req[n - 1] << 8)) {
+                log_debug("bus '%s': request with bad CRC dropped", b->conf->name);
+                return;
+        }
+        serve_request(b, b->master, req, n, req[0]);
+}
+
+static void tcp_accept(struct emu_bus *b)
+{
+        int fd = accept4(b->listen_fd, NULL, NULL, SOCK_CLOEXEC);
+        if (fd < 0)
+                return;
+        for (int i = 0; i < EMU_MAX_CONNS; i++)
+                if (b->conns[i] < 0) {
+                        b->conns[i] = fd;
+                        return;
+                }
+        log_warning("bus '%s': more than %d clients, refused", b->conf->name, EMU_MAX_CONNS);
+        close(fd);
+}
+
+static void tcp_serve(struct emu_bus *b)
+{
+        struct pollfd p[1 + EMU_MAX_CONNS] = { { .fd = b->listen_fd, .events = POLLIN } };
+        uint8_t req[EMU_ADU_MAX];
+
+        for (int i = 0; i < EMU_MAX_CONNS; i++)
+                p[1 + i] = (struct pollfd){ .fd = b->conns[i], .events = POLLIN };
+        if (poll(p, ELEMENTSOF(p), EMU_POLL_MS) <= 0)
+                return;
+        if (p[0].revents)
+                tcp_accept(b);
+        for (int i = 0; i < EMU_MAX_CONNS; i++) {
+                if (!p[1 + i].revents || b->conns[i] < 0)
+                        continue;
+                int n = tcp_read_frame(b->conns[i], req);
+                if (n < 0) {
+                        close(b->conns[i]);
+                        b->conns[i] = -1;
+                        continue;
+                }
+                serve_request(b, b->conns[i], req, n, req[6]);
+        }
+}
+
+static void *bus_thread(void *userdata)
+{
+        struct emu_bus *b = userdata;
+
+        while (!atomic_load(&b->emu->stop)) {
+                if (b->conf->type == RIG_BUS_MODBUS_TCP)
+                        tcp_serve(b);
+                else
+                        rtu_serve(b);
+        }
+        return NULL;
+}
+
+/* ---- setup ---- */
+
+static int bus_open_pty(struct emu_bus *b)
+{
+        struct termios t;
+
+        b->master = posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
+        if (b->master < 0 || grantpt(b->master) < 0 || unlockpt(b->master) < 0)
+                return log_error_errno(errno, "bus '%s': cannot open a pty: %m", b->conf->name);
+        int r = ptsname_r(b->master, b->pty, sizeof b->pty);
+        if (r != 0)
+                return log_error_errno(r, "bus '%s': ptsname: %m", b->conf->name);
+        b->slave = open(b->pty, O_RDWR | O_NOCTTY | O_CLOEXEC);
+        if (b->slave < 0 || tcgetattr(b->slave, &t) < 0)
+                return log_error_errno(errno, "bus '%s': cannot open %s: %m", b->conf->name,
+                                       b->pty);
+        cfmakeraw(&t);
+        if (tcsetattr(b->slave, TCSANOW, &t) < 0 ||
+            fcntl(b->master, F_SETFL, fcntl(b->master, F_GETFL) | O_NONBLOCK) < 0)
+                return log_error_errno(errno, "bus '%s': cannot set up %s: %m", b->conf->name,
+                                       b->pty);
+        return 0;
+}
+
+/* Points the bus's port path at the pty, replacing a stale symlink. */
+static int bus_link(struct emu_bus *b)
+{
+        const char *port = b->conf->port;
+        struct stat st;
+
+        if (lstat(port, &st) == 0) {
+                if (!S_ISLNK(st.st_mode))
+                        return log_error_errno(SYNTHETIC_ERRNO(EEXIST),
+                                               "bus '%s': %s exists and is not a symlink",
+                                               b->conf->name, port);
+                (void)unlink(port);
+        }
+        if (symlink(b->pty, port) < 0)
+                return log_error_errno(errno, "bus '%s': cannot link %s to %s: %m",
+                                       b->conf->name, port, b->pty);
+        b->linked = true;
+        return 0;
+}
+
+/* Removes the symlink if it still points at our pty. */
+static void bus_unlink(struct emu_bus *b)
+{
+        char target[RIG_PATH_MAX];
+
+        ssize_t n = readlink(b->conf->port, target, sizeof target - 1);
+        if (n < 0)
+                return;
+        target[n] = '\0';
+        if (strcmp(target, b->pty) == 0)
+                (void)unlink(b->conf->port);
+}
+
+static int bus_open_rtu(struct emu_bus *b)
+{
+        const struct rig_bus_conf *c = b->conf;
+
+        int r = bus_open_pty(b);
+        if (r >= 0)
+                r = bus_link(b);
+        if (r < 0)
+                return r;
+        b->ctx = modbus_new_rtu(b->pty, c->baud > 0 ? c->baud : 115200, c->parity ? c->parity : 'N',
+                                c->data_bits > 0 ? c->data_bits : 8,
+                                c->stop_bits > 0 ? c->stop_bits : 1);
+        if (!b->ctx)
+                return log_error_errno(errno, "bus '%s': modbus_new_rtu: %m", c->name);
+        return 0;
+}
+
+static int bus_open_tcp(struct emu_bus *b)
+{
+        struct sockaddr_in sa;
+        socklen_t sl = sizeof sa;
+
+        b->ctx = modbus_new_tcp("127.0.0.1", b->conf->tcp_port);
+        if (!b->ctx)
+                return log_error_errno(errno, "bus '%s': modbus_new_tcp: %m", b->conf->name);
+        b->listen_fd = modbus_tcp_listen(b->ctx, EMU_MAX_CONNS);
+        if (b->listen_fd < 0 || getsockname(b->listen_fd, (struct sockaddr *)&sa, &sl) < 0)
+                return log_error_errno(errno, "bus '%s': cannot listen on 127.0.0.1:%d: %m",
+                                       b->conf->name, b->conf->tcp_port);
+        b->tcp_port = ntohs(sa.sin_port);
+        return 0;
+}
+
+static int bus_start(struct sim_emu *e, int index)
+{
+        struct emu_bus *b = &e->buses[e->n_buses++]; /* counted now: sim_emu_free cleans up */
+
+        *b = (struct emu_bus){ .emu = e, .index = index, .conf = &e->rc->buses[index],
+                               .reply = { -1, -1 }, .master = -1, .slave = -1, .listen_fd = -1 };
+        for (int i = 0; i < EMU_MAX_CONNS; i++)
+                b->conns[i] = -1;
+        int r = b->conf->type == RIG_BUS_MODBUS_TCP ? bus_open_tcp(b) : bus_open_rtu(b);
+        if (r < 0)
+                return r;
+        if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, b->reply) < 0)
+                return log_error_errno(errno, "socketpair: %m");
+        modbus_set_socket(b->ctx, b->reply[0]);
+        r = -pthread_create(&b->thread, NULL, bus_thread, b);
+        if (r < 0)
+                return log_error_errno(r, "bus '%s': cannot start thread: %m", b->conf->name);
+        b->started = true;
+        return 0;
+}
+
+static void close_fd(int fd)
+{
+        if (fd >= 0)
+                close(fd);
+}
+
+static void bus_stop(struct emu_bus *b)
+{
+        if (b->started)
+                pthread_join(b->thread, NULL);
+        if (b->linked)
+                bus_unlink(b);
+        if (b->ctx)
+                modbus_free(b->ctx);
+        for (int i = 0; i < EMU_MAX_CONNS; i++)
+                close_fd(b->conns[i]);
+        close_fd(b->listen_fd);
+        close_fd(b->reply[0]);
+        close_fd(b->reply[1]);
+        close_fd(b->slave);
+        close_fd(b->master);
+}
+
+/* The unit id on bus for device dev, created on first use. Two devices may share a unit
+ * only as coils of one relay module. */
+static int add_unit(struct sim_emu *e, const char *bus, int id, bool axis, const char *dev,
+                    struct emu_unit **ret)
+{
+        int bi = bus_index(e, bus);
+        if (bi < 0 || !is_modbus(e->rc->buses[bi].type))
+                return log_error_errno(SYNTHETIC_ERRNO(EINVAL),
+                                       "'%s': bus '%s' is not a Modbus bus of the rig", dev, bus);
+        struct emu_unit *u = find_unit(e, bi, id);
+        if (u && (axis || u->is_axis))
+                return log_error_errno(SYNTHETIC_ERRNO(EINVAL),
+                                       "'%s': unit %d on bus '%s' is already taken", dev, id, bus);
+        if (!u) {
+                if (e->n_units >= EMU_MAX_UNITS)
+                        return log_error_errno(SYNTHETIC_ERRNO(E2BIG), "too many Modbus units");
+                u = &e->units[e->n_units++];
+                *u = (struct emu_unit){ .bus = bi, .id = id, .is_axis = axis };
+        }
+        *ret = u;
+        return 0;
+}
+
+/* Number of holding registers a profile needs (32-bit values take two). */
+static int profile_span(const struct rig_modbus_profile *p)
+{
+        int n = MAX(p->reg_status, p->reg_fault) + 1;
+        n = MAX(n, MAX(p->reg_position, p->reg_target) + 2);
+        n = MAX(n, MAX(p->reg_speed, MAX(p->reg_accel, p->reg_command)) + 1);
+        return n;
+}
+
+static uint16_t reg_tenths(double v)
+{
+        return (uint16_t)CLAMP(llround(v * 10.0), 1, 65535);
+}
+
+static int add_axis(struct sim_emu *e, const struct rig_axis_conf *c)
+{
+        struct emu_unit *u;
+        int r = add_unit(e, c->bus, c->unit, true, c->name, &u);
+        if (r < 0)
+                return r;
+
+        struct emu_axis *a = &u->axis;
+        const struct rig_modbus_profile *p = rigconf_profile(e->rc, c->profile);
+        if (p)
+                a->prof = *p;
+        else if (!c->profile[0] || strcmp(c->profile, "gonio-default") == 0)
+                rigconf_default_profile(&a->prof);
+        else
+                return log_error_errno(SYNTHETIC_ERRNO(EINVAL), "axis '%s': unknown profile '%s'",
+                                       c->name, c->profile);
+        a->conf = c;
+        a->settle_s = c->settle_ms / 1000.0;
+        a->stall_at = NAN;
+        motion_rest(&a->mo, 0.0, start_position(c));
+        a->offset = start_position(c);
+
+        u->map = modbus_mapping_new(0, 0, profile_span(&a->prof), 0);
+        if (!u->map)
+                return log_error_errno(errno, "axis '%s': %m", c->name);
+        u->map->tab_registers[a->prof.reg_speed] = reg_tenths(c->max_speed);
+        u->map->tab_registers[a->prof.reg_accel] = reg_tenths(c->accel);
+        return 0;
+}
+
+static int add_coil(struct sim_emu *e, const struct rig_switch_conf *c)
+{
+        struct emu_unit *u;
+        int r = add_unit(e, c->bus, c->unit, false, c->name, &u);
+        if (r < 0)
+                return r;
+        u->n_coils = MAX(u->n_coils, c->coil + 1);
+        return 0;
+}
+
+static int add_devices(struct sim_emu *e)
+{
+        const struct rig_config *rc = e->rc;
+        int r = 0;
+
+        for (size_t i = 0; r >= 0 && i < rc->n_axes; i++)
+                if (strcmp(rc->axes[i].backend, "modbus") == 0)
+                        r = add_axis(e, &rc->axes[i]);
+        for (size_t i = 0; r >= 0 && i < rc->n_lamps; i++)
+                if (strcmp(rc->lamps[i].backend, "modbus-coil") == 0)
+                        r = add_coil(e, &rc->lamps[i]);
+        if (r >= 0 && rc->has_laser && strcmp(rc->laser.backend, "modbus-coil") == 0)
+                r = add_coil(e, &rc->laser);
+        for (size_t i = 0; r >= 0 && i < e->n_units; i++) {
+                struct emu_unit *u = &e->units[i];
+                if (!u->is_axis && !(u->map = modbus_mapping_new(u->n_coils, 0, 0, 0)))
+                        r = log_error_errno(errno, "relay module: %m");
+        }
+        return r;
+}
+
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct sim_emu *, sim_emu_free);
+
+int sim_emu_new(const struct rig_config *rc, double time_scale, struct sim_emu **ret)
+{
+        if (!rc || !ret || !(time_scale > 0.0))
+                return -EINVAL;
+
+        _cleanup_(sim_emu_freep) struct sim_emu *e = calloc(1, sizeof *e);
+        if (!e)
+                return -ENOMEM;
+        e->rc = rc;
+        e->time_scale = time_scale;
+        clock_gettime(CLOCK_MONOTONIC, &e->epoch);
+        pthread_mutex_init(&e->lock, NULL);
+
+        int r = add_devices(e);
+        for (size_t i = 0; r >= 0 && i < rc->n_buses; i++)
+                if (is_modbus(rc->buses[i].type))
+                        r = bus_start(e, (int)i);
+        if (r < 0)
+                return r;
+        *ret = TAKE_PTR(e);
+        return 0;
+}
+
+struct sim_emu *sim_emu_free(struct sim_emu *e)
+{
+        if (!e)
+                return NULL;
+        atomic_store(&e->stop, true);
+        for (size_t i = 0; i < e->n_buses; i++)
+                bus_stop(&e->buses[i]);
+        for (size_t i = 0; i < e->n_units; i++)
+                modbus_mapping_free(e->units[i].map);
+        pthread_mutex_destroy(&e->lock);
+        free(e);
+        return NULL;
+}
+
+/* ---- queries and faults ---- */
+
+static double *axis_slot(struct sim_rig_state *st, const char *name)
+{
+        if (strcmp(name, "turntable") == 0)
+                return &st->turntable_deg;
+        if (strcmp(name, "light_arm") == 0)
+                return &st->light_arm_deg;
+        if (strcmp(name, "camera_arm") == 0)
+                return &st->camera_arm_deg;
+        return NULL;
+}
+
+static bool coil_state(struct sim_emu *e, const struct rig_switch_conf *c)
+{
+        int bi = bus_index(e, c->bus);
+        struct emu_unit *u = bi >= 0 ? find_unit(e, bi, c->unit) : NULL;
+
+        return u && !u->is_axis && c->coil >= 0 && c->coil < u->n_coils &&
+               u->map->tab_bits[c->coil];
+}
+
+void sim_emu_snapshot(struct sim_emu *e, struct sim_rig_state *st)
+{
+        const struct rig_config *rc = e->rc;
+
+        *st = (struct sim_rig_state){ 0 };
+        pthread_mutex_lock(&e->lock);
+        double now = emu_now(e);
+        for (size_t i = 0; i < e->n_units; i++) {
+                struct emu_axis *a = &e->units[i].axis;
+                if (!e->units[i].is_axis)
+                        continue;
+                axis_update(a, now);
+                double *slot = axis_slot(st, a->conf->name), pos = axis_phys(a, now);
+                if (slot)
+                        *slot = a->conf->continuous ? wrap360(pos) : pos;
+        }
+        for (size_t i = 0; i < rc->n_lamps; i++)
+                st->lamp_on[i] = coil_state(e, &rc->lamps[i]);
+        st->laser_on = rc->has_laser && coil_state(e, &rc->laser);
+        pthread_mutex_unlock(&e->lock);
+}
+
+const char *sim_emu_pty(struct sim_emu *e, const char *bus)
+{
+        const struct emu_bus *b = find_bus(e, bus);
+        return b && b->conf->type == RIG_BUS_MODBUS_RTU ? b->pty : NULL;
+}
+
+int sim_emu_tcp_port(struct sim_emu *e, const char *bus)
+{
+        const struct emu_bus *b = find_bus(e, bus);
+        return b && b->conf->type == RIG_BUS_MODBUS_TCP ? b->tcp_port : -ENOENT;
+}
+
+static void inject_stall(struct sim_emu *e, struct emu_axis *a)
+{
+        double now = emu_now(e);
+
+        axis_update(a, now);
+        if (motion_moving(&a->mo, now))
+                a->stall_at = MAX(now, a->mo.t0 + 0.5 * a->mo.t_total);
+        else
+                a->stall_armed = true;
+}
+
+int sim_emu_inject(struct sim_emu *e, const char *bus, int unit, enum sim_fault fault)
+{
+        int bi = bus_index(e, bus), r = -ENOENT;
+
+        pthread_mutex_lock(&e->lock);
+        struct emu_unit *u = bi >= 0 ? find_unit(e, bi, unit) : NULL;
+        if (u && fault == SIM_FAULT_STALL) {
+                r = u->is_axis ? 0 : -EINVAL;
+                if (u->is_axis)
+                        inject_stall(e, &u->axis);
+        } else if (u) {
+                u->fault = fault;
+                if (fault == SIM_FAULT_NONE) {
+                        u->axis.stall_armed = false;
+                        u->axis.stall_at = NAN;
+                }
+                r = 0;
+        }
+        pthread_mutex_unlock(&e->lock);
+        return r;
+}

@@ -1,0 +1,108 @@
+/* ds-util.c - helpers shared by the dataset store tests (see ds-util.h). */
+#include <dirent.h>
+#include <ftw.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ds-util.h"
+#include "tests/test.h"
+
+char *tu_tmpdir(void)
+{
+        const char *base = getenv("TMPDIR");
+        char *p = NULL;
+
+        CHECK(asprintf(&p, "%s/gonio-ds-XXXXXX", base && *base ? base : "/tmp") > 0);
+        CHECK(mkdtemp(p) != NULL);
+        return p;
+}
+
+static int rm_one(const char *path, const struct stat *st, int flag, struct FTW *ftw)
+{
+        return remove(path) < 0 ? -1 : 0;
+}
+
+void tu_rm_rf(const char *path)
+{
+        (void)nftw(path, rm_one, 16, FTW_DEPTH | FTW_PHYS);
+}
+
+void tu_frame(struct gn_frame *f, int w, int h, int channels, int bits, unsigned seed, bool pad)
+{
+        uint32_t s = seed * 2654435761u + 1;
+
+        CHECK(gn_frame_alloc(f, w, h, channels, bits) == 0);
+        if (pad) {
+                free(f->data);
+                f->stride += 7;
+                f->data = calloc(f->stride, (size_t)h);
+                CHECK(f->data);
+        }
+        for (int y = 0; y < h; y++)
+                for (int x = 0; x < w * channels; x++) {
+                        s = s * 1103515245u + 12345u;
+                        if (bits == 16)
+                                ((uint16_t *)(f->data + (size_t)y * f->stride))[x] =
+                                        (uint16_t)(s >> 8);
+                        else
+                                f->data[(size_t)y * f->stride + x] = (uint8_t)(s >> 16);
+                }
+}
+
+bool tu_frames_equal(const struct gn_frame *a, const struct gn_frame *b)
+{
+        size_t row = (size_t)a->width * a->channels * (a->bits / 8);
+
+        if (a->width != b->width || a->height != b->height || a->channels != b->channels ||
+            a->bits != b->bits)
+                return false;
+        for (int y = 0; y < a->height; y++)
+                if (memcmp(a->data + (size_t)y * a->stride, b->data + (size_t)y * b->stride, row) !=
+                    0)
+                        return false;
+        return true;
+}
+
+void tu_capture(struct ds_capture *c, const char *camera, const char *lamps, int i)
+{
+        memset(c, 0, sizeof(*c));
+        snprintf(c->session, sizeof(c->session), "sess-%d", i / 10);
+        c->turntable_deg = 12.5 * i;
+        c->light_arm_deg = -30.25 + i;
+        c->camera_arm_deg = 45.0 / (i + 1);
+        snprintf(c->camera, sizeof(c->camera), "%s", camera);
+        snprintf(c->lamps, sizeof(c->lamps), "%s", lamps);
+        c->laser = i % 2;
+        c->exposure_us = 1000 + i;
+        c->gain = 1.5 + i * 0.125;
+        c->t_request_ns = 1700000000000000000ull + (uint64_t)i * 1000;
+        c->t_exposure_ns = c->t_request_ns + 500;
+}
+
+int tu_count(const char *dir, const char *suffix)
+{
+        DIR *d = opendir(dir);
+        struct dirent *de;
+        int n = 0;
+
+        CHECK(d);
+        while ((de = readdir(d))) {
+                size_t len = strlen(de->d_name), sl = strlen(suffix);
+
+                if (strcmp(de->d_name, ".") == 0 || strcmp(de->d_name, "..") == 0)
+                        continue;
+                n += len >= sl && strcmp(de->d_name + len - sl, suffix) == 0;
+        }
+        closedir(d);
+        return n;
+}
+
+int tu_count_tmp(const char *dataset)
+{
+        char images[4096];
+
+        snprintf(images, sizeof(images), "%s/images", dataset);
+        return tu_count(dataset, ".tmp") + tu_count(images, ".tmp");
+}

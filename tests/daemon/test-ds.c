@@ -1,0 +1,460 @@
+/* test-ds.c - the dataset store against a real directory, SQLite index and PNG files:
+ * create/open, bit-exact round trips, checksums and verify, WAL, reopen, the temp-name
+ * protocol, crash leftovers, the single-writer lock and write failures (RLIMIT_FSIZE).
+ *
+ * Usage: test-ds CASE (one meson test per case). */
+#include <errno.h>
+#include <jansson.h>
+#include <signal.h>
+#include <sqlite3.h>
+#include <stdint.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "daemon/ds.h"
+#include "ds-util.h"
+#include "tests/test.h"
+
+static const char rig_text[] = "# test rig\nrig: test-rig\nbuses: []\n";
+
+struct fixture {
+        char *tmp;
+        char path[4096];
+        struct ds *d;
+};
+
+static void setup(struct fixture *fx)
+{
+        fx->tmp = tu_tmpdir();
+        snprintf(fx->path, sizeof(fx->path), "%s/ds", fx->tmp);
+        CHECK_INT(ds_create(fx->path, "test-set", rig_text, &fx->d), 0);
+}
+
+static void teardown(struct fixture *fx)
+{
+        fx->d = ds_close(fx->d);
+        tu_rm_rf(fx->tmp);
+        free(fx->tmp);
+}
+
+/* Stores a noisy frame of the given shape; returns ds_store's result. */
+static int store(struct ds *d, int w, int h, int ch, int bits, const char *cam, const char *lamps,
+                 int i, struct ds_capture *c)
+{
+        struct gn_frame f;
+        int r;
+
+        tu_frame(&f, w, h, ch, bits, (unsigned)i, false);
+        tu_capture(c, cam, lamps, i);
+        r = ds_store(d, &f, c);
+        gn_frame_free_data(&f);
+        return r;
+}
+
+static void path_of(const struct fixture *fx, const char *rel, char *out, size_t len)
+{
+        snprintf(out, len, "%s/%s", fx->path, rel);
+}
+
+static json_t *load_json(const struct fixture *fx)
+{
+        char p[4200];
+        json_t *j;
+
+        path_of(fx, "dataset.json", p, sizeof(p));
+        j = json_load_file(p, 0, NULL);
+        CHECK(j);
+        return j;
+}
+
+static void check_json_names(json_t *arr, const char *const *names, size_t n)
+{
+        CHECK_INT(json_array_size(arr), n);
+        for (size_t i = 0; i < n; i++)
+                CHECK(strcmp(json_string_value(json_array_get(arr, i)), names[i]) == 0);
+}
+
+static void test_create(void)
+{
+        static const char *const cams[] = {"cam0", "cam1"}, *const lamps[] = {"l1", "l2"};
+        struct fixture fx = {};
+        struct ds *other = NULL;
+        struct ds_capture c;
+        char p[4200];
+        json_t *j;
+
+        setup(&fx);
+        CHECK(strcmp(ds_name(fx.d), "test-set") == 0);
+        CHECK(ds_path(fx.d)[0] == '/');
+        CHECK_INT(ds_create(fx.path, "again", rig_text, &other), -EEXIST);
+        path_of(&fx, "nope", p, sizeof(p));
+        CHECK_INT(ds_open(p, &other), -ENOENT);
+        CHECK_INT(ds_open(fx.tmp, &other), -EBADMSG); /* a directory, not a dataset */
+        path_of(&fx, "rig.yaml", p, sizeof(p));
+        FILE *fp = fopen(p, "r");
+        char text[256] = "";
+        CHECK(fp && fread(text, 1, sizeof(text) - 1, fp) == strlen(rig_text) && fclose(fp) == 0);
+        CHECK(strcmp(text, rig_text) == 0);
+
+        j = load_json(&fx);
+        CHECK(strcmp(json_string_value(json_object_get(j, "name")), "test-set") == 0);
+        CHECK(strcmp(json_string_value(json_object_get(j, "rig")), "test-rig") == 0);
+        CHECK(strcmp(json_string_value(json_object_get(j, "format")), "png") == 0);
+        CHECK_INT(json_integer_value(json_object_get(j, "captures")), 0);
+        const char *created = json_string_value(json_object_get(j, "created"));
+        CHECK(created && strlen(created) == 20 && created[10] == 'T' && created[19] == 'Z');
+        json_decref(j);
+
+        CHECK_INT(store(fx.d, 16, 8, 1, 8, "cam1", "l2,l1", 0, &c), 0);
+        CHECK_INT(store(fx.d, 16, 8, 1, 8, "cam0", "l1", 1, &c), 0);
+        CHECK_INT(store(fx.d, 16, 8, 1, 8, "cam0", "", 2, &c), 0);
+        fx.d = ds_close(fx.d);
+        j = load_json(&fx);
+        CHECK_INT(json_integer_value(json_object_get(j, "captures")), 3);
+        check_json_names(json_object_get(j, "cameras"), cams, 2);
+        check_json_names(json_object_get(j, "lamps"), lamps, 2);
+        json_decref(j);
+        teardown(&fx);
+}
+
+static void check_roundtrip(struct ds *d, int ch, int bits, bool pad, int i)
+{
+        struct gn_frame f, back = {};
+        struct ds_capture c, want;
+
+        tu_frame(&f, 37, 23, ch, bits, (unsigned)i, pad);
+        tu_capture(&c, "cam0", "l1,l3", i);
+        want = c;
+        CHECK_INT(ds_store(d, &f, &c), 0);
+        CHECK_INT(c.id, i + 1);
+        CHECK_INT(c.width, 37);
+        CHECK_INT(c.height, 23);
+        CHECK(strcmp(c.pixfmt, gn_frame_format(&f)) == 0);
+        CHECK_INT(strlen(c.sha256), 64);
+        CHECK(c.t_stored_ns >= want.t_exposure_ns);
+        char name[64];
+        snprintf(name, sizeof(name), "images/%06d_cam0_l1+l3.png", i + 1);
+        CHECK(strcmp(c.file, name) == 0);
+        CHECK_INT(ds_load_image(d, c.file, &back), 0);
+        CHECK(tu_frames_equal(&f, &back));
+        gn_frame_free_data(&f);
+        gn_frame_free_data(&back);
+}
+
+/* 16-bit samples must be big-endian in the file: a stored (level 0) 1x1 PNG shows them. */
+static void check_big_endian(struct fixture *fx)
+{
+        struct gn_frame f;
+        struct ds_capture c;
+        char p[4400];
+        FILE *fp;
+        uint8_t buf[512];
+        size_t n;
+
+        CHECK_INT(gn_frame_alloc(&f, 1, 1, 1, 16), 0);
+        ((uint16_t *)f.data)[0] = 0xA1B2;
+        tu_capture(&c, "cam9", "", 9);
+        CHECK_INT(ds_set_compression(fx->d, 0), 0);
+        CHECK_INT(ds_set_compression(fx->d, 10), -EINVAL);
+        CHECK_INT(ds_store(fx->d, &f, &c), 0);
+        CHECK(strstr(c.file, "_cam9_dark.png"));
+        path_of(fx, c.file, p, sizeof(p));
+        fp = fopen(p, "rb");
+        CHECK(fp);
+        n = fread(buf, 1, sizeof(buf), fp);
+        fclose(fp);
+        CHECK(n > 8 && memcmp(buf, "\x89PNG\r\n\x1a\n", 8) == 0);
+        CHECK(memmem(buf, n, "\xA1\xB2", 2) != NULL);
+        CHECK(memmem(buf, n, "\xB2\xA1", 2) == NULL);
+        gn_frame_free_data(&f);
+}
+
+static void test_roundtrip(void)
+{
+        struct fixture fx = {};
+        int i = 0;
+
+        setup(&fx);
+        for (int ch = 1; ch <= 3; ch += 2)
+                for (int bits = 8; bits <= 16; bits += 8)
+                        for (int pad = 0; pad <= 1; pad++)
+                                check_roundtrip(fx.d, ch, bits, pad, i++);
+        check_big_endian(&fx);
+        CHECK_INT(ds_count(fx.d), i + 1);
+        teardown(&fx);
+}
+
+struct rows {
+        struct ds_capture c[16];
+        int n;
+};
+
+static int collect(const struct ds_capture *c, void *ud)
+{
+        struct rows *rows = ud;
+
+        CHECK(rows->n < 16);
+        rows->c[rows->n++] = *c;
+        return 0;
+}
+
+static void test_verify(void)
+{
+        struct fixture fx = {};
+        struct ds_capture c[5];
+        struct gn_frame back = {};
+        struct rows rows = {};
+        char p[4400], hex[65];
+        FILE *fp;
+
+        setup(&fx);
+        for (int i = 0; i < 5; i++)
+                CHECK_INT(store(fx.d, 64, 48, 3, 8, "cam0", "l1", i, &c[i]), 0);
+        CHECK_INT(ds_verify(fx.d), 0);
+        CHECK_INT(ds_foreach(fx.d, collect, &rows), 0);
+        CHECK_INT(rows.n, 5);
+        for (int i = 0; i < 5; i++) {
+                path_of(&fx, rows.c[i].file, p, sizeof(p));
+                CHECK_INT(ds_sha256_file(p, hex), 0);
+                CHECK(strcmp(hex, rows.c[i].sha256) == 0);
+        }
+        path_of(&fx, "abc.txt", p, sizeof(p));
+        fp = fopen(p, "w");
+        CHECK(fp && fputs("abc", fp) >= 0 && fclose(fp) == 0);
+        CHECK_INT(ds_sha256_file(p, hex), 0);
+        CHECK(strcmp(hex, "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad") == 0);
+
+        /* flip one byte in the middle of an image: detected by verify and by the decoder */
+        path_of(&fx, c[1].file, p, sizeof(p));
+        fp = fopen(p, "r+b");
+        CHECK(fp && fseek(fp, 200, SEEK_SET) == 0);
+        int ch = fgetc(fp);
+        CHECK(fseek(fp, 200, SEEK_SET) == 0 && fputc(ch ^ 0x40, fp) != EOF && fclose(fp) == 0);
+        CHECK_INT(ds_verify(fx.d), 1);
+        CHECK(ds_load_image(fx.d, c[1].file, &back) < 0);
+        path_of(&fx, c[3].file, p, sizeof(p));
+        CHECK(unlink(p) == 0);
+        CHECK_INT(ds_verify(fx.d), 2);
+        CHECK_INT(ds_load_image(fx.d, c[3].file, &back), -ENOENT);
+        CHECK_INT(ds_load_image(fx.d, "../escape.png", &back), -EINVAL);
+        teardown(&fx);
+}
+
+static void test_wal(void)
+{
+        static const char *const keys[] = {"schema_version", "name", "created", "rig"};
+        struct fixture fx = {};
+        struct ds_capture c;
+        sqlite3 *db;
+        sqlite3_stmt *s;
+        char p[4200];
+
+        setup(&fx);
+        CHECK_INT(store(fx.d, 8, 8, 1, 8, "cam0", "l1", 0, &c), 0);
+        path_of(&fx, "index.sqlite", p, sizeof(p));
+        CHECK_INT(sqlite3_open_v2(p, &db, SQLITE_OPEN_READONLY, NULL), SQLITE_OK);
+        CHECK_INT(sqlite3_prepare_v2(db, "PRAGMA journal_mode", -1, &s, NULL), SQLITE_OK);
+        CHECK_INT(sqlite3_step(s), SQLITE_ROW);
+        CHECK(strcmp((const char *)sqlite3_column_text(s, 0), "wal") == 0);
+        sqlite3_finalize(s);
+        CHECK_INT(sqlite3_prepare_v2(db,
+                                     "SELECT id, session, turntable_deg, light_arm_deg, "
+                                     "camera_arm_deg, camera, lamps, laser, exposure_us, gain, "
+                                     "t_request_ns, t_exposure_ns, t_stored_ns, file, sha256, "
+                                     "width, height, pixfmt FROM captures",
+                                     -1, &s, NULL),
+                  SQLITE_OK);
+        CHECK_INT(sqlite3_step(s), SQLITE_ROW); /* the open writer's commit is visible */
+        CHECK(strcmp((const char *)sqlite3_column_text(s, 13), c.file) == 0);
+        sqlite3_finalize(s);
+        for (size_t i = 0; i < 4; i++) {
+                CHECK_INT(sqlite3_prepare_v2(db, "SELECT value FROM meta WHERE key = ?", -1, &s,
+                                             NULL),
+                          SQLITE_OK);
+                sqlite3_bind_text(s, 1, keys[i], -1, SQLITE_STATIC);
+                CHECK_INT(sqlite3_step(s), SQLITE_ROW);
+                sqlite3_finalize(s);
+        }
+        sqlite3_close(db);
+        teardown(&fx);
+}
+
+static void check_rows_equal(const struct ds_capture *a, const struct ds_capture *b)
+{
+        CHECK_INT(a->id, b->id);
+        CHECK(strcmp(a->session, b->session) == 0 && strcmp(a->camera, b->camera) == 0);
+        CHECK(strcmp(a->lamps, b->lamps) == 0 && strcmp(a->file, b->file) == 0);
+        CHECK(strcmp(a->sha256, b->sha256) == 0 && strcmp(a->pixfmt, b->pixfmt) == 0);
+        CHECK(a->turntable_deg == b->turntable_deg && a->light_arm_deg == b->light_arm_deg);
+        CHECK(a->camera_arm_deg == b->camera_arm_deg && a->gain == b->gain);
+        CHECK_INT(a->laser, b->laser);
+        CHECK_INT(a->exposure_us, b->exposure_us);
+        CHECK(a->t_request_ns == b->t_request_ns && a->t_exposure_ns == b->t_exposure_ns);
+        CHECK(a->t_stored_ns == b->t_stored_ns);
+        CHECK_INT(a->width, b->width);
+        CHECK_INT(a->height, b->height);
+}
+
+static void test_reopen(void)
+{
+        struct fixture fx = {};
+        struct ds_capture c[5];
+        struct rows rows = {};
+        json_t *j;
+
+        setup(&fx);
+        for (int i = 0; i < 3; i++)
+                CHECK_INT(store(fx.d, 20, 10, 1, 16, i ? "cam1" : "cam0", "l2", i, &c[i]), 0);
+        fx.d = ds_close(fx.d);
+        CHECK_INT(ds_open(fx.path, &fx.d), 0);
+        CHECK(strcmp(ds_name(fx.d), "test-set") == 0);
+        CHECK_INT(ds_count(fx.d), 3);
+        for (int i = 3; i < 5; i++)
+                CHECK_INT(store(fx.d, 20, 10, 3, 8, "cam0", "l1,l2", i, &c[i]), 0);
+        CHECK_INT(c[3].id, 4);
+        CHECK_INT(c[4].id, 5);
+        fx.d = ds_close(fx.d);
+        CHECK_INT(ds_open(fx.path, &fx.d), 0);
+        CHECK_INT(ds_foreach(fx.d, collect, &rows), 0);
+        CHECK_INT(rows.n, 5);
+        for (int i = 0; i < 5; i++)
+                check_rows_equal(&rows.c[i], &c[i]);
+        CHECK_INT(ds_verify(fx.d), 0);
+        j = load_json(&fx);
+        CHECK_INT(json_integer_value(json_object_get(j, "captures")), 5);
+        json_decref(j);
+        teardown(&fx);
+}
+
+static void touch(const struct fixture *fx, const char *rel)
+{
+        char p[4200];
+        FILE *fp;
+
+        path_of(fx, rel, p, sizeof(p));
+        fp = fopen(p, "w");
+        CHECK(fp && fputs("torn", fp) >= 0 && fclose(fp) == 0);
+}
+
+static void test_tmpfiles(void)
+{
+        struct fixture fx = {};
+        struct ds_capture c;
+        char images[4200];
+
+        setup(&fx);
+        path_of(&fx, "images", images, sizeof(images));
+        for (int i = 0; i < 4; i++)
+                CHECK_INT(store(fx.d, 32, 16, 3, 16, "cam0", "l1", i, &c), 0);
+        CHECK_INT(tu_count_tmp(fx.path), 0);
+        CHECK_INT(tu_count(images, ""), 4);
+        CHECK_INT(tu_count(images, ".png"), 4);
+        fx.d = ds_close(fx.d);
+        CHECK_INT(tu_count_tmp(fx.path), 0);
+
+        /* what a crash leaves: a temp file, and a renamed image whose row never committed */
+        touch(&fx, "images/000005_cam0_l1.png.tmp");
+        touch(&fx, "images/000005_cam0_l1.png");
+        touch(&fx, "images/000006_cam1_dark.png");
+        CHECK_INT(ds_open(fx.path, &fx.d), 0);
+        CHECK_INT(tu_count(images, ""), 7); /* readers leave them alone */
+        CHECK_INT(store(fx.d, 32, 16, 1, 8, "cam2", "", 5, &c), 0);
+        CHECK_INT(c.id, 5);
+        CHECK(strcmp(c.file, "images/000005_cam2_dark.png") == 0);
+        CHECK_INT(tu_count(images, ""), 5);
+        CHECK_INT(tu_count_tmp(fx.path), 0);
+        CHECK_INT(ds_verify(fx.d), 0);
+        teardown(&fx);
+}
+
+static void test_lock(void)
+{
+        struct fixture fx = {};
+        struct ds *reader = NULL;
+        struct ds_capture c;
+
+        setup(&fx);
+        CHECK_INT(store(fx.d, 8, 8, 1, 8, "cam0", "l1", 0, &c), 0);
+        CHECK_INT(ds_open(fx.path, &reader), 0);
+        CHECK_INT(ds_count(reader), 1);
+        CHECK_INT(store(reader, 8, 8, 1, 8, "cam0", "l1", 1, &c), -EBUSY);
+        CHECK_INT(store(fx.d, 8, 8, 1, 8, "cam0", "l1", 2, &c), 0);
+        CHECK_INT(ds_count(reader), 2);
+        fx.d = ds_close(fx.d);
+        CHECK_INT(store(reader, 8, 8, 1, 8, "cam0", "l1", 3, &c), 0);
+        CHECK_INT(c.id, 3);
+        fx.d = reader;
+        teardown(&fx);
+}
+
+static void set_fsize(rlim_t soft)
+{
+        struct rlimit rl;
+
+        CHECK(getrlimit(RLIMIT_FSIZE, &rl) == 0);
+        rl.rlim_cur = soft;
+        CHECK(setrlimit(RLIMIT_FSIZE, &rl) == 0);
+}
+
+/* After a failed store: the error, no row, no temp file, no image without a row. */
+static void check_nothing_recorded(struct fixture *fx, int64_t rows)
+{
+        char images[4200];
+
+        path_of(fx, "images", images, sizeof(images));
+        CHECK_INT(ds_count(fx->d), rows);
+        CHECK_INT(tu_count_tmp(fx->path), 0);
+        CHECK_INT(tu_count(images, ""), rows);
+        CHECK_INT(ds_verify(fx->d), 0);
+}
+
+static void test_fsize(void)
+{
+        struct fixture fx = {};
+        struct ds_capture c;
+        struct rlimit saved;
+
+        CHECK(signal(SIGXFSZ, SIG_IGN) != SIG_ERR);
+        CHECK(getrlimit(RLIMIT_FSIZE, &saved) == 0);
+        setup(&fx);
+        for (int i = 0; i < 2; i++)
+                CHECK_INT(store(fx.d, 64, 64, 1, 8, "cam0", "l1", i, &c), 0);
+
+        /* the image write fails: a 128x128 rgb16 noise PNG is ~98 KiB > 16 KiB */
+        set_fsize(16 << 10);
+        CHECK_INT(store(fx.d, 128, 128, 3, 16, "cam0", "l1", 2, &c), -EFBIG);
+        set_fsize(saved.rlim_cur);
+        check_nothing_recorded(&fx, 2);
+
+        /* the image fits but the index's WAL (already > 16 KiB) cannot grow: the commit
+         * fails and the image it would have named is removed */
+        set_fsize(16 << 10);
+        CHECK_INT(store(fx.d, 4, 4, 1, 8, "cam0", "l1", 3, &c), -EFBIG);
+        set_fsize(saved.rlim_cur);
+        check_nothing_recorded(&fx, 2);
+
+        /* space is back: the next store works and takes the next id */
+        CHECK_INT(store(fx.d, 128, 128, 3, 16, "cam0", "l1", 4, &c), 0);
+        CHECK_INT(c.id, 3);
+        check_nothing_recorded(&fx, 3);
+        teardown(&fx);
+}
+
+int main(int argc, char **argv)
+{
+        static const struct {
+                const char *name;
+                void (*fn)(void);
+        } cases[] = {
+                {"create", test_create}, {"roundtrip", test_roundtrip}, {"verify", test_verify},
+                {"wal", test_wal},       {"reopen", test_reopen},       {"tmpfiles", test_tmpfiles},
+                {"lock", test_lock},     {"fsize", test_fsize},
+        };
+
+        for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++)
+                if (argc < 2 || strcmp(argv[1], cases[i].name) == 0)
+                        cases[i].fn();
+        return 0;
+}

@@ -1,0 +1,88 @@
+/* testrig.c - temp-dir rig files and emulators for the driver tests (see testrig.h). */
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "tests/drivers/testrig.h"
+#include "tests/test.h"
+
+/* Copies yaml to f with each "@DIR@" replaced by dir. */
+static void write_expanded(FILE *f, const char *yaml, const char *dir)
+{
+        const char *p = yaml, *at;
+
+        while ((at = strstr(p, "@DIR@"))) {
+                fwrite(p, 1, (size_t)(at - p), f);
+                fputs(dir, f);
+                p = at + 5;
+        }
+        fputs(p, f);
+}
+
+void testrig_start(struct testrig *t, const char *yaml)
+{
+        char path[128], err[512];
+        FILE *f;
+        int r;
+
+        memset(t, 0, sizeof(*t));
+        snprintf(t->dir, sizeof(t->dir), "/tmp/gonio-drivers-XXXXXX");
+        CHECK(mkdtemp(t->dir) != NULL);
+        snprintf(path, sizeof(path), "%s/rig.yaml", t->dir);
+        f = fopen(path, "we");
+        CHECK(f != NULL);
+        write_expanded(f, yaml, t->dir);
+        CHECK(fclose(f) == 0);
+
+        r = rigconf_load(path, &t->rc, err, sizeof(err));
+        if (r < 0)
+                fprintf(stderr, "%s\n", err);
+        CHECK_INT(r, 0);
+        CHECK_INT(sim_emu_new(t->rc, TESTRIG_TIME_SCALE, &t->emu), 0);
+        for (size_t i = 0; i < t->rc->n_buses; i++) {
+                struct rig_bus_conf *b = &t->rc->buses[i];
+
+                if (b->type == RIG_BUS_MODBUS_TCP) {
+                        b->tcp_port = sim_emu_tcp_port(t->emu, b->name);
+                        CHECK(b->tcp_port > 0);
+                }
+        }
+}
+
+void testrig_stop(struct testrig *t)
+{
+        char path[128];
+
+        t->emu = sim_emu_free(t->emu);
+        t->rc = rigconf_free(t->rc);
+        snprintf(path, sizeof(path), "%s/rig.yaml", t->dir);
+        CHECK(unlink(path) == 0);
+        CHECK(rmdir(t->dir) == 0); /* the emulator removed its symlinks */
+}
+
+const struct rig_bus_conf *testrig_bus(const struct testrig *t, const char *name)
+{
+        const struct rig_bus_conf *b = rigconf_bus(t->rc, name);
+
+        CHECK(b != NULL);
+        return b;
+}
+
+double testrig_now(void)
+{
+        struct timespec ts;
+
+        clock_gettime(CLOCK_MONOTONIC, &ts);
+        return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+void testrig_sleep(double s)
+{
+        struct timespec ts = {.tv_sec = (time_t)s, .tv_nsec = (long)((s - (time_t)s) * 1e9)};
+
+        while (nanosleep(&ts, &ts) < 0 && errno == EINTR)
+                ;
+}

@@ -1,0 +1,33 @@
+/* testrig.h - a small test rig for the driver-vs-emulator tests: a rig file written into
+ * a fresh temp dir (the emulator's pty symlinks go there too), loaded with rigconf_load,
+ * with gonio-sim's Modbus emulators running on it. */
+#pragma once
+
+#include "common/rigconf.h"
+#include "drivers/bus/bus.h"
+#include "sim/modbus_emu.h"
+
+/* Emulated motion runs this many times faster than real time. */
+#define TESTRIG_TIME_SCALE 20.0
+
+struct testrig {
+        char dir[64];
+        struct rig_config *rc;
+        struct sim_emu *emu;
+};
+
+/* Writes yaml (with every "@DIR@" replaced by the temp dir) to DIR/rig.yaml, loads it and
+ * starts the emulators; TCP buses get their listening port filled in. Exits on failure. */
+void testrig_start(struct testrig *t, const char *yaml);
+
+/* Stops the emulators, frees the config, removes the temp dir. */
+void testrig_stop(struct testrig *t);
+
+/* The bus configuration named name (exits when absent). */
+const struct rig_bus_conf *testrig_bus(const struct testrig *t, const char *name);
+
+/* Seconds on CLOCK_MONOTONIC. */
+double testrig_now(void);
+
+/* Sleeps for s seconds. */
+void testrig_sleep(double s);

@@ -1,0 +1,96 @@
+/* simtest.c - helpers shared by the tests of sim/ (see simtest.h). */
+#include <dirent.h>
+#include <stdio.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "tests/sim/simtest.h"
+
+static const char rig_head[] =
+        "rig: test\n"
+        "buses:\n"
+        "  - { name: relays, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/relays\" }\n"
+        "  - { name: frames, type: sim, port: \"${GONIO_SIM_DIR}/frames.sock\" }\n";
+static const char rig_drives_rtu[] =
+        "  - { name: drives, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/drives\" }\n";
+static const char rig_drives_tcp[] =
+        "  - { name: drives, type: modbus-tcp, host: 127.0.0.1, tcp_port: 0 }\n";
+static const char rig_body[] =
+        "axes:\n"
+        "  - { name: turntable, backend: modbus, bus: drives, unit: 1, continuous: true,\n"
+        "      max_speed: 90, accel: 180, settle_ms: 50 }\n"
+        "  - { name: light_arm, backend: modbus, bus: drives, unit: 2, continuous: true,\n"
+        "      max_speed: 45, accel: 90, settle_ms: 80 }\n"
+        "  - { name: camera_arm, backend: modbus, bus: drives, unit: 3, limits: [-170, 170],\n"
+        "      max_speed: 30, accel: 60, settle_ms: 100 }\n"
+        "lamps:\n"
+        "  - { name: lamp0, backend: modbus-coil, bus: relays, unit: 10, coil: 0,\n"
+        "      elevation: 30, radius: 450, intensity: 4.0e5 }\n"
+        "  - { name: lamp1, backend: modbus-coil, bus: relays, unit: 10, coil: 1,\n"
+        "      elevation: 60, radius: 450, intensity: 4.0e5 }\n"
+        "laser: { name: laser, backend: modbus-coil, bus: relays, unit: 10, coil: 7,\n"
+        "         azimuth: 0, origin: [600, 0, 150], width: 0.6, power: 2.0e3 }\n"
+        "cameras:\n"
+        "  - { name: cam0, backend: sim, bus: frames, elevation: 20, distance: 500,\n"
+        "      azimuth: 30, target: [0, 0, 30], width: 160, height: 120, fx: 240, fy: 240,\n"
+        "      cx: 79.5, cy: 59.5, exposure_us: 20000, gain: 1.0, bits: 8 }\n"
+        "scene:\n"
+        "  seed: 1\n"
+        "  object: { shape: sphere, size: 80, material: { albedo: [0.7, 0.6, 0.5] } }\n"
+        "  turntable: { radius: 150, albedo: [0.2, 0.2, 0.2] }\n";
+
+void simtest_write_rig(char *dir, bool drives_tcp)
+{
+        char path[256];
+
+        strcpy(dir, "/tmp/gonio-simtest-XXXXXX");
+        CHECK(mkdtemp(dir));
+        snprintf(path, sizeof path, "%s/rig.yaml", dir);
+        FILE *f = fopen(path, "w");
+        CHECK(f);
+        CHECK(fputs(rig_head, f) >= 0);
+        CHECK(fputs(drives_tcp ? rig_drives_tcp : rig_drives_rtu, f) >= 0);
+        CHECK(fputs(rig_body, f) >= 0);
+        CHECK(fclose(f) == 0);
+}
+
+struct rig_config *simtest_rig(char *dir, bool drives_tcp)
+{
+        char path[256], err[512] = "";
+        struct rig_config *rc = NULL;
+
+        simtest_write_rig(dir, drives_tcp);
+        snprintf(path, sizeof path, "%s/rig.yaml", dir);
+        CHECK(setenv("GONIO_SIM_DIR", dir, 1) == 0);
+        int r = rigconf_load(path, &rc, err, sizeof err);
+        if (r < 0)
+                fprintf(stderr, "rigconf_load: %s\n", err);
+        CHECK(r >= 0);
+        return rc;
+}
+
+void simtest_rmdir(const char *dir)
+{
+        char path[512];
+        DIR *d = opendir(dir);
+        struct dirent *de;
+
+        if (!d)
+                return;
+        while ((de = readdir(d)))
+                if (strcmp(de->d_name, ".") != 0 && strcmp(de->d_name, "..") != 0) {
+                        snprintf(path, sizeof path, "%s/%s", dir, de->d_name);
+                        (void)unlink(path);
+                }
+        closedir(d);
+        (void)rmdir(dir);
+}
+
+double simtest_now(void)
+{
+        struct timespec ts;
+
+        clock_gettime(CLOCK_MONOTONIC, &ts);
+        return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}

@@ -1,0 +1,290 @@
+/* test-modbus-emu.c - the Modbus emulators of gonio-sim, through a plain libmodbus
+ * client on the pty (RTU) or on loopback (TCP): register reads and writes, several
+ * units on one bus, the timing of a move against the motion model, homing, stop,
+ * and the client-side error of every injected fault. */
+#include <errno.h>
+#include <math.h>
+#include <string.h>
+#include <unistd.h>
+
+#include <modbus/modbus.h>
+
+#include "common/cleanup.h"
+#include "sim/modbus_emu.h"
+#include "sim/motion.h"
+#include "tests/sim/simtest.h"
+
+#define TIME_SCALE 4.0 /* emulated seconds per real second */
+
+enum { R_STATUS = 0x00, R_FAULT = 0x01, R_POS = 0x02, R_TARGET = 0x10, R_SPEED = 0x12,
+       R_COMMAND = 0x20 };
+enum { ST_HOMED = 1 << 1, ST_MOVING = 1 << 2, ST_INPOS = 1 << 3, ST_FAULT = 1 << 4 };
+enum { CMD_MOVE = 1, CMD_HOME = 2, CMD_STOP = 3, CMD_RESET = 4 };
+
+static modbus_t *client_rtu(const char *dir)
+{
+        char path[256];
+
+        snprintf(path, sizeof path, "%s/drives", dir);
+        modbus_t *mb = modbus_new_rtu(path, 115200, 'N', 8, 1);
+        CHECK(mb);
+        CHECK(modbus_connect(mb) == 0);
+        CHECK(modbus_set_response_timeout(mb, 0, 300000) == 0);
+        return mb;
+}
+
+static uint16_t reg(modbus_t *mb, int unit, int addr)
+{
+        uint16_t v = 0;
+
+        CHECK(modbus_set_slave(mb, unit) == 0);
+        CHECK(modbus_read_registers(mb, addr, 1, &v) == 1);
+        return v;
+}
+
+static double position_deg(modbus_t *mb, int unit)
+{
+        uint16_t v[2];
+
+        CHECK(modbus_set_slave(mb, unit) == 0);
+        CHECK(modbus_read_registers(mb, R_POS, 2, v) == 2);
+        return (int32_t)((uint32_t)v[0] << 16 | v[1]) / 1000.0;
+}
+
+/* Writes target and command in one request (function 0x10). */
+static int command(modbus_t *mb, int unit, double target_deg, uint16_t cmd)
+{
+        int32_t t = (int32_t)lround(target_deg * 1000.0);
+        uint16_t v[2] = { (uint16_t)((uint32_t)t >> 16), (uint16_t)t };
+
+        CHECK(modbus_set_slave(mb, unit) == 0);
+        CHECK(modbus_write_registers(mb, R_TARGET, 2, v) == 2);
+        return modbus_write_register(mb, R_COMMAND, cmd);
+}
+
+/* Polls status until (status & mask) == want; returns the real time it took. */
+static double wait_status(modbus_t *mb, int unit, uint16_t mask, uint16_t want, double limit_s)
+{
+        double t0 = simtest_now();
+
+        while ((reg(mb, unit, R_STATUS) & mask) != want) {
+                CHECK(simtest_now() - t0 < limit_s);
+                usleep(2000);
+        }
+        return simtest_now() - t0;
+}
+
+static double wrapped_distance(double a, double b)
+{
+        return fabs(remainder(a - b, 360.0));
+}
+
+static void test_reads_and_units(struct sim_emu *e, modbus_t *mb)
+{
+        uint8_t coils[8];
+        struct sim_rig_state st;
+
+        CHECK(reg(mb, 1, R_STATUS) & 1); /* enabled */
+        CHECK(!(reg(mb, 1, R_STATUS) & ST_HOMED));
+        CHECK(reg(mb, 1, R_FAULT) == 0);
+        CHECK(position_deg(mb, 1) == 0.0); /* counts from power-on */
+        CHECK(reg(mb, 1, R_SPEED) == 900);
+        CHECK(reg(mb, 2, R_SPEED) == 450);
+        CHECK(reg(mb, 3, R_SPEED) == 300);
+
+        /* The relay module at unit 10 on its own bus. */
+        char path[256];
+        snprintf(path, sizeof path, "%s/relays", getenv("GONIO_SIM_DIR"));
+        modbus_t *rl = modbus_new_rtu(path, 115200, 'N', 8, 1);
+        CHECK(rl && modbus_connect(rl) == 0 && modbus_set_slave(rl, 10) == 0);
+        CHECK(modbus_set_response_timeout(rl, 0, 300000) == 0);
+        CHECK(modbus_write_bit(rl, 1, 1) == 1);
+        CHECK(modbus_write_bit(rl, 7, 1) == 1);
+        CHECK(modbus_read_bits(rl, 0, 8, coils) == 8);
+        CHECK(!coils[0] && coils[1] && coils[7]);
+        sim_emu_snapshot(e, &st);
+        CHECK(!st.lamp_on[0] && st.lamp_on[1] && st.laser_on);
+        CHECK(modbus_read_bits(rl, 8, 1, coils) == -1 && errno == EMBXILADD);
+        modbus_close(rl);
+        modbus_free(rl);
+
+        /* No device at unit 5: silence, like a real bus. */
+        CHECK(modbus_set_slave(mb, 5) == 0);
+        uint16_t v;
+        CHECK(modbus_read_registers(mb, R_STATUS, 1, &v) == -1 && errno == ETIMEDOUT);
+        /* Out-of-map register and unknown command. */
+        CHECK(modbus_set_slave(mb, 1) == 0);
+        CHECK(modbus_read_registers(mb, 0x100, 1, &v) == -1 && errno == EMBXILADD);
+        CHECK(modbus_write_register(mb, R_COMMAND, 99) == -1 && errno == EMBXILVAL);
+}
+
+static void test_home(struct sim_emu *e, modbus_t *mb)
+{
+        struct sim_rig_state st;
+
+        CHECK(command(mb, 1, 0.0, CMD_HOME) == 1);
+        /* at most half a turn at 90 deg/s, 180 deg/s^2, plus settle */
+        wait_status(mb, 1, ST_HOMED | ST_INPOS, ST_HOMED | ST_INPOS, 3.0);
+        CHECK(fabs(position_deg(mb, 1)) < 1e-9);
+        CHECK(reg(mb, 1, R_STATUS) & (1 << 5)); /* on the home switch */
+        sim_emu_snapshot(e, &st);
+        CHECK(wrapped_distance(st.turntable_deg, 0.0) < 1e-6);
+}
+
+/* A 90 deg move: its duration and an intermediate position against the model, with the
+ * unknown start time bracketed by the command's round trip. */
+static void test_move_timing(struct sim_emu *e, modbus_t *mb)
+{
+        struct motion m;
+        struct sim_rig_state st;
+
+        CHECK(motion_plan(&m, 0.0, 0.0, 90.0, 90.0, 180.0) == 0);
+        double c0 = simtest_now();
+        CHECK(command(mb, 1, 90.0, CMD_MOVE) == 1);
+        double c1 = simtest_now();
+        CHECK(reg(mb, 1, R_STATUS) & ST_MOVING);
+
+        usleep((useconds_t)(m.t_total / TIME_SCALE * 0.4 * 1e6));
+        double r0 = simtest_now();
+        double pos = position_deg(mb, 1);
+        double r1 = simtest_now();
+        double lo = motion_position(&m, (r0 - c1) * TIME_SCALE);
+        double hi = motion_position(&m, (r1 - c0) * TIME_SCALE);
+        CHECK(pos >= lo - 1e-3 && pos <= hi + 1e-3);
+        CHECK(pos > 0.0 && pos < 90.0);
+
+        wait_status(mb, 1, ST_MOVING | ST_INPOS, ST_INPOS, 5.0);
+        double took = simtest_now() - c0;
+        double expect = (m.t_total + 0.050) / TIME_SCALE; /* profile + settle_ms */
+        CHECK(took >= expect - 0.02);
+        CHECK(took <= expect + 0.5);
+        CHECK_NEAR(position_deg(mb, 1), 90.0, 1e-9);
+        sim_emu_snapshot(e, &st);
+        CHECK_NEAR(st.turntable_deg, 90.0, 1e-6);
+}
+
+static void test_stop(modbus_t *mb)
+{
+        CHECK(command(mb, 1, 0.0, CMD_MOVE) == 1);
+        usleep(100000);
+        CHECK(modbus_write_register(mb, R_COMMAND, CMD_STOP) == 1);
+        double at = position_deg(mb, 1);
+        CHECK(at > 0.0 && at < 90.0);
+        usleep(100000);
+        CHECK(position_deg(mb, 1) == at);
+        CHECK(!(reg(mb, 1, R_STATUS) & (ST_MOVING | ST_INPOS)));
+}
+
+/* Each communication fault gives its libmodbus error; the other units keep answering. */
+static void test_comm_faults(struct sim_emu *e, modbus_t *mb)
+{
+        uint16_t v;
+        static const struct {
+                enum sim_fault fault;
+                int err;
+        } cases[] = {
+                { SIM_FAULT_TIMEOUT, ETIMEDOUT },
+                { SIM_FAULT_CRC, EMBBADCRC },
+                { SIM_FAULT_EXCEPTION, EMBXSFAIL },
+        };
+
+        for (size_t i = 0; i < ELEMENTSOF(cases); i++) {
+                CHECK(sim_emu_inject(e, "drives", 2, cases[i].fault) == 0);
+                CHECK(modbus_set_slave(mb, 2) == 0);
+                errno = 0;
+                CHECK(modbus_read_registers(mb, R_STATUS, 1, &v) == -1);
+                CHECK(errno == cases[i].err);
+                CHECK(reg(mb, 3, R_SPEED) == 300);
+                CHECK(sim_emu_inject(e, "drives", 2, SIM_FAULT_NONE) == 0);
+                CHECK(reg(mb, 2, R_SPEED) == 450);
+        }
+        CHECK(sim_emu_inject(e, "drives", 9, SIM_FAULT_TIMEOUT) == -ENOENT);
+        CHECK(sim_emu_inject(e, "nosuchbus", 1, SIM_FAULT_TIMEOUT) == -ENOENT);
+        CHECK(sim_emu_inject(e, "relays", 10, SIM_FAULT_STALL) == -EINVAL);
+}
+
+/* A stall stops the axis half-way and latches fault 1 until reset. */
+static void test_stall(struct sim_emu *e, modbus_t *mb)
+{
+        double from = position_deg(mb, 3);
+
+        CHECK(sim_emu_inject(e, "drives", 3, SIM_FAULT_STALL) == 0);
+        CHECK(command(mb, 3, from + 20.0, CMD_MOVE) == 1);
+        wait_status(mb, 3, ST_FAULT | ST_MOVING, ST_FAULT, 5.0);
+        CHECK(reg(mb, 3, R_FAULT) == 1);
+        CHECK_NEAR(position_deg(mb, 3), from + 10.0, 1e-3);
+        CHECK(command(mb, 3, from, CMD_MOVE) == -1 && errno == EMBXSFAIL);
+        CHECK(modbus_write_register(mb, R_COMMAND, CMD_RESET) == 1);
+        CHECK(reg(mb, 3, R_FAULT) == 0);
+        CHECK(command(mb, 3, from, CMD_MOVE) == 1);
+        wait_status(mb, 3, ST_MOVING | ST_INPOS, ST_INPOS, 5.0);
+        CHECK_NEAR(position_deg(mb, 3), from, 1e-9);
+}
+
+static void test_rtu(void)
+{
+        char dir[64], link[300];
+        struct rig_config *rc = simtest_rig(dir, false);
+        struct sim_emu *e = NULL;
+
+        CHECK(sim_emu_new(rc, TIME_SCALE, &e) == 0);
+        snprintf(link, sizeof link, "%s/drives", dir);
+        char target[256];
+        ssize_t n = readlink(link, target, sizeof target - 1);
+        CHECK(n > 0);
+        target[n] = '\0';
+        CHECK(strcmp(target, sim_emu_pty(e, "drives")) == 0);
+        CHECK(sim_emu_tcp_port(e, "drives") == -ENOENT);
+
+        modbus_t *mb = client_rtu(dir);
+        test_reads_and_units(e, mb);
+        test_home(e, mb);
+        test_move_timing(e, mb);
+        test_stop(mb);
+        test_comm_faults(e, mb);
+        test_stall(e, mb);
+        modbus_close(mb);
+        modbus_free(mb);
+
+        sim_emu_free(e);
+        CHECK(access(link, F_OK) < 0 && errno == ENOENT); /* symlink removed */
+        rigconf_free(rc);
+        simtest_rmdir(dir);
+}
+
+/* The same drives on Modbus TCP: every unit answers on one connection; a corrupted
+ * reply (TCP has no CRC: a wrong transaction id) is refused by the client. */
+static void test_tcp(void)
+{
+        char dir[64];
+        struct rig_config *rc = simtest_rig(dir, true);
+        struct sim_emu *e = NULL;
+        uint16_t v;
+
+        CHECK(sim_emu_new(rc, TIME_SCALE, &e) == 0);
+        int port = sim_emu_tcp_port(e, "drives");
+        CHECK(port > 0);
+        CHECK(sim_emu_pty(e, "drives") == NULL);
+        modbus_t *mb = modbus_new_tcp("127.0.0.1", port);
+        CHECK(mb && modbus_connect(mb) == 0);
+        CHECK(modbus_set_response_timeout(mb, 0, 300000) == 0);
+        CHECK(reg(mb, 1, R_SPEED) == 900);
+        CHECK(reg(mb, 3, R_SPEED) == 300);
+        CHECK(sim_emu_inject(e, "drives", 1, SIM_FAULT_CRC) == 0);
+        CHECK(modbus_set_slave(mb, 1) == 0);
+        CHECK(modbus_read_registers(mb, R_SPEED, 1, &v) == -1);
+        CHECK(sim_emu_inject(e, "drives", 1, SIM_FAULT_NONE) == 0);
+        CHECK(reg(mb, 1, R_SPEED) == 900);
+        modbus_close(mb);
+        modbus_free(mb);
+        sim_emu_free(e);
+        rigconf_free(rc);
+        simtest_rmdir(dir);
+}
+
+int main(void)
+{
+        test_rtu();
+        test_tcp();
+        return 0;
+}
