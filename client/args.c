@@ -33,19 +33,19 @@ static const struct {
         bool has_arg;
         unsigned bit; /* enum arg_opt for command options, 0 for global ones */
 } options[] = {
-        { "socket", O_SOCKET, true, 0 },
-        { "json", O_JSON, false, 0 },
-        { "timeout", O_TIMEOUT, true, 0 },
-        { "quiet", O_QUIET, false, 0 },
-        { "help", O_HELP, false, 0 },
-        { "version", O_VERSION, false, 0 },
-        { "relative", O_RELATIVE, false, ARG_RELATIVE },
-        { "no-wait", O_NO_WAIT, false, ARG_NO_WAIT },
-        { "camera", O_CAMERA, true, ARG_CAMERA },
-        { "exposure", O_EXPOSURE, true, ARG_EXPOSURE },
-        { "gain", O_GAIN, true, ARG_GAIN },
-        { "bits", O_BITS, true, ARG_BITS },
-        { "count", O_COUNT, true, ARG_COUNT },
+        {"socket", O_SOCKET, true, 0},
+        {"json", O_JSON, false, 0},
+        {"timeout", O_TIMEOUT, true, 0},
+        {"quiet", O_QUIET, false, 0},
+        {"help", O_HELP, false, 0},
+        {"version", O_VERSION, false, 0},
+        {"relative", O_RELATIVE, false, ARG_RELATIVE},
+        {"no-wait", O_NO_WAIT, false, ARG_NO_WAIT},
+        {"camera", O_CAMERA, true, ARG_CAMERA},
+        {"exposure", O_EXPOSURE, true, ARG_EXPOSURE},
+        {"gain", O_GAIN, true, ARG_GAIN},
+        {"bits", O_BITS, true, ARG_BITS},
+        {"count", O_COUNT, true, ARG_COUNT},
 };
 
 int args_usage_error(const char *what, const char *fmt, ...)

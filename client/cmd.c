@@ -25,17 +25,17 @@ typedef int (*params_fn)(const struct cmd *c, const struct args *a, char **argv,
                          json_t **ret);
 
 struct cmd {
-        const char *group;    /* "dataset", "fault", or NULL */
+        const char *group; /* "dataset", "fault", or NULL */
         const char *name;
-        const char *args;     /* synopsis of the arguments, for usage */
+        const char *args; /* synopsis of the arguments, for usage */
         const char *help;
-        const char *method;   /* NULL: the first argument names it (call) */
+        const char *method; /* NULL: the first argument names it (call) */
         int min_args, max_args;
-        unsigned opts;        /* enum arg_opt accepted */
-        int timeout_s;        /* default reply timeout */
-        params_fn params;     /* NULL: {} */
-        out_print_fn print;   /* human output */
-        const char *done;     /* human output when print is NULL */
+        unsigned opts;      /* enum arg_opt accepted */
+        int timeout_s;      /* default reply timeout */
+        params_fn params;   /* NULL: {} */
+        out_print_fn print; /* human output */
+        const char *done;   /* human output when print is NULL */
         bool watch;
 };
 
@@ -126,8 +126,7 @@ static int p_laser(const struct cmd *c, const struct args *a, char **argv, int a
         return set(*ret, "on", json_boolean(on));
 }
 
-static int p_capture(const struct cmd *c, const struct args *a, char **argv, int argc,
-                     json_t **ret)
+static int p_capture(const struct cmd *c, const struct args *a, char **argv, int argc, json_t **ret)
 {
         if ((a->given & ARG_CAMERA) && set(*ret, "camera", json_string(a->camera)) < 0)
                 return -ENOMEM;
@@ -141,8 +140,7 @@ static int p_capture(const struct cmd *c, const struct args *a, char **argv, int
 }
 
 /* {name} for dataset open/info, plus create:true for dataset create. */
-static int p_dataset(const struct cmd *c, const struct args *a, char **argv, int argc,
-                     json_t **ret)
+static int p_dataset(const struct cmd *c, const struct args *a, char **argv, int argc, json_t **ret)
 {
         if (argc > 0 && set(*ret, "name", json_string(argv[0])) < 0)
                 return -ENOMEM;
@@ -169,40 +167,39 @@ static int p_call(const struct cmd *c, const struct args *a, char **argv, int ar
 }
 
 static const struct cmd commands[] = {
-        { NULL, "status", "", "rig state, axes, lamps, laser, cameras, dataset", "status", 0, 0,
-          0, TIMEOUT_S, NULL, out_print_status },
-        { NULL, "describe", "", "devices, backends and their options", "describe", 0, 0, 0,
-          TIMEOUT_S, NULL, out_print_describe },
-        { NULL, "home", "[AXIS...]", "home the given axes (default: all)", "home", 0, 64, 0,
-          TIMEOUT_LONG_S, p_home, out_print_home },
-        { NULL, "move", "AXIS DEG [--relative] [--no-wait]", "move an axis (degrees)", "move", 2,
-          2, ARG_RELATIVE | ARG_NO_WAIT, TIMEOUT_LONG_S, p_move, out_print_move },
-        { NULL, "stop", "", "stop all motion now", "stop", 0, 0, 0, TIMEOUT_S, NULL,
-          out_print_stop },
-        { NULL, "lamp", "N|NAME on|off", "switch a lamp", "lamp.set", 2, 2, 0, TIMEOUT_S, p_lamp,
-          out_print_lamp },
-        { NULL, "laser", "on|off", "switch the laser", "laser.set", 1, 1, 0, TIMEOUT_S, p_laser,
-          out_print_laser },
-        { NULL, "capture", "[--camera NAME] [--exposure US] [--gain G] [--bits 8|16]",
-          "capture into the open dataset", "capture", 0, 0,
-          ARG_CAMERA | ARG_EXPOSURE | ARG_GAIN | ARG_BITS, TIMEOUT_LONG_S, p_capture,
-          out_print_capture },
-        { "dataset", "list", "", "list the datasets", "dataset.list", 0, 0, 0, TIMEOUT_S, NULL,
-          out_print_dataset_list },
-        { "dataset", "info", "[NAME]", "a dataset (default: the open one) and its last captures",
-          "dataset.info", 0, 1, 0, TIMEOUT_S, p_dataset, out_print_dataset_info },
-        { "dataset", "open", "NAME", "open an existing dataset", "dataset.open", 1, 1, 0,
-          TIMEOUT_S, p_dataset, out_print_dataset },
-        { "dataset", "create", "NAME", "create and open a new dataset", "dataset.open", 1, 1, 0,
-          TIMEOUT_S, p_dataset, out_print_dataset },
-        { "dataset", "close", "", "close the open dataset", "dataset.close", 0, 0, 0, TIMEOUT_S,
-          NULL, NULL, "dataset closed" },
-        { "fault", "clear", "", "clear a latched fault", "fault.clear", 0, 0, 0, TIMEOUT_S, NULL,
-          NULL, "fault cleared" },
-        { NULL, "watch", "[--count N]", "print notifications until interrupted", NULL, 0, 0,
-          ARG_COUNT, TIMEOUT_S, NULL, NULL, NULL, true },
-        { NULL, "call", "METHOD [JSON-PARAMS]", "send any request, print its result", NULL, 1, 2,
-          0, TIMEOUT_S, p_call, out_print_pretty },
+        {NULL, "status", "", "rig state, axes, lamps, laser, cameras, dataset", "status", 0, 0, 0,
+         TIMEOUT_S, NULL, out_print_status},
+        {NULL, "describe", "", "devices, backends and their options", "describe", 0, 0, 0,
+         TIMEOUT_S, NULL, out_print_describe},
+        {NULL, "home", "[AXIS...]", "home the given axes (default: all)", "home", 0, 64, 0,
+         TIMEOUT_LONG_S, p_home, out_print_home},
+        {NULL, "move", "AXIS DEG [--relative] [--no-wait]", "move an axis (degrees)", "move", 2, 2,
+         ARG_RELATIVE | ARG_NO_WAIT, TIMEOUT_LONG_S, p_move, out_print_move},
+        {NULL, "stop", "", "stop all motion now", "stop", 0, 0, 0, TIMEOUT_S, NULL, out_print_stop},
+        {NULL, "lamp", "N|NAME on|off", "switch a lamp", "lamp.set", 2, 2, 0, TIMEOUT_S, p_lamp,
+         out_print_lamp},
+        {NULL, "laser", "on|off", "switch the laser", "laser.set", 1, 1, 0, TIMEOUT_S, p_laser,
+         out_print_laser},
+        {NULL, "capture", "[--camera NAME] [--exposure US] [--gain G] [--bits 8|16]",
+         "capture into the open dataset", "capture", 0, 0,
+         ARG_CAMERA | ARG_EXPOSURE | ARG_GAIN | ARG_BITS, TIMEOUT_LONG_S, p_capture,
+         out_print_capture},
+        {"dataset", "list", "", "list the datasets", "dataset.list", 0, 0, 0, TIMEOUT_S, NULL,
+         out_print_dataset_list},
+        {"dataset", "info", "[NAME]", "a dataset (default: the open one) and its last captures",
+         "dataset.info", 0, 1, 0, TIMEOUT_S, p_dataset, out_print_dataset_info},
+        {"dataset", "open", "NAME", "open an existing dataset", "dataset.open", 1, 1, 0, TIMEOUT_S,
+         p_dataset, out_print_dataset},
+        {"dataset", "create", "NAME", "create and open a new dataset", "dataset.open", 1, 1, 0,
+         TIMEOUT_S, p_dataset, out_print_dataset},
+        {"dataset", "close", "", "close the open dataset", "dataset.close", 0, 0, 0, TIMEOUT_S,
+         NULL, NULL, "dataset closed"},
+        {"fault", "clear", "", "clear a latched fault", "fault.clear", 0, 0, 0, TIMEOUT_S, NULL,
+         NULL, "fault cleared"},
+        {NULL, "watch", "[--count N]", "print notifications until interrupted", NULL, 0, 0,
+         ARG_COUNT, TIMEOUT_S, NULL, NULL, NULL, true},
+        {NULL, "call", "METHOD [JSON-PARAMS]", "send any request, print its result", NULL, 1, 2, 0,
+         TIMEOUT_S, p_call, out_print_pretty},
 };
 
 void cmd_usage(FILE *f)
@@ -284,10 +281,10 @@ int cmd_exit_for_code(int code)
         static const struct {
                 int err, exit;
         } table[] = {
-                { EIO, EXIT_DEVICE },      { ETIMEDOUT, EXIT_DEVICE }, { EINVAL, EXIT_INVALID },
-                { ERANGE, EXIT_INVALID },  { ENOENT, EXIT_INVALID },   { ENOSYS, EXIT_INVALID },
-                { ENOSPC, EXIT_STORAGE },  { ECANCELED, EXIT_CANCELED }, { EBUSY, EXIT_BUSY },
-                { ESTALE, EXIT_BUSY },
+                {EIO, EXIT_DEVICE},     {ETIMEDOUT, EXIT_DEVICE},   {EINVAL, EXIT_INVALID},
+                {ERANGE, EXIT_INVALID}, {ENOENT, EXIT_INVALID},     {ENOSYS, EXIT_INVALID},
+                {ENOSPC, EXIT_STORAGE}, {ECANCELED, EXIT_CANCELED}, {EBUSY, EXIT_BUSY},
+                {ESTALE, EXIT_BUSY},
         };
         int err = proto_code_to_errno(code);
 
@@ -395,8 +392,8 @@ static int run_watch(const struct args *a, struct out *o, struct conn *conn)
         }
 }
 
-static int run_method(const struct cmd *c, const struct args *a, struct out *o,
-                      struct conn *conn, const char *method, json_t *params)
+static int run_method(const struct cmd *c, const struct args *a, struct out *o, struct conn *conn,
+                      const char *method, json_t *params)
 {
         double timeout_s = a->timeout_s > 0 ? a->timeout_s : c->timeout_s;
         struct conn_error e;

@@ -42,7 +42,7 @@ static int poll_timeout(int64_t deadline)
 /* Waits until fd is ready for events. Returns 0, -ETIMEDOUT, -EINTR (intr_fd readable). */
 static int wait_fd(int fd, short events, int64_t deadline, int intr_fd)
 {
-        struct pollfd p[2] = { { .fd = fd, .events = events }, { .fd = intr_fd, .events = POLLIN } };
+        struct pollfd p[2] = {{.fd = fd, .events = events}, {.fd = intr_fd, .events = POLLIN}};
 
         for (;;) {
                 int r = poll(p, intr_fd >= 0 ? 2 : 1, poll_timeout(deadline));
@@ -86,7 +86,7 @@ static int connect_socket(int fd, const struct sockaddr_un *sa, int64_t deadline
 
 int conn_open(const char *path, int64_t deadline, struct conn **ret)
 {
-        struct sockaddr_un sa = { .sun_family = AF_UNIX };
+        struct sockaddr_un sa = {.sun_family = AF_UNIX};
         _cleanup_close_ int fd = -EBADF;
         struct conn *c;
         int r;

@@ -15,8 +15,8 @@ struct conn;
 
 /* An error response as the server sent it. */
 struct conn_error {
-        int code;           /* JSON-RPC code (enum proto_code) */
-        char message[512];  /* error.message, or what went wrong locally */
+        int code;          /* JSON-RPC code (enum proto_code) */
+        char message[512]; /* error.message, or what went wrong locally */
 };
 
 /* Called for each notification; params is borrowed (object, or NULL when absent). */

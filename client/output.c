@@ -127,16 +127,15 @@ static void cell_names(struct table *t, json_t *v, const char *empty)
                 table_addf(t, "?");
                 return;
         }
-        json_array_foreach (v, i, e)
-                fprintf(f, "%s%s", i ? "," : "",
-                        json_is_object(e) ? get_str(e, "name") : str_or_dash(e));
+        json_array_foreach(v, i, e) fprintf(
+                f, "%s%s", i ? "," : "", json_is_object(e) ? get_str(e, "name") : str_or_dash(e));
         fclose(f);
         table_addf(t, "%s", s);
 }
 
 void out_init(struct out *o, bool json, bool quiet)
 {
-        *o = (struct out){ .json = json, .quiet = quiet };
+        *o = (struct out){.json = json, .quiet = quiet};
         o->progress = !json && !quiet && isatty(STDERR_FILENO);
 }
 
@@ -183,7 +182,8 @@ static void format_notification(FILE *f, const char *method, json_t *params)
         json_t *v;
 
         fputs(method, f);
-        json_object_foreach (params, key, v) {
+        json_object_foreach(params, key, v)
+        {
                 _cleanup_free_ char *s = NULL;
 
                 if (json_is_string(v))
@@ -257,12 +257,13 @@ static void kv(struct table *t, const char *key, const char *fmt, ...)
 
 static void print_axes(json_t *axes)
 {
-        struct table t = { .ncols = 6, .align = "lrllll" };
+        struct table t = {.ncols = 6, .align = "lrllll"};
         size_t i;
         json_t *a;
 
         table_cells(&t, "AXIS", "POSITION", "MOVING", "HOMED", "FAULT", "LIMITS", NULL);
-        json_array_foreach (axes, i, a) {
+        json_array_foreach(axes, i, a)
+        {
                 json_t *lo = json_object_get(a, "min"), *hi = json_object_get(a, "max");
 
                 table_addf(&t, "%s", get_str(a, "name"));
@@ -286,12 +287,13 @@ static void print_axes(json_t *axes)
 
 static void print_lamps(json_t *lamps)
 {
-        struct table t = { .ncols = 2, .align = "ll" };
+        struct table t = {.ncols = 2, .align = "ll"};
         size_t i;
         json_t *l;
 
         table_cells(&t, "LAMP", "STATE", NULL);
-        json_array_foreach (lamps, i, l) {
+        json_array_foreach(lamps, i, l)
+        {
                 table_addf(&t, "%s", get_str(l, "name"));
                 cell_bool(&t, json_object_get(l, "on"), "on", "off");
         }
@@ -300,12 +302,13 @@ static void print_lamps(json_t *lamps)
 
 static void print_cameras(json_t *cams)
 {
-        struct table t = { .ncols = 3, .align = "lrr" };
+        struct table t = {.ncols = 3, .align = "lrr"};
         size_t i;
         json_t *c;
 
         table_cells(&t, "CAMERA", "SIZE", "BITS", NULL);
-        json_array_foreach (cams, i, c) {
+        json_array_foreach(cams, i, c)
+        {
                 table_addf(&t, "%s", get_str(c, "name"));
                 table_addf(&t, "%lldx%lld", json_integer_value(json_object_get(c, "width")),
                            json_integer_value(json_object_get(c, "height")));
@@ -327,7 +330,7 @@ void out_print_status(json_t *r)
 {
         json_t *fault = json_object_get(r, "fault"), *ds = json_object_get(r, "dataset");
         json_t *laser = json_object_get(r, "laser");
-        struct table t = { .ncols = 2, .align = "ll" };
+        struct table t = {.ncols = 2, .align = "ll"};
 
         kv(&t, "state", "%s", get_str(r, "state"));
         kv(&t, "homed", "%s", json_is_true(json_object_get(r, "homed")) ? "yes" : "no");
@@ -351,28 +354,32 @@ void out_print_status(json_t *r)
         section(json_object_get(r, "cameras"), print_cameras);
 }
 
-/* One option of a device: name, access flags, unit, range. */
+/* One option of a device: name, access, unit, range (none when min == max == 0). */
 static void describe_option(struct table *t, json_t *opt)
 {
-        json_t *lo = json_object_get(opt, "min"), *hi = json_object_get(opt, "max");
+        bool get = json_is_true(json_object_get(opt, "get"));
+        bool set = json_is_true(json_object_get(opt, "set"));
+        double lo = json_number_value(json_object_get(opt, "min"));
+        double hi = json_number_value(json_object_get(opt, "max"));
 
         table_addf(t, "%s", get_str(opt, "name"));
-        cell_names(t, json_object_get(opt, "flags"), "-");
+        table_addf(t, "%s", get && set ? "get,set" : get ? "get" : set ? "set" : "-");
         table_addf(t, "%s", get_str(opt, "unit"));
-        if (json_is_number(lo) && json_is_number(hi))
-                table_addf(t, "%g .. %g", json_number_value(lo), json_number_value(hi));
+        if (lo != 0 || hi != 0)
+                table_addf(t, "%g .. %g", lo, hi);
         else
                 table_addf(t, "-");
 }
 
 void out_print_describe(json_t *r)
 {
-        struct table t = { .ncols = 7, .align = "lllllll" };
+        struct table t = {.ncols = 7, .align = "lllllll"};
         size_t i, k;
         json_t *d, *opt;
 
         table_cells(&t, "DEVICE", "CLASS", "BACKEND", "OPTION", "ACCESS", "UNIT", "RANGE", NULL);
-        json_array_foreach (json_object_get(r, "devices"), i, d) {
+        json_array_foreach(json_object_get(r, "devices"), i, d)
+        {
                 json_t *opts = json_object_get(d, "options");
 
                 table_addf(&t, "%s", get_str(d, "name"));
@@ -380,7 +387,8 @@ void out_print_describe(json_t *r)
                 table_addf(&t, "%s", get_str(d, "backend"));
                 if (json_array_size(opts) == 0)
                         table_cells(&t, "-", "-", "-", "-", NULL);
-                json_array_foreach (opts, k, opt) {
+                json_array_foreach(opts, k, opt)
+                {
                         if (k > 0)
                                 table_cells(&t, "", "", "", NULL);
                         describe_option(&t, opt);
@@ -391,12 +399,13 @@ void out_print_describe(json_t *r)
 
 void out_print_home(json_t *r)
 {
-        struct table t = { .ncols = 2, .align = "lr" };
+        struct table t = {.ncols = 2, .align = "lr"};
         size_t i;
         json_t *a;
 
         table_cells(&t, "AXIS", "POSITION", NULL);
-        json_array_foreach (json_object_get(r, "axes"), i, a) {
+        json_array_foreach(json_object_get(r, "axes"), i, a)
+        {
                 table_addf(&t, "%s", get_str(a, "name"));
                 cell_pos(&t, json_object_get(a, "position"));
         }
@@ -409,6 +418,8 @@ void out_print_move(json_t *r)
 
         if (json_is_number(target))
                 printf("%s moving to %.3f\n", get_str(r, "axis"), json_number_value(target));
+        else if (json_is_array(json_object_get(r, "axes")))
+                out_print_home(r); /* {axes: [{name, position}]}, as home answers */
         else
                 printf("%s %.3f\n", get_str(r, "axis"),
                        json_number_value(json_object_get(r, "position")));
@@ -416,7 +427,7 @@ void out_print_move(json_t *r)
 
 void out_print_stop(json_t *r)
 {
-        struct table t = { .ncols = 2, .align = "ll" };
+        struct table t = {.ncols = 2, .align = "ll"};
 
         table_addf(&t, "stopped");
         cell_names(&t, json_object_get(r, "stopped"), "nothing was moving");
@@ -441,12 +452,14 @@ void out_print_laser(json_t *r)
 /* The captures table shared by capture and dataset info. */
 static void print_captures(json_t *caps)
 {
-        struct table t = { .ncols = 10, .align = "rlrrrllrll" };
+        struct table t = {.ncols = 10, .align = "rlrrrllrll"};
         size_t i;
         json_t *c;
 
-        table_cells(&t, "ID", "CAMERA", "TURNTABLE", "LIGHT_ARM", "CAMERA_ARM", "LAMPS", "LASER", "SIZE", "PIXFMT", "FILE", NULL);
-        json_array_foreach (caps, i, c) {
+        table_cells(&t, "ID", "CAMERA", "TURNTABLE", "LIGHT_ARM", "CAMERA_ARM", "LAMPS", "LASER",
+                    "SIZE", "PIXFMT", "FILE", NULL);
+        json_array_foreach(caps, i, c)
+        {
                 table_addf(&t, "%lld", json_integer_value(json_object_get(c, "id")));
                 table_addf(&t, "%s", get_str(c, "camera"));
                 cell_pos(&t, json_object_get(c, "turntable"));
@@ -475,12 +488,13 @@ void out_print_dataset(json_t *r)
 
 void out_print_dataset_list(json_t *r)
 {
-        struct table t = { .ncols = 4, .align = "lrll" };
+        struct table t = {.ncols = 4, .align = "lrll"};
         size_t i;
         json_t *d;
 
         table_cells(&t, "NAME", "COUNT", "CREATED", "PATH", NULL);
-        json_array_foreach (json_object_get(r, "datasets"), i, d) {
+        json_array_foreach(json_object_get(r, "datasets"), i, d)
+        {
                 table_addf(&t, "%s", get_str(d, "name"));
                 table_addf(&t, "%lld", json_integer_value(json_object_get(d, "count")));
                 table_addf(&t, "%s", get_str(d, "created"));
@@ -491,7 +505,7 @@ void out_print_dataset_list(json_t *r)
 
 void out_print_dataset_info(json_t *r)
 {
-        struct table t = { .ncols = 2, .align = "ll" };
+        struct table t = {.ncols = 2, .align = "ll"};
 
         kv(&t, "name", "%s", get_str(r, "name"));
         kv(&t, "path", "%s", get_str(r, "path"));

@@ -8,6 +8,7 @@
 
 #include "common/log.h"
 #include "manager.h"
+#include "protocol/proto.h"
 
 static void usage(FILE *f)
 {
@@ -20,19 +21,18 @@ static void usage(FILE *f)
                    "  --verbose      debug logging\n");
 }
 
-/* Picks the default socket path and creates its directory. */
+/* Picks the default socket path (protocol/proto.h) and creates its directory. */
 static void default_socket(char *out, size_t len)
 {
-        const char *env = getenv("GONIO_SOCKET"), *rt = getenv("XDG_RUNTIME_DIR");
-        char dir[PATH_MAX - 32];
+        char *slash;
 
-        if (env && *env) {
-                snprintf(out, len, "%s", env);
-                return;
+        proto_socket_path(out, len);
+        slash = strrchr(out, '/');
+        if (slash && slash != out) {
+                *slash = 0;
+                (void)mkdir(out, 0770);
+                *slash = '/';
         }
-        snprintf(dir, sizeof(dir), "%s/gonio", rt && *rt ? rt : "/run");
-        (void)mkdir(dir, 0770);
-        snprintf(out, len, "%s/goniod.sock", dir);
 }
 
 int main(int argc, char **argv)

@@ -185,6 +185,17 @@ static int m_home(struct srv_req *req, json_t *params, void *userdata)
         return 0;
 }
 
+/* Result of a move: the axis and where it is now. */
+static json_t *move_result(struct op *o)
+{
+        json_t *all = axes_result(o), *a = json_array_get(json_object_get(all, "axes"), 0);
+        json_t *out = json_pack("{sOsO}", "axis", json_object_get(a, "name"), "position",
+                                json_object_get(a, "position"));
+
+        json_decref(all);
+        return out;
+}
+
 static int m_move(struct srv_req *req, json_t *params, void *userdata)
 {
         struct manager *m = userdata;
@@ -208,11 +219,11 @@ static int m_move(struct srv_req *req, json_t *params, void *userdata)
         if (!(o = op_new(req, NULL)))
                 return -ENOMEM;
         o->m = m;
-        o->build = axes_result;
+        o->build = move_result;
         o->axes[0] = i;
         o->n_axes = 1;
         o->pending = 1;
-        r = rig_move(m->rig, i, pos, relative, wait ? on_rig_done : NULL, o);
+        r = rig_move(m->rig, i, &pos, relative, wait ? on_rig_done : NULL, o);
         if (r < 0) {
                 free(o);
                 return srv_req_errmsg(req, r, "move %s to %g: %s", axis, pos, refusal(r));
@@ -319,7 +330,7 @@ static json_t *num_or_null(double v)
 
 static json_t *capture_json(const struct ds_capture *c)
 {
-        return json_pack("{sIssssssnsisissnsososossssb}", "id", (json_int_t)c->id, "camera",
+        return json_pack("{sIsssssssisisssosososssb}", "id", (json_int_t)c->id, "camera",
                          c->camera, "file", c->file, "sha256", c->sha256, "width", c->width,
                          "height", c->height, "pixfmt", c->pixfmt, "turntable",
                          num_or_null(c->turntable_deg), "light_arm",

@@ -19,6 +19,7 @@
 #include "common/log.h"
 #include "drivers/bus/bus.h"
 #include "drivers/registry.h"
+#include "protocol/proto.h"
 #include "rig.h"
 
 #define POLL_USEC      (20 * 1000)
@@ -243,7 +244,8 @@ static void rig_fault(struct rig *rig, const char *device, int err, const char *
                 snprintf(rig->fault_device, sizeof(rig->fault_device), "%s", device);
                 snprintf(rig->fault_msg, sizeof(rig->fault_msg), "%s", msg);
         }
-        emit(rig, "fault", json_pack("{sssiss}", "device", device, "code", err, "message", msg));
+        emit(rig, "fault", json_pack("{sssiss}", "device", device, "code",
+                                     proto_errno_to_code(err), "message", msg));
         for (size_t i = 0; i < rig->rc->n_axes; i++)
                 if (rig->axes[i].op != AX_IDLE)
                         axis_finish(&rig->axes[i], -EIO, msg);
@@ -481,10 +483,11 @@ int rig_home(struct rig *rig, int i, rig_done_fn done, void *userdata)
         return start_motion(rig, i, AX_HOMING, 0, done, userdata);
 }
 
-int rig_move(struct rig *rig, int i, double deg, bool relative, rig_done_fn done,
+int rig_move(struct rig *rig, int i, double *target, bool relative, rig_done_fn done,
              void *userdata)
 {
         struct rig_axis *a = &rig->axes[i];
+        double deg = *target;
         int r;
 
         if (!a->open)
@@ -496,6 +499,7 @@ int rig_move(struct rig *rig, int i, double deg, bool relative, rig_done_fn done
         r = axis_check_target(a->ax, &deg);
         if (r < 0)
                 return r;
+        *target = deg;
         return start_motion(rig, i, AX_MOVING, deg, done, userdata);
 }
 
@@ -643,6 +647,7 @@ static int build_devices(struct rig *rig)
                     (r = sd_event_add_time_relative(rig->event, &a->timer, CLOCK_MONOTONIC, 0, 0,
                                                     on_axis_timer, a)) < 0)
                         return log_error_errno(r, "axis '%s': %m", rc->axes[i].name);
+                a->ax->rig = rc; /* register profiles defined in the rig file */
                 sd_event_source_set_enabled(a->timer, SD_EVENT_OFF);
                 sd_event_source_set_description(a->timer, "axis-poll");
         }
@@ -779,7 +784,7 @@ static json_t *opts_json(const struct opt_desc *opts, int n)
 static json_t *device_json(const char *cls, const char *name, const char *backend,
                            const char *bus, const struct opt_desc *opts, int n)
 {
-        return json_pack("{sssssssssso}", "class", cls, "name", name, "backend", backend, "bus",
+        return json_pack("{ssssssssso}", "class", cls, "name", name, "backend", backend, "bus",
                          bus, "options", opts_json(opts, n));
 }
 

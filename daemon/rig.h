@@ -54,9 +54,10 @@ int rig_camera_index(const struct rig *rig, const char *name);
 /* Starts homing axis i; done when homed and settled. -EBUSY, -ESTALE (faulted). */
 int rig_home(struct rig *rig, int i, rig_done_fn done, void *userdata);
 
-/* Starts a move of axis i to deg (relative: by deg); done when in position and settled.
- * -ERANGE outside soft limits, -ESTALE when not homed or faulted, -EBUSY when moving. */
-int rig_move(struct rig *rig, int i, double deg, bool relative, rig_done_fn done,
+/* Starts a move of axis i to *target (relative: by *target), which becomes the absolute
+ * target (normalised for continuous axes); done when in position and settled. -ERANGE
+ * outside soft limits, -ESTALE when not homed or faulted, -EBUSY when moving. */
+int rig_move(struct rig *rig, int i, double *target, bool relative, rig_done_fn done,
              void *userdata);
 
 /* Stops every axis at once (urgent); pending moves complete with -ECANCELED.

@@ -170,8 +170,12 @@ void srv_fail(struct srv_req *req, int err, const char *fmt, ...)
         va_start(ap, fmt);
         vsnprintf(msg, sizeof(msg), fmt, ap);
         va_end(ap);
-        if (req->id)
-                send_error(req->client, req->id, proto_errno_to_code(err), msg);
+        if (req->id) {
+                json_t *reply = proto_error_errno(req->id, err, msg);
+                if (reply)
+                        client_send(req->client, reply);
+                json_decref(reply);
+        }
         req_free(req);
 }
 

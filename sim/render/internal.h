@@ -125,6 +125,7 @@ struct sim_scene {
         double lamp_radius;
         int lamp_samples;
         struct sensor sensor;
+        float *noise_q; /* sensor_table() */
         uint64_t seed;
         int threads;
 };
@@ -187,10 +188,17 @@ float mirror_weight(const struct surf *s, float cos_v);
 void rmat_free(struct rmat *m);
 
 /* --- sensor.c --- */
-struct noise_key {
-        uint64_t seed, seq;
-        uint32_t cam;
+/* Per-frame constants of the sensor model. */
+struct sensor_rt {
+        const struct sensor *se;
+        const float *q;   /* normal quantile table (sensor_table) */
+        uint64_t key;     /* sensor_frame_key() */
+        double k, b;      /* DN = electrons * k + b before rounding */
+        double maxdn;
+        bool ideal;       /* no noise */
 };
-/* Electrons to digital number for channel ch of pixel idx, with noise unless ideal. */
-double sensor_dn(const struct sensor *se, const struct noise_key *k, uint64_t idx, int ch,
-                 double electrons, double gain, double maxdn, bool ideal);
+/* Allocates the table of 65536 normal quantiles (free()). Returns 0 or -ENOMEM. */
+int sensor_table(float **ret);
+uint64_t sensor_frame_key(uint64_t seed, uint64_t seq, uint32_t cam);
+/* Digital numbers dn[0..n) (n <= 3) of pixel pix from electrons e[0..n). */
+void sensor_pixel(const struct sensor_rt *rt, uint64_t pix, const double *e, int n, double *dn);

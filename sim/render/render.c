@@ -55,9 +55,8 @@ struct fctx {
         struct v3 lz_n, lz_o;
         float lz_sigma, lz_power;
         int lz_ch;
-        double escale, gain, maxdn;
-        bool ideal;
-        struct noise_key key;
+        double escale;
+        struct sensor_rt sensor;
         struct gn_frame *out;
         struct sim_truth *truth;
         atomic_int next;
@@ -390,33 +389,29 @@ static void shade_packet(const struct fctx *c, struct RTCRayHit16 *rh, const int
         shade_mirrors(c, h, depth);
 }
 
-static void store(struct gn_frame *f, int x, int y, int ch, double dn)
-{
-        size_t off = (size_t)y * f->stride + (size_t)x * f->channels + ch;
-
-        if (f->bits == 8)
-                f->data[off] = (uint8_t)dn;
-        else
-                ((uint16_t *)(f->data + (size_t)y * f->stride))[x * f->channels + ch] =
-                        (uint16_t)dn;
-}
-
 static void write_pixel(const struct fctx *c, int pix, const float L[3])
 {
-        const struct sensor *se = &c->s->sensor;
-        int x = pix % c->w, y = pix / c->w;
+        enum sensor_format fmt = c->s->sensor.format;
+        int x = pix % c->w, y = pix / c->w, n = fmt == FMT_RGB ? 3 : 1;
+        double e[3], dn[3];
 
-        if (se->format == FMT_RGB) {
+        if (fmt == FMT_RGB) {
                 for (int k = 0; k < 3; k++)
-                        store(c->out, x, y, k,
-                              sensor_dn(se, &c->key, pix, k, L[k] * c->escale, c->gain, c->maxdn,
-                                        c->ideal));
-                return;
+                        e[k] = L[k] * c->escale;
+        } else {
+                int ch = (y & 1) + (x & 1); /* RGGB: 0, 1, 1, 2 */
+                e[0] = (fmt == FMT_MONO ? (L[0] + L[1] + L[2]) / 3 : L[ch]) * c->escale;
         }
-        int ch = se->format == FMT_MONO ? -1 : (y & 1) + (x & 1); /* RGGB: 0, 1, 1, 2 */
-        float v = ch < 0 ? (L[0] + L[1] + L[2]) / 3 : L[ch];
-        store(c->out, x, y, 0,
-              sensor_dn(se, &c->key, pix, 0, v * c->escale, c->gain, c->maxdn, c->ideal));
+        sensor_pixel(&c->sensor, (uint64_t)pix, e, n, dn);
+        if (c->out->bits == 8) {
+                uint8_t *p = c->out->data + (size_t)y * c->out->stride + (size_t)x * n;
+                for (int k = 0; k < n; k++)
+                        p[k] = (uint8_t)dn[k];
+        } else {
+                uint16_t *p = (uint16_t *)(c->out->data + (size_t)y * c->out->stride) + x * n;
+                for (int k = 0; k < n; k++)
+                        p[k] = (uint16_t)dn[k];
+        }
 }
 
 static void write_truth(const struct fctx *c, int pix, const struct RTCRayHit16 *rh, int i,
@@ -621,11 +616,13 @@ static int setup_frame(struct fctx *c, const struct sim_expose *exp, uint64_t se
                        struct gn_frame *out)
 {
         const struct rig_camera_conf *cc = c->cc;
+        const struct sensor *se = &c->s->sensor;
         int exposure = exp && exp->exposure_us > 0 ? exp->exposure_us : cc->exposure_us;
         int bits = exp && exp->bits ? exp->bits : cc->bits ? cc->bits : 8;
+        double gain = exp && exp->gain > 0 ? exp->gain : cc->gain > 0 ? cc->gain : 1;
+        double maxdn = bits == 8 ? 255 : 65535;
         int r;
 
-        c->gain = exp && exp->gain > 0 ? exp->gain : cc->gain > 0 ? cc->gain : 1;
         if (bits != 8 && bits != 16)
                 return -EINVAL;
         r = gn_frame_alloc(out, c->w, c->h, c->s->sensor.format == FMT_RGB ? 3 : 1, bits);
@@ -635,12 +632,13 @@ static int setup_frame(struct fctx *c, const struct sim_expose *exp, uint64_t se
         clock_gettime(CLOCK_REALTIME, &ts);
         out->timestamp_ns = (uint64_t)ts.tv_sec * 1000000000ULL + (uint64_t)ts.tv_nsec;
         out->exposure_us = exposure;
-        out->gain = c->gain;
+        out->gain = gain;
         out->seq = seq;
-        c->escale = exposure * 1e-6 * c->s->sensor.response;
-        c->maxdn = bits == 8 ? 255 : 65535;
-        c->ideal = exp && exp->no_noise;
-        c->key = (struct noise_key){ c->s->seed, seq, (uint32_t)c->cam };
+        c->escale = exposure * 1e-6 * se->response;
+        c->sensor = (struct sensor_rt){ se, c->s->noise_q,
+                                        sensor_frame_key(c->s->seed, seq, (uint32_t)c->cam),
+                                        gain * maxdn / se->full_well, se->black * maxdn, maxdn,
+                                        exp && exp->no_noise };
         c->out = out;
         return 0;
 }

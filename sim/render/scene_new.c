@@ -88,6 +88,8 @@ int sim_scene_new(struct rig_config *rc, struct sim_scene **ret, char *err, size
                 if ((r = camera_build(&s->cams[i], &rc->cameras[i])) < 0)
                         snprintf(err, errlen, "%s: camera '%s': bad intrinsics", rc->path,
                                  rc->cameras[i].name);
+        if (r >= 0)
+                r = sensor_table(&s->noise_q);
         if (r >= 0 && (r = build_bvh(s)) < 0)
                 snprintf(err, errlen, "%s: cannot build the ray-tracing scene", rc->path);
         if (r < 0) {
@@ -115,6 +117,7 @@ struct sim_scene *sim_scene_free(struct sim_scene *s)
         for (size_t i = 0; i < RIG_MAX_CAMERAS; i++)
                 camera_free(&s->cams[i]);
         free(s->dome_els);
+        free(s->noise_q);
         free(s);
         return NULL;
 }

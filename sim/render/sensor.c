@@ -1,10 +1,19 @@
 /* sensor.c - the image sensor: photo-electrons to digital numbers with shot noise
- * (Poisson, Gaussian above 64 e-), read noise, full-well saturation, gain, black level
- * and quantisation. Noise comes from a counter-based hash of (seed, frame, camera,
- * pixel, channel), so a frame's bytes do not depend on thread scheduling. */
+ * (Poisson by inversion below 16 e-, Gaussian above), read noise, full-well saturation,
+ * gain, black level and rounding.
+ *
+ * Noise comes from a counter-based hash of (seed, frame, camera, pixel), so a frame's
+ * bytes do not depend on the thread count or schedule. Normal deviates are read from a
+ * table of 65536 normal quantiles (Acklam's inverse CDF) with 16 hash bits each, four per
+ * 64-bit hash: cheap enough for 30 frames/s, exact in distribution to within the
+ * quantisation of the quantiles (tails clipped at +-4.3 sigma). */
+#include <errno.h>
 #include <math.h>
+#include <stdlib.h>
 
 #include "internal.h"
+
+#define NQ 65536
 
 static uint64_t mix64(uint64_t z)
 {
@@ -13,51 +22,90 @@ static uint64_t mix64(uint64_t z)
         return z ^ (z >> 31);
 }
 
-/* Uniform in (0, 1) from stream state *st (advanced). */
-static double uniform(uint64_t *st)
+/* Acklam's rational approximation of the inverse normal CDF (|error| < 1.2e-9). */
+static double norm_quantile(double p)
 {
-        *st += 0x9e3779b97f4a7c15ULL;
-        return ((mix64(*st) >> 11) + 0.5) * (1.0 / 9007199254740992.0);
+        static const double a[] = { -3.969683028665376e+01, 2.209460984245205e+02,
+                                    -2.759285104469687e+02, 1.383577518672690e+02,
+                                    -3.066479806614716e+01, 2.506628277459239e+00 };
+        static const double b[] = { -5.447609879822406e+01, 1.615858368580409e+02,
+                                    -1.556989798598866e+02, 6.680131188771972e+01,
+                                    -1.328068155288572e+01 };
+        static const double c[] = { -7.784894002430293e-03, -3.223964580411365e-01,
+                                    -2.400758277161838e+00, -2.549732539343734e+00,
+                                    4.374664141464968e+00, 2.938163982698783e+00 };
+        static const double d[] = { 7.784695709041462e-03, 3.224671290700398e-01,
+                                    2.445134137142996e+00, 3.754408661907416e+00 };
+        double q, r;
+
+        if (p < 0.02425 || p > 1 - 0.02425) {
+                q = sqrt(-2 * log(p < 0.5 ? p : 1 - p));
+                r = (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) /
+                    ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1);
+                return p < 0.5 ? r : -r;
+        }
+        q = p - 0.5;
+        r = q * q;
+        return (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q /
+               (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1);
 }
 
-static double gauss(uint64_t *st)
+int sensor_table(float **ret)
 {
-        double u1 = uniform(st), u2 = uniform(st);
+        float *q = malloc(NQ * sizeof(float));
+        double sum2 = 0;
 
-        return sqrt(-2 * log(u1)) * cos(2 * M_PI * u2);
+        if (!q)
+                return -ENOMEM;
+        for (int i = 0; i < NQ; i++) {
+                q[i] = (float)norm_quantile((i + 0.5) / NQ);
+                sum2 += (double)q[i] * q[i];
+        }
+        for (int i = 0; i < NQ; i++) /* unit variance after clipping the tails */
+                q[i] = (float)(q[i] / sqrt(sum2 / NQ));
+        *ret = q;
+        return 0;
 }
 
-static double poisson(uint64_t *st, double mean)
+uint64_t sensor_frame_key(uint64_t seed, uint64_t seq, uint32_t cam)
 {
-        double l, p = 1;
+        return mix64(seed ^ mix64(seq + 0x632be59bd9b4e019ULL) ^ mix64((uint64_t)cam << 40));
+}
+
+/* Poisson deviate of small mean by inversion of the CDF. */
+static double poisson_small(uint64_t h, double mean)
+{
+        double u = (h >> 11) * (1.0 / 9007199254740992.0), p = exp(-mean), f = p;
         int k = 0;
 
-        if (mean > 64)
-                return fmax(0, mean + sqrt(mean) * gauss(st));
-        l = exp(-mean);
-        do {
+        while (u > f && k < 200) {
                 k++;
-                p *= uniform(st);
-        } while (p > l);
-        return k - 1;
+                p *= mean / k;
+                f += p;
+        }
+        return k;
 }
 
-double sensor_dn(const struct sensor *se, const struct noise_key *k, uint64_t idx, int ch,
-                 double electrons, double gain, double maxdn, bool ideal)
+void sensor_pixel(const struct sensor_rt *rt, uint64_t pix, const double *e, int n, double *dn)
 {
-        double e = electrons, dn;
+        const struct sensor *se = rt->se;
+        uint64_t h1 = mix64(rt->key ^ (pix * 0x9e3779b97f4a7c15ULL)), h2 = mix64(h1 + 1);
+        uint64_t bits[2] = { h1, h2 };
 
-        if (!ideal) {
-                uint64_t st = mix64(k->seed ^ mix64(k->seq + 0x632be59bd9b4e019ULL) ^
-                                    mix64(((uint64_t)k->cam << 56) ^ (idx << 2) ^ (uint64_t)ch));
-                if (se->shot_noise && e > 0)
-                        e = poisson(&st, e);
-                e = fmin(e, se->full_well);
-                e += se->read_noise * gauss(&st);
-        } else {
-                e = fmin(e, se->full_well);
+        for (int c = 0; c < n; c++) {
+                double x = e[c], v;
+                if (!rt->ideal) {
+                        int k = 2 * c; /* normals 2c (shot) and 2c + 1 (read) */
+                        float g0 = rt->q[(bits[k / 4] >> (16 * (k % 4))) & 0xffff];
+                        float g1 = rt->q[(bits[(k + 1) / 4] >> (16 * ((k + 1) % 4))) & 0xffff];
+                        if (se->shot_noise && x > 0)
+                                x = x < 16 ? poisson_small(mix64(h2 + 2 + c), x)
+                                           : x + sqrt(x) * g0;
+                        x = (x < se->full_well ? x : se->full_well) + se->read_noise * g1;
+                } else if (x > se->full_well) {
+                        x = se->full_well;
+                }
+                v = x * rt->k + rt->b;
+                dn[c] = v <= 0 ? 0 : v >= rt->maxdn ? rt->maxdn : (double)(int64_t)(v + 0.5);
         }
-        dn = (e * gain / se->full_well + se->black) * maxdn;
-        dn = floor(dn + 0.5);
-        return dn < 0 ? 0 : dn > maxdn ? maxdn : dn;
 }

@@ -30,8 +30,8 @@ typedef void (*serve_fn)(struct srv *s, const struct scenario *sc);
 struct scenario {
         const char *name;
         const char *argv[10];
-        serve_fn serve;      /* NULL: nobody listens */
-        int code;            /* error code the peer answers with, for serve_error */
+        serve_fn serve; /* NULL: nobody listens */
+        int code;       /* error code the peer answers with, for serve_error */
         int want_exit;
         const char *want_out; /* exact stdout, or NULL */
         const char *want_err; /* substring of stderr, or NULL */
@@ -42,7 +42,7 @@ static char tmpdir[64], sock_path[96];
 static json_t *recv_msg(struct srv *s)
 {
         for (;;) {
-                struct pollfd p = { .fd = s->fd, .events = POLLIN };
+                struct pollfd p = {.fd = s->fd, .events = POLLIN};
                 struct proto_msg m;
                 char buf[4096], *line, err[128];
                 size_t len;
@@ -118,8 +118,9 @@ static void hello(struct srv *s, int protocol)
 
         CHECK_INT(json_integer_value(json_object_get(p, "protocol")), PROTO_VERSION);
         CHECK(strncmp(json_string_value(json_object_get(p, "client")), "gonioctl/", 9) == 0);
-        reply(s, req, json_pack("{s:s,s:s,s:i,s:s}", "server", "goniod", "version", "test",
-                                "protocol", protocol, "rig", "test-rig"));
+        reply(s, req,
+              json_pack("{s:s,s:s,s:i,s:s}", "server", "goniod", "version", "test", "protocol",
+                        protocol, "rig", "test-rig"));
 }
 
 static void wait_eof(struct srv *s)
@@ -138,7 +139,7 @@ static void serve_status(struct srv *s, const struct scenario *sc)
         expect_params(req, "{}");
         /* Notifications before the reply are not printed. */
         send_msg(s, proto_notification("axis.moved", json_pack("{s:s,s:f,s:b}", "axis", "turntable",
-                                                              "position", 1.5, "moving", 1)));
+                                                               "position", 1.5, "moving", 1)));
         reply(s, req, json_pack("{s:s,s:b}", "state", "idle", "homed", 1));
 }
 
@@ -162,7 +163,7 @@ static void serve_move(struct srv *s, const struct scenario *sc)
         expect_params(req, "{\"axis\":\"turntable\",\"position\":90.0,\"relative\":false,"
                            "\"wait\":true}");
         send_msg(s, proto_notification("move.done", json_pack("{s:s,s:f}", "axis", "turntable",
-                                                             "position", 90.0)));
+                                                              "position", 90.0)));
         reply(s, req, json_pack("{s:s,s:f}", "axis", "turntable", "position", 90.0));
 }
 
@@ -173,8 +174,9 @@ static void serve_home(struct srv *s, const struct scenario *sc)
         hello(s, PROTO_VERSION);
         req = recv_request(s, "home");
         expect_params(req, "{\"axes\":[\"turntable\",\"light_arm\"]}");
-        reply(s, req, json_pack("{s:[{s:s,s:f},{s:s,s:f}]}", "axes", "name", "turntable",
-                                "position", 0.0, "name", "light_arm", "position", -12.25));
+        reply(s, req,
+              json_pack("{s:[{s:s,s:f},{s:s,s:f}]}", "axes", "name", "turntable", "position", 0.0,
+                        "name", "light_arm", "position", -12.25));
 }
 
 static void serve_capture(struct srv *s, const struct scenario *sc)
@@ -286,56 +288,93 @@ static void serve_watch(struct srv *s, const struct scenario *sc)
         hello(s, PROTO_VERSION);
         send_msg(s, proto_notification("state.changed", json_pack("{s:s}", "state", "moving")));
         send_msg(s, proto_notification("axis.moved", json_pack("{s:s,s:f,s:b}", "axis", "turntable",
-                                                              "position", 2.5, "moving", 1)));
+                                                               "position", 2.5, "moving", 1)));
         send_msg(s, proto_notification("state.changed", json_pack("{s:s}", "state", "idle")));
         wait_eof(s);
 }
 
-#define ERR(c, e) \
-        { "error " #c, { "lamp", "lamp9", "on" }, serve_error, c, e, "", "gonioctl: lamp.set: boom\n" }
+#define ERR(c, e)                                                                                  \
+        {                                                                                          \
+                "error " #c, {"lamp", "lamp9", "on"}, serve_error, c, e, "",                       \
+                        "gonioctl: lamp.set: boom\n"                                               \
+        }
 
 static const struct scenario usage_scenarios[] = {
-        { "no command", { NULL }, NULL, 0, 2, "", "missing command" },
-        { "unknown command", { "frobnicate" }, NULL, 0, 2, "", "frobnicate: unknown command" },
-        { "unknown option", { "--frob", "status" }, NULL, 0, 2, "", "unknown option" },
-        { "missing subcommand", { "dataset" }, NULL, 0, 2, "", "missing subcommand" },
-        { "unknown subcommand", { "fault", "raise" }, NULL, 0, 2, "", "unknown subcommand" },
-        { "move without DEG", { "move", "turntable" }, NULL, 0, 2, "", "missing arguments" },
-        { "move bad DEG", { "move", "turntable", "ten" }, NULL, 0, 2, "", "invalid position" },
-        { "move extra arg", { "move", "t", "1", "2" }, NULL, 0, 2, "", "unexpected argument" },
-        { "option not taken", { "status", "--relative" }, NULL, 0, 2, "", "does not take" },
-        { "lamp bad state", { "lamp", "0", "dim" }, NULL, 0, 2, "", "expected on or off" },
-        { "laser missing", { "laser" }, NULL, 0, 2, "", "missing arguments" },
-        { "bits 12", { "capture", "--bits", "12" }, NULL, 0, 2, "", "invalid value" },
-        { "exposure 0", { "capture", "--exposure=0" }, NULL, 0, 2, "", "invalid value" },
-        { "timeout -1", { "--timeout", "-1", "status" }, NULL, 0, 2, "", "invalid value" },
-        { "timeout no value", { "status", "--timeout" }, NULL, 0, 2, "", "needs a value" },
-        { "json takes no value", { "--json=1", "status" }, NULL, 0, 2, "", "takes no value" },
-        { "call bad JSON", { "call", "status", "{" }, NULL, 0, 2, "", "JSON object or array" },
-        { "watch count 0", { "watch", "--count", "0" }, NULL, 0, 2, "", "invalid value" },
-        { "help", { "--help" }, NULL, 0, 0, NULL, NULL },
-        { "no socket", { "status" }, NULL, 0, 3, "", "gonioctl: connect: " },
-        { "negative DEG is not an option", { "move", "camera_arm", "-10" }, NULL, 0, 3, "",
-          "gonioctl: connect: " },
+        {"no command", {NULL}, NULL, 0, 2, "", "missing command"},
+        {"unknown command", {"frobnicate"}, NULL, 0, 2, "", "frobnicate: unknown command"},
+        {"unknown option", {"--frob", "status"}, NULL, 0, 2, "", "unknown option"},
+        {"missing subcommand", {"dataset"}, NULL, 0, 2, "", "missing subcommand"},
+        {"unknown subcommand", {"fault", "raise"}, NULL, 0, 2, "", "unknown subcommand"},
+        {"move without DEG", {"move", "turntable"}, NULL, 0, 2, "", "missing arguments"},
+        {"move bad DEG", {"move", "turntable", "ten"}, NULL, 0, 2, "", "invalid position"},
+        {"move extra arg", {"move", "t", "1", "2"}, NULL, 0, 2, "", "unexpected argument"},
+        {"option not taken", {"status", "--relative"}, NULL, 0, 2, "", "does not take"},
+        {"lamp bad state", {"lamp", "0", "dim"}, NULL, 0, 2, "", "expected on or off"},
+        {"laser missing", {"laser"}, NULL, 0, 2, "", "missing arguments"},
+        {"bits 12", {"capture", "--bits", "12"}, NULL, 0, 2, "", "invalid value"},
+        {"exposure 0", {"capture", "--exposure=0"}, NULL, 0, 2, "", "invalid value"},
+        {"timeout -1", {"--timeout", "-1", "status"}, NULL, 0, 2, "", "invalid value"},
+        {"timeout no value", {"status", "--timeout"}, NULL, 0, 2, "", "needs a value"},
+        {"json takes no value", {"--json=1", "status"}, NULL, 0, 2, "", "takes no value"},
+        {"call bad JSON", {"call", "status", "{"}, NULL, 0, 2, "", "JSON object or array"},
+        {"watch count 0", {"watch", "--count", "0"}, NULL, 0, 2, "", "invalid value"},
+        {"help", {"--help"}, NULL, 0, 0, NULL, NULL},
+        {"no socket", {"status"}, NULL, 0, 3, "", "gonioctl: connect: "},
+        {"negative DEG is not an option",
+         {"move", "camera_arm", "-10"},
+         NULL,
+         0,
+         3,
+         "",
+         "gonioctl: connect: "},
 };
 
 static const struct scenario peer_scenarios[] = {
-        { "status --json", { "--json", "status" }, serve_status, 0, 0,
-          "{\"state\":\"idle\",\"homed\":true}\n", NULL },
-        { "move --no-wait", { "--json", "move", "camera_arm", "-10.5", "--relative", "--no-wait" },
-          serve_move_nowait, 0, 0, "{\"axis\":\"camera_arm\",\"target\":-20.5}\n", NULL },
-        { "move human", { "move", "turntable", "90" }, serve_move, 0, 0, "turntable 90.000\n",
-          NULL },
-        { "home human", { "home", "turntable", "light_arm" }, serve_home, 0, 0,
-          "AXIS       POSITION\nturntable     0.000\nlight_arm   -12.250\n", NULL },
-        { "capture options", { "--quiet", "capture", "--camera", "cam1", "--exposure", "5000",
-                               "--gain=2", "--bits", "16" },
-          serve_capture, 0, 0, "", NULL },
-        { "dataset create", { "dataset", "create", "gem1" }, serve_dataset_create, 0, 0,
-          "dataset gem1: 0 captures in /data/gem1\n", NULL },
-        { "call", { "--json", "call", "dataset.info", "{\"name\":\"x\"}" }, serve_call, 0, 0,
-          "{\"name\":\"x\",\"count\":3}\n", NULL },
-        { "lamp index", { "lamp", "2", "off" }, serve_lamp_index, 0, 0, "lamp2 off\n", NULL },
+        {"status --json",
+         {"--json", "status"},
+         serve_status,
+         0,
+         0,
+         "{\"state\":\"idle\",\"homed\":true}\n",
+         NULL},
+        {"move --no-wait",
+         {"--json", "move", "camera_arm", "-10.5", "--relative", "--no-wait"},
+         serve_move_nowait,
+         0,
+         0,
+         "{\"axis\":\"camera_arm\",\"target\":-20.5}\n",
+         NULL},
+        {"move human", {"move", "turntable", "90"}, serve_move, 0, 0, "turntable 90.000\n", NULL},
+        {"home human",
+         {"home", "turntable", "light_arm"},
+         serve_home,
+         0,
+         0,
+         "AXIS       POSITION\nturntable     0.000\nlight_arm   -12.250\n",
+         NULL},
+        {"capture options",
+         {"--quiet", "capture", "--camera", "cam1", "--exposure", "5000", "--gain=2", "--bits",
+          "16"},
+         serve_capture,
+         0,
+         0,
+         "",
+         NULL},
+        {"dataset create",
+         {"dataset", "create", "gem1"},
+         serve_dataset_create,
+         0,
+         0,
+         "dataset gem1: 0 captures in /data/gem1\n",
+         NULL},
+        {"call",
+         {"--json", "call", "dataset.info", "{\"name\":\"x\"}"},
+         serve_call,
+         0,
+         0,
+         "{\"name\":\"x\",\"count\":3}\n",
+         NULL},
+        {"lamp index", {"lamp", "2", "off"}, serve_lamp_index, 0, 0, "lamp2 off\n", NULL},
         ERR(PROTO_E_DEVICE, 5),
         ERR(PROTO_E_TIMEOUT, 5),
         ERR(PROTO_INVALID_PARAMS, 6),
@@ -348,20 +387,39 @@ static const struct scenario peer_scenarios[] = {
         ERR(PROTO_E_STATE, 9),
         ERR(PROTO_INTERNAL_ERROR, 4),
         ERR(PROTO_INVALID_REQUEST, 4),
-        { "protocol mismatch", { "status" }, serve_bad_protocol, 0, 4, "",
-          "gonioctl: hello: goniod speaks protocol 2" },
-        { "reply timeout", { "--timeout", "0.5", "status" }, serve_silent, 0, 4, "",
-          "gonioctl: status: timed out" },
-        { "hangup", { "status" }, serve_hangup, 0, 4, "", "gonioctl: status: connection closed" },
-        { "over-long reply", { "status" }, serve_overlong, 0, 4, "", "longer than 65536" },
-        { "malformed reply", { "status" }, serve_garbage, 0, 4, "", "bad message" },
-        { "null-id error", { "status" }, serve_null_id_error, 0, 4, "",
-          "gonioctl: status: line too long" },
-        { "watch --count", { "--json", "watch", "--count", "2" }, serve_watch, 0, 0,
-          "{\"method\":\"state.changed\",\"params\":{\"state\":\"moving\"}}\n"
-          "{\"method\":\"axis.moved\",\"params\":{\"axis\":\"turntable\",\"position\":2.5,"
-          "\"moving\":true}}\n",
-          NULL },
+        {"protocol mismatch",
+         {"status"},
+         serve_bad_protocol,
+         0,
+         4,
+         "",
+         "gonioctl: hello: goniod speaks protocol 2"},
+        {"reply timeout",
+         {"--timeout", "0.5", "status"},
+         serve_silent,
+         0,
+         4,
+         "",
+         "gonioctl: status: timed out"},
+        {"hangup", {"status"}, serve_hangup, 0, 4, "", "gonioctl: status: connection closed"},
+        {"over-long reply", {"status"}, serve_overlong, 0, 4, "", "longer than 65536"},
+        {"malformed reply", {"status"}, serve_garbage, 0, 4, "", "bad message"},
+        {"null-id error",
+         {"status"},
+         serve_null_id_error,
+         0,
+         4,
+         "",
+         "gonioctl: status: line too long"},
+        {"watch --count",
+         {"--json", "watch", "--count", "2"},
+         serve_watch,
+         0,
+         0,
+         "{\"method\":\"state.changed\",\"params\":{\"state\":\"moving\"}}\n"
+         "{\"method\":\"axis.moved\",\"params\":{\"axis\":\"turntable\",\"position\":2.5,"
+         "\"moving\":true}}\n",
+         NULL},
 };
 
 static char *slurp(const char *path)
@@ -378,7 +436,7 @@ static char *slurp(const char *path)
 static pid_t spawn(const char *gonioctl, const struct scenario *sc, const char *out,
                    const char *err)
 {
-        const char *argv[16] = { gonioctl, "--socket", sock_path };
+        const char *argv[16] = {gonioctl, "--socket", sock_path};
         posix_spawn_file_actions_t fa;
         extern char **environ;
         int n = 3;
@@ -387,10 +445,10 @@ static pid_t spawn(const char *gonioctl, const struct scenario *sc, const char *
         for (int i = 0; sc->argv[i]; i++)
                 argv[n++] = sc->argv[i];
         CHECK_INT(posix_spawn_file_actions_init(&fa), 0);
-        CHECK_INT(posix_spawn_file_actions_addopen(&fa, 1, out, O_WRONLY | O_CREAT | O_TRUNC,
-                                                   0600), 0);
-        CHECK_INT(posix_spawn_file_actions_addopen(&fa, 2, err, O_WRONLY | O_CREAT | O_TRUNC,
-                                                   0600), 0);
+        CHECK_INT(posix_spawn_file_actions_addopen(&fa, 1, out, O_WRONLY | O_CREAT | O_TRUNC, 0600),
+                  0);
+        CHECK_INT(posix_spawn_file_actions_addopen(&fa, 2, err, O_WRONLY | O_CREAT | O_TRUNC, 0600),
+                  0);
         CHECK_INT(posix_spawn(&pid, gonioctl, &fa, NULL, (char **)argv, environ), 0);
         posix_spawn_file_actions_destroy(&fa);
         return pid;
@@ -398,7 +456,7 @@ static pid_t spawn(const char *gonioctl, const struct scenario *sc, const char *
 
 static void serve_one(int lfd, const struct scenario *sc)
 {
-        struct pollfd p = { .fd = lfd, .events = POLLIN };
+        struct pollfd p = {.fd = lfd, .events = POLLIN};
         struct srv s = {};
 
         CHECK_INT(poll(&p, 1, IO_TIMEOUT_MS), 1);
@@ -439,7 +497,7 @@ static void run(const char *gonioctl, const struct scenario *sc, int lfd)
 /* A socket bound at sock_path, listening when listening is set. */
 static int bound_socket(bool listening)
 {
-        struct sockaddr_un sa = { .sun_family = AF_UNIX };
+        struct sockaddr_un sa = {.sun_family = AF_UNIX};
         int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
 
         CHECK(fd >= 0);
@@ -450,8 +508,8 @@ static int bound_socket(bool listening)
         return fd;
 }
 
-static const struct scenario refused = { "connection refused", { "status" }, NULL, 0, 3, "",
-                                         "Connection refused" };
+static const struct scenario refused = {"connection refused", {"status"}, NULL, 0, 3, "",
+                                        "Connection refused"};
 
 int main(int argc, char **argv)
 {

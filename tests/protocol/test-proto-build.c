@@ -32,8 +32,8 @@ static void test_request_notification(void)
 {
         struct proto_msg m;
 
-        m = round_trip(proto_request(42, "move", json_pack("{s:s,s:f}", "axis", "turntable",
-                                                            "position", 12.5)));
+        m = round_trip(proto_request(
+                42, "move", json_pack("{s:s,s:f}", "axis", "turntable", "position", 12.5)));
         CHECK_INT(m.kind, PROTO_REQUEST);
         CHECK_INT(json_integer_value(m.id), 42);
         CHECK_STR(m.method, "move");

@@ -8,12 +8,17 @@
 static const struct {
         int err, code;
 } canonical[] = {
-        { EINVAL, PROTO_INVALID_PARAMS }, { ENOSYS, PROTO_METHOD_NOT_FOUND },
-        { EBUSY, PROTO_E_BUSY },          { ERANGE, PROTO_E_RANGE },
-        { EIO, PROTO_E_DEVICE },          { ETIMEDOUT, PROTO_E_TIMEOUT },
-        { ENOENT, PROTO_E_NOT_FOUND },    { ENOSPC, PROTO_E_STORAGE },
-        { ECANCELED, PROTO_E_CANCELED },  { ESTALE, PROTO_E_STATE },
-        { EMSGSIZE, PROTO_E_LINE_TOO_LONG },
+        {EINVAL, PROTO_INVALID_PARAMS},
+        {ENOSYS, PROTO_METHOD_NOT_FOUND},
+        {EBUSY, PROTO_E_BUSY},
+        {ERANGE, PROTO_E_RANGE},
+        {EIO, PROTO_E_DEVICE},
+        {ETIMEDOUT, PROTO_E_TIMEOUT},
+        {ENOENT, PROTO_E_NOT_FOUND},
+        {ENOSPC, PROTO_E_STORAGE},
+        {ECANCELED, PROTO_E_CANCELED},
+        {ESTALE, PROTO_E_STATE},
+        {EMSGSIZE, PROTO_E_LINE_TOO_LONG},
 };
 
 static void test_both_ways(void)
@@ -34,6 +39,7 @@ static void test_aliases_and_unknown(void)
         CHECK_INT(proto_errno_to_code(-EDQUOT), PROTO_E_STORAGE);
         CHECK_INT(proto_errno_to_code(-EPERM), PROTO_E_STATE);
         CHECK_INT(proto_errno_to_code(-EOPNOTSUPP), PROTO_INVALID_PARAMS);
+        CHECK_INT(proto_errno_to_code(-EPROTONOSUPPORT), PROTO_INVALID_REQUEST);
         CHECK_INT(proto_errno_to_code(-ENOMEM), PROTO_INTERNAL_ERROR);
         CHECK_INT(proto_code_to_errno(PROTO_PARSE_ERROR), EPROTO);
         CHECK_INT(proto_code_to_errno(PROTO_INVALID_REQUEST), EPROTO);

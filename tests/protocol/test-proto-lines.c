@@ -23,10 +23,10 @@ static void feed_expect(struct proto_lines *pl, const char *s, const char *const
 static void test_split_and_batched(void)
 {
         struct proto_lines pl = {};
-        const char *none[] = { NULL };
-        const char *one[] = { "{\"a\":1}", NULL };
-        const char *three[] = { "{\"b\":2}", "x", "{\"c\":3}", NULL };
-        const char *tail[] = { "yz", NULL };
+        const char *none[] = {NULL};
+        const char *one[] = {"{\"a\":1}", NULL};
+        const char *three[] = {"{\"b\":2}", "x", "{\"c\":3}", NULL};
+        const char *tail[] = {"yz", NULL};
 
         /* One message split over three reads, byte boundaries inside the line. */
         feed_expect(&pl, "{\"a\"", none);
@@ -68,7 +68,7 @@ static void test_limit_exact(void)
 static void test_overlong_chunked(void)
 {
         struct proto_lines pl = {};
-        const char *after[] = { "{\"ok\":true}", NULL };
+        const char *after[] = {"{\"ok\":true}", NULL};
         char chunk[4096], *line;
         size_t len, total = 0;
         int emsgsize = 0, r;

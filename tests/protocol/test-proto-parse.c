@@ -100,7 +100,8 @@ static void test_rejected(void)
         /* Malformed responses. */
         parse("{\"jsonrpc\":\"2.0\",\"result\":{}}", PROTO_INVALID_REQUEST, "");
         parse("{\"jsonrpc\":\"2.0\",\"id\":4}", PROTO_INVALID_REQUEST, "4");
-        parse("{\"jsonrpc\":\"2.0\",\"id\":4,\"result\":1,\"error\":{\"code\":1,\"message\":\"m\"}}",
+        parse("{\"jsonrpc\":\"2.0\",\"id\":4,\"result\":1,\"error\":{\"code\":1,\"message\":\"m\"}"
+              "}",
               PROTO_INVALID_REQUEST, "4");
         parse("{\"jsonrpc\":\"2.0\",\"id\":4,\"error\":{\"code\":\"x\",\"message\":\"m\"}}",
               PROTO_INVALID_REQUEST, "4");

@@ -5,6 +5,9 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <math.h>
+
+#include "common/cleanup.h"
 #include "tests/sim/simtest.h"
 
 static const char rig_head[] =
@@ -37,7 +40,8 @@ static const char rig_body[] =
         "      cx: 79.5, cy: 59.5, exposure_us: 20000, gain: 1.0, bits: 8 }\n"
         "scene:\n"
         "  seed: 1\n"
-        "  object: { shape: sphere, size: 80, material: { albedo: [0.7, 0.6, 0.5] } }\n"
+        "  object: { shape: sphere, size: 60, pose: { translate: [50, 0, 0] },\n"
+        "            material: { albedo: [0.7, 0.6, 0.5] } }\n"
         "  turntable: { radius: 150, albedo: [0.2, 0.2, 0.2] }\n";
 
 void simtest_write_rig(char *dir, bool drives_tcp)
@@ -93,4 +97,48 @@ double simtest_now(void)
 
         clock_gettime(CLOCK_MONOTONIC, &ts);
         return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+modbus_t *simtest_modbus(const char *dir, const char *bus)
+{
+        char path[256];
+
+        snprintf(path, sizeof path, "%s/%s", dir, bus);
+        modbus_t *mb = modbus_new_rtu(path, 115200, 'N', 8, 1);
+        CHECK(mb);
+        CHECK(modbus_connect(mb) == 0);
+        CHECK(modbus_set_response_timeout(mb, 0, 300000) == 0);
+        return mb;
+}
+
+uint16_t simtest_reg(modbus_t *mb, int unit, int addr)
+{
+        uint16_t v = 0;
+
+        CHECK(modbus_set_slave(mb, unit) == 0);
+        CHECK(modbus_read_registers(mb, addr, 1, &v) == 1);
+        return v;
+}
+
+int simtest_command(modbus_t *mb, int unit, double target_deg, uint16_t cmd)
+{
+        uint32_t t = (uint32_t)(int32_t)lround(target_deg * 1000.0);
+        uint16_t v[SIMTEST_R_COMMAND - SIMTEST_R_TARGET + 1] = {(uint16_t)(t >> 16), (uint16_t)t};
+
+        CHECK(modbus_set_slave(mb, unit) == 0);
+        CHECK(modbus_read_registers(mb, SIMTEST_R_SPEED, 2, v + 2) == 2);
+        v[ELEMENTSOF(v) - 1] = cmd;
+        int r = modbus_write_registers(mb, SIMTEST_R_TARGET, ELEMENTSOF(v), v);
+        return r == (int)ELEMENTSOF(v) ? 1 : -1;
+}
+
+double simtest_wait_status(modbus_t *mb, int unit, uint16_t mask, uint16_t want, double limit_s)
+{
+        double t0 = simtest_now();
+
+        while ((simtest_reg(mb, unit, SIMTEST_R_STATUS) & mask) != want) {
+                CHECK(simtest_now() - t0 < limit_s);
+                usleep(2000);
+        }
+        return simtest_now() - t0;
 }

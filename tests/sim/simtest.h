@@ -3,8 +3,11 @@
 #pragma once
 
 #include <stdbool.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+
+#include <modbus/modbus.h>
 
 #include "common/rigconf.h"
 
@@ -41,3 +44,34 @@ void simtest_rmdir(const char *dir);
 
 /* CLOCK_MONOTONIC in seconds. */
 double simtest_now(void);
+
+/* Registers, status bits and commands of the gonio-default profile (docs/modbus-profile.md). */
+enum {
+        SIMTEST_R_STATUS = 0x00,
+        SIMTEST_R_FAULT = 0x01,
+        SIMTEST_R_POS = 0x02,
+        SIMTEST_R_TARGET = 0x10,
+        SIMTEST_R_SPEED = 0x12,
+        SIMTEST_R_COMMAND = 0x20
+};
+enum {
+        SIMTEST_ST_HOMED = 1 << 1,
+        SIMTEST_ST_MOVING = 1 << 2,
+        SIMTEST_ST_INPOS = 1 << 3,
+        SIMTEST_ST_FAULT = 1 << 4
+};
+enum { SIMTEST_CMD_MOVE = 1, SIMTEST_CMD_HOME = 2, SIMTEST_CMD_STOP = 3, SIMTEST_CMD_RESET = 4 };
+
+/* A connected libmodbus RTU client on dir/bus with a 300 ms response timeout. */
+modbus_t *simtest_modbus(const char *dir, const char *bus);
+
+/* Reads one holding register of unit; aborts on error. */
+uint16_t simtest_reg(modbus_t *mb, int unit, int addr);
+
+/* Writes target, speed and accel (unchanged) and command in one request (function 0x10,
+ * registers 0x10..0x20). Returns 1, or -1 with errno set by libmodbus. */
+int simtest_command(modbus_t *mb, int unit, double target_deg, uint16_t cmd);
+
+/* Polls the status of unit until (status & mask) == want; aborts after limit_s. Returns
+ * the real time it took. */
+double simtest_wait_status(modbus_t *mb, int unit, uint16_t mask, uint16_t want, double limit_s);

@@ -16,62 +16,13 @@
 
 #define TIME_SCALE 4.0 /* emulated seconds per real second */
 
-enum { R_STATUS = 0x00, R_FAULT = 0x01, R_POS = 0x02, R_TARGET = 0x10, R_SPEED = 0x12,
-       R_COMMAND = 0x20 };
-enum { ST_HOMED = 1 << 1, ST_MOVING = 1 << 2, ST_INPOS = 1 << 3, ST_FAULT = 1 << 4 };
-enum { CMD_MOVE = 1, CMD_HOME = 2, CMD_STOP = 3, CMD_RESET = 4 };
-
-static modbus_t *client_rtu(const char *dir)
-{
-        char path[256];
-
-        snprintf(path, sizeof path, "%s/drives", dir);
-        modbus_t *mb = modbus_new_rtu(path, 115200, 'N', 8, 1);
-        CHECK(mb);
-        CHECK(modbus_connect(mb) == 0);
-        CHECK(modbus_set_response_timeout(mb, 0, 300000) == 0);
-        return mb;
-}
-
-static uint16_t reg(modbus_t *mb, int unit, int addr)
-{
-        uint16_t v = 0;
-
-        CHECK(modbus_set_slave(mb, unit) == 0);
-        CHECK(modbus_read_registers(mb, addr, 1, &v) == 1);
-        return v;
-}
-
 static double position_deg(modbus_t *mb, int unit)
 {
         uint16_t v[2];
 
         CHECK(modbus_set_slave(mb, unit) == 0);
-        CHECK(modbus_read_registers(mb, R_POS, 2, v) == 2);
+        CHECK(modbus_read_registers(mb, SIMTEST_R_POS, 2, v) == 2);
         return (int32_t)((uint32_t)v[0] << 16 | v[1]) / 1000.0;
-}
-
-/* Writes target and command in one request (function 0x10). */
-static int command(modbus_t *mb, int unit, double target_deg, uint16_t cmd)
-{
-        int32_t t = (int32_t)lround(target_deg * 1000.0);
-        uint16_t v[2] = { (uint16_t)((uint32_t)t >> 16), (uint16_t)t };
-
-        CHECK(modbus_set_slave(mb, unit) == 0);
-        CHECK(modbus_write_registers(mb, R_TARGET, 2, v) == 2);
-        return modbus_write_register(mb, R_COMMAND, cmd);
-}
-
-/* Polls status until (status & mask) == want; returns the real time it took. */
-static double wait_status(modbus_t *mb, int unit, uint16_t mask, uint16_t want, double limit_s)
-{
-        double t0 = simtest_now();
-
-        while ((reg(mb, unit, R_STATUS) & mask) != want) {
-                CHECK(simtest_now() - t0 < limit_s);
-                usleep(2000);
-        }
-        return simtest_now() - t0;
 }
 
 static double wrapped_distance(double a, double b)
@@ -84,20 +35,17 @@ static void test_reads_and_units(struct sim_emu *e, modbus_t *mb)
         uint8_t coils[8];
         struct sim_rig_state st;
 
-        CHECK(reg(mb, 1, R_STATUS) & 1); /* enabled */
-        CHECK(!(reg(mb, 1, R_STATUS) & ST_HOMED));
-        CHECK(reg(mb, 1, R_FAULT) == 0);
+        CHECK(simtest_reg(mb, 1, SIMTEST_R_STATUS) & 1); /* enabled */
+        CHECK(!(simtest_reg(mb, 1, SIMTEST_R_STATUS) & SIMTEST_ST_HOMED));
+        CHECK(simtest_reg(mb, 1, SIMTEST_R_FAULT) == 0);
         CHECK(position_deg(mb, 1) == 0.0); /* counts from power-on */
-        CHECK(reg(mb, 1, R_SPEED) == 900);
-        CHECK(reg(mb, 2, R_SPEED) == 450);
-        CHECK(reg(mb, 3, R_SPEED) == 300);
+        CHECK(simtest_reg(mb, 1, SIMTEST_R_SPEED) == 900);
+        CHECK(simtest_reg(mb, 2, SIMTEST_R_SPEED) == 450);
+        CHECK(simtest_reg(mb, 3, SIMTEST_R_SPEED) == 300);
 
         /* The relay module at unit 10 on its own bus. */
-        char path[256];
-        snprintf(path, sizeof path, "%s/relays", getenv("GONIO_SIM_DIR"));
-        modbus_t *rl = modbus_new_rtu(path, 115200, 'N', 8, 1);
-        CHECK(rl && modbus_connect(rl) == 0 && modbus_set_slave(rl, 10) == 0);
-        CHECK(modbus_set_response_timeout(rl, 0, 300000) == 0);
+        modbus_t *rl = simtest_modbus(getenv("GONIO_SIM_DIR"), "relays");
+        CHECK(modbus_set_slave(rl, 10) == 0);
         CHECK(modbus_write_bit(rl, 1, 1) == 1);
         CHECK(modbus_write_bit(rl, 7, 1) == 1);
         CHECK(modbus_read_bits(rl, 0, 8, coils) == 8);
@@ -111,22 +59,23 @@ static void test_reads_and_units(struct sim_emu *e, modbus_t *mb)
         /* No device at unit 5: silence, like a real bus. */
         CHECK(modbus_set_slave(mb, 5) == 0);
         uint16_t v;
-        CHECK(modbus_read_registers(mb, R_STATUS, 1, &v) == -1 && errno == ETIMEDOUT);
+        CHECK(modbus_read_registers(mb, SIMTEST_R_STATUS, 1, &v) == -1 && errno == ETIMEDOUT);
         /* Out-of-map register and unknown command. */
         CHECK(modbus_set_slave(mb, 1) == 0);
         CHECK(modbus_read_registers(mb, 0x100, 1, &v) == -1 && errno == EMBXILADD);
-        CHECK(modbus_write_register(mb, R_COMMAND, 99) == -1 && errno == EMBXILVAL);
+        CHECK(modbus_write_register(mb, SIMTEST_R_COMMAND, 99) == -1 && errno == EMBXILVAL);
 }
 
 static void test_home(struct sim_emu *e, modbus_t *mb)
 {
         struct sim_rig_state st;
 
-        CHECK(command(mb, 1, 0.0, CMD_HOME) == 1);
+        CHECK(simtest_command(mb, 1, 0.0, SIMTEST_CMD_HOME) == 1);
         /* at most half a turn at 90 deg/s, 180 deg/s^2, plus settle */
-        wait_status(mb, 1, ST_HOMED | ST_INPOS, ST_HOMED | ST_INPOS, 3.0);
+        simtest_wait_status(mb, 1, SIMTEST_ST_HOMED | SIMTEST_ST_INPOS,
+                            SIMTEST_ST_HOMED | SIMTEST_ST_INPOS, 3.0);
         CHECK(fabs(position_deg(mb, 1)) < 1e-9);
-        CHECK(reg(mb, 1, R_STATUS) & (1 << 5)); /* on the home switch */
+        CHECK(simtest_reg(mb, 1, SIMTEST_R_STATUS) & (1 << 5)); /* on the home switch */
         sim_emu_snapshot(e, &st);
         CHECK(wrapped_distance(st.turntable_deg, 0.0) < 1e-6);
 }
@@ -140,9 +89,9 @@ static void test_move_timing(struct sim_emu *e, modbus_t *mb)
 
         CHECK(motion_plan(&m, 0.0, 0.0, 90.0, 90.0, 180.0) == 0);
         double c0 = simtest_now();
-        CHECK(command(mb, 1, 90.0, CMD_MOVE) == 1);
+        CHECK(simtest_command(mb, 1, 90.0, SIMTEST_CMD_MOVE) == 1);
         double c1 = simtest_now();
-        CHECK(reg(mb, 1, R_STATUS) & ST_MOVING);
+        CHECK(simtest_reg(mb, 1, SIMTEST_R_STATUS) & SIMTEST_ST_MOVING);
 
         usleep((useconds_t)(m.t_total / TIME_SCALE * 0.4 * 1e6));
         double r0 = simtest_now();
@@ -153,7 +102,7 @@ static void test_move_timing(struct sim_emu *e, modbus_t *mb)
         CHECK(pos >= lo - 1e-3 && pos <= hi + 1e-3);
         CHECK(pos > 0.0 && pos < 90.0);
 
-        wait_status(mb, 1, ST_MOVING | ST_INPOS, ST_INPOS, 5.0);
+        simtest_wait_status(mb, 1, SIMTEST_ST_MOVING | SIMTEST_ST_INPOS, SIMTEST_ST_INPOS, 5.0);
         double took = simtest_now() - c0;
         double expect = (m.t_total + 0.050) / TIME_SCALE; /* profile + settle_ms */
         CHECK(took >= expect - 0.02);
@@ -165,14 +114,14 @@ static void test_move_timing(struct sim_emu *e, modbus_t *mb)
 
 static void test_stop(modbus_t *mb)
 {
-        CHECK(command(mb, 1, 0.0, CMD_MOVE) == 1);
+        CHECK(simtest_command(mb, 1, 0.0, SIMTEST_CMD_MOVE) == 1);
         usleep(100000);
-        CHECK(modbus_write_register(mb, R_COMMAND, CMD_STOP) == 1);
+        CHECK(modbus_write_register(mb, SIMTEST_R_COMMAND, SIMTEST_CMD_STOP) == 1);
         double at = position_deg(mb, 1);
         CHECK(at > 0.0 && at < 90.0);
         usleep(100000);
         CHECK(position_deg(mb, 1) == at);
-        CHECK(!(reg(mb, 1, R_STATUS) & (ST_MOVING | ST_INPOS)));
+        CHECK(!(simtest_reg(mb, 1, SIMTEST_R_STATUS) & (SIMTEST_ST_MOVING | SIMTEST_ST_INPOS)));
 }
 
 /* Each communication fault gives its libmodbus error; the other units keep answering. */
@@ -183,20 +132,20 @@ static void test_comm_faults(struct sim_emu *e, modbus_t *mb)
                 enum sim_fault fault;
                 int err;
         } cases[] = {
-                { SIM_FAULT_TIMEOUT, ETIMEDOUT },
-                { SIM_FAULT_CRC, EMBBADCRC },
-                { SIM_FAULT_EXCEPTION, EMBXSFAIL },
+                {SIM_FAULT_TIMEOUT, ETIMEDOUT},
+                {SIM_FAULT_CRC, EMBBADCRC},
+                {SIM_FAULT_EXCEPTION, EMBXSFAIL},
         };
 
         for (size_t i = 0; i < ELEMENTSOF(cases); i++) {
                 CHECK(sim_emu_inject(e, "drives", 2, cases[i].fault) == 0);
                 CHECK(modbus_set_slave(mb, 2) == 0);
                 errno = 0;
-                CHECK(modbus_read_registers(mb, R_STATUS, 1, &v) == -1);
+                CHECK(modbus_read_registers(mb, SIMTEST_R_STATUS, 1, &v) == -1);
                 CHECK(errno == cases[i].err);
-                CHECK(reg(mb, 3, R_SPEED) == 300);
+                CHECK(simtest_reg(mb, 3, SIMTEST_R_SPEED) == 300);
                 CHECK(sim_emu_inject(e, "drives", 2, SIM_FAULT_NONE) == 0);
-                CHECK(reg(mb, 2, R_SPEED) == 450);
+                CHECK(simtest_reg(mb, 2, SIMTEST_R_SPEED) == 450);
         }
         CHECK(sim_emu_inject(e, "drives", 9, SIM_FAULT_TIMEOUT) == -ENOENT);
         CHECK(sim_emu_inject(e, "nosuchbus", 1, SIM_FAULT_TIMEOUT) == -ENOENT);
@@ -209,15 +158,15 @@ static void test_stall(struct sim_emu *e, modbus_t *mb)
         double from = position_deg(mb, 3);
 
         CHECK(sim_emu_inject(e, "drives", 3, SIM_FAULT_STALL) == 0);
-        CHECK(command(mb, 3, from + 20.0, CMD_MOVE) == 1);
-        wait_status(mb, 3, ST_FAULT | ST_MOVING, ST_FAULT, 5.0);
-        CHECK(reg(mb, 3, R_FAULT) == 1);
+        CHECK(simtest_command(mb, 3, from + 20.0, SIMTEST_CMD_MOVE) == 1);
+        simtest_wait_status(mb, 3, SIMTEST_ST_FAULT | SIMTEST_ST_MOVING, SIMTEST_ST_FAULT, 5.0);
+        CHECK(simtest_reg(mb, 3, SIMTEST_R_FAULT) == 1);
         CHECK_NEAR(position_deg(mb, 3), from + 10.0, 1e-3);
-        CHECK(command(mb, 3, from, CMD_MOVE) == -1 && errno == EMBXSFAIL);
-        CHECK(modbus_write_register(mb, R_COMMAND, CMD_RESET) == 1);
-        CHECK(reg(mb, 3, R_FAULT) == 0);
-        CHECK(command(mb, 3, from, CMD_MOVE) == 1);
-        wait_status(mb, 3, ST_MOVING | ST_INPOS, ST_INPOS, 5.0);
+        CHECK(simtest_command(mb, 3, from, SIMTEST_CMD_MOVE) == -1 && errno == EMBXSFAIL);
+        CHECK(modbus_write_register(mb, SIMTEST_R_COMMAND, SIMTEST_CMD_RESET) == 1);
+        CHECK(simtest_reg(mb, 3, SIMTEST_R_FAULT) == 0);
+        CHECK(simtest_command(mb, 3, from, SIMTEST_CMD_MOVE) == 1);
+        simtest_wait_status(mb, 3, SIMTEST_ST_MOVING | SIMTEST_ST_INPOS, SIMTEST_ST_INPOS, 5.0);
         CHECK_NEAR(position_deg(mb, 3), from, 1e-9);
 }
 
@@ -236,7 +185,7 @@ static void test_rtu(void)
         CHECK(strcmp(target, sim_emu_pty(e, "drives")) == 0);
         CHECK(sim_emu_tcp_port(e, "drives") == -ENOENT);
 
-        modbus_t *mb = client_rtu(dir);
+        modbus_t *mb = simtest_modbus(dir, "drives");
         test_reads_and_units(e, mb);
         test_home(e, mb);
         test_move_timing(e, mb);
@@ -268,13 +217,13 @@ static void test_tcp(void)
         modbus_t *mb = modbus_new_tcp("127.0.0.1", port);
         CHECK(mb && modbus_connect(mb) == 0);
         CHECK(modbus_set_response_timeout(mb, 0, 300000) == 0);
-        CHECK(reg(mb, 1, R_SPEED) == 900);
-        CHECK(reg(mb, 3, R_SPEED) == 300);
+        CHECK(simtest_reg(mb, 1, SIMTEST_R_SPEED) == 900);
+        CHECK(simtest_reg(mb, 3, SIMTEST_R_SPEED) == 300);
         CHECK(sim_emu_inject(e, "drives", 1, SIM_FAULT_CRC) == 0);
         CHECK(modbus_set_slave(mb, 1) == 0);
-        CHECK(modbus_read_registers(mb, R_SPEED, 1, &v) == -1);
+        CHECK(modbus_read_registers(mb, SIMTEST_R_SPEED, 1, &v) == -1);
         CHECK(sim_emu_inject(e, "drives", 1, SIM_FAULT_NONE) == 0);
-        CHECK(reg(mb, 1, R_SPEED) == 900);
+        CHECK(simtest_reg(mb, 1, SIMTEST_R_SPEED) == 900);
         modbus_close(mb);
         modbus_free(mb);
         sim_emu_free(e);

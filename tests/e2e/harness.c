@@ -1,0 +1,324 @@
+/* harness.c - process and socket helpers for gonio's end-to-end tests. */
+#include <errno.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "harness.h"
+#include "tests/test.h"
+
+static const char *const test_rig =
+        "rig: e2e\n"
+        "buses:\n"
+        "  - { name: drives, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/drives\", timeout_ms: 300 }\n"
+        "  - { name: relays, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/relays\", timeout_ms: 300 }\n"
+        "  - { name: frames, type: sim, port: \"${GONIO_SIM_DIR}/frames.sock\" }\n"
+        "axes:\n"
+        "  - { name: turntable, backend: modbus, bus: drives, unit: 1, continuous: true,\n"
+        "      max_speed: 90, accel: 180, settle_ms: 20 }\n"
+        "  - { name: light_arm, backend: modbus, bus: drives, unit: 2, continuous: true,\n"
+        "      max_speed: 60, accel: 120, settle_ms: 20 }\n"
+        "  - { name: camera_arm, backend: modbus, bus: drives, unit: 3, limits: [-170, 170],\n"
+        "      max_speed: 30, accel: 60, settle_ms: 20 }\n"
+        "lamps:\n"
+        "  - { name: lamp0, backend: modbus-coil, bus: relays, unit: 10, coil: 0, elevation: 20,\n"
+        "      radius: 450, intensity: 4.0e5 }\n"
+        "  - { name: lamp1, backend: modbus-coil, bus: relays, unit: 10, coil: 1, elevation: 60,\n"
+        "      radius: 450, intensity: 4.0e5 }\n"
+        "laser: { name: laser, backend: modbus-coil, bus: relays, unit: 10, coil: 7 }\n"
+        "cameras:\n"
+        "  - { name: cam0, backend: sim, bus: frames, elevation: 15, distance: 600, azimuth: 30,\n"
+        "      target: [0, 0, 40], width: 160, height: 120, fx: 260, fy: 260 }\n"
+        "  - { name: cam1, backend: sim, bus: frames, elevation: 50, distance: 600, azimuth: 30,\n"
+        "      target: [0, 0, 40], width: 160, height: 120, fx: 260, fy: 260, bits: 16 }\n"
+        "scene:\n"
+        "  seed: 7\n"
+        "  object:\n"
+        "    shape: gem\n"
+        "    size: 80\n"
+        "    material: { albedo: [0.7, 0.6, 0.5] }\n"
+        "  turntable: { radius: 150, albedo: [0.3, 0.3, 0.3] }\n";
+
+static void write_file(const char *path, const char *text)
+{
+        FILE *f = fopen(path, "we");
+
+        CHECK(f);
+        CHECK(fputs(text, f) >= 0);
+        CHECK(fclose(f) == 0);
+}
+
+static double now_s(void)
+{
+        struct timespec ts;
+
+        clock_gettime(CLOCK_MONOTONIC, &ts);
+        return ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+/* Starts argv with stdout on a pipe; returns the read end in *out_fd. */
+static pid_t spawn(char *const argv[], int *out_fd)
+{
+        int p[2];
+        pid_t pid;
+
+        CHECK(pipe2(p, O_CLOEXEC) == 0);
+        pid = fork();
+        CHECK(pid >= 0);
+        if (pid == 0) {
+                dup2(p[1], STDOUT_FILENO);
+                execv(argv[0], argv);
+                _exit(127);
+        }
+        close(p[1]);
+        *out_fd = p[0];
+        return pid;
+}
+
+/* Reads the child's stdout until a line equal to word, within timeout seconds. */
+static bool wait_word(int fd, const char *word, double timeout)
+{
+        char buf[8192];
+        size_t len = 0;
+        double end = now_s() + timeout;
+
+        while (now_s() < end) {
+                struct pollfd pfd = { .fd = fd, .events = POLLIN };
+                ssize_t n;
+
+                if (poll(&pfd, 1, 200) <= 0)
+                        continue;
+                n = read(fd, buf + len, sizeof(buf) - 1 - len);
+                if (n <= 0)
+                        return false;
+                len += n;
+                buf[len] = 0;
+                if (strstr(buf, word))
+                        return true;
+                if (len > sizeof(buf) / 2)
+                        memmove(buf, buf + len / 2, len - len / 2), len -= len / 2;
+        }
+        return false;
+}
+
+int raw_connect(struct rigenv *e)
+{
+        struct sockaddr_un sa = { .sun_family = AF_UNIX };
+        int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+
+        CHECK(fd >= 0);
+        snprintf(sa.sun_path, sizeof(sa.sun_path), "%s", e->sock);
+        if (connect(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0) {
+                close(fd);
+                return -errno;
+        }
+        return fd;
+}
+
+static void wait_socket(struct rigenv *e, double timeout)
+{
+        double end = now_s() + timeout;
+
+        for (;;) {
+                int fd = raw_connect(e);
+                if (fd >= 0) {
+                        close(fd);
+                        return;
+                }
+                CHECK(now_s() < end);
+                CHECK(waitpid(e->daemon, NULL, WNOHANG) == 0); /* daemon still alive */
+                usleep(50000);
+        }
+}
+
+static struct rigenv *running; /* for the exit handler only */
+
+/* A failed check exits the test: take the daemon and the simulator down with it. */
+static void kill_children(void)
+{
+        if (!running)
+                return;
+        if (running->daemon > 0)
+                kill(running->daemon, SIGKILL);
+        if (running->sim > 0)
+                kill(running->sim, SIGKILL);
+}
+
+void rigenv_start(struct rigenv *e, char **argv, double time_scale)
+{
+        char scale[32], *sim_argv[8], *d_argv[10];
+        int fd;
+
+        memset(e, 0, sizeof(*e));
+        running = e;
+        atexit(kill_children);
+        e->goniod = argv[1];
+        e->gonioctl = argv[2];
+        e->gonio_sim = argv[3];
+        snprintf(e->dir, sizeof(e->dir), "/tmp/gonio-e2e-XXXXXX");
+        CHECK(mkdtemp(e->dir));
+        snprintf(e->simdir, sizeof(e->simdir), "%s/sim", e->dir);
+        snprintf(e->rig, sizeof(e->rig), "%s/rig.yaml", e->dir);
+        snprintf(e->sock, sizeof(e->sock), "%s/goniod.sock", e->dir);
+        snprintf(e->data, sizeof(e->data), "%s/data", e->dir);
+        write_file(e->rig, test_rig);
+        setenv("GONIO_SIM_DIR", e->simdir, 1);
+        snprintf(scale, sizeof(scale), "%g", time_scale);
+        memcpy(sim_argv, (char *[]){ (char *)e->gonio_sim, "--rig", e->rig, "--dir", e->simdir,
+                                     "--time-scale", scale, NULL },
+               sizeof(sim_argv));
+        e->sim = spawn(sim_argv, &fd);
+        CHECK(wait_word(fd, "ready", 30));
+        close(fd);
+        memcpy(d_argv, (char *[]){ (char *)e->goniod, "--rig", e->rig, "--socket", e->sock,
+                                   "--data", e->data, NULL },
+               sizeof(char *) * 8);
+        e->daemon = spawn(d_argv, &fd);
+        close(fd);
+        wait_socket(e, 30);
+}
+
+static void stop_pid(pid_t pid)
+{
+        int status;
+
+        if (pid <= 0)
+                return;
+        kill(pid, SIGTERM);
+        for (int i = 0; i < 100; i++) {
+                if (waitpid(pid, &status, WNOHANG) == pid)
+                        return;
+                usleep(50000);
+        }
+        kill(pid, SIGKILL);
+        waitpid(pid, &status, 0);
+}
+
+void rigenv_stop(struct rigenv *e)
+{
+        char cmd[400];
+
+        stop_pid(e->daemon);
+        stop_pid(e->sim);
+        e->daemon = e->sim = 0;
+        snprintf(cmd, sizeof(cmd), "rm -rf '%s'", e->dir);
+        CHECK(system(cmd) == 0);
+}
+
+int run_capture(char *const argv[], char *out, size_t outlen, char *err, size_t errlen)
+{
+        int po[2], pe[2], status;
+        pid_t pid;
+
+        CHECK(pipe2(po, O_CLOEXEC) == 0 && pipe2(pe, O_CLOEXEC) == 0);
+        pid = fork();
+        CHECK(pid >= 0);
+        if (pid == 0) {
+                dup2(po[1], STDOUT_FILENO);
+                dup2(pe[1], STDERR_FILENO);
+                execv(argv[0], argv);
+                _exit(127);
+        }
+        close(po[1]);
+        close(pe[1]);
+        for (int k = 0; k < 2; k++) {
+                int fd = k ? pe[0] : po[0];
+                char *buf = k ? err : out;
+                size_t cap = k ? errlen : outlen, len = 0;
+                char sink[4096];
+                ssize_t n;
+
+                while ((n = read(fd, buf ? buf + len : sink,
+                                 buf ? cap - 1 - len : sizeof(sink))) > 0)
+                        if (buf)
+                                len += n;
+                if (buf)
+                        buf[len] = 0;
+                close(fd);
+        }
+        CHECK(waitpid(pid, &status, 0) == pid);
+        return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+static int vctl(struct rigenv *e, json_t **out, va_list ap)
+{
+        char *argv[32] = { (char *)e->gonioctl, "--socket", e->sock, "--json" };
+        static char buf[1 << 20];
+        char err[4096];
+        int n = 4, r;
+        const char *a;
+
+        while ((a = va_arg(ap, const char *)) && n < 31)
+                argv[n++] = (char *)a;
+        argv[n] = NULL;
+        r = run_capture(argv, buf, sizeof(buf), err, sizeof(err));
+        if (err[0])
+                fprintf(stderr, "gonioctl %s: %s", argv[4], err);
+        if (out)
+                *out = json_loads(buf, JSON_DECODE_ANY, NULL);
+        return r;
+}
+
+int ctl(struct rigenv *e, json_t **out, ...)
+{
+        va_list ap;
+        int r;
+
+        va_start(ap, out);
+        r = vctl(e, out, ap);
+        va_end(ap);
+        return r;
+}
+
+json_t *ctl_ok(struct rigenv *e, ...)
+{
+        json_t *out = NULL;
+        va_list ap;
+        int r;
+
+        va_start(ap, e);
+        r = vctl(e, &out, ap);
+        va_end(ap);
+        CHECK_INT(r, 0);
+        CHECK(out != NULL);
+        return out;
+}
+
+json_t *raw_call(int fd, const char *text)
+{
+        static char buf[1 << 20];
+        size_t len = 0;
+
+        CHECK(write(fd, text, strlen(text)) == (ssize_t)strlen(text));
+        for (;;) {
+                char *nl;
+                ssize_t n;
+                struct pollfd pfd = { .fd = fd, .events = POLLIN };
+
+                CHECK(poll(&pfd, 1, 20000) == 1);
+                n = read(fd, buf + len, sizeof(buf) - 1 - len);
+                CHECK(n > 0);
+                len += n;
+                buf[len] = 0;
+                while ((nl = strchr(buf, '\n'))) {
+                        json_t *msg;
+                        *nl = 0;
+                        msg = json_loads(buf, 0, NULL);
+                        memmove(buf, nl + 1, len - (nl + 1 - buf) + 1);
+                        len = strlen(buf);
+                        CHECK(msg);
+                        if (json_object_get(msg, "id"))
+                                return msg;
+                        json_decref(msg); /* a notification */
+                }
+        }
+}

@@ -1,0 +1,40 @@
+/* harness.h - runs gonio-sim, goniod and gonioctl as separate processes for
+ * end-to-end tests, as an operator would, and talks to the daemon's socket. */
+#pragma once
+
+#include <jansson.h>
+#include <stdbool.h>
+#include <sys/types.h>
+
+struct rigenv {
+        char dir[256];     /* temp dir holding everything below */
+        char simdir[300];  /* gonio-sim's ptys and frame socket */
+        char rig[300];     /* rig file */
+        char sock[300];    /* goniod's control socket */
+        char data[300];    /* datasets */
+        pid_t sim, daemon;
+        const char *goniod, *gonioctl, *gonio_sim;
+};
+
+/* Creates a temp dir, writes the test rig (small cameras) there and starts gonio-sim
+ * with time_scale and goniod. Exits the test on failure. */
+void rigenv_start(struct rigenv *e, char **argv, double time_scale);
+
+/* SIGTERMs both processes, waits, and removes the temp dir. */
+void rigenv_stop(struct rigenv *e);
+
+/* Runs gonioctl --socket S --json ARGS... (NULL-terminated); *out gets the parsed stdout
+ * (NULL if not JSON). Returns the exit status. */
+int ctl(struct rigenv *e, json_t **out, ...) __attribute__((sentinel));
+
+/* Like ctl but exits the test unless gonioctl succeeds; returns the parsed result. */
+json_t *ctl_ok(struct rigenv *e, ...) __attribute__((sentinel));
+
+/* Connects a raw client to the daemon's socket. Returns the fd. */
+int raw_connect(struct rigenv *e);
+
+/* Sends text as is and reads one reply line (parsed), skipping notifications. */
+json_t *raw_call(int fd, const char *text);
+
+/* Runs a program with args and returns its exit status, stderr into err (may be NULL). */
+int run_capture(char *const argv[], char *out, size_t outlen, char *err, size_t errlen);
