@@ -27,6 +27,41 @@ static int make_dir(const char *path)
         return 0;
 }
 
+/* Leaves the loop once the rig has reached its safe state (or after 5 s). */
+static int on_shutdown_tick(sd_event_source *s, uint64_t usec, void *userdata)
+{
+        struct manager *m = userdata;
+        uint64_t now = 0;
+
+        sd_event_now(m->event, CLOCK_MONOTONIC, &now);
+        if (rig_pending(m->rig) == 0 || now >= m->shutdown_deadline)
+                return sd_event_exit(m->event, 0);
+        sd_event_source_set_time_relative(s, 20 * 1000);
+        return sd_event_source_set_enabled(s, SD_EVENT_ONESHOT);
+}
+
+static int on_signal(sd_event_source *s, const struct signalfd_siginfo *si, void *userdata)
+{
+        struct manager *m = userdata;
+        sd_event_source *tick = NULL;
+
+        if (!m->rig)
+                return sd_event_exit(m->event, 0);
+        if (m->shutdown_deadline)
+                return 0;
+        log_info("shutting down: bringing the rig to its safe state");
+        (void)sd_notify(false, "STOPPING=1");
+        sd_event_now(m->event, CLOCK_MONOTONIC, &m->shutdown_deadline);
+        m->shutdown_deadline += 5 * 1000 * 1000ULL;
+        rig_safe_state(m->rig);
+        if (sd_event_add_time_relative(m->event, &tick, CLOCK_MONOTONIC, 0, 0, on_shutdown_tick,
+                                       m) < 0)
+                return sd_event_exit(m->event, 0);
+        sd_event_source_set_floating(tick, true);
+        sd_event_source_unref(tick);
+        return 0;
+}
+
 int manager_new(const char *rig_path, const char *socket_path, const char *data_dir,
                 struct manager **ret)
 {
@@ -47,10 +82,10 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
                 goto fail;
         }
         if ((r = sd_event_default(&m->event)) < 0 ||
-            (r = sd_event_add_signal(m->event, NULL, SIGTERM | SD_EVENT_SIGNAL_PROCMASK, NULL,
-                                     NULL)) < 0 ||
-            (r = sd_event_add_signal(m->event, NULL, SIGINT | SD_EVENT_SIGNAL_PROCMASK, NULL,
-                                     NULL)) < 0 ||
+            (r = sd_event_add_signal(m->event, NULL, SIGTERM | SD_EVENT_SIGNAL_PROCMASK,
+                                     on_signal, m)) < 0 ||
+            (r = sd_event_add_signal(m->event, NULL, SIGINT | SD_EVENT_SIGNAL_PROCMASK,
+                                     on_signal, m)) < 0 ||
             (r = sd_event_set_watchdog(m->event, true)) < 0)
                 goto fail;
         r = rig_new(m->event, m->rc, manager_notify, m, &m->rig);
@@ -70,13 +105,9 @@ fail:
 
 int manager_run(struct manager *m)
 {
-        int r;
-
         (void)sd_notify(false, "READY=1\nSTATUS=serving");
         log_info("rig '%s' ready (%s)", m->rc->name, rig_state(m->rig));
-        r = sd_event_loop(m->event);
-        (void)sd_notify(false, "STOPPING=1");
-        return r;
+        return sd_event_loop(m->event);
 }
 
 struct manager *manager_free(struct manager *m)

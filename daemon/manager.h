@@ -22,6 +22,7 @@ struct manager {
         struct ds_pool *pool; /* its storage pool */
         char ds_name[DS_NAME_MAX];
         int64_t ds_count;     /* rows in the open dataset */
+        uint64_t shutdown_deadline; /* set once SIGTERM/SIGINT arrived */
 };
 
 /* Loads the rig file, opens the rig, listens on socket_path. On a rig-file error the

@@ -212,8 +212,7 @@ static int submit_new(struct rig *rig, enum job_kind kind, int idx, double arg, 
         return submit(j, urgent);
 }
 
-/* Sends every switch off and stops every axis, urgently. */
-static void safe_state(struct rig *rig)
+void rig_safe_state(struct rig *rig)
 {
         for (size_t i = 0; i < rig->rc->n_axes; i++) {
                 atomic_fetch_add(&rig->axes[i].gen, 1);
@@ -249,7 +248,7 @@ static void rig_fault(struct rig *rig, const char *device, int err, const char *
         for (size_t i = 0; i < rig->rc->n_axes; i++)
                 if (rig->axes[i].op != AX_IDLE)
                         axis_finish(&rig->axes[i], -EIO, msg);
-        safe_state(rig);
+        rig_safe_state(rig);
         update_state(rig);
 }
 
@@ -401,6 +400,11 @@ static void switch_job_done(struct job *j, int result)
 
         if (j->kind == J_OPEN_SW)
                 s->open = result >= 0;
+        if (result == -ECANCELED) { /* dropped at shutdown, not a device fault */
+                if (j->done)
+                        j->done(rig, result, "canceled", j->ud);
+                return;
+        }
         if (result < 0) {
                 rig_fault(rig, name, result, "switching failed: %s", strerror(-result));
                 if (j->done)
@@ -697,9 +701,10 @@ struct rig *rig_free(struct rig *rig)
         for (size_t i = 0; i < rig->rc->n_axes; i++)
                 if (rig->axes[i].op != AX_IDLE)
                         axis_finish(&rig->axes[i], -ECANCELED, "daemon is shutting down");
-        if (rig->buses[0])
-                safe_state(rig);
-        wait_idle(rig, 5 * 1000 * 1000ULL);
+        if (rig->pending == 0 && rig->buses[0]) { /* not brought down by manager_shutdown */
+                rig_safe_state(rig);
+                wait_idle(rig, 5 * 1000 * 1000ULL);
+        }
         for (size_t i = 0; i < rig->rc->n_buses; i++)
                 rig->buses[i] = bus_free(rig->buses[i]); /* drops what is still queued */
         for (size_t i = 0; i < rig->rc->n_axes; i++) {
@@ -713,6 +718,11 @@ struct rig *rig_free(struct rig *rig)
                 cam_free(rig->cams[i]);
         free(rig);
         return NULL;
+}
+
+unsigned rig_pending(const struct rig *rig)
+{
+        return rig->pending;
 }
 
 const char *rig_state(const struct rig *rig)

@@ -71,6 +71,12 @@ int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata
 int rig_capture(struct rig *rig, int i, const struct cam_request *req, rig_frame_fn done,
                 void *userdata);
 
+/* Stops every axis and switches lamps and laser off, urgently (asynchronous). */
+void rig_safe_state(struct rig *rig);
+
+/* Device jobs in flight; 0 once the safe state has been reached. */
+unsigned rig_pending(const struct rig *rig);
+
 /* Records the current pose, lamps and laser. */
 void rig_snapshot(const struct rig *rig, struct rig_snapshot *snap);
 

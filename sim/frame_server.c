@@ -24,6 +24,9 @@
 #include "common/log.h"
 #include "sim/frame_server.h"
 
+/* Samples go out in host byte order; the protocol says little-endian. */
+_Static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "docs/sim.md: samples are little-endian");
+
 #define FS_MAX_CLIENTS  8
 #define FS_POLL_MS      50 /* stop-flag latency */
 #define FS_SEND_TIMEOUT 10 /* s */
@@ -70,10 +73,10 @@ static const struct truth_desc {
         const char *type;
         int components;
 } truths[] = {
-        { "depth", SIM_TRUTH_DEPTH, "f32", 1 },
-        { "normal", SIM_TRUTH_NORMAL, "f32", 3 },
-        { "point", SIM_TRUTH_POINT, "f32", 3 },
-        { "lamp", SIM_TRUTH_LAMP, "u32", 1 },
+        {"depth", SIM_TRUTH_DEPTH, "f32", 1},
+        {"normal", SIM_TRUTH_NORMAL, "f32", 3},
+        {"point", SIM_TRUTH_POINT, "f32", 3},
+        {"lamp", SIM_TRUTH_LAMP, "u32", 1},
 };
 
 static const void *truth_array(const struct sim_truth *t, unsigned flag)
@@ -96,7 +99,7 @@ static void client_close(struct fs_client *cl)
 {
         if (cl->fd >= 0)
                 close(cl->fd);
-        *cl = (struct fs_client){ .fd = -1 };
+        *cl = (struct fs_client){.fd = -1};
 }
 
 /* Records an error reply; returns -err. */
@@ -220,7 +223,8 @@ static int truth_arg(struct fs_req *rq, unsigned *flags)
 
         if (list && !json_is_array(list))
                 return fail(rq, EINVAL, "'truth' must be a list of names");
-        json_array_foreach (list, i, v) {
+        json_array_foreach(list, i, v)
+        {
                 const char *name = json_string_value(v);
                 for (k = 0; name && k < ELEMENTSOF(truths); k++)
                         if (strcmp(name, truths[k].name) == 0)
@@ -316,7 +320,8 @@ static int do_state(struct fs_req *rq)
         struct sim_rig_state st;
 
         sim_emu_snapshot(rq->fs->emu, &st);
-        return send_json(rq, json_pack("{s:b, s:o}", "ok", 1, "state", state_json(rq->fs->rc, &st)));
+        return send_json(rq,
+                         json_pack("{s:b, s:o}", "ok", 1, "state", state_json(rq->fs->rc, &st)));
 }
 
 static int do_geometry(struct fs_req *rq)
@@ -351,8 +356,8 @@ static json_t *truth_list(const struct sim_truth *t, unsigned flags, size_t pixe
                 size_t bytes = pixels * (size_t)truths[i].components * 4;
                 if (json_array_append_new(a, json_pack("{s:s, s:s, s:i, s:I}", "name",
                                                        truths[i].name, "type", truths[i].type,
-                                                       "components", truths[i].components,
-                                                       "bytes", (json_int_t)bytes)) < 0)
+                                                       "components", truths[i].components, "bytes",
+                                                       (json_int_t)bytes)) < 0)
                         json_decref(TAKE_PTR(a));
         }
         return a;
@@ -410,10 +415,10 @@ static int camera_fault(struct fs_req *rq, int ci)
 static int do_render(struct fs_req *rq)
 {
         struct sim_frame_server *fs = rq->fs;
-        struct sim_expose ex = { 0 };
+        struct sim_expose ex = {0};
         struct sim_rig_state st;
-        struct gn_frame f = { 0 };
-        struct sim_truth t = { 0 };
+        struct gn_frame f = {0};
+        struct sim_truth t = {0};
         unsigned flags = 0;
         int ci = 0;
 
@@ -456,7 +461,7 @@ static int inject_camera(struct fs_req *rq, const char *fault)
         else if (strcmp(fault, "disconnect") == 0)
                 cf->disconnect = count;
         else if (strcmp(fault, "none") == 0)
-                *cf = (struct cam_faults){ 0 };
+                *cf = (struct cam_faults){0};
         else
                 return fail(rq, EINVAL, "camera faults are drop, disconnect, none");
         return 0;
@@ -465,8 +470,8 @@ static int inject_camera(struct fs_req *rq, const char *fault)
 static int inject_modbus(struct fs_req *rq, const char *fault)
 {
         static const char *const names[] = {
-                [SIM_FAULT_NONE] = "none",           [SIM_FAULT_TIMEOUT] = "timeout",
-                [SIM_FAULT_CRC] = "crc",             [SIM_FAULT_EXCEPTION] = "exception",
+                [SIM_FAULT_NONE] = "none",   [SIM_FAULT_TIMEOUT] = "timeout",
+                [SIM_FAULT_CRC] = "crc",     [SIM_FAULT_EXCEPTION] = "exception",
                 [SIM_FAULT_STALL] = "stall",
         };
         const char *bus = json_string_value(json_object_get(rq->req, "bus"));
@@ -510,12 +515,12 @@ static void handle_line(struct sim_frame_server *fs, struct fs_client *cl, const
                 const char *name;
                 int (*fn)(struct fs_req *rq);
         } cmds[] = {
-                { "render", do_render },
-                { "state", do_state },
-                { "geometry", do_geometry },
-                { "inject", do_inject },
+                {"render", do_render},
+                {"state", do_state},
+                {"geometry", do_geometry},
+                {"inject", do_inject},
         };
-        struct fs_req rq = { .fs = fs, .cl = cl };
+        struct fs_req rq = {.fs = fs, .cl = cl};
         json_error_t jerr;
         int r;
 
@@ -543,7 +548,7 @@ static void handle_line(struct sim_frame_server *fs, struct fs_client *cl, const
  * up to the next newline is dropped. */
 static void overlong_line(struct sim_frame_server *fs, struct fs_client *cl)
 {
-        struct fs_req rq = { .fs = fs, .cl = cl };
+        struct fs_req rq = {.fs = fs, .cl = cl};
 
         if (!cl->overlong) {
                 send_error(&rq, fail(&rq, EMSGSIZE, "request line longer than %d bytes",
@@ -587,7 +592,7 @@ static void client_input(struct sim_frame_server *fs, struct fs_client *cl)
 
 static void accept_client(struct sim_frame_server *fs, int lfd)
 {
-        struct timeval tv = { .tv_sec = FS_SEND_TIMEOUT };
+        struct timeval tv = {.tv_sec = FS_SEND_TIMEOUT};
         int fd = accept4(lfd, NULL, NULL, SOCK_CLOEXEC);
 
         if (fd < 0)
@@ -598,8 +603,8 @@ static void accept_client(struct sim_frame_server *fs, int lfd)
                         fs->clients[i].fd = fd;
                         return;
                 }
-        struct fs_client tmp = { .fd = fd };
-        struct fs_req rq = { .fs = fs, .cl = &tmp };
+        struct fs_client tmp = {.fd = fd};
+        struct fs_req rq = {.fs = fs, .cl = &tmp};
         send_error(&rq, fail(&rq, EBUSY, "more than %d clients", FS_MAX_CLIENTS));
         close(fd);
 }
@@ -612,9 +617,9 @@ static void *server_thread(void *userdata)
         while (!atomic_load(&fs->stop)) {
                 size_t n = 0;
                 for (size_t i = 0; i < fs->n_listen; i++)
-                        p[n++] = (struct pollfd){ .fd = fs->listen[i], .events = POLLIN };
+                        p[n++] = (struct pollfd){.fd = fs->listen[i], .events = POLLIN};
                 for (size_t i = 0; i < FS_MAX_CLIENTS; i++)
-                        p[n++] = (struct pollfd){ .fd = fs->clients[i].fd, .events = POLLIN };
+                        p[n++] = (struct pollfd){.fd = fs->clients[i].fd, .events = POLLIN};
                 if (poll(p, n, FS_POLL_MS) <= 0)
                         continue;
                 for (size_t i = 0; i < fs->n_listen; i++)
@@ -649,7 +654,7 @@ static int clear_stale(const char *path, const struct sockaddr_un *sa)
 
 static int listen_on(struct sim_frame_server *fs, const char *path)
 {
-        struct sockaddr_un sa = { .sun_family = AF_UNIX };
+        struct sockaddr_un sa = {.sun_family = AF_UNIX};
 
         if (strlen(path) >= sizeof sa.sun_path)
                 return log_error_errno(SYNTHETIC_ERRNO(ENAMETOOLONG),
@@ -679,7 +684,7 @@ int sim_frame_server_new(struct rig_config *rc, struct sim_scene *scene, struct 
         _cleanup_(sim_frame_server_freep) struct sim_frame_server *fs = calloc(1, sizeof *fs);
         if (!fs)
                 return -ENOMEM;
-        *fs = (struct sim_frame_server){ .rc = rc, .scene = scene, .emu = emu };
+        *fs = (struct sim_frame_server){.rc = rc, .scene = scene, .emu = emu};
         for (size_t i = 0; i < FS_MAX_CLIENTS; i++)
                 fs->clients[i].fd = -1;
         for (size_t i = 0; i < rc->n_buses; i++) {

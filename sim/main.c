@@ -42,17 +42,17 @@ static void usage(FILE *f)
 static int parse_args(int argc, char **argv, struct args *a)
 {
         static const struct option opts[] = {
-                { "rig", required_argument, NULL, 'r' },
-                { "dir", required_argument, NULL, 'd' },
-                { "time-scale", required_argument, NULL, 't' },
-                { "ports-file", required_argument, NULL, 'p' },
-                { "help", no_argument, NULL, 'h' },
+                {"rig", required_argument, NULL, 'r'},
+                {"dir", required_argument, NULL, 'd'},
+                {"time-scale", required_argument, NULL, 't'},
+                {"ports-file", required_argument, NULL, 'p'},
+                {"help", no_argument, NULL, 'h'},
                 {},
         };
         char *end;
         int c;
 
-        *a = (struct args){ .time_scale = 1.0 };
+        *a = (struct args){.time_scale = 1.0};
         while ((c = getopt_long(argc, argv, "r:d:t:p:h", opts, NULL)) >= 0) {
                 switch (c) {
                 case 'r':
@@ -108,7 +108,9 @@ static int make_dir(const char *dir)
 
 static const char *bus_type_name(enum rig_bus_type t)
 {
-        return t == RIG_BUS_MODBUS_RTU ? "modbus-rtu" : t == RIG_BUS_MODBUS_TCP ? "modbus-tcp" : "sim";
+        return t == RIG_BUS_MODBUS_RTU   ? "modbus-rtu"
+               : t == RIG_BUS_MODBUS_TCP ? "modbus-tcp"
+                                         : "sim";
 }
 
 /* {"rig": NAME, "buses": {NAME: {"type": T, "path": P, "pty": TTY | "host": H, "port": N}}} */

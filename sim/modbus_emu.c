@@ -40,25 +40,25 @@
 #include "sim/modbus_emu.h"
 #include "sim/motion.h"
 
-#define EMU_MAX_UNITS      (RIG_MAX_AXES + RIG_MAX_LAMPS + 1)
-#define EMU_MAX_CONNS      4
-#define EMU_POLL_MS        50  /* stop-flag latency */
-#define EMU_BYTE_TIMEOUT   100 /* ms between bytes of one request before it is dropped */
-#define EMU_WRITE_TIMEOUT  1000
-#define EMU_ADU_MAX        MODBUS_TCP_MAX_ADU_LENGTH
-#define EMU_HOME_SWITCH    0.5 /* deg: half width of the home switch's cam */
-#define EMU_FAULT_STALL    1
+#define EMU_MAX_UNITS     (RIG_MAX_AXES + RIG_MAX_LAMPS + 1)
+#define EMU_MAX_CONNS     4
+#define EMU_POLL_MS       50  /* stop-flag latency */
+#define EMU_BYTE_TIMEOUT  100 /* ms between bytes of one request before it is dropped */
+#define EMU_WRITE_TIMEOUT 1000
+#define EMU_ADU_MAX       MODBUS_TCP_MAX_ADU_LENGTH
+#define EMU_HOME_SWITCH   0.5 /* deg: half width of the home switch's cam */
+#define EMU_FAULT_STALL   1
 
 struct emu_axis {
         const struct rig_axis_conf *conf;
         struct rig_modbus_profile prof;
-        struct motion mo;   /* physical position (deg) over emulated time */
-        double offset;      /* physical position at drive count 0 */
+        struct motion mo; /* physical position (deg) over emulated time */
+        double offset;    /* physical position at drive count 0 */
         double settle_s;
         bool homed, homing, aborted;
         uint16_t fault_code;
-        bool stall_armed;   /* the next move stalls half-way */
-        double stall_at;    /* emulated time of a scheduled stall, NAN if none */
+        bool stall_armed; /* the next move stalls half-way */
+        double stall_at;  /* emulated time of a scheduled stall, NAN if none */
 };
 
 struct emu_unit {
@@ -76,12 +76,12 @@ struct emu_bus {
         int index;
         const struct rig_bus_conf *conf;
         modbus_t *ctx;
-        int reply[2];   /* socketpair: libmodbus writes into [0], we read [1] */
-        int master;     /* RTU: pty master */
-        int slave;      /* RTU: kept open so the master never sees a hangup */
+        int reply[2]; /* socketpair: libmodbus writes into [0], we read [1] */
+        int master;   /* RTU: pty master */
+        int slave;    /* RTU: kept open so the master never sees a hangup */
         char pty[RIG_PATH_MAX];
-        bool linked;    /* symlink made at conf->port */
-        int listen_fd;  /* TCP */
+        bool linked;   /* symlink made at conf->port */
+        int listen_fd; /* TCP */
         int tcp_port;
         int conns[EMU_MAX_CONNS];
         pthread_t thread;
@@ -246,9 +246,10 @@ static void axis_execute(struct emu_axis *a, modbus_mapping_t *map, int cmd, dou
 
         if (cmd == p->cmd_move || cmd == p->cmd_home) {
                 bool home = cmd == p->cmd_home;
-                double to = home ? home_target(a, pos)
-                                 : get_i32(map->tab_registers, p->reg_target, p->word_swap) /
-                                                   p->scale + a->offset;
+                double to =
+                        home ? home_target(a, pos)
+                             : get_i32(map->tab_registers, p->reg_target, p->word_swap) / p->scale +
+                                        a->offset;
                 (void)motion_plan(&a->mo, now, pos, to, v, acc); /* checked by axis_check */
                 a->homing = home;
                 a->aborted = false;
@@ -336,7 +337,7 @@ static const struct emu_bus *find_bus(const struct sim_emu *e, const char *name)
  * Returns the count, -ETIMEDOUT, -ECONNRESET at end of file, or -errno. */
 static int read_some(int fd, uint8_t *buf, size_t n, int timeout_ms)
 {
-        struct pollfd p = { .fd = fd, .events = POLLIN };
+        struct pollfd p = {.fd = fd, .events = POLLIN};
 
         int r = poll(&p, 1, timeout_ms);
         if (r < 0)
@@ -371,7 +372,7 @@ static int write_all(int fd, bool sock, const uint8_t *buf, size_t n)
                 if (k < 0 && errno != EAGAIN && errno != EINTR)
                         return -errno;
                 if (k < 0) {
-                        struct pollfd p = { .fd = fd, .events = POLLOUT };
+                        struct pollfd p = {.fd = fd, .events = POLLOUT};
                         if (poll(&p, 1, EMU_WRITE_TIMEOUT) == 0)
                                 return -ETIMEDOUT;
                         continue;
@@ -533,11 +534,11 @@ static void tcp_accept(struct emu_bus *b)
 
 static void tcp_serve(struct emu_bus *b)
 {
-        struct pollfd p[1 + EMU_MAX_CONNS] = { { .fd = b->listen_fd, .events = POLLIN } };
+        struct pollfd p[1 + EMU_MAX_CONNS] = {{.fd = b->listen_fd, .events = POLLIN}};
         uint8_t req[EMU_ADU_MAX];
 
         for (int i = 0; i < EMU_MAX_CONNS; i++)
-                p[1 + i] = (struct pollfd){ .fd = b->conns[i], .events = POLLIN };
+                p[1 + i] = (struct pollfd){.fd = b->conns[i], .events = POLLIN};
         if (poll(p, ELEMENTSOF(p), EMU_POLL_MS) <= 0)
                 return;
         if (p[0].revents)
@@ -606,8 +607,8 @@ static int bus_link(struct emu_bus *b)
                 (void)unlink(port);
         }
         if (symlink(b->pty, port) < 0)
-                return log_error_errno(errno, "bus '%s': cannot link %s to %s: %m",
-                                       b->conf->name, port, b->pty);
+                return log_error_errno(errno, "bus '%s': cannot link %s to %s: %m", b->conf->name,
+                                       port, b->pty);
         b->linked = true;
         return 0;
 }
@@ -662,8 +663,13 @@ static int bus_start(struct sim_emu *e, int index)
 {
         struct emu_bus *b = &e->buses[e->n_buses++]; /* counted now: sim_emu_free cleans up */
 
-        *b = (struct emu_bus){ .emu = e, .index = index, .conf = &e->rc->buses[index],
-                               .reply = { -1, -1 }, .master = -1, .slave = -1, .listen_fd = -1 };
+        *b = (struct emu_bus){.emu = e,
+                              .index = index,
+                              .conf = &e->rc->buses[index],
+                              .reply = {-1, -1},
+                              .master = -1,
+                              .slave = -1,
+                              .listen_fd = -1};
         for (int i = 0; i < EMU_MAX_CONNS; i++)
                 b->conns[i] = -1;
         int r = b->conf->type == RIG_BUS_MODBUS_TCP ? bus_open_tcp(b) : bus_open_rtu(b);
@@ -719,7 +725,7 @@ static int add_unit(struct sim_emu *e, const char *bus, int id, bool axis, const
                 if (e->n_units >= EMU_MAX_UNITS)
                         return log_error_errno(SYNTHETIC_ERRNO(E2BIG), "too many Modbus units");
                 u = &e->units[e->n_units++];
-                *u = (struct emu_unit){ .bus = bi, .id = id, .is_axis = axis };
+                *u = (struct emu_unit){.bus = bi, .id = id, .is_axis = axis};
         }
         *ret = u;
         return 0;
@@ -865,7 +871,7 @@ void sim_emu_snapshot(struct sim_emu *e, struct sim_rig_state *st)
 {
         const struct rig_config *rc = e->rc;
 
-        *st = (struct sim_rig_state){ 0 };
+        *st = (struct sim_rig_state){0};
         pthread_mutex_lock(&e->lock);
         double now = emu_now(e);
         for (size_t i = 0; i < e->n_units; i++) {

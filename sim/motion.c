@@ -6,7 +6,7 @@
 
 void motion_rest(struct motion *m, double t, double pos)
 {
-        *m = (struct motion){ .t0 = t, .from = pos, .dir = 1.0, .accel = 1.0 };
+        *m = (struct motion){.t0 = t, .from = pos, .dir = 1.0, .accel = 1.0};
 }
 
 int motion_plan(struct motion *m, double t0, double from, double to, double vmax, double accel)

@@ -389,10 +389,10 @@ static void shade_packet(const struct fctx *c, struct RTCRayHit16 *rh, const int
         shade_mirrors(c, h, depth);
 }
 
-static void write_pixel(const struct fctx *c, int pix, const float L[3])
+static void write_pixel(const struct fctx *c, int x, int y, const float L[3])
 {
         enum sensor_format fmt = c->s->sensor.format;
-        int x = pix % c->w, y = pix / c->w, n = fmt == FMT_RGB ? 3 : 1;
+        int n = fmt == FMT_RGB ? 3 : 1;
         double e[3], dn[3];
 
         if (fmt == FMT_RGB) {
@@ -402,7 +402,7 @@ static void write_pixel(const struct fctx *c, int pix, const float L[3])
                 int ch = (y & 1) + (x & 1); /* RGGB: 0, 1, 1, 2 */
                 e[0] = (fmt == FMT_MONO ? (L[0] + L[1] + L[2]) / 3 : L[ch]) * c->escale;
         }
-        sensor_pixel(&c->sensor, (uint64_t)pix, e, n, dn);
+        sensor_pixel(&c->sensor, (uint64_t)y * c->w + x, e, n, dn);
         if (c->out->bits == 8) {
                 uint8_t *p = c->out->data + (size_t)y * c->out->stride + (size_t)x * n;
                 for (int k = 0; k < n; k++)
@@ -454,7 +454,7 @@ static void render_tile(const struct fctx *c, int tile)
         for (int i = 0; i < LANES; i++) {
                 if (!valid[i])
                         continue;
-                write_pixel(c, pix[i], h.L[i]);
+                write_pixel(c, x0 + (i & 3), y0 + (i >> 2), h.L[i]);
                 if (c->truth)
                         write_truth(c, pix[i], &rh, i, &h);
         }

@@ -1,11 +1,12 @@
 /* sensor.c - the image sensor: photo-electrons to digital numbers with shot noise
- * (Poisson by inversion below 16 e-, Gaussian above), read noise, full-well saturation,
- * gain, black level and rounding.
+ * (Poisson by inversion below 16 e-; above, shot and read noise together as one Gaussian
+ * of variance e + read^2), read noise, full-well saturation, gain, black level and
+ * rounding.
  *
  * Noise comes from a counter-based hash of (seed, frame, camera, pixel), so a frame's
  * bytes do not depend on the thread count or schedule. Normal deviates are read from a
- * table of 65536 normal quantiles (Acklam's inverse CDF) with 16 hash bits each, four per
- * 64-bit hash: cheap enough for 30 frames/s, exact in distribution to within the
+ * table of 65536 normal quantiles (Acklam's inverse CDF) with 16 hash bits each, one 64-bit
+ * hash per pixel: cheap enough for 30 frames/s, exact in distribution to within the
  * quantisation of the quantiles (tails clipped at +-4.3 sigma). */
 #include <errno.h>
 #include <math.h>
@@ -13,7 +14,7 @@
 
 #include "internal.h"
 
-#define NQ 65536
+#define NQ 4096
 
 static uint64_t mix64(uint64_t z)
 {
@@ -89,22 +90,21 @@ static double poisson_small(uint64_t h, double mean)
 void sensor_pixel(const struct sensor_rt *rt, uint64_t pix, const double *e, int n, double *dn)
 {
         const struct sensor *se = rt->se;
-        uint64_t h1 = mix64(rt->key ^ (pix * 0x9e3779b97f4a7c15ULL)), h2 = mix64(h1 + 1);
-        uint64_t bits[2] = { h1, h2 };
+        uint64_t h = mix64(rt->key ^ (pix * 0x9e3779b97f4a7c15ULL));
 
         for (int c = 0; c < n; c++) {
-                double x = e[c], v;
-                if (!rt->ideal) {
-                        int k = 2 * c; /* normals 2c (shot) and 2c + 1 (read) */
-                        float g0 = rt->q[(bits[k / 4] >> (16 * (k % 4))) & 0xffff];
-                        float g1 = rt->q[(bits[(k + 1) / 4] >> (16 * ((k + 1) % 4))) & 0xffff];
-                        if (se->shot_noise && x > 0)
-                                x = x < 16 ? poisson_small(mix64(h2 + 2 + c), x)
-                                           : x + sqrt(x) * g0;
-                        x = (x < se->full_well ? x : se->full_well) + se->read_noise * g1;
-                } else if (x > se->full_well) {
-                        x = se->full_well;
-                }
+                double x = e[c], r = se->read_noise, v;
+                float g = rt->q[(h >> (16 * c)) & (NQ - 1)];
+                if (rt->ideal)
+                        x = x < se->full_well ? x : se->full_well;
+                else if (x >= se->full_well)
+                        x = se->full_well + r * g;
+                else if (se->shot_noise && x >= 16)
+                        x += sqrt(x + r * r) * g; /* shot and read noise: one Gaussian */
+                else if (se->shot_noise && x > 0)
+                        x = poisson_small(mix64(h + 1 + c), x) + r * g;
+                else
+                        x += r * g;
                 v = x * rt->k + rt->b;
                 dn[c] = v <= 0 ? 0 : v >= rt->maxdn ? rt->maxdn : (double)(int64_t)(v + 0.5);
         }

@@ -22,9 +22,9 @@ struct cam_sim {
 };
 
 static const struct opt_desc cam_sim_opts[] = {
-        { OPT_EXPOSURE, OPT_GET | OPT_SET, .unit = "us", .min = 1, .max = 10000000 },
-        { OPT_GAIN, OPT_GET | OPT_SET, .min = 0.1, .max = 64 },
-        { OPT_BITS, OPT_GET | OPT_SET | OPT_LIST, .min = 8, .max = 16 },
+        {OPT_EXPOSURE, OPT_GET | OPT_SET, .unit = "us", .min = 1, .max = 10000000},
+        {OPT_GAIN, OPT_GET | OPT_SET, .min = 0.1, .max = 64},
+        {OPT_BITS, OPT_GET | OPT_SET | OPT_LIST, .min = 8, .max = 16},
 };
 
 static int64_t now_ms(void)
@@ -38,7 +38,7 @@ static int64_t now_ms(void)
 /* Waits for events on fd until deadline (ms). Returns 0 or -ETIMEDOUT/-errno. */
 static int wait_fd(int fd, short events, int64_t deadline)
 {
-        struct pollfd p = { .fd = fd, .events = events };
+        struct pollfd p = {.fd = fd, .events = events};
 
         for (;;) {
                 int64_t left = deadline - now_ms();
@@ -63,7 +63,7 @@ static void disconnect(struct cam_sim *s)
 static int sim_connect(struct cam *c, struct cam_sim *s)
 {
         const char *path = bus_conf(c->bus)->port;
-        struct sockaddr_un sa = { .sun_family = AF_UNIX };
+        struct sockaddr_un sa = {.sun_family = AF_UNIX};
 
         if (strlen(path) >= sizeof sa.sun_path)
                 return -ENAMETOOLONG;
@@ -197,8 +197,10 @@ static int read_frame(struct cam_sim *s, const struct simproto_header *h, struct
 static int capture_once(struct cam *c, struct cam_sim *s, const struct cam_request *req,
                         struct gn_frame *out)
 {
-        const struct simproto_render rq = { .camera = c->conf->name, .exposure_us = req->exposure_us,
-                                            .gain = req->gain, .bits = req->bits };
+        const struct simproto_render rq = {.camera = c->conf->name,
+                                           .exposure_us = req->exposure_us,
+                                           .gain = req->gain,
+                                           .bits = req->bits};
         int64_t deadline = now_ms() + CAM_SIM_TIMEOUT_MS;
         struct simproto_header h;
         char line[SIMPROTO_LINE_MAX], msg[256] = "";

@@ -14,12 +14,11 @@ int simproto_encode_render(const struct simproto_render *rq, char *buf, size_t l
         if (!rq->camera || !rq->camera[0])
                 return -EINVAL;
 
-        json_auto_t *o = json_pack("{s:s, s:s}", "cmd", "render", "camera",
-                                                      rq->camera);
+        json_auto_t *o = json_pack("{s:s, s:s}", "cmd", "render", "camera", rq->camera);
         if (!o)
                 return -ENOMEM;
-        if ((rq->exposure_us && json_object_set_new(o, "exposure_us",
-                                                    json_integer(rq->exposure_us)) < 0) ||
+        if ((rq->exposure_us &&
+             json_object_set_new(o, "exposure_us", json_integer(rq->exposure_us)) < 0) ||
             (rq->gain > 0.0 && json_object_set_new(o, "gain", json_real(rq->gain)) < 0) ||
             (rq->bits && json_object_set_new(o, "bits", json_integer(rq->bits)) < 0))
                 return -ENOMEM;
@@ -39,10 +38,10 @@ int simproto_errno(const char *name)
                 const char *name;
                 int err;
         } table[] = {
-                { "EINVAL", EINVAL },       { "ENOENT", ENOENT },   { "ETIMEDOUT", ETIMEDOUT },
-                { "ENOMEM", ENOMEM },       { "EIO", EIO },         { "EPROTO", EPROTO },
-                { "EMSGSIZE", EMSGSIZE },   { "ENOTSUP", ENOTSUP }, { "EOPNOTSUPP", EOPNOTSUPP },
-                { "EBADMSG", EBADMSG },     { "ERANGE", ERANGE },   { "EAGAIN", EAGAIN },
+                {"EINVAL", EINVAL},     {"ENOENT", ENOENT},   {"ETIMEDOUT", ETIMEDOUT},
+                {"ENOMEM", ENOMEM},     {"EIO", EIO},         {"EPROTO", EPROTO},
+                {"EMSGSIZE", EMSGSIZE}, {"ENOTSUP", ENOTSUP}, {"EOPNOTSUPP", EOPNOTSUPP},
+                {"EBADMSG", EBADMSG},   {"ERANGE", ERANGE},   {"EAGAIN", EAGAIN},
         };
 
         for (size_t i = 0; name && i < ELEMENTSOF(table); i++)
@@ -62,7 +61,8 @@ static int truth_bytes(json_t *truth, size_t *out)
                 return 0;
         if (!json_is_array(truth))
                 return -EBADMSG;
-        json_array_foreach (truth, i, t) {
+        json_array_foreach(truth, i, t)
+        {
                 json_int_t n = json_integer_value(json_object_get(t, "bytes"));
                 if (n <= 0 || (size_t)n > SIMPROTO_FRAME_MAX)
                         return -EBADMSG;
@@ -104,19 +104,25 @@ int simproto_decode_header(const char *line, size_t len, struct simproto_header 
         if (!ok)
                 return decode_error(o, msg, msglen);
 
-        *h = (struct simproto_header){ 0 };
+        *h = (struct simproto_header){0};
         if (json_unpack(o, "{s:I, s:I, s:I, s:I, s:I, s:I, s?I, s?I, s?I, s?F}", "width", &w,
                         "height", &ht, "channels", &ch, "bits", &bits, "stride", &stride, "bytes",
                         &bytes, "seq", &seq, "timestamp_ns", &ts, "exposure_us", &exp, "gain",
                         &h->gain) < 0 ||
-            w < 0 || ht < 0 || ch < 0 || bits < 0 || stride < 0 || bytes < 0 || seq < 0 ||
-            ts < 0 || exp < 0 || w > 65535 || ht > 65535 || ch > 3 || bits > 16 ||
-            exp > 1000000000)
+            w < 0 || ht < 0 || ch < 0 || bits < 0 || stride < 0 || bytes < 0 || seq < 0 || ts < 0 ||
+            exp < 0 || w > 65535 || ht > 65535 || ch > 3 || bits > 16 || exp > 1000000000)
                 return -EBADMSG;
         *h = (struct simproto_header){
-                .width = (int)w, .height = (int)ht, .channels = (int)ch, .bits = (int)bits,
-                .stride = (size_t)stride, .bytes = (size_t)bytes, .seq = (uint64_t)seq,
-                .timestamp_ns = (uint64_t)ts, .exposure_us = (int)exp, .gain = h->gain,
+                .width = (int)w,
+                .height = (int)ht,
+                .channels = (int)ch,
+                .bits = (int)bits,
+                .stride = (size_t)stride,
+                .bytes = (size_t)bytes,
+                .seq = (uint64_t)seq,
+                .timestamp_ns = (uint64_t)ts,
+                .exposure_us = (int)exp,
+                .gain = h->gain,
         };
         if (truth_bytes(json_object_get(o, "truth"), &h->extra_bytes) < 0)
                 return -EBADMSG;
