@@ -175,7 +175,7 @@ int main(int argc, char **argv)
         for (double start = now(); now() - start < 2 * secs;) {
                 for (t0 = now(); now() - t0 < 0.25; frames++) {
                         struct gn_frame f;
-                        if (sim_render(s, &st, 0, getenv("NONOISE") ? &(struct sim_expose){.no_noise=1} : NULL, frames, &f, 0, NULL) < 0)
+                        if (sim_render(s, &st, 0, NULL, frames, &f, 0, NULL) < 0)
                                 return 1;
                         gn_frame_free_data(&f);
                 }
