@@ -86,17 +86,13 @@ static int connect_socket(int fd, const struct sockaddr_un *sa, int64_t deadline
 
 int conn_open(const char *path, int64_t deadline, struct conn **ret)
 {
-        struct sockaddr_un sa = {.sun_family = AF_UNIX};
-        _cleanup_close_ int fd = -EBADF;
+        struct sockaddr_un sa;
+        _cleanup_close_ int fd = proto_unix_socket(path, &sa);
         struct conn *c;
         int r;
 
-        if (strlen(path) >= sizeof(sa.sun_path))
-                return -ENAMETOOLONG;
-        strcpy(sa.sun_path, path);
-        fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
         if (fd < 0)
-                return -errno;
+                return fd;
         r = connect_socket(fd, &sa, deadline);
         if (r < 0)
                 return r;

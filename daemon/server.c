@@ -328,15 +328,11 @@ static int on_accept(sd_event_source *es, int fd, uint32_t revents, void *userda
 
 static int listen_unix(const char *path)
 {
-        struct sockaddr_un sa = { .sun_family = AF_UNIX };
-        _cleanup_close_ int fd = -EBADF;
+        struct sockaddr_un sa;
+        _cleanup_close_ int fd = proto_unix_socket(path, &sa);
 
-        if (strlen(path) >= sizeof(sa.sun_path))
-                return -ENAMETOOLONG;
-        strcpy(sa.sun_path, path);
-        fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
         if (fd < 0)
-                return -errno;
+                return fd;
         (void)unlink(path);
         if (bind(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0 || chmod(path, 0660) < 0 ||
             listen(fd, 16) < 0)

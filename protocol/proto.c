@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <sys/un.h>
 
 #include "common/cleanup.h"
@@ -355,4 +356,17 @@ int proto_socket_path(char *buf, size_t size)
         if (n < 0 || (size_t)n >= size || (size_t)n >= sizeof(((struct sockaddr_un *)0)->sun_path))
                 return -ENAMETOOLONG;
         return 0;
+}
+
+int proto_unix_socket(const char *path, struct sockaddr_un *sa)
+{
+        int fd;
+
+        if (strlen(path) >= sizeof(sa->sun_path))
+                return -ENAMETOOLONG;
+        memset(sa, 0, sizeof(*sa));
+        sa->sun_family = AF_UNIX;
+        strcpy(sa->sun_path, path);
+        fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+        return fd < 0 ? -errno : fd;
 }

@@ -12,6 +12,8 @@
 
 #include <jansson.h>
 
+struct sockaddr_un;
+
 #define PROTO_VERSION  1
 #define PROTO_MAX_LINE (64 * 1024)
 
@@ -102,3 +104,7 @@ json_t *proto_error_errno(json_t *id, int err, const char *message);
  * $XDG_RUNTIME_DIR/gonio/goniod.sock, else /run/gonio/goniod.sock.
  * Returns 0 or -ENAMETOOLONG (longer than size or than sun_path). */
 int proto_socket_path(char *buf, size_t size);
+
+/* Fills *sa for path and opens a non-blocking, close-on-exec Unix stream socket.
+ * Returns the fd, -ENAMETOOLONG or -errno. */
+int proto_unix_socket(const char *path, struct sockaddr_un *sa);

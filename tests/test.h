@@ -37,6 +37,16 @@
                 }                                                                                  \
         } while (0)
 
+#define CHECK_STR(a, b)                                                                            \
+        do {                                                                                       \
+                const char *_a = (a), *_b = (b);                                                   \
+                if (!_a || !_b || strcmp(_a, _b) != 0) {                                           \
+                        fprintf(stderr, "%s:%d: %s == \"%s\", expected \"%s\"\n", __FILE__,        \
+                                __LINE__, #a, _a ? _a : "(null)", _b ? _b : "(null)");             \
+                        exit(1);                                                                   \
+                }                                                                                  \
+        } while (0)
+
 #define CHECK_STR_CONTAINS(s, sub)                                                                 \
         do {                                                                                       \
                 const char *_s = (s);                                                              \

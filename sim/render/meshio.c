@@ -299,7 +299,7 @@ static void ply_vertex_cols(const struct ply_elem *e, int col[8])
 static int ply_vertices(FILE *f, const struct ply *p, const struct ply_elem *e,
                         struct fbuf *vals)
 {
-        int col[8], r;
+        int col[8], r = 0;
 
         ply_vertex_cols(e, col);
         if (col[0] < 0 || col[1] < 0 || col[2] < 0)

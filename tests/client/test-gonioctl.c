@@ -15,7 +15,7 @@
 #include <unistd.h>
 
 #include "protocol/proto.h"
-#include "tests/protocol/check.h"
+#include "tests/test.h"
 
 #define IO_TIMEOUT_MS 10000 /* generous: a loaded machine under sanitizers */
 

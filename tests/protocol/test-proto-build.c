@@ -2,7 +2,7 @@
  * proto_parse; dump refuses lines over PROTO_MAX_LINE. */
 #include <errno.h>
 
-#include "check.h"
+#include "tests/test.h"
 #include "protocol/proto.h"
 
 /* Dumps m (consumed), checks it is one '\n'-terminated line, frames and parses it back. */

@@ -2,7 +2,7 @@
  * default socket path resolution. */
 #include <errno.h>
 
-#include "check.h"
+#include "tests/test.h"
 #include "protocol/proto.h"
 
 static const struct {

@@ -2,7 +2,7 @@
  * lines, over-long lines reported once with -EMSGSIZE and the stream recovering after. */
 #include <errno.h>
 
-#include "check.h"
+#include "tests/test.h"
 #include "protocol/proto.h"
 
 /* Feeds the string s and expects exactly the lines in want (NULL-terminated), then "none". */

@@ -1,7 +1,7 @@
 /* test-proto-parse.c - proto_parse: valid requests, notifications and responses, and
  * every rejection (bad JSON, not an object, batch, jsonrpc version, id types, method,
  * params, malformed responses) with the code and the id a server would echo. */
-#include "check.h"
+#include "tests/test.h"
 #include "protocol/proto.h"
 
 /* Parses s and expects code r; on failure checks the echoed id as JSON text ("" = none). */
