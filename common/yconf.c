@@ -13,30 +13,50 @@
 #include "log.h"
 #include "yconf.h"
 
-static struct fy_diag *collecting_diag(void)
+/* libfyaml reports parse errors through this; the first one goes into the context. */
+static void diag_output(struct fy_diag *diag, void *user, const char *buf, size_t len)
+{
+        struct yconf *ctx = user;
+
+        if (ctx->err && ctx->errlen && !ctx->err[0])
+                snprintf(ctx->err, ctx->errlen, "%.*s", (int)strcspn(buf, "\n"), buf);
+}
+
+static struct fy_diag *capturing_diag(struct yconf *ctx)
 {
         struct fy_diag_cfg dcfg;
-        struct fy_diag *diag;
 
         fy_diag_cfg_default(&dcfg);
         dcfg.fp = NULL;
+        dcfg.output_fn = diag_output;
+        dcfg.user = ctx;
         dcfg.colorize = false;
-        diag = fy_diag_create(&dcfg);
-        if (diag)
-                fy_diag_set_collect_errors(diag, true);
-        return diag;
+        dcfg.show_source = false;
+        dcfg.show_type = false;
+        dcfg.show_module = false;
+        dcfg.show_position = true;
+        return fy_diag_create(&dcfg);
 }
 
-static int parse_failed(struct yconf *ctx, struct fy_diag *diag)
+/* Turns libfyaml's "SOURCE:LINE:COL: error: text" into "FILE:LINE: YAML syntax error: text". */
+static int parse_failed(struct yconf *ctx)
 {
-        void *iter = NULL;
-        struct fy_diag_error *e = diag ? fy_diag_errors_iterate(diag, &iter) : NULL;
+        const char *text = ctx->err ? strstr(ctx->err, ": error: ") : NULL;
+        char msg[512] = "cannot parse YAML";
+        int line = 0;
 
-        if (e)
-                snprintf(ctx->err, ctx->errlen, "%s:%d: YAML syntax error: %s", ctx->path,
-                         e->line + 1, e->msg);
-        else
-                snprintf(ctx->err, ctx->errlen, "%s: cannot parse YAML", ctx->path);
+        if (text) {
+                const char *p = text;
+                int colons = 0;
+                while (p > ctx->err && colons < 2)
+                        colons += *--p == ':';
+                if (colons == 2)
+                        line = atoi(p + 1);
+                snprintf(msg, sizeof(msg), "%s", text + strlen(": error: "));
+        }
+        if (ctx->err)
+                snprintf(ctx->err, ctx->errlen, "%s:%d: YAML syntax error: %s", ctx->path, line,
+                         msg);
         return -EINVAL;
 }
 
@@ -44,7 +64,7 @@ static int open_common(struct yconf *ctx, const char *path, const char *text, ch
                        size_t errlen)
 {
         struct fy_parse_cfg cfg = { .flags = FYPCF_QUIET | FYPCF_DEFAULT_PARSE };
-        struct fy_diag *diag = collecting_diag();
+        struct fy_diag *diag;
         int r = 0;
 
         memset(ctx, 0, sizeof(*ctx));
@@ -53,13 +73,14 @@ static int open_common(struct yconf *ctx, const char *path, const char *text, ch
         ctx->errlen = errlen;
         if (err && errlen)
                 err[0] = 0;
+        diag = capturing_diag(ctx);
         cfg.diag = diag;
         if (text)
                 ctx->doc = fy_document_build_from_string(&cfg, text, FY_NT);
         else
                 ctx->doc = fy_document_build_from_file(&cfg, path);
         if (!ctx->doc)
-                r = parse_failed(ctx, diag);
+                r = parse_failed(ctx);
         if (diag)
                 fy_diag_unref(diag);
         return r;

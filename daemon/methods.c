@@ -72,8 +72,9 @@ static const char *refusal(int r)
 {
         switch (r) {
         case -ESTALE:
-                return "the rig is in fault state or the axis is not homed "
-                       "(home first, or fault.clear)";
+                return "the rig is in fault state (gonioctl fault clear, after fixing the cause)";
+        case -EPERM:
+                return "the axis is not homed (home first)";
         case -EBUSY:
                 return "busy: an axis is moving";
         case -ENODEV:
@@ -307,19 +308,18 @@ static int m_laser_set(struct srv_req *req, json_t *params, void *userdata)
 static int m_fault_clear(struct srv_req *req, json_t *params, void *userdata)
 {
         struct manager *m = userdata;
-        int r = rig_clear_fault(m->rig, NULL, NULL);
-        json_t *st;
+        struct op *o = op_new(req, json_object());
+        int r;
 
-        if (r >= 0) {
-                srv_reply(req, json_object());
-                return 0;
+        if (!o)
+                return -ENOMEM;
+        o->pending = 1;
+        r = rig_clear_fault(m->rig, on_rig_done, o);
+        if (r < 0) {
+                json_decref(o->result);
+                free(o);
+                return srv_req_errmsg(req, r, "a fault clear is already running");
         }
-        st = rig_status(m->rig);
-        r = srv_req_errmsg(req, r, "the fault persists: %s",
-                           json_string_value(json_object_get(json_object_get(st, "fault"),
-                                                             "message")));
-        json_decref(st);
-        return r;
         return 0;
 }
 

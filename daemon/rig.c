@@ -64,11 +64,16 @@ struct rig {
         char fault_device[RIG_NAME_MAX];
         char fault_msg[256];
         const char *last_state;
+        /* fault.clear in progress: its jobs are counted, done runs when the last ends */
+        bool clear_collect;
+        unsigned clear_pending;
+        rig_done_fn clear_done;
+        void *clear_ud;
 };
 
 /* Axis jobs come first: is_axis_job() relies on the order. */
-enum job_kind { J_OPEN_AXIS, J_HOME, J_MOVE, J_POLL, J_STOP, J_RESET, J_OPEN_SW, J_SWITCH,
-                J_OPEN_CAM, J_CAPTURE };
+enum job_kind { J_OPEN_AXIS, J_HOME, J_MOVE, J_POLL, J_STOP, J_RESET, J_OPEN_SW, J_CHECK_SW,
+                J_SWITCH, J_OPEN_CAM, J_CAPTURE };
 
 struct job {
         struct rig *rig;
@@ -83,6 +88,7 @@ struct job {
         rig_done_fn done;
         rig_frame_fn frame_done;
         void *ud;
+        bool clear; /* part of a fault.clear */
 };
 
 static bool is_axis_job(enum job_kind kind)
@@ -119,6 +125,7 @@ static const char *job_device(const struct job *j)
 
         switch (j->kind) {
         case J_OPEN_SW:
+        case J_CHECK_SW:
         case J_SWITCH:
                 return j->idx < 0 ? rc->laser.name : rc->lamps[j->idx].name;
         case J_OPEN_CAM:
@@ -135,6 +142,7 @@ static struct bus *job_bus(const struct job *j)
 
         switch (j->kind) {
         case J_OPEN_SW:
+        case J_CHECK_SW:
         case J_SWITCH:
                 return switch_slot(rig, j->idx)->sw->bus;
         case J_OPEN_CAM:
@@ -174,6 +182,8 @@ static int job_run(struct bus *b, void *userdata)
         case J_OPEN_SW:
                 r = sw_open(switch_slot(rig, j->idx)->sw);
                 return r < 0 ? r : sw_get(switch_slot(rig, j->idx)->sw, &j->on);
+        case J_CHECK_SW:
+                return sw_get(switch_slot(rig, j->idx)->sw, &j->on);
         case J_SWITCH:
                 return sw_set(switch_slot(rig, j->idx)->sw, j->on);
         case J_OPEN_CAM:
@@ -188,14 +198,17 @@ static void job_done(struct bus *b, int result, void *userdata);
 
 static int submit(struct job *j, bool urgent)
 {
-        int r = bus_submit(job_bus(j), job_run, job_done, j, urgent);
+        int r;
 
+        j->clear = j->rig->clear_collect;
+        r = bus_submit(job_bus(j), job_run, job_done, j, urgent);
         if (r < 0) {
                 gn_frame_free_data(&j->frame);
                 free(j);
                 return r;
         }
         j->rig->pending++;
+        j->rig->clear_pending += j->clear;
         return 0;
 }
 
@@ -228,7 +241,9 @@ void rig_safe_state(struct rig *rig)
 
 static void axis_finish(struct rig_axis *a, int result, const char *msg);
 
-/* Latches the first fault, tells clients, and goes to the safe state. */
+/* Latches the first fault, tells clients, and goes to the safe state. A device that
+ * fails while the rig is already faulted (e.g. during the safe state) is only logged,
+ * so a dead bus cannot make the safe state loop. */
 static void rig_fault(struct rig *rig, const char *device, int err, const char *fmt, ...)
 {
         char msg[256];
@@ -237,12 +252,14 @@ static void rig_fault(struct rig *rig, const char *device, int err, const char *
         va_start(ap, fmt);
         vsnprintf(msg, sizeof(msg), fmt, ap);
         va_end(ap);
-        log_error("fault on %s: %s; going to safe state", device, msg);
-        if (!rig->fault) {
-                rig->fault = true;
-                snprintf(rig->fault_device, sizeof(rig->fault_device), "%s", device);
-                snprintf(rig->fault_msg, sizeof(rig->fault_msg), "%s", msg);
+        if (rig->fault) {
+                log_warning("%s: %s (rig already in fault state)", device, msg);
+                return;
         }
+        log_error("fault on %s: %s; going to safe state", device, msg);
+        rig->fault = true;
+        snprintf(rig->fault_device, sizeof(rig->fault_device), "%s", device);
+        snprintf(rig->fault_msg, sizeof(rig->fault_msg), "%s", msg);
         emit(rig, "fault", json_pack("{sssiss}", "device", device, "code",
                                      proto_errno_to_code(err), "message", msg));
         for (size_t i = 0; i < rig->rc->n_axes; i++)
@@ -406,11 +423,17 @@ static void switch_job_done(struct job *j, int result)
                 return;
         }
         if (result < 0) {
-                rig_fault(rig, name, result, "switching failed: %s", strerror(-result));
+                char msg[256];
+                snprintf(msg, sizeof(msg), "%s: %s failed: %s", name,
+                         j->kind == J_SWITCH ? "switching" : "reading the state",
+                         strerror(-result));
+                rig_fault(rig, name, result, "%s", msg);
                 if (j->done)
-                        j->done(rig, result, rig->fault_msg, j->ud);
+                        j->done(rig, result, msg, j->ud);
                 return;
         }
+        if (j->kind == J_CHECK_SW)
+                return;
         emit(rig, "switch.changed", json_pack("{sssb}", "name", name, "on", s->sw->on));
         if (j->done)
                 done_later(rig, j->on ? s->sw->conf->warmup_ms : 0, j->done, j->ud);
@@ -434,6 +457,17 @@ static void camera_job_done(struct job *j, int result)
         update_state(rig);
 }
 
+static void clear_finished(struct rig *rig)
+{
+        rig_done_fn done = rig->clear_done;
+
+        rig->clear_done = NULL;
+        update_state(rig);
+        if (done)
+                done(rig, rig->fault ? -EIO : 0, rig->fault ? rig->fault_msg : NULL,
+                     rig->clear_ud);
+}
+
 static void job_done(struct bus *b, int result, void *userdata)
 {
         struct job *j = userdata;
@@ -441,6 +475,7 @@ static void job_done(struct bus *b, int result, void *userdata)
         j->rig->pending--;
         switch (j->kind) {
         case J_OPEN_SW:
+        case J_CHECK_SW:
         case J_SWITCH:
                 switch_job_done(j, result);
                 break;
@@ -451,6 +486,8 @@ static void job_done(struct bus *b, int result, void *userdata)
         default:
                 axis_job_done(j, result);
         }
+        if (j->clear && --j->rig->clear_pending == 0)
+                clear_finished(j->rig);
         gn_frame_free_data(&j->frame);
         free(j);
 }
@@ -497,7 +534,7 @@ int rig_move(struct rig *rig, int i, double *target, bool relative, rig_done_fn 
         if (!a->open)
                 return -ENODEV;
         if (!a->st.homed)
-                return -ESTALE;
+                return -EPERM;
         if (relative)
                 deg += a->st.position_deg;
         r = axis_check_target(a->ax, &deg);
@@ -615,16 +652,25 @@ static void open_devices(struct rig *rig)
 
 int rig_clear_fault(struct rig *rig, rig_done_fn done, void *userdata)
 {
+        if (rig->clear_done)
+                return -EBUSY;
         rig->fault = false;
         rig->fault_msg[0] = rig->fault_device[0] = 0;
+        rig->clear_done = done;
+        rig->clear_ud = userdata;
+        rig->clear_collect = true;
         for (size_t i = 0; i < rig->rc->n_axes; i++)
                 if (rig->axes[i].open)
                         (void)submit_new(rig, J_RESET, i, 0, false, false);
+        for (size_t i = 0; i < rig->rc->n_lamps + rig->rc->has_laser; i++) {
+                int k = i < rig->rc->n_lamps ? (int)i : -1;
+                if (switch_slot(rig, k)->open)
+                        (void)submit_new(rig, J_CHECK_SW, k, 0, false, false);
+        }
         open_devices(rig);
-        wait_idle(rig, OPEN_WAIT_USEC);
-        update_state(rig);
-        if (rig->fault)
-                return -EIO;
+        rig->clear_collect = false;
+        if (rig->clear_pending == 0)
+                clear_finished(rig);
         return 0;
 }
 

@@ -80,7 +80,9 @@ unsigned rig_pending(const struct rig *rig);
 /* Records the current pose, lamps and laser. */
 void rig_snapshot(const struct rig *rig, struct rig_snapshot *snap);
 
-/* Clears a latched fault: resets drives and reopens devices that failed. */
+/* Clears a latched fault: resets drives, reads back every switch and reopens devices that
+ * failed; done gets -EIO (with the new fault's message) if a device still fails. -EBUSY while
+ * a clear is running. */
 int rig_clear_fault(struct rig *rig, rig_done_fn done, void *userdata);
 
 /* "idle", "homing", "moving", "capturing" or "fault". */

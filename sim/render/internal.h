@@ -44,8 +44,10 @@ struct surf {
 
 enum board_kind { BOARD_CHESS, BOARD_CHARUCO };
 
-/* A calibration board pattern in its own frame: squares [0,nx*sq] x [0,ny*sq] on z = 0,
- * y up, square (0,0) black (OpenCV 4.6 ChArUco convention). */
+/* A calibration board pattern in its own frame, OpenCV's object frame of the board: x to
+ * the right and y down as the printed side is seen, origin at the top-left corner of the
+ * squares, z into the board (the printed side faces -z); squares [0,nx*sq] x [0,ny*sq],
+ * square (0,0) black, markers in the white squares numbered row by row from the top. */
 struct board {
         enum board_kind kind;
         int nx, ny;

@@ -207,7 +207,7 @@ static void resolve_lane(const struct fctx *c, const struct RTCRayHit16 *rh, int
         surf_eval(&c->s->mats[g->mat], uv[0], uv[1], &h->sf[i]);
         if (g->board) {
                 float fp[4] = { 0 };
-                bool back = v3_dot(d, v3(g->axis[0], g->axis[1], g->axis[2])) > 0;
+                bool back = v3_dot(d, v3(g->axis[0], g->axis[1], g->axis[2])) < 0;
                 if (pix >= 0)
                         footprint(c, g, pix, p, ng, fp);
                 float a = back ? g->board->white : board_albedo(g->board, pl.x, pl.y, fp);

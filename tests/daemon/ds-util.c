@@ -36,7 +36,7 @@ void tu_frame(struct gn_frame *f, int w, int h, int channels, int bits, unsigned
         CHECK(gn_frame_alloc(f, w, h, channels, bits) == 0);
         if (pad) {
                 free(f->data);
-                f->stride += 7;
+                f->stride += 8; /* padded rows, still aligned for 16-bit samples */
                 f->data = calloc(f->stride, (size_t)h);
                 CHECK(f->data);
         }

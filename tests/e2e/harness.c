@@ -113,18 +113,60 @@ static bool wait_word(int fd, const char *word, double timeout)
         return false;
 }
 
-int raw_connect(struct rigenv *e)
+static int connect_path(const char *path)
 {
         struct sockaddr_un sa = { .sun_family = AF_UNIX };
         int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
 
         CHECK(fd >= 0);
-        snprintf(sa.sun_path, sizeof(sa.sun_path), "%s", e->sock);
+        snprintf(sa.sun_path, sizeof(sa.sun_path), "%s", path);
         if (connect(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0) {
                 close(fd);
                 return -errno;
         }
         return fd;
+}
+
+int raw_connect(struct rigenv *e)
+{
+        return connect_path(e->sock);
+}
+
+void sim_request(struct rigenv *e, const char *json_line)
+{
+        char path[400], reply[4096];
+        json_t *r;
+        int fd;
+        ssize_t n;
+
+        snprintf(path, sizeof(path), "%s/frames.sock", e->simdir);
+        fd = connect_path(path);
+        CHECK(fd >= 0);
+        CHECK(write(fd, json_line, strlen(json_line)) == (ssize_t)strlen(json_line));
+        n = read(fd, reply, sizeof(reply) - 1);
+        CHECK(n > 0);
+        reply[n] = 0;
+        r = json_loads(reply, 0, NULL);
+        if (!json_is_true(json_object_get(r, "ok")))
+                fprintf(stderr, "gonio-sim answered %s to %s", reply, json_line);
+        CHECK(json_is_true(json_object_get(r, "ok")));
+        json_decref(r);
+        close(fd);
+}
+
+json_t *wait_state(struct rigenv *e, const char *want, double timeout)
+{
+        double end = now_s() + timeout;
+
+        for (;;) {
+                json_t *st = ctl_ok(e, "status", NULL);
+                const char *s = json_string_value(json_object_get(st, "state"));
+                if (s && strcmp(s, want) == 0)
+                        return st;
+                json_decref(st);
+                CHECK(now_s() < end);
+                usleep(50000);
+        }
 }
 
 static void wait_socket(struct rigenv *e, double timeout)

@@ -36,5 +36,11 @@ int raw_connect(struct rigenv *e);
 /* Sends text as is and reads one reply line (parsed), skipping notifications. */
 json_t *raw_call(int fd, const char *text);
 
+/* Sends one request to gonio-sim's frame socket (e.g. a fault injection) and checks "ok". */
+void sim_request(struct rigenv *e, const char *json_line);
+
+/* Polls status until field state == want (or fails the test after timeout seconds). */
+json_t *wait_state(struct rigenv *e, const char *want, double timeout);
+
 /* Runs a program with args and returns its exit status, stderr into err (may be NULL). */
 int run_capture(char *const argv[], char *out, size_t outlen, char *err, size_t errlen);

@@ -1,7 +1,9 @@
 /* test-render-cv.cpp - the renderer against OpenCV: the camera model equals projectPoints
  * (with distortion) within 1e-3 px, both for sim_cam_project and for the rays the renderer
  * traces; ChArUco markers of a rendered board are found by OpenCV's detector with the
- * right ids where the board geometry puts them; chessboard corners likewise. */
+ * right ids where the board geometry puts them; chessboard corners likewise. Corner
+ * tolerances are those of OpenCV's detectors (about 0.1 px on these images); the drawing
+ * itself is checked to 0.03 px by test-render-board.c. */
 #include <cmath>
 #include <cstdio>
 #include <opencv2/aruco/charuco.hpp>
@@ -114,7 +116,7 @@ static const char board_scene[] =
         "scene:\n  seed: 4\n"
         "  targets:\n"
         "    - { type: %s, squares: [6, 5], square: 30, marker: 22,\n"
-        "        pose: { translate: [20, -90, 15], rotate_x: 90, rotate_z: 90 } }\n"
+        "        pose: { translate: [20, -90, 165], rotate_x: -90, rotate_z: 90 } }\n"
         "  turntable: { radius: 150 }\n";
 
 static void test_charuco(void)
@@ -135,43 +137,41 @@ static void test_charuco(void)
         auto dict = cv::aruco::getPredefinedDictionary(cv::aruco::DICT_4X4_50);
         auto params = cv::aruco::DetectorParameters::create();
         params->cornerRefinementMethod = cv::aruco::CORNER_REFINE_SUBPIX;
+        params->cornerRefinementWinSize = 2; /* keep off the nearby chessboard corners */
         cv::aruco::detectMarkers(gray, dict, corners, ids, params);
         fprintf(stderr, "charuco: %zu markers found\n", ids.size());
         CHECK(ids.size() == 15); /* 6 x 5 squares: 15 white squares, ids 0..14 */
+        /* OpenCV's own board definition says where each marker's corners are */
+        auto board = cv::aruco::CharucoBoard::create(6, 5, 30, 22, dict);
         for (size_t k = 0; k < ids.size(); k++) {
-                /* id -> white square, counted row by row from the top row (y = 4) */
-                int id = ids[k], n = 0, sx = -1, sy = -1;
-                for (int y = 4; y >= 0 && sx < 0; y--)
-                        for (int x = 0; x < 6; x++)
-                                if ((x + y) % 2 == 1 && n++ == id) {
-                                        sx = x;
-                                        sy = y;
-                                        break;
-                                }
-                CHECK(sx >= 0);
-                double x0 = sx * 30 + 4, y1 = sy * 30 + 26;
-                cv::Point2d want[4] = { board_px(&t, &st, x0, y1), board_px(&t, &st, x0 + 22, y1),
-                                        board_px(&t, &st, x0 + 22, y1 - 22),
-                                        board_px(&t, &st, x0, y1 - 22) };
+                CHECK(ids[k] >= 0 && ids[k] < 15 && board->ids[ids[k]] == ids[k]);
                 for (int c = 0; c < 4; c++) {
-                        double e = cv::norm(cv::Point2d(corners[k][c]) - want[c]);
+                        cv::Point3f p = board->objPoints[ids[k]][c];
+                        double e = cv::norm(cv::Point2d(corners[k][c]) -
+                                            board_px(&t, &st, p.x, p.y));
                         worst = std::max(worst, e);
-                        if (e >= 0.3) fprintf(stderr, "id %d c %d got %.3f %.3f want %.3f %.3f\n", id, c, corners[k][c].x, corners[k][c].y, want[c].x, want[c].y);
+                        CHECK(e < 0.4); /* ArUco corners are coarse; OpenCV's tutorial says so */
                 }
         }
         fprintf(stderr, "charuco: worst marker corner error %.3f px\n", worst);
         /* the ChArUco chessboard corners, interpolated by OpenCV from the markers */
-        auto board = cv::aruco::CharucoBoard::create(6, 5, 30, 22, dict);
         std::vector<cv::Point2f> cc;
         std::vector<int> cid;
-        cv::aruco::interpolateCornersCharuco(corners, ids, gray, board, cc, cid);
+        cv::Mat K, dist, rvec, tvec;
+        struct sim_cam_geom g;
+        geom(&t, &st, K, dist, rvec, tvec, &g);
+        cv::aruco::interpolateCornersCharuco(corners, ids, gray, board, cc, cid, K, dist);
         CHECK(cc.size() == 20);
         worst = 0;
         for (size_t k = 0; k < cc.size(); k++) {
+                /* OpenCV 4.6 returns ChArUco corners shifted by (+0.5, +0.5) px: its
+                 * cornerSubPix call is wrapped in a spurious half-pixel shift (opencv
+                 * issue 25539, fixed upstream by pull request 28380) */
                 cv::Point3f p = board->chessboardCorners[cid[k]];
-                double e = cv::norm(cv::Point2d(cc[k]) - board_px(&t, &st, p.x, p.y));
+                cv::Point2d got = cv::Point2d(cc[k]) - cv::Point2d(0.5, 0.5);
+                double e = cv::norm(got - board_px(&t, &st, p.x, p.y));
                 worst = std::max(worst, e);
-                CHECK(e < 0.2);
+                CHECK(e < 0.15);
         }
         fprintf(stderr, "charuco: worst chessboard corner error %.3f px\n", worst);
         gn_frame_free_data(&f);
@@ -203,7 +203,7 @@ static void test_chessboard(void)
                                 best = std::min(best, cv::norm(cv::Point2d(p) -
                                                                board_px(&t, &st, 30 * x, 30 * y)));
                 worst = std::max(worst, best);
-                CHECK(best < 0.2);
+                CHECK(best < 0.15); /* OpenCV's corner finder; the drawing itself is exact */
         }
         fprintf(stderr, "chessboard: %zu corners, worst error %.3f px\n", cc.size(), worst);
         gn_frame_free_data(&f);

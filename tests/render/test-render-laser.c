@@ -24,7 +24,7 @@ static const char scene[] =
         "  object: { shape: sphere, size: 16, pose: { translate: [100, 0, 42] } }\n"
         "  targets:\n"
         "    - { type: chessboard, squares: [6, 6], square: 15, margin: 0, white: 0.8,\n"
-        "        black: 0.8, pose: { translate: [30, -45, 10], rotate_x: 90, rotate_z: 90 } }\n"
+        "        black: 0.8, pose: { translate: [30, -45, 100], rotate_x: -90, rotate_z: 90 } }\n"
         "  turntable: { radius: 0 }\n"
         "  sensor: { response: 2.0e6, full_well: 1.0e5, read_noise: 0 }\n";
 

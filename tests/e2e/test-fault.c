@@ -1,0 +1,92 @@
+/* test-fault.c - device faults through the whole stack: a drive that stalls and a
+ * relay module that stops answering, injected into gonio-sim. goniod must report
+ * the fault, bring the rig to its safe state (motion stopped, lamps and laser off),
+ * refuse to move until the fault is cleared, and then work again. */
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "harness.h"
+#include "tests/test.h"
+
+static bool switch_on(json_t *st, const char *name)
+{
+        json_t *l;
+        size_t i;
+
+        if (strcmp(name, "laser") == 0)
+                return json_is_true(json_object_get(json_object_get(st, "laser"), "on"));
+        json_array_foreach(json_object_get(st, "lamps"), i, l)
+                if (strcmp(json_string_value(json_object_get(l, "name")), name) == 0)
+                        return json_is_true(json_object_get(l, "on"));
+        return false;
+}
+
+/* Waits until every lamp and the laser report off. */
+static void wait_all_off(struct rigenv *e)
+{
+        for (int tries = 0; tries < 100; tries++) {
+                json_t *st = ctl_ok(e, "status", NULL);
+                bool any = switch_on(st, "lamp0") || switch_on(st, "lamp1") ||
+                           switch_on(st, "laser");
+                json_decref(st);
+                if (!any)
+                        return;
+                usleep(50000);
+        }
+        CHECK(!"lamps and laser did not go off after the fault");
+}
+
+static void test_stall(struct rigenv *e)
+{
+        json_t *st;
+
+        json_decref(ctl_ok(e, "lamp", "lamp0", "on", NULL));
+        json_decref(ctl_ok(e, "laser", "on", NULL));
+        sim_request(e, "{\"cmd\":\"inject\",\"bus\":\"drives\",\"unit\":1,\"fault\":\"stall\"}\n");
+        CHECK_INT(ctl(e, NULL, "move", "turntable", "170", NULL), 5); /* device fault */
+        st = wait_state(e, "fault", 10);
+        CHECK_STR(json_string_value(json_object_get(json_object_get(st, "fault"), "device")),
+                  "turntable");
+        json_decref(st);
+        wait_all_off(e);
+        CHECK_INT(ctl(e, NULL, "move", "camera_arm", "10", NULL), 9); /* refused while faulted */
+        CHECK_INT(ctl(e, NULL, "lamp", "lamp0", "on", NULL), 9);
+        sim_request(e, "{\"cmd\":\"inject\",\"bus\":\"drives\",\"unit\":1,\"fault\":\"none\"}\n");
+        json_decref(ctl_ok(e, "fault", "clear", NULL));
+        json_decref(wait_state(e, "idle", 5));
+        json_decref(ctl_ok(e, "move", "turntable", "30", NULL));
+}
+
+static void test_relay_timeout(struct rigenv *e)
+{
+        json_t *st;
+
+        sim_request(e, "{\"cmd\":\"inject\",\"bus\":\"relays\",\"unit\":10,\"fault\":\"timeout\"}\n");
+        CHECK_INT(ctl(e, NULL, "lamp", "lamp1", "on", NULL), 5);
+        st = wait_state(e, "fault", 10);
+        CHECK_STR(json_string_value(json_object_get(json_object_get(st, "fault"), "device")),
+                  "lamp1");
+        json_decref(st);
+        /* the fault persists while the module is silent */
+        CHECK(ctl(e, NULL, "fault", "clear", NULL) != 0);
+        sim_request(e, "{\"cmd\":\"inject\",\"bus\":\"relays\",\"unit\":10,\"fault\":\"none\"}\n");
+        json_decref(ctl_ok(e, "fault", "clear", NULL));
+        json_decref(ctl_ok(e, "lamp", "lamp1", "on", NULL));
+        st = ctl_ok(e, "status", NULL);
+        CHECK(switch_on(st, "lamp1"));
+        json_decref(st);
+}
+
+int main(int argc, char **argv)
+{
+        struct rigenv e;
+
+        CHECK(argc == 4);
+        rigenv_start(&e, argv, 10);
+        json_decref(ctl_ok(&e, "home", NULL));
+        test_stall(&e);
+        test_relay_timeout(&e);
+        rigenv_stop(&e);
+        return 0;
+}
