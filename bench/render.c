@@ -57,7 +57,8 @@ static long raw_tile(const struct raw *c, int tile)
         struct RTCRayHit16 rh;
         struct RTCRay16 sh;
         struct RTCIntersectContext ic;
-        int valid[16], on[16];
+        _Alignas(64) int valid[16];
+        _Alignas(64) int on[16];
         long n = 0;
 
         for (int i = 0; i < 16; i++) {

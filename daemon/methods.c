@@ -536,32 +536,51 @@ static int m_dataset_close(struct srv_req *req, json_t *params, void *userdata)
 struct last_rows {
         json_t *rows;
         int64_t after_id;
+        json_t *cameras; /* object used as a set of camera names */
 };
 
 static int add_recent_row(const struct ds_capture *c, void *userdata)
 {
         struct last_rows *lr = userdata;
 
+        json_object_set_new(lr->cameras, c->camera, json_true());
         if (c->id > lr->after_id)
                 json_array_append_new(lr->rows, capture_json(c));
         return 0;
+}
+
+/* The keys of a set object as a sorted array. */
+static json_t *sorted_keys(json_t *set)
+{
+        json_t *out = json_array(), *v;
+        const char *key;
+
+        json_object_foreach(set, key, v) {
+                size_t i = 0;
+                while (i < json_array_size(out) &&
+                       strcmp(json_string_value(json_array_get(out, i)), key) < 0)
+                        i++;
+                json_array_insert_new(out, i, json_string(key));
+        }
+        return out;
 }
 
 /* Summary of the dataset at path (name given), from its index and dataset.json. */
 static json_t *dataset_summary(const char *path, const char *name, bool rows)
 {
         _cleanup_free_ char *jpath = NULL;
-        json_t *meta, *out, *caps = json_array();
+        json_t *meta, *out, *caps = json_array(), *cams = json_object();
         struct ds *d = NULL;
         int64_t count;
 
         if (ds_open(path, &d) < 0) {
                 json_decref(caps);
+                json_decref(cams);
                 return NULL;
         }
         count = ds_count(d);
         if (rows) {
-                struct last_rows lr = { caps, count - 20 };
+                struct last_rows lr = { caps, count - 20, cams };
                 ds_foreach(d, add_recent_row, &lr);
         }
         ds_close(d);
@@ -572,10 +591,13 @@ static json_t *dataset_summary(const char *path, const char *name, bool rows)
                         "created", json_object_get(meta, "created"), "rig",
                         json_object_get(meta, "rig"));
         json_decref(meta);
-        if (rows)
+        if (rows) {
+                json_object_set_new(out, "cameras", sorted_keys(cams));
                 json_object_set_new(out, "captures", caps);
-        else
+        } else {
                 json_decref(caps);
+        }
+        json_decref(cams);
         return out;
 }
 

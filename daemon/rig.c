@@ -548,15 +548,20 @@ void rig_stop(struct rig *rig, json_t *names)
 {
         for (size_t i = 0; i < rig->rc->n_axes; i++) {
                 struct rig_axis *a = &rig->axes[i];
+                char msg[128];
 
                 atomic_fetch_add(&a->gen, 1);
                 if (!a->open)
                         continue;
                 (void)submit_new(rig, J_STOP, i, 0, false, true);
+                if (a->op == AX_IDLE && !a->st.moving)
+                        continue;
                 if (names)
                         json_array_append_new(names, json_string(a->ax->conf->name));
+                snprintf(msg, sizeof(msg), "%s of '%s' canceled by stop",
+                         a->op == AX_HOMING ? "homing" : "move", a->ax->conf->name);
                 if (a->op != AX_IDLE)
-                        axis_finish(a, -ECANCELED, "stopped");
+                        axis_finish(a, -ECANCELED, msg);
         }
 }
 

@@ -185,6 +185,9 @@ void surf_eval(const struct rmat *m, float u, float v, struct surf *s);
 /* f(l,v) * cos(theta_l) per channel; n, t unit; l, v unit towards light / viewer. */
 void brdf_cos(const struct surf *s, struct v3 n, struct v3 t, struct v3 l, struct v3 v,
               float out[3]);
+/* Anisotropic Beckmann NDF, seed 002 eq. 6, of a half vector with components hn (along
+ * n), ht (along t), hb (along n x t). */
+float beckmann_ndf(const struct surf *s, float hn, float ht, float hb);
 /* Weight of the perfect mirror reflection (0 for non-mirrors). */
 float mirror_weight(const struct surf *s, float cos_v);
 void rmat_free(struct rmat *m);
@@ -202,5 +205,8 @@ struct sensor_rt {
 /* Allocates the table of 65536 normal quantiles (free()). Returns 0 or -ENOMEM. */
 int sensor_table(float **ret);
 uint64_t sensor_frame_key(uint64_t seed, uint64_t seq, uint32_t cam);
-/* Digital numbers dn[0..n) (n <= 3) of pixel pix from electrons e[0..n). */
-void sensor_pixel(const struct sensor_rt *rt, uint64_t pix, const double *e, int n, double *dn);
+#define SENSOR_MAX_PIXELS 16
+/* Digital numbers of n <= SENSOR_MAX_PIXELS pixels (indices pix) with nch channels each,
+ * from electrons e[n * nch] into dn[n * nch]. */
+void sensor_pixels(const struct sensor_rt *rt, const uint64_t *pix, const float *e, int n,
+                   int nch, uint16_t *dn);

@@ -55,17 +55,24 @@ static float beckmann_lambda(const struct surf *s, float wn, float wt, float wb)
         return (1 - 1.259f * a + 0.396f * a * a) / (3.535f * a + 2.181f * a * a);
 }
 
+float beckmann_ndf(const struct surf *s, float hn, float ht, float hb)
+{
+        float c2 = hn * hn;
+
+        if (hn <= 0)
+                return 0;
+        return expf(-(ht * ht / (s->ax * s->ax) + hb * hb / (s->ay * s->ay)) / c2) /
+               ((float)M_PI * s->ax * s->ay * c2 * c2);
+}
+
 static float beckmann(const struct surf *s, struct v3 n, struct v3 t, struct v3 b, struct v3 l,
                       struct v3 v, float nl, float nv)
 {
         struct v3 h = v3_norm(v3_add(l, v));
-        float c = v3_dot(h, n), ht = v3_dot(h, t), hb = v3_dot(h, b), c2, d, g;
+        float d = beckmann_ndf(s, v3_dot(h, n), v3_dot(h, t), v3_dot(h, b)), g;
 
-        if (c <= 0)
+        if (d <= 0)
                 return 0;
-        c2 = c * c;
-        d = expf(-(ht * ht / (s->ax * s->ax) + hb * hb / (s->ay * s->ay)) / c2) /
-            ((float)M_PI * s->ax * s->ay * c2 * c2);
         g = 1 / (1 + beckmann_lambda(s, nl, v3_dot(l, t), v3_dot(l, b)) +
                  beckmann_lambda(s, nv, v3_dot(v, t), v3_dot(v, b)));
         return d * g * schlick(s->f0, v3_dot(l, h)) / (4 * nv); /* times cos(l) already */

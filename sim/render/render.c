@@ -24,6 +24,7 @@
 #define MAX_DEPTH  2
 #define MAX_LIGHTS (RIG_MAX_LAMPS * SIM_MAX_LAMP_SAMPLES)
 #define MAX_THREADS 16
+#define PACKET_MASK _Alignas(64) int /* Embree loads packet valid masks with aligned moves */
 
 struct light_pt {
         struct v3 p;
@@ -90,6 +91,12 @@ static void ray_set(struct RTCRay16 *r, int i, struct v3 o, struct v3 d, float t
         r->mask[i] = 0xffffffff;
         r->id[i] = i;
         r->flags[i] = 0;
+}
+
+/* An inactive lane: Embree may read every lane of a packet, so none stays undefined. */
+static void ray_off(struct RTCRay16 *r, int i)
+{
+        ray_set(r, i, v3(0, 0, 0), v3(0, 0, 1), -INFINITY);
 }
 
 static void trace(const struct fctx *c, const int *valid, struct RTCRayHit16 *rh, bool coherent)
@@ -243,14 +250,16 @@ static void shade_lamps(const struct fctx *c, struct hits *h)
         for (int k = 0; k < c->n_lights; k++) {
                 const struct light_pt *lp = &c->lights[k];
                 struct RTCRay16 r;
-                int on[LANES];
+                PACKET_MASK on[LANES];
                 float dist[LANES];
 
                 for (int i = 0; i < LANES; i++) {
                         struct v3 l = v3_sub(lp->p, h->p[i]);
                         on[i] = 0;
-                        if (!h->on[i] || v3_dot(l, h->ng[i]) <= 0 || v3_dot(l, h->n[i]) <= 0)
+                        if (!h->on[i] || v3_dot(l, h->ng[i]) <= 0 || v3_dot(l, h->n[i]) <= 0) {
+                                ray_off(&r, i);
                                 continue;
+                        }
                         dist[i] = v3_len(l);
                         ray_set(&r, i, v3_madd(h->p[i], h->ng[i], eps_at(h->p[i])),
                                 v3_scale(l, 1 / dist[i]), dist[i] * (1 - 1e-5f));
@@ -270,13 +279,14 @@ static void shade_lamps(const struct fctx *c, struct hits *h)
 static void shade_laser(const struct fctx *c, struct hits *h)
 {
         struct RTCRay16 r;
-        int on[LANES];
+        PACKET_MASK on[LANES];
         float dist[LANES], g[LANES];
 
         for (int i = 0; i < LANES; i++) {
                 float dp = h->on[i] ? v3_dot(c->lz_n, h->p[i]) : INFINITY;
                 struct v3 l;
                 on[i] = 0;
+                ray_off(&r, i);
                 if (fabsf(dp) > 5 * c->lz_sigma)
                         continue;
                 l = v3_sub(c->lz_o, h->p[i]);
@@ -300,12 +310,14 @@ static void shade_dome(const struct fctx *c, struct hits *h)
         for (int k = 0; k < c->n_dome; k++) {
                 struct v3 l = c->dome_dir[k];
                 struct RTCRay16 r;
-                int on[LANES];
+                PACKET_MASK on[LANES];
 
                 for (int i = 0; i < LANES; i++) {
                         on[i] = 0;
-                        if (!h->on[i] || v3_dot(l, h->ng[i]) <= 0 || v3_dot(l, h->n[i]) <= 0)
+                        if (!h->on[i] || v3_dot(l, h->ng[i]) <= 0 || v3_dot(l, h->n[i]) <= 0) {
+                                ray_off(&r, i);
                                 continue;
+                        }
                         ray_set(&r, i, v3_madd(h->p[i], h->ng[i], eps_at(h->p[i])), l, INFINITY);
                         on[i] = -1;
                 }
@@ -340,15 +352,18 @@ static void shade_mirrors(const struct fctx *c, struct hits *h, int depth)
 {
         struct RTCRayHit16 rh;
         struct hits h2;
-        int valid[LANES], any = 0, nopix[LANES];
+        PACKET_MASK valid[LANES];
+        int any = 0, nopix[LANES];
         float w[LANES];
 
         for (int i = 0; i < LANES; i++) {
                 w[i] = h->on[i] ? mirror_weight(&h->sf[i], v3_dot(h->n[i], h->v[i])) : 0;
                 valid[i] = w[i] > 0 && depth < MAX_DEPTH ? -1 : 0;
                 nopix[i] = -1;
-                if (!valid[i])
+                if (!valid[i]) {
+                        ray_off(&rh.ray, i);
                         continue;
+                }
                 struct v3 d = v3_madd(v3_scale(h->v[i], -1), h->n[i], 2 * v3_dot(h->n[i], h->v[i]));
                 ray_set(&rh.ray, i, v3_madd(h->p[i], h->ng[i], eps_at(h->p[i])), d, INFINITY);
                 any = 1;
@@ -389,28 +404,49 @@ static void shade_packet(const struct fctx *c, struct RTCRayHit16 *rh, const int
         shade_mirrors(c, h, depth);
 }
 
-static void write_pixel(const struct fctx *c, int x, int y, const float L[3])
+/* Electrons of each pixel of a packet as the sensor format samples them. */
+static int packet_electrons(const struct fctx *c, const struct hits *h, const int *valid,
+                            int x0, int y0, uint64_t *pix, float *e)
 {
         enum sensor_format fmt = c->s->sensor.format;
-        int n = fmt == FMT_RGB ? 3 : 1;
-        double e[3], dn[3];
+        int n = 0, nch = fmt == FMT_RGB ? 3 : 1;
 
-        if (fmt == FMT_RGB) {
-                for (int k = 0; k < 3; k++)
-                        e[k] = L[k] * c->escale;
-        } else {
-                int ch = (y & 1) + (x & 1); /* RGGB: 0, 1, 1, 2 */
-                e[0] = (fmt == FMT_MONO ? (L[0] + L[1] + L[2]) / 3 : L[ch]) * c->escale;
+        for (int i = 0; i < LANES; i++) {
+                int x = x0 + (i & 3), y = y0 + (i >> 2), ch = (y & 1) + (x & 1); /* RGGB */
+                const float *L = h->L[i];
+                if (!valid[i])
+                        continue;
+                pix[n] = (uint64_t)y * c->w + x;
+                if (fmt == FMT_RGB)
+                        for (int k = 0; k < 3; k++)
+                                e[n * 3 + k] = L[k] * c->escale;
+                else
+                        e[n] = (fmt == FMT_MONO ? (L[0] + L[1] + L[2]) / 3 : L[ch]) * c->escale;
+                n++;
         }
-        sensor_pixel(&c->sensor, (uint64_t)y * c->w + x, e, n, dn);
-        if (c->out->bits == 8) {
-                uint8_t *p = c->out->data + (size_t)y * c->out->stride + (size_t)x * n;
-                for (int k = 0; k < n; k++)
-                        p[k] = (uint8_t)dn[k];
-        } else {
-                uint16_t *p = (uint16_t *)(c->out->data + (size_t)y * c->out->stride) + x * n;
-                for (int k = 0; k < n; k++)
-                        p[k] = (uint16_t)dn[k];
+        return nch;
+}
+
+static void write_packet(const struct fctx *c, const struct hits *h, const int *valid, int x0,
+                         int y0)
+{
+        uint64_t pix[LANES];
+        float e[3 * LANES];
+        uint16_t dn[3 * LANES];
+        int nch = packet_electrons(c, h, valid, x0, y0, pix, e), n = 0;
+
+        for (int i = 0; i < LANES; i++)
+                n += valid[i] != 0;
+        sensor_pixels(&c->sensor, pix, e, n, nch, dn);
+        for (int k = 0; k < n; k++) {
+                int x = (int)(pix[k] % c->w), y = (int)(pix[k] / c->w);
+                uint8_t *row = c->out->data + (size_t)y * c->out->stride;
+                for (int ch = 0; ch < nch; ch++) {
+                        if (c->out->bits == 8)
+                                row[x * nch + ch] = (uint8_t)dn[k * nch + ch];
+                        else
+                                ((uint16_t *)row)[x * nch + ch] = dn[k * nch + ch];
+                }
         }
 }
 
@@ -440,7 +476,8 @@ static void render_tile(const struct fctx *c, int tile)
         int x0 = (tile % c->tiles_x) * 4, y0 = (tile / c->tiles_x) * 4;
         struct RTCRayHit16 rh;
         struct hits h;
-        int valid[LANES], pix[LANES];
+        PACKET_MASK valid[LANES];
+        int pix[LANES];
 
         for (int i = 0; i < LANES; i++) {
                 int x = x0 + (i & 3), y = y0 + (i >> 2);
@@ -451,13 +488,10 @@ static void render_tile(const struct fctx *c, int tile)
         }
         trace(c, valid, &rh, true);
         shade_packet(c, &rh, valid, pix, 0, &h);
-        for (int i = 0; i < LANES; i++) {
-                if (!valid[i])
-                        continue;
-                write_pixel(c, x0 + (i & 3), y0 + (i >> 2), h.L[i]);
-                if (c->truth)
+        write_packet(c, &h, valid, x0, y0);
+        for (int i = 0; c->truth && i < LANES; i++)
+                if (valid[i])
                         write_truth(c, pix[i], &rh, i, &h);
-        }
 }
 
 static void *worker(void *arg)

@@ -87,25 +87,32 @@ static double poisson_small(uint64_t h, double mean)
         return k;
 }
 
-void sensor_pixel(const struct sensor_rt *rt, uint64_t pix, const double *e, int n, double *dn)
+/* One sample: electrons x, normal deviate g, hash h for the Poisson branch. Written
+ * without data-dependent branches on the common paths (they mispredict across edges). */
+static double sample_dn(const struct sensor_rt *rt, double x, float g, uint64_t h)
 {
         const struct sensor *se = rt->se;
-        uint64_t h = mix64(rt->key ^ (pix * 0x9e3779b97f4a7c15ULL));
+        double fw = se->full_well, r = se->read_noise, xs = x < fw ? x : fw, var, v;
 
-        for (int c = 0; c < n; c++) {
-                double x = e[c], r = se->read_noise, v;
-                float g = rt->q[(h >> (16 * c)) & (NQ - 1)];
-                if (rt->ideal)
-                        x = x < se->full_well ? x : se->full_well;
-                else if (x >= se->full_well)
-                        x = se->full_well + r * g;
-                else if (se->shot_noise && x >= 16)
-                        x += sqrt(x + r * r) * g; /* shot and read noise: one Gaussian */
-                else if (se->shot_noise && x > 0)
-                        x = poisson_small(mix64(h + 1 + c), x) + r * g;
-                else
-                        x += r * g;
-                v = x * rt->k + rt->b;
-                dn[c] = v <= 0 ? 0 : v >= rt->maxdn ? rt->maxdn : (double)(int64_t)(v + 0.5);
+        var = se->shot_noise && x < fw ? xs : 0; /* shot and read noise: one Gaussian */
+        if (se->shot_noise && x > 0 && x < 16 && !rt->ideal) {
+                xs = poisson_small(mix64(h), x);
+                var = 0;
         }
+        v = (rt->ideal ? xs : xs + sqrt(var + r * r) * g) * rt->k + rt->b;
+        return v <= 0 ? 0 : v >= rt->maxdn ? rt->maxdn : (double)(int64_t)(v + 0.5);
+}
+
+void sensor_pixels(const struct sensor_rt *rt, const uint64_t *pix, const float *e, int n,
+                   int nch, uint16_t *dn)
+{
+        uint64_t h[SENSOR_MAX_PIXELS];
+
+        for (int i = 0; i < n; i++) /* independent hashes first: they overlap in the core */
+                h[i] = mix64(rt->key ^ (pix[i] * 0x9e3779b97f4a7c15ULL));
+        for (int i = 0; i < n; i++)
+                for (int c = 0; c < nch; c++)
+                        dn[i * nch + c] = (uint16_t)sample_dn(rt, e[i * nch + c],
+                                                              rt->q[(h[i] >> (16 * c)) & (NQ - 1)],
+                                                              h[i] + 1 + c);
 }

@@ -232,29 +232,37 @@ void rigenv_start(struct rigenv *e, char **argv, double time_scale)
         wait_socket(e, 30);
 }
 
-static void stop_pid(pid_t pid)
+/* SIGTERMs pid and checks it exits cleanly (under ASan a leak makes the status non-zero). */
+static void stop_pid(pid_t pid, const char *what)
 {
         int status;
 
         if (pid <= 0)
                 return;
         kill(pid, SIGTERM);
-        for (int i = 0; i < 100; i++) {
-                if (waitpid(pid, &status, WNOHANG) == pid)
+        for (int i = 0; i < 200; i++) {
+                if (waitpid(pid, &status, WNOHANG) == pid) {
+                        if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
+                                fprintf(stderr, "%s exited with status 0x%x\n", what, status);
+                        CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
                         return;
+                }
                 usleep(50000);
         }
         kill(pid, SIGKILL);
         waitpid(pid, &status, 0);
+        CHECK(!"did not stop within 10 s of SIGTERM");
 }
 
 void rigenv_stop(struct rigenv *e)
 {
+        pid_t daemon = e->daemon, sim = e->sim;
         char cmd[400];
 
-        stop_pid(e->daemon);
-        stop_pid(e->sim);
-        e->daemon = e->sim = 0;
+        e->daemon = 0; /* reaped below: the exit handler must not signal it again */
+        stop_pid(daemon, "goniod");
+        e->sim = 0;
+        stop_pid(sim, "gonio-sim");
         snprintf(cmd, sizeof(cmd), "rm -rf '%s'", e->dir);
         CHECK(system(cmd) == 0);
 }
@@ -338,6 +346,21 @@ json_t *ctl_ok(struct rigenv *e, ...)
         return out;
 }
 
+static char seen[8192]; /* methods of the notifications raw_call skipped */
+
+static void note_seen(const char *method)
+{
+        size_t len = strlen(seen);
+
+        if (method && len + strlen(method) + 2 < sizeof(seen))
+                snprintf(seen + len, sizeof(seen) - len, "%s ", method);
+}
+
+const char *raw_seen(void)
+{
+        return seen;
+}
+
 json_t *raw_call(int fd, const char *text)
 {
         static char buf[1 << 20];
@@ -363,6 +386,7 @@ json_t *raw_call(int fd, const char *text)
                         CHECK(msg);
                         if (json_object_get(msg, "id"))
                                 return msg;
+                        note_seen(json_string_value(json_object_get(msg, "method")));
                         json_decref(msg); /* a notification */
                 }
         }

@@ -42,5 +42,8 @@ void sim_request(struct rigenv *e, const char *json_line);
 /* Polls status until field state == want (or fails the test after timeout seconds). */
 json_t *wait_state(struct rigenv *e, const char *want, double timeout);
 
+/* Space-separated methods of the notifications raw_call has skipped so far. */
+const char *raw_seen(void);
+
 /* Runs a program with args and returns its exit status, stderr into err (may be NULL). */
 int run_capture(char *const argv[], char *out, size_t outlen, char *err, size_t errlen);

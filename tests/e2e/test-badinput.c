@@ -91,6 +91,8 @@ static void test_stop_and_responsive(struct rigenv *e)
         r = raw_call(mover, "");
         CHECK_INT(error_code(r), -32007); /* canceled */
         json_decref(r);
+        /* both clients were told: moving, then idle again */
+        CHECK_STR_CONTAINS(raw_seen(), "state.changed");
         close(mover);
         close(fd);
 }

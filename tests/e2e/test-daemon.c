@@ -134,6 +134,15 @@ static void test_captures(struct rigenv *e)
         CHECK_INT(ds_verify(d), 0);
         r = ctl_ok(e, "dataset", "info", NULL);
         CHECK_INT(json_integer_value(json_object_get(r, "count")), 5);
+        CHECK_INT(json_array_size(json_object_get(r, "captures")), 5);
+        CHECK_STR(json_string_value(json_array_get(json_object_get(r, "cameras"), 0)), "cam0");
+        CHECK_STR(json_string_value(json_array_get(json_object_get(r, "cameras"), 1)), "cam1");
+        json_decref(r);
+        r = ctl_ok(e, "dataset", "list", NULL);
+        CHECK_INT(json_array_size(json_object_get(r, "datasets")), 1);
+        CHECK_STR(json_string_value(json_object_get(json_array_get(json_object_get(r, "datasets"), 0),
+                                                    "name")),
+                  "e2e");
         json_decref(r);
         gn_frame_free_data(&lit0);
         gn_frame_free_data(&lit90);
