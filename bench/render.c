@@ -164,8 +164,8 @@ int main(int argc, char **argv)
 {
         struct rig_config *rc = NULL;
         struct sim_scene *s = NULL;
-        struct sim_rig_state st = { .turntable_deg = 10, .lamp_on = { true }, .laser_on = true };
-        struct raw raw = { 0 };
+        struct sim_rig_state st = {.turntable_deg = 10, .lamp_on = {true}, .laser_on = true};
+        struct raw raw = {0};
         double secs = argc > 1 ? atof(argv[1]) : 3, t0, fps, raw_fps, t_render = 0, t_raw = 0;
         int frames = 0, raw_frames = 0;
 
@@ -190,8 +190,8 @@ int main(int argc, char **argv)
         printf("render: %d frames 720x480, %zu triangles, %d threads: %.1f fps\n", frames,
                s->geoms[0].mesh.nt, s->threads, fps);
         printf("raw embree: %.2f Mrays/s (%.0f rays/frame): %.1f frames/s\n",
-               atomic_load(&raw.rays) / t_raw / 1e6,
-               (double)atomic_load(&raw.rays) / raw_frames, raw_fps);
+               atomic_load(&raw.rays) / t_raw / 1e6, (double)atomic_load(&raw.rays) / raw_frames,
+               raw_fps);
         printf("{\"bench\":\"render\",\"fps\":%.2f,\"raw_ray_fps\":%.2f,\"ratio\":%.3f}\n", fps,
                raw_fps, fps / raw_fps);
         sim_scene_free(s);

@@ -1,8 +1,9 @@
 /* board.c - calibration board patterns: chessboard and ChArUco (DICT_4X4_50 markers,
- * the layout of OpenCV 4.6's CharucoBoard), evaluated procedurally in the board frame and box-filtered exactly
- * over the pixel footprint (the parallelogram the pixel covers on the board, clipped
- * against every black square and marker cell), so edges are anti-aliased without bias. The marker table was generated with OpenCV (Dictionary::getBitsFromByteList)
- * and is checked against OpenCV's detector in tests/render/test-render-cv.cpp. */
+ * the layout of OpenCV 4.6's CharucoBoard), evaluated procedurally in the board frame and
+ * box-filtered exactly over the pixel footprint (the parallelogram the pixel covers on the board,
+ * clipped against every black square and marker cell), so edges are anti-aliased without bias. The
+ * marker table was generated with OpenCV (Dictionary::getBitsFromByteList) and is checked against
+ * OpenCV's detector in tests/render/test-render-cv.cpp. */
 #include <errno.h>
 #include <math.h>
 #include <string.h>
@@ -37,8 +38,7 @@ static int marker_id(const struct board *b, int i, int j)
 }
 
 /* Marker of white square (i, j): origin (x0, y0) of its top-left corner and its bits. */
-static bool marker_at(const struct board *b, int i, int j, float *x0, float *y0,
-                      uint16_t *bits)
+static bool marker_at(const struct board *b, int i, int j, float *x0, float *y0, uint16_t *bits)
 {
         *x0 = i * b->square + (b->square - b->marker) / 2;
         *y0 = j * b->square + (b->square - b->marker) / 2;
@@ -81,7 +81,7 @@ static bool board_white(const struct board *b, float x, float y)
 static float clip_area(const float *p, int n, float x0, float y0, float x1, float y1)
 {
         float a[2][2 * 12], area = 0;
-        const float lim[4] = { x0, y0, x1, y1 };
+        const float lim[4] = {x0, y0, x1, y1};
         int cur = 0;
 
         memcpy(a[0], p, 2 * n * sizeof(float));
@@ -133,7 +133,7 @@ static float marker_black_area(const struct board *b, int i, int j, const float 
 
 float board_albedo(const struct board *b, float x, float y, const float fp[4])
 {
-        float q[8], bb[4] = { x, y, x, y }, total, black = 0, sq = b->square;
+        float q[8], bb[4] = {x, y, x, y}, total, black = 0, sq = b->square;
 
         for (int k = 0; k < 4; k++) { /* the footprint parallelogram */
                 float a = (k == 1 || k == 2) ? 0.5f : -0.5f, c = k >= 2 ? 0.5f : -0.5f;
@@ -152,8 +152,8 @@ float board_albedo(const struct board *b, float x, float y, const float fp[4])
         for (int j = j0; j <= j1; j++)
                 for (int i = i0; i <= i1; i++)
                         if ((i + j) % 2 == 0)
-                                black += clip_area(q, 4, i * sq, j * sq, (i + 1) * sq,
-                                                   (j + 1) * sq);
+                                black +=
+                                        clip_area(q, 4, i * sq, j * sq, (i + 1) * sq, (j + 1) * sq);
                         else if (b->kind == BOARD_CHARUCO)
                                 black += marker_black_area(b, i, j, q, bb);
         return b->black + (b->white - b->black) * (1 - fminf(black / total, 1));

@@ -60,8 +60,7 @@ int camera_build(struct camera *c, const struct rig_camera_conf *cc)
                         double x, y, l;
                         float *d = c->dirs + 3 * ((size_t)v * cc->width + u);
 
-                        undistort(cc->dist, (u - cc->cx) / cc->fx, (v - cc->cy) / cc->fy, &x,
-                                  &y);
+                        undistort(cc->dist, (u - cc->cx) / cc->fx, (v - cc->cy) / cc->fy, &x, &y);
                         l = sqrt(x * x + y * y + 1);
                         d[0] = (float)(x / l);
                         d[1] = (float)(y / l);
@@ -76,16 +75,15 @@ void camera_free(struct camera *c)
         c->dirs = NULL;
 }
 
-void camera_pose(const struct rig_camera_conf *cc, double camera_arm_deg, double R[9],
-                 double t[3])
+void camera_pose(const struct rig_camera_conf *cc, double camera_arm_deg, double R[9], double t[3])
 {
         double a = (camera_arm_deg + cc->azimuth_deg) * M_PI / 180;
         double e = cc->elevation_deg * M_PI / 180;
-        double C[3] = { cc->target[0] + cc->distance_mm * cos(e) * cos(a),
-                        cc->target[1] + cc->distance_mm * cos(e) * sin(a),
-                        cc->target[2] + cc->distance_mm * sin(e) };
-        double f[3] = { -cos(e) * cos(a), -cos(e) * sin(a), -sin(e) };
-        double r[3] = { f[1], -f[0], 0 }; /* f x z */
+        double C[3] = {cc->target[0] + cc->distance_mm * cos(e) * cos(a),
+                       cc->target[1] + cc->distance_mm * cos(e) * sin(a),
+                       cc->target[2] + cc->distance_mm * sin(e)};
+        double f[3] = {-cos(e) * cos(a), -cos(e) * sin(a), -sin(e)};
+        double r[3] = {f[1], -f[0], 0}; /* f x z */
         double rl = hypot(r[0], r[1]);
 
         if (rl < 1e-9) { /* looking straight up or down: keep the arm's azimuth as right */
@@ -95,8 +93,8 @@ void camera_pose(const struct rig_camera_conf *cc, double camera_arm_deg, double
         }
         r[0] /= rl;
         r[1] /= rl;
-        double dn[3] = { f[1] * r[2] - f[2] * r[1], f[2] * r[0] - f[0] * r[2],
-                         f[0] * r[1] - f[1] * r[0] }; /* f x r: image down */
+        double dn[3] = {f[1] * r[2] - f[2] * r[1], f[2] * r[0] - f[0] * r[2],
+                        f[0] * r[1] - f[1] * r[0]}; /* f x r: image down */
         for (int i = 0; i < 3; i++) {
                 R[i] = r[i];
                 R[3 + i] = dn[i];

@@ -31,7 +31,7 @@ enum spec_model { SPEC_NONE, SPEC_WARD, SPEC_BECKMANN, SPEC_MIRROR };
 struct rmat {
         enum spec_model model;
         float albedo[3];
-        float ks, ax, ay, f0;                  /* f0 = 1: no Fresnel falloff */
+        float ks, ax, ay, f0;                         /* f0 = 1: no Fresnel falloff */
         struct rtex *albedo_map, *ks_map, *alpha_map; /* owned */
 };
 
@@ -72,12 +72,12 @@ enum geom_kind { GEOM_MESH, GEOM_SPHERE };
 struct rgeom {
         enum geom_kind kind;
         int mat;
-        struct mesh mesh;       /* object frame (GEOM_MESH) */
+        struct mesh mesh;        /* object frame (GEOM_MESH) */
         float centre[3], radius; /* object frame (GEOM_SPHERE) */
-        float to_local[12];     /* object frame -> shape frame, row-major 3x4 */
-        float axis[3];          /* shape z axis in object frame: anisotropy direction */
+        float to_local[12];      /* object frame -> shape frame, row-major 3x4 */
+        float axis[3];           /* shape z axis in object frame: anisotropy direction */
         enum uv_map uvmap;
-        float uv_size;          /* shape size for the procedural uv maps */
+        float uv_size; /* shape size for the procedural uv maps */
         const struct board *board;
 };
 
@@ -169,8 +169,7 @@ int board_marker_bits(int id, uint16_t *bits);
 /* --- camera.c --- */
 int camera_build(struct camera *c, const struct rig_camera_conf *cc);
 void camera_free(struct camera *c);
-void camera_pose(const struct rig_camera_conf *cc, double camera_arm_deg, double R[9],
-                 double t[3]);
+void camera_pose(const struct rig_camera_conf *cc, double camera_arm_deg, double R[9], double t[3]);
 
 /* --- light.c --- */
 void lamp_position(const struct rig_switch_conf *l, double light_arm_deg, double p[3]);
@@ -193,20 +192,22 @@ float mirror_weight(const struct surf *s, float cos_v);
 void rmat_free(struct rmat *m);
 
 /* --- sensor.c --- */
-/* Per-frame constants of the sensor model. */
+/* Per-frame constants of the sensor model (sensor_setup). */
 struct sensor_rt {
-        const struct sensor *se;
-        const float *q;   /* normal quantile table (sensor_table) */
-        uint64_t key;     /* sensor_frame_key() */
-        double k, b;      /* DN = electrons * k + b before rounding */
-        double maxdn;
-        bool ideal;       /* no noise */
+        const float *q; /* normal quantile table (sensor_table) */
+        uint64_t key;   /* sensor_frame_key() */
+        float k, b;     /* DN = electrons * k + b before rounding */
+        float maxdn, full_well, read2;
+        bool shot_noise;
+        bool ideal; /* no noise */
 };
-/* Allocates the table of 65536 normal quantiles (free()). Returns 0 or -ENOMEM. */
+void sensor_setup(struct sensor_rt *rt, const struct sensor *se, const float *q, uint64_t key,
+                  double gain, int bits, bool ideal);
+/* Allocates the table of normal quantiles (free()). Returns 0 or -ENOMEM. */
 int sensor_table(float **ret);
 uint64_t sensor_frame_key(uint64_t seed, uint64_t seq, uint32_t cam);
 #define SENSOR_MAX_PIXELS 16
 /* Digital numbers of n <= SENSOR_MAX_PIXELS pixels (indices pix) with nch channels each,
  * from electrons e[n * nch] into dn[n * nch]. */
-void sensor_pixels(const struct sensor_rt *rt, const uint64_t *pix, const float *e, int n,
-                   int nch, uint16_t *dn);
+void sensor_pixels(const struct sensor_rt *rt, const uint64_t *pix, const float *e, int n, int nch,
+                   uint16_t *dn);

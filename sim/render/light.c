@@ -113,10 +113,10 @@ static void split(const struct dome *d, struct patch *ps, int i, int *n)
         struct patch p = ps[i];
         double tm = (p.t0 + p.t1) / 2, pm = (p.p0 + p.p1) / 2;
         struct patch q[4] = {
-                { p.t0, tm, p.p0, pm, 0 },
-                { p.t0, tm, pm, p.p1, 0 },
-                { tm, p.t1, p.p0, pm, 0 },
-                { tm, p.t1, pm, p.p1, 0 },
+                {p.t0, tm, p.p0, pm, 0},
+                {p.t0, tm, pm, p.p1, 0},
+                {tm, p.t1, p.p0, pm, 0},
+                {tm, p.t1, pm, p.p1, 0},
         };
 
         for (int k = 0; k < 4; k++) {
@@ -139,8 +139,8 @@ int dome_build(const struct dome *d, struct dome_el **ret, int *n_ret)
                 return -ENOMEM;
         for (int i = 0; i < rows; i++)
                 for (int j = 0; j < 8; j++) {
-                        struct patch p = { i * M_PI / 4, (i + 1) * M_PI / 4, j * M_PI / 4,
-                                           (j + 1) * M_PI / 4, 0 };
+                        struct patch p = {i * M_PI / 4, (i + 1) * M_PI / 4, j * M_PI / 4,
+                                          (j + 1) * M_PI / 4, 0};
                         p.energy = patch_energy(d, &p);
                         total += p.energy;
                         ps[n++] = p;

@@ -72,8 +72,7 @@ static int obj_corner(struct obj *o, const char *tok)
                 return r;
         if (s2 && (r = obj_index(s2 + 1, o->vn.n / 3, &in)) < 0)
                 return r;
-        if (fbuf_push(&o->corners, iv) || fbuf_push(&o->corners, it) ||
-            fbuf_push(&o->corners, in))
+        if (fbuf_push(&o->corners, iv) || fbuf_push(&o->corners, it) || fbuf_push(&o->corners, in))
                 return -ENOMEM;
         return 0;
 }
@@ -109,7 +108,7 @@ static int obj_face(struct obj *o, char *rest)
 
 static int obj_line(struct obj *o, char *line)
 {
-        float a[3] = { 0 };
+        float a[3] = {0};
 
         if (!strncmp(line, "v ", 2) || !strncmp(line, "vn ", 3)) {
                 struct fbuf *b = line[1] == 'n' ? &o->vn : &o->v;
@@ -153,7 +152,7 @@ static int obj_to_mesh(struct obj *o, struct mesh *m)
 
 static int load_obj(FILE *f, struct mesh *m, int *line_no)
 {
-        struct obj o = { 0 };
+        struct obj o = {0};
         char line[4096];
         int r = 0;
 
@@ -198,10 +197,10 @@ static int ply_type(const char *s)
                 const char *name;
                 int code;
         } types[] = {
-                { "char", 1 },     { "int8", 1 },   { "uchar", 1 },   { "uint8", 1 },
-                { "short", 2 },    { "int16", 2 },  { "ushort", 2 },  { "uint16", 2 },
-                { "int", 4 },      { "int32", 4 },  { "uint", 4 },    { "uint32", 4 },
-                { "float", 0x14 }, { "float32", 0x14 }, { "double", 0x18 }, { "float64", 0x18 },
+                {"char", 1},     {"int8", 1},       {"uchar", 1},     {"uint8", 1},
+                {"short", 2},    {"int16", 2},      {"ushort", 2},    {"uint16", 2},
+                {"int", 4},      {"int32", 4},      {"uint", 4},      {"uint32", 4},
+                {"float", 0x14}, {"float32", 0x14}, {"double", 0x18}, {"float64", 0x18},
         };
         for (size_t i = 0; i < ELEMENTSOF(types); i++)
                 if (!strcmp(s, types[i].name))
@@ -215,8 +214,9 @@ static int ply_header_line(struct ply *p, char *line)
         unsigned long n;
 
         if (sscanf(line, "format %31s", a) == 1) {
-                p->fmt = !strcmp(a, "ascii") ? PLY_ASCII
-                         : !strcmp(a, "binary_little_endian") ? PLY_LE : PLY_BE;
+                p->fmt = !strcmp(a, "ascii")                  ? PLY_ASCII
+                         : !strcmp(a, "binary_little_endian") ? PLY_LE
+                                                              : PLY_BE;
         } else if (sscanf(line, "element %31s %lu", a, &n) == 2) {
                 if (p->n_elems == ELEMENTSOF(p->elems) || n > MESH_MAX_ELEMS)
                         return -E2BIG;
@@ -273,9 +273,21 @@ static int ply_read_value(FILE *f, enum ply_fmt fmt, int type, double *out)
         }
         bool u = type & 0x100;
         switch (size) {
-        case 1: *out = u ? (double)b[0] : (double)(int8_t)b[0]; break;
-        case 2: { uint16_t v; memcpy(&v, b, 2); *out = u ? (double)v : (double)(int16_t)v; break; }
-        default: { uint32_t v; memcpy(&v, b, 4); *out = u ? (double)v : (double)(int32_t)v; break; }
+        case 1:
+                *out = u ? (double)b[0] : (double)(int8_t)b[0];
+                break;
+        case 2: {
+                uint16_t v;
+                memcpy(&v, b, 2);
+                *out = u ? (double)v : (double)(int16_t)v;
+                break;
+        }
+        default: {
+                uint32_t v;
+                memcpy(&v, b, 4);
+                *out = u ? (double)v : (double)(int32_t)v;
+                break;
+        }
         }
         return 0;
 }
@@ -284,8 +296,14 @@ static int ply_read_value(FILE *f, enum ply_fmt fmt, int type, double *out)
 static void ply_vertex_cols(const struct ply_elem *e, int col[8])
 {
         static const char *names[8][3] = {
-                { "x" }, { "y" }, { "z" }, { "nx" }, { "ny" }, { "nz" },
-                { "u", "s", "texture_u" }, { "v", "t", "texture_v" },
+                {"x"},
+                {"y"},
+                {"z"},
+                {"nx"},
+                {"ny"},
+                {"nz"},
+                {"u", "s", "texture_u"},
+                {"v", "t", "texture_v"},
         };
         for (int k = 0; k < 8; k++) {
                 col[k] = -1;
@@ -296,8 +314,7 @@ static void ply_vertex_cols(const struct ply_elem *e, int col[8])
         }
 }
 
-static int ply_vertices(FILE *f, const struct ply *p, const struct ply_elem *e,
-                        struct fbuf *vals)
+static int ply_vertices(FILE *f, const struct ply *p, const struct ply_elem *e, struct fbuf *vals)
 {
         int col[8], r = 0;
 
@@ -305,11 +322,10 @@ static int ply_vertices(FILE *f, const struct ply *p, const struct ply_elem *e,
         if (col[0] < 0 || col[1] < 0 || col[2] < 0)
                 return -EBADMSG;
         for (size_t i = 0; i < e->count; i++) {
-                double row[16] = { 0 };
+                double row[16] = {0};
                 for (int k = 0; k < e->n_props; k++)
-                        if (e->props[k].count_type || (r = ply_read_value(f, p->fmt,
-                                                                          e->props[k].type,
-                                                                          &row[k])) < 0)
+                        if (e->props[k].count_type ||
+                            (r = ply_read_value(f, p->fmt, e->props[k].type, &row[k])) < 0)
                                 return e->props[k].count_type ? -EBADMSG : r;
                 for (int k = 0; k < 8; k++)
                         if (fbuf_push(vals, col[k] >= 0 ? (float)row[col[k]] : NAN))
@@ -328,8 +344,8 @@ static int ply_faces(FILE *f, const struct ply *p, const struct ply_elem *e, str
                         double cnt = 1, v, first = 0, prev = 0;
                         bool is_idx = pr->count_type && (!strcmp(pr->name, "vertex_indices") ||
                                                          !strcmp(pr->name, "vertex_index"));
-                        if (pr->count_type && (r = ply_read_value(f, p->fmt, pr->count_type,
-                                                                  &cnt)) < 0)
+                        if (pr->count_type &&
+                            (r = ply_read_value(f, p->fmt, pr->count_type, &cnt)) < 0)
                                 return r;
                         if (cnt < 0 || cnt > 64)
                                 return -EBADMSG;
@@ -372,8 +388,8 @@ static int ply_to_mesh(const struct fbuf *vals, const struct fbuf *idx, struct m
 
 static int load_ply(FILE *f, struct mesh *m, int *line_no)
 {
-        struct ply p = { 0 };
-        struct fbuf vals = { 0 }, idx = { 0 };
+        struct ply p = {0};
+        struct fbuf vals = {0}, idx = {0};
         char line[512];
         int r = 0;
 

@@ -20,9 +20,9 @@
 #include "common/log.h"
 #include "internal.h"
 
-#define LANES      16
-#define MAX_DEPTH  2
-#define MAX_LIGHTS (RIG_MAX_LAMPS * SIM_MAX_LAMP_SAMPLES)
+#define LANES       16
+#define MAX_DEPTH   2
+#define MAX_LIGHTS  (RIG_MAX_LAMPS * SIM_MAX_LAMP_SAMPLES)
 #define MAX_THREADS 16
 #define PACKET_MASK _Alignas(64) int /* Embree loads packet valid masks with aligned moves */
 
@@ -139,8 +139,7 @@ static struct v3 local_pt(const struct rgeom *g, struct v3 p)
                   m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]);
 }
 
-static void uv_of(const struct rgeom *g, const struct RTCHit16 *h, int i, struct v3 pl,
-                  float uv[2])
+static void uv_of(const struct rgeom *g, const struct RTCHit16 *h, int i, struct v3 pl, float uv[2])
 {
         if (g->uvmap == UV_MESH) {
                 const uint32_t *ix = g->mesh.idx + 3 * h->primID[i];
@@ -160,8 +159,8 @@ static void uv_of(const struct rgeom *g, const struct RTCHit16 *h, int i, struct
 }
 
 /* Shading normal of a hit (object frame, not yet oriented). */
-static struct v3 shading_normal(const struct rgeom *g, const struct RTCHit16 *h, int i,
-                                struct v3 p, struct v3 ng)
+static struct v3 shading_normal(const struct rgeom *g, const struct RTCHit16 *h, int i, struct v3 p,
+                                struct v3 ng)
 {
         if (g->kind == GEOM_SPHERE)
                 return v3_norm(v3_sub(p, v3(g->centre[0], g->centre[1], g->centre[2])));
@@ -171,7 +170,8 @@ static struct v3 shading_normal(const struct rgeom *g, const struct RTCHit16 *h,
         const float *n0 = g->mesh.nrm + 3 * ix[0], *n1 = g->mesh.nrm + 3 * ix[1];
         const float *n2 = g->mesh.nrm + 3 * ix[2];
         float b1 = h->u[i], b2 = h->v[i], b0 = 1 - b1 - b2;
-        return v3_norm(v3(b0 * n0[0] + b1 * n1[0] + b2 * n2[0], b0 * n0[1] + b1 * n1[1] + b2 * n2[1],
+        return v3_norm(v3(b0 * n0[0] + b1 * n1[0] + b2 * n2[0],
+                          b0 * n0[1] + b1 * n1[1] + b2 * n2[1],
                           b0 * n0[2] + b1 * n1[2] + b2 * n2[2]));
 }
 
@@ -180,8 +180,8 @@ static void footprint(const struct fctx *c, const struct rgeom *g, int pix, stru
                       struct v3 ng, float fp[4])
 {
         int x = pix % c->w, y = pix / c->w;
-        int nb[2] = { x + 1 < c->w ? pix + 1 : pix - 1, y + 1 < c->h ? pix + c->w : pix - c->w };
-        float sign[2] = { x + 1 < c->w ? 1.0f : -1.0f, y + 1 < c->h ? 1.0f : -1.0f };
+        int nb[2] = {x + 1 < c->w ? pix + 1 : pix - 1, y + 1 < c->h ? pix + c->w : pix - c->w};
+        float sign[2] = {x + 1 < c->w ? 1.0f : -1.0f, y + 1 < c->h ? 1.0f : -1.0f};
         float num = v3_dot(v3_sub(p, c->org), ng);
 
         for (int k = 0; k < 2; k++) {
@@ -203,17 +203,21 @@ static void resolve_lane(const struct fctx *c, const struct RTCRayHit16 *rh, int
         struct v3 o = v3(rh->ray.org_x[i], rh->ray.org_y[i], rh->ray.org_z[i]);
         struct v3 p = v3_madd(o, d, rh->ray.tfar[i]);
         struct v3 ng = v3_norm(v3(rh->hit.Ng_x[i], rh->hit.Ng_y[i], rh->hit.Ng_z[i]));
-        struct v3 n = shading_normal(g, &rh->hit, i, p, ng), ax, pl = local_pt(g, p);
-        float uv[2];
+        struct v3 n = shading_normal(g, &rh->hit, i, p, ng), ax, pl = p;
+        const struct rmat *m = &c->s->mats[g->mat];
+        float uv[2] = {0, 0};
 
         if (v3_dot(ng, d) > 0)
                 ng = v3_scale(ng, -1);
         if (v3_dot(n, ng) < 0)
                 n = v3_scale(n, -1);
-        uv_of(g, &rh->hit, i, pl, uv);
-        surf_eval(&c->s->mats[g->mat], uv[0], uv[1], &h->sf[i]);
+        if (g->board || m->albedo_map || m->ks_map || m->alpha_map) {
+                pl = local_pt(g, p);
+                uv_of(g, &rh->hit, i, pl, uv);
+        }
+        surf_eval(m, uv[0], uv[1], &h->sf[i]);
         if (g->board) {
-                float fp[4] = { 0 };
+                float fp[4] = {0};
                 bool back = v3_dot(d, v3(g->axis[0], g->axis[1], g->axis[2])) < 0;
                 if (pix >= 0)
                         footprint(c, g, pix, p, ng, fp);
@@ -282,6 +286,12 @@ static void shade_laser(const struct fctx *c, struct hits *h)
         PACKET_MASK on[LANES];
         float dist[LANES], g[LANES];
 
+        int any = 0;
+
+        for (int i = 0; i < LANES; i++) /* most packets miss the sheet: test before filling */
+                any |= h->on[i] && fabsf(v3_dot(c->lz_n, h->p[i])) <= 5 * c->lz_sigma;
+        if (!any)
+                return;
         for (int i = 0; i < LANES; i++) {
                 float dp = h->on[i] ? v3_dot(c->lz_n, h->p[i]) : INFINITY;
                 struct v3 l;
@@ -340,7 +350,7 @@ static float background(const struct fctx *c, struct v3 o, struct v3 d)
         if (c->s->dome.radiance <= 0)
                 return 0;
         struct v3 w = m3_mul(c->Rw, d);
-        double wd[3] = { w.x, w.y, w.z };
+        double wd[3] = {w.x, w.y, w.z};
         return (float)dome_radiance(&c->s->dome, wd);
 }
 
@@ -357,7 +367,9 @@ static void shade_mirrors(const struct fctx *c, struct hits *h, int depth)
         float w[LANES];
 
         for (int i = 0; i < LANES; i++) {
-                w[i] = h->on[i] ? mirror_weight(&h->sf[i], v3_dot(h->n[i], h->v[i])) : 0;
+                w[i] = h->on[i] && h->sf[i].model == SPEC_MIRROR
+                               ? mirror_weight(&h->sf[i], v3_dot(h->n[i], h->v[i]))
+                               : 0;
                 valid[i] = w[i] > 0 && depth < MAX_DEPTH ? -1 : 0;
                 nopix[i] = -1;
                 if (!valid[i]) {
@@ -389,8 +401,8 @@ static void shade_packet(const struct fctx *c, struct RTCRayHit16 *rh, const int
                         continue;
                 if (rh->hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) {
                         struct v3 o = v3(rh->ray.org_x[i], rh->ray.org_y[i], rh->ray.org_z[i]);
-                        float b = background(c, o, v3(rh->ray.dir_x[i], rh->ray.dir_y[i],
-                                                      rh->ray.dir_z[i]));
+                        float b = background(
+                                c, o, v3(rh->ray.dir_x[i], rh->ray.dir_y[i], rh->ray.dir_z[i]));
                         h->L[i][0] = h->L[i][1] = h->L[i][2] = b;
                         continue;
                 }
@@ -405,8 +417,8 @@ static void shade_packet(const struct fctx *c, struct RTCRayHit16 *rh, const int
 }
 
 /* Electrons of each pixel of a packet as the sensor format samples them. */
-static int packet_electrons(const struct fctx *c, const struct hits *h, const int *valid,
-                            int x0, int y0, uint64_t *pix, float *e)
+static int packet_electrons(const struct fctx *c, const struct hits *h, const int *valid, int x0,
+                            int y0, uint64_t *pix, float *e)
 {
         enum sensor_format fmt = c->s->sensor.format;
         int n = 0, nch = fmt == FMT_RGB ? 3 : 1;
@@ -438,15 +450,18 @@ static void write_packet(const struct fctx *c, const struct hits *h, const int *
         for (int i = 0; i < LANES; i++)
                 n += valid[i] != 0;
         sensor_pixels(&c->sensor, pix, e, n, nch, dn);
-        for (int k = 0; k < n; k++) {
-                int x = (int)(pix[k] % c->w), y = (int)(pix[k] / c->w);
+        for (int i = 0, k = 0; i < LANES; i++) {
+                int x = x0 + (i & 3), y = y0 + (i >> 2);
                 uint8_t *row = c->out->data + (size_t)y * c->out->stride;
+                if (!valid[i])
+                        continue;
                 for (int ch = 0; ch < nch; ch++) {
                         if (c->out->bits == 8)
                                 row[x * nch + ch] = (uint8_t)dn[k * nch + ch];
                         else
                                 ((uint16_t *)row)[x * nch + ch] = dn[k * nch + ch];
                 }
+                k++;
         }
 }
 
@@ -654,7 +669,6 @@ static int setup_frame(struct fctx *c, const struct sim_expose *exp, uint64_t se
         int exposure = exp && exp->exposure_us > 0 ? exp->exposure_us : cc->exposure_us;
         int bits = exp && exp->bits ? exp->bits : cc->bits ? cc->bits : 8;
         double gain = exp && exp->gain > 0 ? exp->gain : cc->gain > 0 ? cc->gain : 1;
-        double maxdn = bits == 8 ? 255 : 65535;
         int r;
 
         if (bits != 8 && bits != 16)
@@ -669,10 +683,9 @@ static int setup_frame(struct fctx *c, const struct sim_expose *exp, uint64_t se
         out->gain = gain;
         out->seq = seq;
         c->escale = exposure * 1e-6 * se->response;
-        c->sensor = (struct sensor_rt){ se, c->s->noise_q,
-                                        sensor_frame_key(c->s->seed, seq, (uint32_t)c->cam),
-                                        gain * maxdn / se->full_well, se->black * maxdn, maxdn,
-                                        exp && exp->no_noise };
+        sensor_setup(&c->sensor, se, c->s->noise_q,
+                     sensor_frame_key(c->s->seed, seq, (uint32_t)c->cam), gain, bits,
+                     exp && exp->no_noise);
         c->out = out;
         return 0;
 }

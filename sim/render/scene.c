@@ -17,9 +17,9 @@ struct pose {
 
 static int parse_pose(struct yconf *y, struct fy_node *parent, struct pose *p)
 {
-        static const char *const keys[] = { "translate", "rotate_x", "rotate_y", "rotate_z", NULL };
+        static const char *const keys[] = {"translate", "rotate_x", "rotate_y", "rotate_z", NULL};
         struct fy_node *map = yconf_get(parent, "pose");
-        double ang[3] = { 0 }, Rx[9], Ry[9], Rz[9], Ryx[9];
+        double ang[3] = {0}, Rx[9], Ry[9], Rz[9], Ryx[9];
         int r;
 
         memset(p->t, 0, sizeof(p->t));
@@ -34,8 +34,8 @@ static int parse_pose(struct yconf *y, struct fy_node *parent, struct pose *p)
         /* R = Rz * Ry * Rx (x first) */
         double cx = cos(ang[0] * M_PI / 180), sx = sin(ang[0] * M_PI / 180);
         double cy = cos(ang[1] * M_PI / 180), sy = sin(ang[1] * M_PI / 180);
-        double rx[9] = { 1, 0, 0, 0, cx, -sx, 0, sx, cx };
-        double ry[9] = { cy, 0, sy, 0, 1, 0, -sy, 0, cy };
+        double rx[9] = {1, 0, 0, 0, cx, -sx, 0, sx, cx};
+        double ry[9] = {cy, 0, sy, 0, 1, 0, -sy, 0, cy};
         memcpy(Rx, rx, sizeof(Rx));
         memcpy(Ry, ry, sizeof(Ry));
         m3d_rot_z(ang[2], Rz);
@@ -92,12 +92,11 @@ static int load_map(struct sim_scene *s, struct yconf *y, struct fy_node *map, c
         return 1;
 }
 
-static int parse_specular(struct sim_scene *s, struct yconf *y, struct fy_node *map,
-                          struct rmat *m)
+static int parse_specular(struct sim_scene *s, struct yconf *y, struct fy_node *map, struct rmat *m)
 {
-        static const char *const keys[] = { "model", "ks", "alpha", "alpha_x", "alpha_y", "ior",
-                                            "ks_map", "alpha_map", NULL };
-        static const char *const models[] = { "none", "ward", "beckmann", "mirror" };
+        static const char *const keys[] = {"model", "ks",     "alpha",     "alpha_x", "alpha_y",
+                                           "ior",   "ks_map", "alpha_map", NULL};
+        static const char *const models[] = {"none", "ward", "beckmann", "mirror"};
         char model[16] = "beckmann";
         double ks = 0.2, a = 0.2, ax = -1, ay = -1, ior = 0;
         int r;
@@ -131,14 +130,14 @@ static int parse_specular(struct sim_scene *s, struct yconf *y, struct fy_node *
 static int parse_material(struct sim_scene *s, struct yconf *y, struct fy_node *parent,
                           struct rmat *m)
 {
-        static const char *const keys[] = { "albedo", "albedo_map", "specular", NULL };
+        static const char *const keys[] = {"albedo", "albedo_map", "specular", NULL};
         struct fy_node *map = yconf_get(parent, "material"), *spec;
         int r;
 
         if (!map)
                 return 0;
-        if ((r = yconf_check_keys(y, map, keys)) < 0 || (r = parse_rgb(y, map, "albedo",
-                                                                        m->albedo)) < 0 ||
+        if ((r = yconf_check_keys(y, map, keys)) < 0 ||
+            (r = parse_rgb(y, map, "albedo", m->albedo)) < 0 ||
             (r = load_map(s, y, map, "albedo_map", true, &m->albedo_map)) < 0)
                 return r;
         spec = yconf_get(map, "specular");
@@ -155,8 +154,8 @@ static struct rgeom *new_geom(struct sim_scene *s, enum geom_kind kind)
         memset(g, 0, sizeof(*g));
         g->kind = kind;
         g->mat = s->n_mats++;
-        s->mats[g->mat] = (struct rmat){ .model = SPEC_NONE, .albedo = { 0.5f, 0.5f, 0.5f },
-                                         .ax = 0.2f, .ay = 0.2f, .f0 = 1 };
+        s->mats[g->mat] = (struct rmat){
+                .model = SPEC_NONE, .albedo = {0.5f, 0.5f, 0.5f}, .ax = 0.2f, .ay = 0.2f, .f0 = 1};
         return g;
 }
 
@@ -175,15 +174,15 @@ static void place(struct rgeom *g, const struct pose *p)
         if (g->kind == GEOM_MESH) {
                 mesh_transform(&g->mesh, p->R, p->t);
         } else {
-                double c[3] = { 0, 0, g->radius }, q[3];
+                double c[3] = {0, 0, g->radius}, q[3];
                 m3d_apply(p->R, c, q);
                 for (int i = 0; i < 3; i++)
                         g->centre[i] = (float)(q[i] + p->t[i]);
         }
 }
 
-static int build_shape(struct sim_scene *s, struct yconf *y, struct fy_node *map,
-                       struct rgeom *g, const char *shape, double size, long res)
+static int build_shape(struct sim_scene *s, struct yconf *y, struct fy_node *map, struct rgeom *g,
+                       const char *shape, double size, long res)
 {
         char rel[RIG_PATH_MAX], path[2 * RIG_PATH_MAX], dir[RIG_PATH_MAX], err[512];
         int r = 0;
@@ -223,8 +222,8 @@ static int build_shape(struct sim_scene *s, struct yconf *y, struct fy_node *map
 
 static int parse_object(struct sim_scene *s, struct yconf *y, struct fy_node *map)
 {
-        static const char *const keys[] = { "shape", "size", "resolution", "path", "smooth",
-                                            "pose", "material", NULL };
+        static const char *const keys[] = {"shape",  "size", "resolution", "path",
+                                           "smooth", "pose", "material",   NULL};
         char shape[16] = "sphere";
         double size = 0;
         long res = 0;
@@ -252,11 +251,11 @@ static int parse_object(struct sim_scene *s, struct yconf *y, struct fy_node *ma
         return 0;
 }
 
-static int parse_board(struct sim_scene *s, struct yconf *y, struct fy_node *map,
-                       struct rgeom *g, bool charuco)
+static int parse_board(struct sim_scene *s, struct yconf *y, struct fy_node *map, struct rgeom *g,
+                       bool charuco)
 {
         struct board *b = &s->boards[s->n_boards++];
-        double sq[2] = { 0 }, square = 20, marker = 0, margin = -1, white = 0.85, black = 0.03;
+        double sq[2] = {0}, square = 20, marker = 0, margin = -1, white = 0.85, black = 0.03;
         long first = 0;
         int r;
 
@@ -272,10 +271,15 @@ static int parse_board(struct sim_scene *s, struct yconf *y, struct fy_node *map
             sq[1] != floor(sq[1]))
                 return yconf_error(y, yconf_get(map, "squares"), "squares",
                                    "expected [columns, rows], integers in [2, 100]");
-        *b = (struct board){ charuco ? BOARD_CHARUCO : BOARD_CHESS, (int)sq[0], (int)sq[1],
-                             (float)square, (float)(marker > 0 ? marker : 0.75 * square),
-                             (float)(margin >= 0 ? margin : square), (float)white, (float)black,
-                             (int)first };
+        *b = (struct board){charuco ? BOARD_CHARUCO : BOARD_CHESS,
+                            (int)sq[0],
+                            (int)sq[1],
+                            (float)square,
+                            (float)(marker > 0 ? marker : 0.75 * square),
+                            (float)(margin >= 0 ? margin : square),
+                            (float)white,
+                            (float)black,
+                            (int)first};
         if (charuco && b->marker >= b->square)
                 return yconf_error(y, map, "marker", "must be smaller than the square");
         if (charuco && b->first_id + (b->nx * b->ny) / 2 > 50)
@@ -289,9 +293,9 @@ static int parse_board(struct sim_scene *s, struct yconf *y, struct fy_node *map
 
 static int parse_target(struct sim_scene *s, struct yconf *y, struct fy_node *map)
 {
-        static const char *const keys[] = { "type", "squares", "square", "marker", "margin",
-                                            "white", "black", "first_id", "size", "reflectance",
-                                            "pose", NULL };
+        static const char *const keys[] = {"type",   "squares",     "square", "marker",
+                                           "margin", "white",       "black",  "first_id",
+                                           "size",   "reflectance", "pose",   NULL};
         char type[16] = "";
         double size = 50, refl = 0.9;
         struct pose p;
@@ -313,8 +317,8 @@ static int parse_target(struct sim_scene *s, struct yconf *y, struct fy_node *ma
                 g->radius = (float)size / 2;
                 g->uvmap = UV_SPHERE;
                 g->uv_size = (float)size;
-                s->mats[g->mat] = (struct rmat){ .model = SPEC_MIRROR, .ks = (float)refl,
-                                                 .ax = 1, .ay = 1, .f0 = 1 };
+                s->mats[g->mat] = (struct rmat){
+                        .model = SPEC_MIRROR, .ks = (float)refl, .ax = 1, .ay = 1, .f0 = 1};
         } else {
                 return yconf_error(y, yconf_get(map, "type"), "type",
                                    "expected chessboard, charuco or mirror_sphere");
@@ -353,9 +357,9 @@ static int parse_targets(struct sim_scene *s, struct yconf *y, struct fy_node *s
 
 static int parse_turntable(struct sim_scene *s, struct yconf *y, struct fy_node *map)
 {
-        static const char *const keys[] = { "radius", "material", "albedo", NULL };
+        static const char *const keys[] = {"radius", "material", "albedo", NULL};
         double radius = 150;
-        struct pose p = { { 1, 0, 0, 0, 1, 0, 0, 0, 1 }, { 0, 0, 0 } };
+        struct pose p = {{1, 0, 0, 0, 1, 0, 0, 0, 1}, {0, 0, 0}};
         struct rgeom *g;
         int r;
 
@@ -382,14 +386,14 @@ static int parse_turntable(struct sim_scene *s, struct yconf *y, struct fy_node 
 
 static int parse_dome(struct sim_scene *s, struct yconf *y, struct fy_node *root)
 {
-        static const char *const keys[] = { "radiance", "zenith_ratio", "ground", "threshold",
-                                            "max_elements", NULL };
+        static const char *const keys[] = {"radiance",  "zenith_ratio", "ground",
+                                           "threshold", "max_elements", NULL};
         struct fy_node *map = yconf_get(root, "dome");
         struct dome *d = &s->dome;
         long maxel = 256;
         int r;
 
-        *d = (struct dome){ .zenith_ratio = 1, .threshold = 1.0 / 64 };
+        *d = (struct dome){.zenith_ratio = 1, .threshold = 1.0 / 64};
         if (!root)
                 return 0;
         if ((r = yconf_double(y, root, "ambient", 0, 1e9, &d->radiance)) < 0)
@@ -407,7 +411,7 @@ static int parse_dome(struct sim_scene *s, struct yconf *y, struct fy_node *root
 
 static int parse_lamps(struct sim_scene *s, struct yconf *y, struct fy_node *map)
 {
-        static const char *const keys[] = { "radius", "samples", NULL };
+        static const char *const keys[] = {"radius", "samples", NULL};
         long n = 1;
         int r;
 
@@ -424,13 +428,13 @@ static int parse_lamps(struct sim_scene *s, struct yconf *y, struct fy_node *map
 
 static int parse_sensor(struct sim_scene *s, struct yconf *y, struct fy_node *map)
 {
-        static const char *const keys[] = { "response", "full_well", "read_noise", "black_level",
-                                            "shot_noise", "format", NULL };
+        static const char *const keys[] = {"response",   "full_well", "read_noise", "black_level",
+                                           "shot_noise", "format",    NULL};
         struct sensor *se = &s->sensor;
         char fmt[16] = "rgb";
         int r;
 
-        *se = (struct sensor){ 5e5, 10000, 3, 0, true, FMT_RGB };
+        *se = (struct sensor){5e5, 10000, 3, 0, true, FMT_RGB};
         if (!map)
                 return 0;
         if ((r = yconf_check_keys(y, map, keys)) < 0 ||
@@ -442,8 +446,9 @@ static int parse_sensor(struct sim_scene *s, struct yconf *y, struct fy_node *ma
             (r = yconf_str(y, map, "format", fmt, sizeof(fmt))) < 0)
                 return r;
         if (!strcmp(fmt, "rgb") || !strcmp(fmt, "mono") || !strcmp(fmt, "rggb"))
-                se->format = fmt[0] == 'm' ? FMT_MONO : fmt[1] == 'g' && fmt[2] == 'g' ? FMT_RGGB
-                                                                                         : FMT_RGB;
+                se->format = fmt[0] == 'm'                    ? FMT_MONO
+                             : fmt[1] == 'g' && fmt[2] == 'g' ? FMT_RGGB
+                                                              : FMT_RGB;
         else
                 return yconf_error(y, yconf_get(map, "format"), "format",
                                    "expected rgb, mono or rggb");
@@ -452,8 +457,8 @@ static int parse_sensor(struct sim_scene *s, struct yconf *y, struct fy_node *ma
 
 int scene_parse(struct sim_scene *s, char *err, size_t errlen)
 {
-        static const char *const keys[] = { "seed", "threads", "object", "targets", "turntable",
-                                            "ambient", "dome", "lamps", "sensor", NULL };
+        static const char *const keys[] = {"seed",    "threads", "object", "targets", "turntable",
+                                           "ambient", "dome",    "lamps",  "sensor",  NULL};
         struct yconf y = s->rc->yc;
         struct fy_node *root = rigconf_scene(s->rc), *n;
         long seed = 0, threads = 0;
@@ -472,8 +477,8 @@ int scene_parse(struct sim_scene *s, char *err, size_t errlen)
         if ((n = yconf_get(root, "targets")) && (r = parse_targets(s, &y, n)) < 0)
                 return r;
         if ((r = parse_turntable(s, &y, yconf_get(root, "turntable"))) < 0 ||
-            (r = parse_dome(s, &y, root)) < 0 || (r = parse_lamps(s, &y, yconf_get(root,
-                                                                                   "lamps"))) < 0 ||
+            (r = parse_dome(s, &y, root)) < 0 ||
+            (r = parse_lamps(s, &y, yconf_get(root, "lamps"))) < 0 ||
             (r = parse_sensor(s, &y, yconf_get(root, "sensor"))) < 0)
                 return r;
         return 0;

@@ -26,17 +26,17 @@ static uint64_t mix64(uint64_t z)
 /* Acklam's rational approximation of the inverse normal CDF (|error| < 1.2e-9). */
 static double norm_quantile(double p)
 {
-        static const double a[] = { -3.969683028665376e+01, 2.209460984245205e+02,
-                                    -2.759285104469687e+02, 1.383577518672690e+02,
-                                    -3.066479806614716e+01, 2.506628277459239e+00 };
-        static const double b[] = { -5.447609879822406e+01, 1.615858368580409e+02,
-                                    -1.556989798598866e+02, 6.680131188771972e+01,
-                                    -1.328068155288572e+01 };
-        static const double c[] = { -7.784894002430293e-03, -3.223964580411365e-01,
-                                    -2.400758277161838e+00, -2.549732539343734e+00,
-                                    4.374664141464968e+00, 2.938163982698783e+00 };
-        static const double d[] = { 7.784695709041462e-03, 3.224671290700398e-01,
-                                    2.445134137142996e+00, 3.754408661907416e+00 };
+        static const double a[] = {-3.969683028665376e+01, 2.209460984245205e+02,
+                                   -2.759285104469687e+02, 1.383577518672690e+02,
+                                   -3.066479806614716e+01, 2.506628277459239e+00};
+        static const double b[] = {-5.447609879822406e+01, 1.615858368580409e+02,
+                                   -1.556989798598866e+02, 6.680131188771972e+01,
+                                   -1.328068155288572e+01};
+        static const double c[] = {-7.784894002430293e-03, -3.223964580411365e-01,
+                                   -2.400758277161838e+00, -2.549732539343734e+00,
+                                   4.374664141464968e+00,  2.938163982698783e+00};
+        static const double d[] = {7.784695709041462e-03, 3.224671290700398e-01,
+                                   2.445134137142996e+00, 3.754408661907416e+00};
         double q, r;
 
         if (p < 0.02425 || p > 1 - 0.02425) {
@@ -74,7 +74,7 @@ uint64_t sensor_frame_key(uint64_t seed, uint64_t seq, uint32_t cam)
 }
 
 /* Poisson deviate of small mean by inversion of the CDF. */
-static double poisson_small(uint64_t h, double mean)
+static int poisson_small(uint64_t h, double mean)
 {
         double u = (h >> 11) * (1.0 / 9007199254740992.0), p = exp(-mean), f = p;
         int k = 0;
@@ -87,24 +87,23 @@ static double poisson_small(uint64_t h, double mean)
         return k;
 }
 
-/* One sample: electrons x, normal deviate g, hash h for the Poisson branch. Written
- * without data-dependent branches on the common paths (they mispredict across edges). */
-static double sample_dn(const struct sensor_rt *rt, double x, float g, uint64_t h)
+/* One sample: electrons x, normal deviate g, hash h for the Poisson branch. Float and
+ * without data-dependent branches on the common paths: this runs for every sample. */
+static uint16_t sample_dn(const struct sensor_rt *rt, float x, float g, uint64_t h)
 {
-        const struct sensor *se = rt->se;
-        double fw = se->full_well, r = se->read_noise, xs = x < fw ? x : fw, var, v;
+        float fw = rt->full_well, xs = x < fw ? x : fw, var, v;
 
-        var = se->shot_noise && x < fw ? xs : 0; /* shot and read noise: one Gaussian */
-        if (se->shot_noise && x > 0 && x < 16 && !rt->ideal) {
-                xs = poisson_small(mix64(h), x);
+        var = rt->shot_noise && x < fw ? xs : 0; /* shot and read noise: one Gaussian */
+        if (rt->shot_noise && x > 0 && x < 16 && !rt->ideal) {
+                xs = (float)poisson_small(mix64(h), x);
                 var = 0;
         }
-        v = (rt->ideal ? xs : xs + sqrt(var + r * r) * g) * rt->k + rt->b;
-        return v <= 0 ? 0 : v >= rt->maxdn ? rt->maxdn : (double)(int64_t)(v + 0.5);
+        v = (rt->ideal ? xs : xs + sqrtf(var + rt->read2) * g) * rt->k + rt->b;
+        return v <= 0 ? 0 : v >= rt->maxdn ? (uint16_t)rt->maxdn : (uint16_t)(v + 0.5f);
 }
 
-void sensor_pixels(const struct sensor_rt *rt, const uint64_t *pix, const float *e, int n,
-                   int nch, uint16_t *dn)
+void sensor_pixels(const struct sensor_rt *rt, const uint64_t *pix, const float *e, int n, int nch,
+                   uint16_t *dn)
 {
         uint64_t h[SENSOR_MAX_PIXELS];
 
@@ -112,7 +111,21 @@ void sensor_pixels(const struct sensor_rt *rt, const uint64_t *pix, const float 
                 h[i] = mix64(rt->key ^ (pix[i] * 0x9e3779b97f4a7c15ULL));
         for (int i = 0; i < n; i++)
                 for (int c = 0; c < nch; c++)
-                        dn[i * nch + c] = (uint16_t)sample_dn(rt, e[i * nch + c],
-                                                              rt->q[(h[i] >> (16 * c)) & (NQ - 1)],
-                                                              h[i] + 1 + c);
+                        dn[i * nch + c] =
+                                sample_dn(rt, e[i * nch + c], rt->q[(h[i] >> (16 * c)) & (NQ - 1)],
+                                          h[i] + 1 + c);
+}
+
+void sensor_setup(struct sensor_rt *rt, const struct sensor *se, const float *q, uint64_t key,
+                  double gain, int bits, bool ideal)
+{
+        rt->q = q;
+        rt->key = key;
+        rt->maxdn = bits == 8 ? 255 : 65535;
+        rt->k = (float)(gain * rt->maxdn / se->full_well);
+        rt->b = (float)(se->black * rt->maxdn);
+        rt->full_well = (float)se->full_well;
+        rt->read2 = (float)(se->read_noise * se->read_noise);
+        rt->shot_noise = se->shot_noise;
+        rt->ideal = ideal;
 }

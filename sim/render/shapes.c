@@ -13,7 +13,7 @@ int mesh_alloc(struct mesh *m, size_t nv, size_t nt, bool normals, bool uvs)
         memset(m, 0, sizeof(*m));
         m->nv = nv;
         m->nt = nt;
-        m->pos = calloc(nv * 3 + 1, sizeof(float)); /* +1: Embree reads 16 bytes */
+        m->pos = calloc(nv * 3 + 1, sizeof(float));    /* +1: Embree reads 16 bytes */
         m->idx = calloc(nt * 3 + 1, sizeof(uint32_t)); /* +1: Embree reads 16 bytes */
         m->nrm = normals ? calloc(nv * 3, sizeof(float)) : NULL;
         m->uv = uvs ? calloc(nv * 2, sizeof(float)) : NULL;
@@ -121,7 +121,7 @@ int shape_gem(float size, int facets, struct mesh *m)
         int n = MAX(facets, 5), r;
         float rg = size / 2, rt = 0.55f * rg, rc = 0.08f * rg;
         float zc = 0, zg = 0.43f * size, zt = 0.59f * size;
-        float ring[4][2] = { { rc, zc }, { rg, zg }, { rt, zt }, { 0, zt } };
+        float ring[4][2] = {{rc, zc}, {rg, zg}, {rt, zt}, {0, zt}};
         size_t k = 0;
 
         r = mesh_alloc(m, 4 * (size_t)n + 2, 6 * (size_t)n + 2 * n, false, false);
@@ -130,8 +130,8 @@ int shape_gem(float size, int facets, struct mesh *m)
         for (int i = 0; i < 4; i++)
                 for (int j = 0; j < n; j++) {
                         double ph = 2 * M_PI * (j + (i == 2 ? 0.5 : 0)) / n;
-                        set3(m->pos, (size_t)i * n + j, ring[i][0] * cos(ph),
-                             ring[i][0] * sin(ph), ring[i][1]);
+                        set3(m->pos, (size_t)i * n + j, ring[i][0] * cos(ph), ring[i][0] * sin(ph),
+                             ring[i][1]);
                 }
         set3(m->pos, 4 * (size_t)n, 0, 0, zc);
         set3(m->pos, 4 * (size_t)n + 1, 0, 0, zt);
@@ -141,7 +141,7 @@ int shape_gem(float size, int facets, struct mesh *m)
                 tri(m, &k, j, n + j1, n + j);
                 tri(m, &k, n + j, n + j1, 2 * n + j); /* crown */
                 tri(m, &k, n + j1, 2 * n + j1, 2 * n + j);
-                tri(m, &k, 4 * n, j1, j);             /* culet */
+                tri(m, &k, 4 * n, j1, j);                     /* culet */
                 tri(m, &k, 4 * n + 1, 2 * n + j, 2 * n + j1); /* table */
         }
         m->nt = k;
@@ -238,7 +238,7 @@ int mesh_smooth_normals(struct mesh *m)
 
 void mesh_fit(struct mesh *m, float size)
 {
-        float lo[3] = { INFINITY, INFINITY, INFINITY }, hi[3] = { -INFINITY, -INFINITY, -INFINITY };
+        float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
         float ext = 0, s;
 
         for (size_t i = 0; i < m->nv; i++)
@@ -259,7 +259,7 @@ void mesh_fit(struct mesh *m, float size)
 void mesh_transform(struct mesh *m, const double R[9], const double t[3])
 {
         for (size_t i = 0; i < m->nv; i++) {
-                double p[3] = { m->pos[3 * i], m->pos[3 * i + 1], m->pos[3 * i + 2] }, q[3];
+                double p[3] = {m->pos[3 * i], m->pos[3 * i + 1], m->pos[3 * i + 2]}, q[3];
                 m3d_apply(R, p, q);
                 for (int c = 0; c < 3; c++)
                         m->pos[3 * i + c] = (float)(q[c] + t[c]);

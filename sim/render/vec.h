@@ -10,7 +10,7 @@ struct v3 {
 
 static inline struct v3 v3(float x, float y, float z)
 {
-        return (struct v3){ x, y, z };
+        return (struct v3){x, y, z};
 }
 
 static inline struct v3 v3_add(struct v3 a, struct v3 b)
@@ -66,8 +66,8 @@ static inline void m3d_mul(const double a[9], const double b[9], double c[9])
 {
         for (int i = 0; i < 3; i++)
                 for (int j = 0; j < 3; j++)
-                        c[i * 3 + j] = a[i * 3] * b[j] + a[i * 3 + 1] * b[3 + j] +
-                                       a[i * 3 + 2] * b[6 + j];
+                        c[i * 3 + j] =
+                                a[i * 3] * b[j] + a[i * 3 + 1] * b[3 + j] + a[i * 3 + 2] * b[6 + j];
 }
 
 static inline void m3d_apply(const double m[9], const double a[3], double out[3])
@@ -80,7 +80,7 @@ static inline void m3d_apply(const double m[9], const double a[3], double out[3]
 static inline void m3d_rot_z(double deg, double m[9])
 {
         double a = deg * M_PI / 180.0, c = cos(a), s = sin(a);
-        double r[9] = { c, -s, 0, s, c, 0, 0, 0, 1 };
+        double r[9] = {c, -s, 0, s, c, 0, 0, 0, 1};
         for (int i = 0; i < 9; i++)
                 m[i] = r[i];
 }

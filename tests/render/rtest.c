@@ -67,7 +67,7 @@ double rt_px(const struct gn_frame *f, int x, int y, int ch)
 void rt_dump(const struct gn_frame *f, const char *name)
 {
         const char *dir = getenv("RTEST_DUMP");
-        struct spng_ihdr ih = { 0 };
+        struct spng_ihdr ih = {0};
         char path[512];
         spng_ctx *c;
         FILE *o;
@@ -81,8 +81,8 @@ void rt_dump(const struct gn_frame *f, const char *name)
                 ih.width = f->width;
                 ih.height = f->height;
                 ih.bit_depth = 8;
-                ih.color_type = f->channels == 3 ? SPNG_COLOR_TYPE_TRUECOLOR
-                                                 : SPNG_COLOR_TYPE_GRAYSCALE;
+                ih.color_type =
+                        f->channels == 3 ? SPNG_COLOR_TYPE_TRUECOLOR : SPNG_COLOR_TYPE_GRAYSCALE;
                 spng_set_png_file(c, o);
                 spng_set_ihdr(c, &ih);
                 spng_encode_image(c, f->data, gn_frame_bytes(f), SPNG_FMT_PNG,

@@ -15,7 +15,8 @@ static const char cams[] =
         "cameras:\n"
         "  - { name: c0, backend: sim, bus: frames, elevation: 25, distance: 420, azimuth: 0,\n"
         "      target: [0, 0, 60], width: 320, height: 240, fx: 380, fy: 376, cx: 161.2,\n"
-        "      cy: 118.9, distortion: [-0.12, 0.08, 0.0011, -0.0007, -0.02], exposure_us: 20000 }\n";
+        "      cy: 118.9, distortion: [-0.12, 0.08, 0.0011, -0.0007, -0.02], exposure_us: 20000 "
+        "}\n";
 static const char scene[] =
         "scene:\n"
         "  targets:\n"
@@ -77,7 +78,8 @@ static double measured_edge(const struct gn_frame *f, int vertical, double e, in
 static void scan(struct rtest *t, const struct sim_rig_state *st, const struct gn_frame *f,
                  int vertical, double *worst, int *n)
 {
-        int nlines = vertical ? 5 : 4, nrun = vertical ? 5 : 6, len = vertical ? f->height : f->width;
+        int nlines = vertical ? 5 : 4, nrun = vertical ? 5 : 6,
+            len = vertical ? f->height : f->width;
 
         for (int k = 1; k <= nlines; k++)
                 for (int at = 0; at < len; at++) {
@@ -110,8 +112,8 @@ static void scan(struct rtest *t, const struct sim_rig_state *st, const struct g
 int main(void)
 {
         struct rtest t;
-        struct sim_rig_state st = { .turntable_deg = 12, .lamp_on = { true } };
-        struct sim_expose ex = { .bits = 16, .no_noise = true };
+        struct sim_rig_state st = {.turntable_deg = 12, .lamp_on = {true}};
+        struct sim_expose ex = {.bits = 16, .no_noise = true};
         struct gn_frame f;
         double worst = 0;
         int n = 0;

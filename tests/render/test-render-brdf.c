@@ -10,10 +10,9 @@
 #define NT 600
 #define NP 600
 
-static struct surf make(enum spec_model m, float kd_albedo, float ks, float ax, float ay,
-                        float f0)
+static struct surf make(enum spec_model m, float kd_albedo, float ks, float ax, float ay, float f0)
 {
-        return (struct surf){ m, { kd_albedo, kd_albedo, kd_albedo }, ks, ax, ay, f0 };
+        return (struct surf){m, {kd_albedo, kd_albedo, kd_albedo}, ks, ax, ay, f0};
 }
 
 static struct v3 dir(double ct, double ph)
@@ -24,7 +23,7 @@ static struct v3 dir(double ct, double ph)
 
 static void test_ndf_normalised(void)
 {
-        const float as[][2] = { { 0.1f, 0.1f }, { 0.25f, 0.12f }, { 0.1f, 0.03f }, { 0.5f, 0.3f } };
+        const float as[][2] = {{0.1f, 0.1f}, {0.25f, 0.12f}, {0.1f, 0.03f}, {0.5f, 0.3f}};
 
         for (size_t k = 0; k < ELEMENTSOF(as); k++) {
                 struct surf s = make(SPEC_BECKMANN, 0, 1, as[k][0], as[k][1], 1);
@@ -33,10 +32,11 @@ static void test_ndf_normalised(void)
                 for (int i = 0; i < 4 * NT; i++)
                         for (int j = 0; j < NP; j++) {
                                 double u = (i + 0.5) / (4 * NT), th = u * u * M_PI / 2;
-                                double dth = 2 * u * M_PI / 2 / (4 * NT), ph = (j + 0.5) * 2 * M_PI / NP;
+                                double dth = 2 * u * M_PI / 2 / (4 * NT),
+                                       ph = (j + 0.5) * 2 * M_PI / NP;
                                 struct v3 h = dir(cos(th), ph);
-                                sum += beckmann_ndf(&s, h.z, h.x, h.y) * h.z * sin(th) * dth *
-                                       2 * M_PI / NP;
+                                sum += beckmann_ndf(&s, h.z, h.x, h.y) * h.z * sin(th) * dth * 2 *
+                                       M_PI / NP;
                         }
                 fprintf(stderr, "ndf alpha (%.2f, %.2f): integral %.5f\n", as[k][0], as[k][1], sum);
                 CHECK_NEAR(sum, 1, 2e-3);
@@ -45,7 +45,7 @@ static void test_ndf_normalised(void)
 
 static void test_reciprocity(void)
 {
-        const enum spec_model models[] = { SPEC_WARD, SPEC_BECKMANN };
+        const enum spec_model models[] = {SPEC_WARD, SPEC_BECKMANN};
         struct v3 n = v3(0, 0, 1), t = v3(1, 0, 0);
 
         for (int m = 0; m < 2; m++) {
@@ -79,7 +79,7 @@ static double albedo(const struct surf *s, double cos_v)
 
 static void test_energy(void)
 {
-        const double cv[] = { 1.0, 0.7, 0.3, 0.1 };
+        const double cv[] = {1.0, 0.7, 0.3, 0.1};
         struct surf ward = make(SPEC_WARD, 0, 1, 0.25f, 0.12f, 1);
         struct surf beck = make(SPEC_BECKMANN, 0, 1, 0.25f, 0.12f, 1);
         struct surf mix = make(SPEC_BECKMANN, 1, 0.5f, 0.3f, 0.3f, 1);
@@ -88,8 +88,8 @@ static void test_energy(void)
         for (size_t k = 0; k < ELEMENTSOF(cv); k++) {
                 double aw = albedo(&ward, cv[k]), ab = albedo(&beck, cv[k]);
                 double am = albedo(&mix, cv[k]), al = albedo(&lam, cv[k]);
-                fprintf(stderr, "cos %.1f: ward %.4f beckmann %.4f mixed %.4f lambert %.4f\n", cv[k],
-                        aw, ab, am, al);
+                fprintf(stderr, "cos %.1f: ward %.4f beckmann %.4f mixed %.4f lambert %.4f\n",
+                        cv[k], aw, ab, am, al);
                 CHECK(aw <= 1.005 && ab <= 1.005 && am <= 1.005);
                 CHECK_NEAR(al, 1, 5e-3);
                 if (cv[k] == 1.0)

@@ -22,10 +22,11 @@ static const char cams[] =
         "cameras:\n"
         "  - { name: c0, backend: sim, bus: frames, elevation: 25, distance: 420, azimuth: 0,\n"
         "      target: [0, 0, 60], width: 480, height: 360, fx: 560, fy: 555, cx: 241.2,\n"
-        "      cy: 178.9, distortion: [-0.12, 0.08, 0.0011, -0.0007, -0.02], exposure_us: 20000 }\n";
+        "      cy: 178.9, distortion: [-0.12, 0.08, 0.0011, -0.0007, -0.02], exposure_us: 20000 "
+        "}\n";
 
-static void geom(const struct rtest *t, const struct sim_rig_state *st, cv::Mat &K,
-                 cv::Mat &dist, cv::Mat &rvec, cv::Mat &tvec, struct sim_cam_geom *g)
+static void geom(const struct rtest *t, const struct sim_rig_state *st, cv::Mat &K, cv::Mat &dist,
+                 cv::Mat &rvec, cv::Mat &tvec, struct sim_cam_geom *g)
 {
         CHECK(sim_camera_geom(t->s, st, 0, g) == 0);
         K = (cv::Mat_<double>(3, 3) << g->fx, 0, g->cx, 0, g->fy, g->cy, 0, 0, 1);
@@ -39,8 +40,8 @@ static void geom(const struct rtest *t, const struct sim_rig_state *st, cv::Mat 
 static void test_projection(void)
 {
         struct rtest t;
-        struct sim_rig_state st = { 17, 0, -35, { true }, false };
-        struct sim_expose ex = { 0, 0, 8, true };
+        struct sim_rig_state st = {17, 0, -35, {true}, false};
+        struct sim_expose ex = {0, 0, 8, true};
         struct sim_cam_geom g;
         struct gn_frame f;
         struct sim_truth tr;
@@ -59,7 +60,7 @@ static void test_projection(void)
                                  rng.uniform(0.0, 120.0));
         cv::projectPoints(pts, rvec, tvec, K, dist, uv);
         for (size_t i = 0; i < pts.size(); i++) {
-                double p[3] = { pts[i].x, pts[i].y, pts[i].z }, q[2];
+                double p[3] = {pts[i].x, pts[i].y, pts[i].z}, q[2];
                 CHECK(sim_cam_project(&g, p, q) == 0);
                 CHECK_NEAR(q[0], uv[i].x, 1e-3);
                 CHECK_NEAR(q[1], uv[i].y, 1e-3);
@@ -122,7 +123,7 @@ static const char board_scene[] =
 static void test_charuco(void)
 {
         struct rtest t;
-        struct sim_rig_state st = { 0, 0, 0, { true }, false };
+        struct sim_rig_state st = {0, 0, 0, {true}, false};
         struct gn_frame f;
         char scene[512];
         std::vector<std::vector<cv::Point2f>> corners;
@@ -147,8 +148,8 @@ static void test_charuco(void)
                 CHECK(ids[k] >= 0 && ids[k] < 15 && board->ids[ids[k]] == ids[k]);
                 for (int c = 0; c < 4; c++) {
                         cv::Point3f p = board->objPoints[ids[k]][c];
-                        double e = cv::norm(cv::Point2d(corners[k][c]) -
-                                            board_px(&t, &st, p.x, p.y));
+                        double e =
+                                cv::norm(cv::Point2d(corners[k][c]) - board_px(&t, &st, p.x, p.y));
                         worst = std::max(worst, e);
                         CHECK(e < 0.4); /* ArUco corners are coarse; OpenCV's tutorial says so */
                 }
@@ -181,7 +182,7 @@ static void test_charuco(void)
 static void test_chessboard(void)
 {
         struct rtest t;
-        struct sim_rig_state st = { 0, 0, 0, { true }, false };
+        struct sim_rig_state st = {0, 0, 0, {true}, false};
         struct gn_frame f;
         char scene[512];
         std::vector<cv::Point2f> cc;
@@ -193,9 +194,9 @@ static void test_chessboard(void)
         rt_dump(&f, "chessboard");
         cv::Mat gray = gray_of(&f);
         CHECK(cv::findChessboardCorners(gray, cv::Size(5, 4), cc));
-        cv::cornerSubPix(gray, cc, cv::Size(5, 5), cv::Size(-1, -1),
-                         cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50,
-                                          1e-3));
+        cv::cornerSubPix(
+                gray, cc, cv::Size(5, 5), cv::Size(-1, -1),
+                cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-3));
         for (const auto &p : cc) { /* nearest inner corner of the board */
                 double best = 1e9;
                 for (int y = 1; y < 5; y++)

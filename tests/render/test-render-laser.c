@@ -31,7 +31,7 @@ static const char scene[] =
 /* Is the segment from the emitter to (PLATE_X, 0, z) blocked by the sphere (margin mm)? */
 static int blocked(double z, double margin)
 {
-        double e[3] = { 600, 0, 60 }, q[3] = { PLATE_X, 0, z }, c[3] = { 100, 0, 50 };
+        double e[3] = {600, 0, 60}, q[3] = {PLATE_X, 0, z}, c[3] = {100, 0, 50};
         double d[3], w[3], dd = 0, wd = 0, s, dist2 = 0;
 
         for (int i = 0; i < 3; i++) {
@@ -51,13 +51,13 @@ static int line_at_row(const struct sim_cam_geom *g, double v, double *u, double
 {
         double lo = 10, hi = 100, uv_lo[2], uv_hi[2], uv[2], m = 0;
 
-        sim_cam_project(g, (double[3]){ PLATE_X, 0, lo }, uv_lo);
-        sim_cam_project(g, (double[3]){ PLATE_X, 0, hi }, uv_hi);
+        sim_cam_project(g, (double[3]){PLATE_X, 0, lo}, uv_lo);
+        sim_cam_project(g, (double[3]){PLATE_X, 0, hi}, uv_hi);
         if ((uv_lo[1] - v) * (uv_hi[1] - v) > 0)
                 return 0;
         for (int it = 0; it < 80; it++) {
                 m = (lo + hi) / 2;
-                sim_cam_project(g, (double[3]){ PLATE_X, 0, m }, uv);
+                sim_cam_project(g, (double[3]){PLATE_X, 0, m}, uv);
                 if ((uv[1] - v) * (uv_lo[1] - v) > 0)
                         lo = m;
                 else
@@ -85,8 +85,8 @@ static double centroid(const struct gn_frame *f, int v, int u0, double *peak)
 int main(void)
 {
         struct rtest t;
-        struct sim_rig_state st = { .laser_on = true };
-        struct sim_expose ex = { .bits = 16, .no_noise = true };
+        struct sim_rig_state st = {.laser_on = true};
+        struct sim_expose ex = {.bits = 16, .no_noise = true};
         struct sim_cam_geom g;
         struct gn_frame f;
         double n[3], d, worst = 0;

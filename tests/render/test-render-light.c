@@ -14,7 +14,7 @@
 
 #define SENSOR "  sensor: { response: 8.0e6, full_well: 1.0e5, read_noise: 0, black_level: 0 }\n"
 
-static const struct sim_expose ideal16 = { .bits = 16, .no_noise = true };
+static const struct sim_expose ideal16 = {.bits = 16, .no_noise = true};
 
 /* Expected DN of radiance L with the sensor above (16 bit, 20 ms). */
 static double dn_of(double L)
@@ -26,7 +26,7 @@ static double dn_of(double L)
 static double ray_sphere(const struct sim_cam_geom *g, double u, double v, const double c[3],
                          double r, double p[3])
 {
-        double dc[3] = { (u - g->cx) / g->fx, (v - g->cy) / g->fy, 1 }, d[3], o[3], oc[3];
+        double dc[3] = {(u - g->cx) / g->fx, (v - g->cy) / g->fy, 1}, d[3], o[3], oc[3];
         double b = 0, cc = 0, dd = 0, disc, t;
 
         for (int i = 0; i < 3; i++) {
@@ -51,10 +51,10 @@ static double ray_sphere(const struct sim_cam_geom *g, double u, double v, const
 static void test_lambert_sphere(void)
 {
         struct rtest t;
-        struct sim_rig_state st = { .light_arm_deg = 25, .lamp_on = { true } };
+        struct sim_rig_state st = {.light_arm_deg = 25, .lamp_on = {true}};
         struct sim_cam_geom g;
         struct gn_frame f;
-        double lamp[3], c[3] = { 0, 0, 30 }, p[3], worst = 0;
+        double lamp[3], c[3] = {0, 0, 30}, p[3], worst = 0;
         char cams[512];
         int n = 0;
 
@@ -63,7 +63,8 @@ static void test_lambert_sphere(void)
                 "lamps:\n  - { name: l0, backend: modbus-coil, bus: relays, coil: 0, "
                 "elevation: 40, radius: 300, azimuth: 35, intensity: 1.0e5 }\n",
                 "", cams,
-                "scene:\n  object: { shape: sphere, size: 60, material: { albedo: [0.8, 0.5, 0.2] } }\n"
+                "scene:\n  object: { shape: sphere, size: 60, material: { albedo: [0.8, 0.5, 0.2] "
+                "} }\n"
                 "  turntable: { radius: 0 }\n" SENSOR);
         rt_render(&t, &st, &ideal16, 0, &f, 0, NULL);
         CHECK_INT(sim_camera_geom(t.s, &st, 0, &g), 0);
@@ -74,9 +75,9 @@ static void test_lambert_sphere(void)
                 for (int u = 1; u < f.width - 1; u++) {
                         double q[3], l[3], nrm[3], d2 = 0, nl = 0, ok = 1;
                         for (int k = 0; k < 4; k++) /* keep 1 px off the silhouette */
-                                ok = ok && ray_sphere(&g, u + (k & 1 ? 1 : -1) * (k < 2),
-                                                      v + (k & 1 ? 1 : -1) * (k >= 2), c, 30,
-                                                      q) > 0;
+                                ok = ok &&
+                                     ray_sphere(&g, u + (k & 1 ? 1 : -1) * (k < 2),
+                                                v + (k & 1 ? 1 : -1) * (k >= 2), c, 30, q) > 0;
                         if (!ok || ray_sphere(&g, u, v, c, 30, p) < 0)
                                 continue;
                         for (int i = 0; i < 3; i++) {
@@ -106,7 +107,7 @@ static void test_lambert_sphere(void)
 static void test_inverse_square(void)
 {
         struct rtest t;
-        struct sim_rig_state s0 = { .lamp_on = { true, false } }, s1 = { .lamp_on = { false, true } };
+        struct sim_rig_state s0 = {.lamp_on = {true, false}}, s1 = {.lamp_on = {false, true}};
         struct gn_frame f0, f1;
         struct sim_truth tr;
         char cams[512];
@@ -148,7 +149,7 @@ static void test_inverse_square(void)
 static void test_shadow_edge(void)
 {
         struct rtest t;
-        struct sim_rig_state st = { .lamp_on = { true } };
+        struct sim_rig_state st = {.lamp_on = {true}};
         struct gn_frame f;
         struct sim_truth tr;
         double rho_s = 400 * tan(asin(30.0 / 370));
@@ -186,10 +187,10 @@ static void test_shadow_edge(void)
 static void test_dome(void)
 {
         struct rtest t;
-        struct sim_rig_state st = { 0 };
+        struct sim_rig_state st = {0};
         struct gn_frame f;
         struct dome_el *els;
-        struct dome d = { .radiance = 1, .zenith_ratio = 3, .threshold = 0.01, .max_elements = 512 };
+        struct dome d = {.radiance = 1, .zenith_ratio = 3, .threshold = 0.01, .max_elements = 512};
         double e = 0, total = 0, want;
         char cams[512];
         int n;

@@ -17,11 +17,13 @@ static const char lamp[] =
 static const char cams[] =
         "cameras:\n"
         "  - { name: c0, backend: sim, bus: frames, elevation: 55, distance: 350, azimuth: 0,\n"
-        "      target: [0, 0, 20], width: 160, height: 120, fx: 330, fy: 330, exposure_us: 20000 }\n";
+        "      target: [0, 0, 20], width: 160, height: 120, fx: 330, fy: 330, exposure_us: 20000 "
+        "}\n";
 static const char zoom[] =
         "cameras:\n"
         "  - { name: c0, backend: sim, bus: frames, elevation: 55, distance: 350, azimuth: 0,\n"
-        "      target: [0, 0, 20], width: 160, height: 120, fx: 900, fy: 900, exposure_us: 20000 }\n";
+        "      target: [0, 0, 20], width: 160, height: 120, fx: 900, fy: 900, exposure_us: 20000 "
+        "}\n";
 
 static void expect_error(const char *scene, const char *msg)
 {
@@ -43,8 +45,9 @@ static void test_schema_errors(void)
         expect_error("scene:\n  object: { shape: sphere, size: 10,\n"
                      "    material: { specular: { model: phong } } }\n",
                      "model");
-        expect_error("scene:\n  object: { shape: sphere, size: 10, material: { albedo: [1, 2] } }\n",
-                     "albedo");
+        expect_error(
+                "scene:\n  object: { shape: sphere, size: 10, material: { albedo: [1, 2] } }\n",
+                "albedo");
         expect_error("scene:\n  targets:\n    - { type: charuco, squares: [20, 20] }\n", "squares");
         expect_error("scene:\n  sensor: { format: cmyk }\n", "format");
         expect_error("scene:\n  lamps: { samples: 1000 }\n", "samples");
@@ -64,8 +67,8 @@ static void write_file(const char *path, const void *data, size_t n)
 static int plate_pixels(const char *scene, double h, struct gn_frame *keep)
 {
         struct rtest t;
-        struct sim_rig_state st = { .lamp_on = { true } };
-        struct sim_expose ex = { .bits = 8, .no_noise = true };
+        struct sim_rig_state st = {.lamp_on = {true}};
+        struct sim_expose ex = {.bits = 8, .no_noise = true};
         struct gn_frame f;
         struct sim_truth tr;
         int n = 0;
@@ -90,7 +93,25 @@ static int plate_pixels(const char *scene, double h, struct gn_frame *keep)
         return n;
 }
 
-static void test_meshes(void)
+/* A scene with the mesh file dir/name as object; extra goes into the object mapping. */
+static const char *mesh_scene(char *buf, size_t len, const char *dir, const char *name,
+                              const char *extra)
+{
+        snprintf(buf, len,
+                 "scene:\n  object: { shape: mesh, path: %s/%s%s }\n  turntable: { radius: 0 }\n",
+                 dir, name, extra);
+        return buf;
+}
+
+static void put(const char *dir, const char *name, const void *data, size_t n)
+{
+        char path[256];
+
+        snprintf(path, sizeof(path), "%s/%s", dir, name);
+        write_file(path, data, n);
+}
+
+static void test_meshes(const char *dir)
 {
         static const char obj[] = "# a square plate of 80 mm at z = 12, one quad\n"
                                   "v -40 -40 12\nv 40 -40 12\nv 40 40 12\nv -40 40 12\n"
@@ -105,10 +126,12 @@ static void test_meshes(void)
                      "property float x\nproperty float y\nproperty float z\n"
                      "property float nx\nproperty float ny\nproperty float nz\n"
                      "element face 2\nproperty list uchar uint vertex_indices\nend_header\n";
-        const float verts[4][6] = { { -40, -40, 3, 0, 0, 1 }, { 40, -40, 3, 0, 0, 1 },
-                                    { 40, 40, 3, 0, 0, 1 },   { -40, 40, 3, 0, 0, 1 } };
-        const uint8_t faces[] = { 3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0,
-                                  3, 0, 0, 0, 0, 2, 0, 0, 0, 3, 0, 0, 0 };
+        const float verts[4][6] = {{-40, -40, 3, 0, 0, 1},
+                                   {40, -40, 3, 0, 0, 1},
+                                   {40, 40, 3, 0, 0, 1},
+                                   {-40, 40, 3, 0, 0, 1}};
+        const uint8_t faces[] = {3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0,
+                                 3, 0, 0, 0, 0, 2, 0, 0, 0, 3, 0, 0, 0};
         uint8_t bin[1024];
         size_t nb = 0;
 
@@ -118,32 +141,24 @@ static void test_meshes(void)
         nb += sizeof(verts);
         memcpy(bin + nb, faces, sizeof(faces));
         nb += sizeof(faces);
-        write_file("/tmp/gonio-rtest-plate.obj", obj, strlen(obj));
-        write_file("/tmp/gonio-rtest-plate-a.ply", ply_ascii, strlen(ply_ascii));
-        write_file("/tmp/gonio-rtest-plate-b.ply", bin, nb);
-        CHECK(plate_pixels("scene:\n  object: { shape: mesh, path: /tmp/gonio-rtest-plate.obj }\n"
-                           "  turntable: { radius: 0 }\n",
-                           12, NULL) > 3000);
-        CHECK(plate_pixels("scene:\n  object: { shape: mesh, path: /tmp/gonio-rtest-plate-a.ply }\n"
-                           "  turntable: { radius: 0 }\n",
-                           7, NULL) > 3000);
-        CHECK(plate_pixels("scene:\n  object: { shape: mesh, path: /tmp/gonio-rtest-plate-b.ply }\n"
-                           "  turntable: { radius: 0 }\n",
-                           3, NULL) > 3000);
+        char sc[512];
+
+        put(dir, "plate.obj", obj, strlen(obj));
+        put(dir, "plate-a.ply", ply_ascii, strlen(ply_ascii));
+        put(dir, "plate-b.ply", bin, nb);
+        CHECK(plate_pixels(mesh_scene(sc, sizeof(sc), dir, "plate.obj", ""), 12, NULL) > 3000);
+        CHECK(plate_pixels(mesh_scene(sc, sizeof(sc), dir, "plate-a.ply", ""), 7, NULL) > 3000);
+        CHECK(plate_pixels(mesh_scene(sc, sizeof(sc), dir, "plate-b.ply", ""), 3, NULL) > 3000);
         /* size: fitted to 40 mm, bottom on z = 0 (a flat plate: z = 0) */
-        CHECK(plate_pixels("scene:\n  object: { shape: mesh, size: 40,\n"
-                           "            path: /tmp/gonio-rtest-plate-b.ply }\n"
-                           "  turntable: { radius: 0 }\n",
-                           0, NULL) > 500);
-        unlink("/tmp/gonio-rtest-plate-a.ply");
-        unlink("/tmp/gonio-rtest-plate-b.ply");
+        CHECK(plate_pixels(mesh_scene(sc, sizeof(sc), dir, "plate-b.ply", ", size: 40"), 0, NULL) >
+              500);
 }
 
 /* A 2x2 PNG: red, green / blue, white (top row first). */
 static void write_png(const char *path)
 {
-        const uint8_t px[12] = { 255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255 };
-        struct spng_ihdr ih = { 2, 2, 8, SPNG_COLOR_TYPE_TRUECOLOR, 0, 0, 0 };
+        const uint8_t px[12] = {255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255};
+        struct spng_ihdr ih = {2, 2, 8, SPNG_COLOR_TYPE_TRUECOLOR, 0, 0, 0};
         spng_ctx *c = spng_ctx_new(SPNG_CTX_ENCODER);
         FILE *f = fopen(path, "wb");
 
@@ -155,22 +170,22 @@ static void write_png(const char *path)
         fclose(f);
 }
 
-static void test_texture(void)
+static void test_texture(const char *dir)
 {
+        char sc[512], extra[300], png[256];
         struct gn_frame f;
         struct sim_cam_geom g;
         struct rtest t;
-        struct sim_rig_state st = { .lamp_on = { true } };
+        struct sim_rig_state st = {.lamp_on = {true}};
         /* uv (0,0) is the bottom-left of the image: the blue texel at x, y < 0; the points
          * are at texel centres, where bilinear filtering returns the texel itself */
-        const double pts[4][3] = { { -20, 20, 12 }, { 20, 20, 12 }, { -20, -20, 12 }, { 20, -20, 12 } };
-        const int dominant[4] = { 0, 1, 2, -1 }; /* red, green, blue, white */
+        const double pts[4][3] = {{-20, 20, 12}, {20, 20, 12}, {-20, -20, 12}, {20, -20, 12}};
+        const int dominant[4] = {0, 1, 2, -1}; /* red, green, blue, white */
 
-        write_png("/tmp/gonio-rtest-tex.png");
-        CHECK(plate_pixels("scene:\n  object: { shape: mesh, path: /tmp/gonio-rtest-plate.obj,\n"
-                           "    material: { albedo: 1, albedo_map: /tmp/gonio-rtest-tex.png } }\n"
-                           "  turntable: { radius: 0 }\n",
-                           12, &f) > 3000);
+        snprintf(png, sizeof(png), "%s/tex.png", dir);
+        write_png(png);
+        snprintf(extra, sizeof(extra), ",\n    material: { albedo: 1, albedo_map: %s }", png);
+        CHECK(plate_pixels(mesh_scene(sc, sizeof(sc), dir, "plate.obj", extra), 12, &f) > 3000);
         rt_open(&t, lamp, "", cams, "scene:\n  turntable: { radius: 0 }\n");
         CHECK_INT(sim_camera_geom(t.s, &st, 0, &g), 0);
         for (int k = 0; k < 4; k++) {
@@ -186,8 +201,6 @@ static void test_texture(void)
         }
         rt_close(&t);
         gn_frame_free_data(&f);
-        unlink("/tmp/gonio-rtest-tex.png");
-        unlink("/tmp/gonio-rtest-plate.obj");
 }
 
 /* Ground truth of the built-in shapes: points on their surfaces, unit normals. */
@@ -200,7 +213,7 @@ static void test_shapes(void)
                 "scene:\n  object: { shape: gem, size: 60 }\n  turntable: { radius: 0 }\n",
                 "scene:\n  object: { shape: relief, size: 100 }\n  turntable: { radius: 0 }\n",
         };
-        struct sim_rig_state st = { .turntable_deg = 40, .lamp_on = { true } };
+        struct sim_rig_state st = {.turntable_deg = 40, .lamp_on = {true}};
 
         for (size_t k = 0; k < ELEMENTSOF(scenes); k++) {
                 struct rtest t;
@@ -209,8 +222,8 @@ static void test_shapes(void)
                 int n = 0;
 
                 rt_open(&t, lamp, "", cams, scenes[k]);
-                rt_render(&t, &st, NULL, 0, &f, SIM_TRUTH_POINT | SIM_TRUTH_NORMAL | SIM_TRUTH_DEPTH,
-                          &tr);
+                rt_render(&t, &st, NULL, 0, &f,
+                          SIM_TRUTH_POINT | SIM_TRUTH_NORMAL | SIM_TRUTH_DEPTH, &tr);
                 for (int i = 0; i < f.width * f.height; i++) {
                         const float *p = tr.point + 3 * i, *nv = tr.normal + 3 * i;
                         if (isnan(p[0]))
@@ -236,11 +249,11 @@ static void test_shapes(void)
 static void test_mirror_sphere(void)
 {
         struct rtest t;
-        struct sim_rig_state st = { .light_arm_deg = 30, .lamp_on = { true } };
-        struct sim_expose ex = { .bits = 16, .no_noise = true };
+        struct sim_rig_state st = {.light_arm_deg = 30, .lamp_on = {true}};
+        struct sim_expose ex = {.bits = 16, .no_noise = true};
         struct sim_cam_geom g;
         struct gn_frame f;
-        double c[3] = { 0, 0, 30 }, L[3], C[3], n[3] = { 0, 0, 1 }, p[3], uv[2];
+        double c[3] = {0, 0, 30}, L[3], C[3], n[3] = {0, 0, 1}, p[3], uv[2];
         double su = 0, sv = 0, sw = 0;
 
         rt_open(&t, lamp, "", zoom,
@@ -295,8 +308,8 @@ static void test_soft_shadow(void)
                          "  turntable: { radius: 150, albedo: 0.5 }\n"
                          "  lamps: { radius: 30, samples: 32 }\n";
         struct rtest t;
-        struct sim_rig_state st = { .lamp_on = { true } };
-        struct sim_expose ex = { .bits = 16, .no_noise = true };
+        struct sim_rig_state st = {.lamp_on = {true}};
+        struct sim_expose ex = {.bits = 16, .no_noise = true};
         struct gn_frame f;
         struct sim_truth tr;
         double rho_s = 400 * tan(asin(30.0 / 370)), half = 30.0 * 45 / 355 + 1;
@@ -310,8 +323,8 @@ static void test_soft_shadow(void)
                 if (isnan(p[0]) || fabsf(p[2]) > 1e-3f)
                         continue;
                 rho = hypot(p[0], p[1]);
-                unshadowed = 0.5 / M_PI * 1e5 * 400 / pow(rho * rho + 400 * 400, 1.5) * 0.02 *
-                             5e5 / 1e4 * 65535;
+                unshadowed = 0.5 / M_PI * 1e5 * 400 / pow(rho * rho + 400 * 400, 1.5) * 0.02 * 5e5 /
+                             1e4 * 65535;
                 got = rt_px(&f, i % f.width, i / f.width, 0);
                 if (rho < rho_s - half)
                         CHECK(got == 0);
@@ -334,8 +347,12 @@ int main(int argc, char **argv)
         if (!strcmp(which, "schema") || !strcmp(which, "all"))
                 test_schema_errors();
         if (!strcmp(which, "meshes") || !strcmp(which, "all")) {
-                test_meshes();
-                test_texture();
+                char dir[] = "/tmp/gonio-rtest-mesh-XXXXXX", cmd[64];
+                CHECK(mkdtemp(dir));
+                test_meshes(dir);
+                test_texture(dir);
+                snprintf(cmd, sizeof(cmd), "rm -rf %s", dir);
+                CHECK(system(cmd) == 0);
         }
         if (!strcmp(which, "shapes") || !strcmp(which, "all"))
                 test_shapes();
