@@ -9,10 +9,10 @@
 
 struct gn_frame {
         int width, height;
-        int channels;  /* 1 (mono) or 3 (RGB) */
-        int bits;      /* 8 or 16 */
-        size_t stride; /* bytes per row */
-        uint8_t *data; /* owned; freed by gn_frame_free_data */
+        int channels;          /* 1 (mono) or 3 (RGB) */
+        int bits;              /* 8 or 16 */
+        size_t stride;         /* bytes per row */
+        uint8_t *data;         /* owned; freed by gn_frame_free_data */
         uint64_t timestamp_ns; /* CLOCK_REALTIME at exposure start */
         int exposure_us;       /* applied */
         double gain;           /* applied */

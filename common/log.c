@@ -32,8 +32,8 @@ static int current_level(void)
 int gn_log_internal(int level, int error, const char *file, int line, const char *fmt, ...)
 {
         static const char *const names[] = {
-                [GN_LOG_ERR] = "error",   [GN_LOG_WARNING] = "warning", [GN_LOG_NOTICE] = "notice",
-                [GN_LOG_INFO] = "info",   [GN_LOG_DEBUG] = "debug",
+                [GN_LOG_ERR] = "error", [GN_LOG_WARNING] = "warning", [GN_LOG_NOTICE] = "notice",
+                [GN_LOG_INFO] = "info", [GN_LOG_DEBUG] = "debug",
         };
         int saved = errno;
         char buf[2048];

@@ -71,26 +71,26 @@ static int read_u16(struct yconf *yc, struct fy_node *m, const char *key, uint16
 
 static int parse_profile(struct yconf *yc, struct fy_node *m, struct rig_modbus_profile *p)
 {
-        static const char *const keys[] = { "name",      "status",   "fault",    "position",
-                                            "target",    "speed",    "accel",    "command",
-                                            "cmd_move",  "cmd_home", "cmd_stop", "cmd_reset",
-                                            "scale",     "word_swap", NULL };
+        static const char *const keys[] = {"name",     "status",    "fault",    "position",
+                                           "target",   "speed",     "accel",    "command",
+                                           "cmd_move", "cmd_home",  "cmd_stop", "cmd_reset",
+                                           "scale",    "word_swap", NULL};
         struct {
                 const char *key;
                 uint16_t *field;
         } regs[] = {
-                { "status", &p->reg_status },     { "fault", &p->reg_fault },
-                { "position", &p->reg_position }, { "target", &p->reg_target },
-                { "speed", &p->reg_speed },       { "accel", &p->reg_accel },
-                { "command", &p->reg_command },   { "cmd_move", &p->cmd_move },
-                { "cmd_home", &p->cmd_home },     { "cmd_stop", &p->cmd_stop },
-                { "cmd_reset", &p->cmd_reset },
+                {"status", &p->reg_status},     {"fault", &p->reg_fault},
+                {"position", &p->reg_position}, {"target", &p->reg_target},
+                {"speed", &p->reg_speed},       {"accel", &p->reg_accel},
+                {"command", &p->reg_command},   {"cmd_move", &p->cmd_move},
+                {"cmd_home", &p->cmd_home},     {"cmd_stop", &p->cmd_stop},
+                {"cmd_reset", &p->cmd_reset},
         };
         int r;
 
         rigconf_default_profile(p);
-        if ((r = yconf_check_keys(yc, m, keys)) < 0 || (r = read_name(yc, m, p->name,
-                                                                   sizeof(p->name))) < 0)
+        if ((r = yconf_check_keys(yc, m, keys)) < 0 ||
+            (r = read_name(yc, m, p->name, sizeof(p->name))) < 0)
                 return r;
         for (size_t i = 0; i < ELEMENTSOF(regs); i++)
                 if ((r = read_u16(yc, m, regs[i].key, regs[i].field)) < 0)
@@ -103,15 +103,19 @@ static int parse_profile(struct yconf *yc, struct fy_node *m, struct rig_modbus_
 
 static int parse_bus(struct yconf *yc, struct fy_node *m, struct rig_bus_conf *b)
 {
-        static const char *const keys[] = { "name",      "type",      "port",      "host",
-                                            "tcp_port",  "baud",      "parity",    "data_bits",
-                                            "stop_bits", "timeout_ms", "retries",  NULL };
+        static const char *const keys[] = {"name",      "type",       "port",    "host",
+                                           "tcp_port",  "baud",       "parity",  "data_bits",
+                                           "stop_bits", "timeout_ms", "retries", NULL};
         char type[32] = "", parity[4] = "N";
         long v;
         int r;
 
-        *b = (struct rig_bus_conf){ .baud = 115200, .parity = 'N', .data_bits = 8,
-                                    .stop_bits = 1, .timeout_ms = 200, .retries = 2 };
+        *b = (struct rig_bus_conf){.baud = 115200,
+                                   .parity = 'N',
+                                   .data_bits = 8,
+                                   .stop_bits = 1,
+                                   .timeout_ms = 200,
+                                   .retries = 2};
         if ((r = yconf_check_keys(yc, m, keys)) < 0 ||
             (r = read_name(yc, m, b->name, sizeof(b->name))) < 0 ||
             (r = yconf_str_req(yc, m, "type", type, sizeof(type))) < 0 ||
@@ -175,14 +179,17 @@ static int read_int(struct yconf *yc, struct fy_node *m, const char *key, long m
 
 static int parse_axis(struct yconf *yc, struct fy_node *m, struct rig_axis_conf *a)
 {
-        static const char *const keys[] = { "name",      "backend", "bus",   "unit",
-                                            "profile",   "continuous", "limits", "max_speed",
-                                            "accel",     "settle_ms", "move_timeout_ms", NULL };
-        double lim[2] = { -180, 180 };
+        static const char *const keys[] = {
+                "name",   "backend",   "bus",   "unit",      "profile",         "continuous",
+                "limits", "max_speed", "accel", "settle_ms", "move_timeout_ms", NULL};
+        double lim[2] = {-180, 180};
         int r;
 
-        *a = (struct rig_axis_conf){ .unit = 1, .profile = "gonio-default", .max_speed = 30,
-                                     .accel = 60, .settle_ms = 50 };
+        *a = (struct rig_axis_conf){.unit = 1,
+                                    .profile = "gonio-default",
+                                    .max_speed = 30,
+                                    .accel = 60,
+                                    .settle_ms = 50};
         if ((r = yconf_check_keys(yc, m, keys)) < 0 ||
             (r = read_name(yc, m, a->name, sizeof(a->name))) < 0 ||
             (r = yconf_str_req(yc, m, "backend", a->backend, sizeof(a->backend))) < 0 ||
@@ -223,13 +230,13 @@ static int parse_switch_common(struct yconf *yc, struct fy_node *m, struct rig_s
 
 static int parse_lamp(struct yconf *yc, struct fy_node *m, struct rig_switch_conf *s)
 {
-        static const char *const keys[] = { "name",      "backend", "bus",    "unit",
-                                            "coil",      "warmup_ms", "elevation", "radius",
-                                            "azimuth",   "intensity", NULL };
+        static const char *const keys[] = {"name",    "backend",   "bus",       "unit",
+                                           "coil",    "warmup_ms", "elevation", "radius",
+                                           "azimuth", "intensity", NULL};
         int r;
 
-        *s = (struct rig_switch_conf){ .kind = RIG_SWITCH_LAMP, .unit = 1, .radius_mm = 450,
-                                       .intensity = 1e5 };
+        *s = (struct rig_switch_conf){
+                .kind = RIG_SWITCH_LAMP, .unit = 1, .radius_mm = 450, .intensity = 1e5};
         if ((r = yconf_check_keys(yc, m, keys)) < 0 || (r = parse_switch_common(yc, m, s)) < 0 ||
             (r = yconf_double(yc, m, "elevation", -90, 90, &s->elevation_deg)) < 0 ||
             (r = yconf_double(yc, m, "radius", 1, 1e5, &s->radius_mm)) < 0 ||
@@ -243,16 +250,18 @@ static int parse_lamp(struct yconf *yc, struct fy_node *m, struct rig_switch_con
 
 static int parse_laser(struct yconf *yc, struct fy_node *m, struct rig_switch_conf *s)
 {
-        static const char *const keys[] = { "name",  "backend", "bus",    "unit",  "coil",
-                                            "warmup_ms", "azimuth", "origin", "width", "power",
-                                            "channel", NULL };
-        static const char *const channels[] = { "red", "green", "blue" };
+        static const char *const keys[] = {"name",  "backend",   "bus",     "unit",
+                                           "coil",  "warmup_ms", "azimuth", "origin",
+                                           "width", "power",     "channel", NULL};
+        static const char *const channels[] = {"red", "green", "blue"};
         char channel[16] = "red";
         int r;
 
-        *s = (struct rig_switch_conf){ .kind = RIG_SWITCH_LASER, .unit = 1,
-                                       .laser_origin = { 600, 0, 150 }, .laser_width_mm = 0.5,
-                                       .laser_power = 1e3 };
+        *s = (struct rig_switch_conf){.kind = RIG_SWITCH_LASER,
+                                      .unit = 1,
+                                      .laser_origin = {600, 0, 150},
+                                      .laser_width_mm = 0.5,
+                                      .laser_power = 1e3};
         if ((r = yconf_check_keys(yc, m, keys)) < 0 || (r = parse_switch_common(yc, m, s)) < 0 ||
             (r = yconf_double(yc, m, "azimuth", -360, 360, &s->laser_azimuth_deg)) < 0 ||
             (r = yconf_doubles(yc, m, "origin", s->laser_origin, 3, 3, NULL)) < 0 ||
@@ -287,16 +296,20 @@ static int parse_camera_geometry(struct yconf *yc, struct fy_node *m, struct rig
 
 static int parse_camera(struct yconf *yc, struct fy_node *m, struct rig_camera_conf *c)
 {
-        static const char *const keys[] = { "name",   "backend", "bus",   "elevation",
-                                            "distance", "azimuth", "target", "width",
-                                            "height", "fx",      "fy",    "cx",
-                                            "cy",     "distortion", "exposure_us", "gain",
-                                            "bits",   NULL };
+        static const char *const keys[] = {
+                "name",   "backend",    "bus",         "elevation", "distance", "azimuth",
+                "target", "width",      "height",      "fx",        "fy",       "cx",
+                "cy",     "distortion", "exposure_us", "gain",      "bits",     NULL};
         int r;
 
-        *c = (struct rig_camera_conf){ .distance_mm = 600, .width = 720, .height = 480,
-                                       .fx = 1000, .fy = 1000, .exposure_us = 10000, .gain = 1,
-                                       .bits = 8 };
+        *c = (struct rig_camera_conf){.distance_mm = 600,
+                                      .width = 720,
+                                      .height = 480,
+                                      .fx = 1000,
+                                      .fy = 1000,
+                                      .exposure_us = 10000,
+                                      .gain = 1,
+                                      .bits = 8};
         if ((r = yconf_check_keys(yc, m, keys)) < 0 ||
             (r = read_name(yc, m, c->name, sizeof(c->name))) < 0 ||
             (r = yconf_str_req(yc, m, "backend", c->backend, sizeof(c->backend))) < 0 ||
@@ -361,8 +374,8 @@ static int check_unique(struct yconf *yc, struct rig_config *rc)
         for (size_t i = 0; i < rc->n_buses; i++)
                 for (size_t j = i + 1; j < rc->n_buses; j++)
                         if (strcmp(rc->buses[i].name, rc->buses[j].name) == 0)
-                                return yconf_error(yc, yconf_get(yconf_root(yc), "buses"),
-                                                   "buses", "bus name '%s' is used twice",
+                                return yconf_error(yc, yconf_get(yconf_root(yc), "buses"), "buses",
+                                                   "bus name '%s' is used twice",
                                                    rc->buses[j].name);
         return 0;
 }
@@ -393,27 +406,25 @@ static int check_references(struct yconf *yc, struct rig_config *rc)
         for (size_t i = 0; r >= 0 && i < rc->n_axes; i++) {
                 r = check_bus(yc, rc, "axes", i, rc->axes[i].name, rc->axes[i].bus, false);
                 if (r >= 0 && !rigconf_profile(rc, rc->axes[i].profile))
-                        r = yconf_error(yc, yconf_get(yconf_seq_item(yconf_get(yconf_root(yc),
-                                                                               "axes"),
-                                                                     i),
-                                                      "profile"),
-                                        "profile", "no register profile named '%s'",
-                                        rc->axes[i].profile);
+                        r = yconf_error(
+                                yc,
+                                yconf_get(yconf_seq_item(yconf_get(yconf_root(yc), "axes"), i),
+                                          "profile"),
+                                "profile", "no register profile named '%s'", rc->axes[i].profile);
         }
         for (size_t i = 0; r >= 0 && i < rc->n_lamps; i++)
                 r = check_bus(yc, rc, "lamps", i, rc->lamps[i].name, rc->lamps[i].bus, false);
         if (r >= 0 && rc->has_laser)
                 r = check_bus(yc, rc, "laser", 0, rc->laser.name, rc->laser.bus, false);
         for (size_t i = 0; r >= 0 && i < rc->n_cameras; i++)
-                r = check_bus(yc, rc, "cameras", i, rc->cameras[i].name, rc->cameras[i].bus,
-                              true);
+                r = check_bus(yc, rc, "cameras", i, rc->cameras[i].name, rc->cameras[i].bus, true);
         return r;
 }
 
 static int parse_root(struct yconf *yc, struct rig_config *rc)
 {
-        static const char *const keys[] = { "rig",   "profiles", "buses",   "axes", "lamps",
-                                            "laser", "cameras",  "scene",   NULL };
+        static const char *const keys[] = {"rig",   "profiles", "buses", "axes", "lamps",
+                                           "laser", "cameras",  "scene", NULL};
         struct fy_node *root = yconf_root(yc), *laser;
         int r;
 

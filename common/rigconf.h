@@ -51,7 +51,7 @@ struct rig_modbus_profile {
         uint16_t reg_command;  /* command register */
         uint16_t reg_fault;    /* fault code */
         uint16_t cmd_move, cmd_home, cmd_stop, cmd_reset;
-        double scale;          /* position counts per degree, default 1000 */
+        double scale; /* position counts per degree, default 1000 */
         bool word_swap;
 };
 
@@ -118,8 +118,8 @@ struct rig_config {
         bool has_laser;
         struct rig_camera_conf cameras[RIG_MAX_CAMERAS];
         size_t n_cameras;
-        char *text;       /* the file's bytes, stored with every dataset */
-        struct yconf yc;  /* open document, for rigconf_scene() */
+        char *text;      /* the file's bytes, stored with every dataset */
+        struct yconf yc; /* open document, for rigconf_scene() */
 };
 
 /* Loads and validates a rig file. On error returns -errno and writes

@@ -63,7 +63,7 @@ static int parse_failed(struct yconf *ctx)
 static int open_common(struct yconf *ctx, const char *path, const char *text, char *err,
                        size_t errlen)
 {
-        struct fy_parse_cfg cfg = { .flags = FYPCF_QUIET | FYPCF_DEFAULT_PARSE };
+        struct fy_parse_cfg cfg = {.flags = FYPCF_QUIET | FYPCF_DEFAULT_PARSE};
         struct fy_diag *diag;
         int r = 0;
 
@@ -157,8 +157,8 @@ int yconf_error(struct yconf *ctx, struct fy_node *node, const char *key, const 
         vsnprintf(msg, sizeof(msg), fmt, ap);
         va_end(ap);
         if (ctx->err)
-                snprintf(ctx->err, ctx->errlen, "%s:%d: key '%s': %s", ctx->path,
-                         yconf_line(node), key ? key : "(root)", msg);
+                snprintf(ctx->err, ctx->errlen, "%s:%d: key '%s': %s", ctx->path, yconf_line(node),
+                         key ? key : "(root)", msg);
         return -EINVAL;
 }
 
@@ -245,8 +245,7 @@ int yconf_str(struct yconf *ctx, struct fy_node *map, const char *key, char *out
         return 1;
 }
 
-int yconf_str_req(struct yconf *ctx, struct fy_node *map, const char *key, char *out,
-                  size_t outlen)
+int yconf_str_req(struct yconf *ctx, struct fy_node *map, const char *key, char *out, size_t outlen)
 {
         int r = yconf_str(ctx, map, key, out, outlen);
 
@@ -306,8 +305,8 @@ int yconf_int(struct yconf *ctx, struct fy_node *map, const char *key, long min,
 
 int yconf_bool(struct yconf *ctx, struct fy_node *map, const char *key, bool *out)
 {
-        static const char *const yes[] = { "true", "yes", "on", "1" };
-        static const char *const no[] = { "false", "no", "off", "0" };
+        static const char *const yes[] = {"true", "yes", "on", "1"};
+        static const char *const no[] = {"false", "no", "off", "0"};
         struct fy_node *n;
         const char *text;
         int r = scalar(ctx, map, key, &n, &text);
@@ -335,8 +334,8 @@ struct fy_node *yconf_seq_item(struct fy_node *seq, int i)
         return fy_node_sequence_get_by_index(seq, i);
 }
 
-int yconf_doubles(struct yconf *ctx, struct fy_node *map, const char *key, double *out,
-                  size_t nmin, size_t n, size_t *count)
+int yconf_doubles(struct yconf *ctx, struct fy_node *map, const char *key, double *out, size_t nmin,
+                  size_t n, size_t *count)
 {
         struct fy_node *seq = yconf_get(map, key);
         int len;
@@ -347,15 +346,14 @@ int yconf_doubles(struct yconf *ctx, struct fy_node *map, const char *key, doubl
         if (len < 0)
                 return len;
         if ((size_t)len < MIN(nmin, n) || (size_t)len > n)
-                return nmin < n ? yconf_error(ctx, seq, key, "expected %zu to %zu numbers, got %d",
-                                              nmin, n, len)
-                                : yconf_error(ctx, seq, key, "expected %zu numbers, got %d", n,
-                                              len);
+                return nmin < n
+                               ? yconf_error(ctx, seq, key, "expected %zu to %zu numbers, got %d",
+                                             nmin, n, len)
+                               : yconf_error(ctx, seq, key, "expected %zu numbers, got %d", n, len);
         for (int i = 0; i < len; i++) {
                 struct fy_node *item = yconf_seq_item(seq, i);
-                const char *text = fy_node_get_type(item) == FYNT_SCALAR
-                                           ? fy_node_get_scalar0(item)
-                                           : NULL;
+                const char *text =
+                        fy_node_get_type(item) == FYNT_SCALAR ? fy_node_get_scalar0(item) : NULL;
                 int r;
 
                 if (!text)

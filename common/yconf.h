@@ -14,9 +14,9 @@ struct fy_document;
 struct fy_node;
 
 struct yconf {
-        const char *path;     /* file name used in messages; borrowed */
+        const char *path; /* file name used in messages; borrowed */
         struct fy_document *doc;
-        char *err;            /* caller's buffer for the first error */
+        char *err; /* caller's buffer for the first error */
         size_t errlen;
 };
 
@@ -54,8 +54,8 @@ int yconf_double(struct yconf *ctx, struct fy_node *map, const char *key, double
 int yconf_bool(struct yconf *ctx, struct fy_node *map, const char *key, bool *out);
 /* Reads a sequence of exactly n numbers (or between nmin and n when nmin < n); *count gets
  * the number read when count is non-NULL. */
-int yconf_doubles(struct yconf *ctx, struct fy_node *map, const char *key, double *out,
-                  size_t nmin, size_t n, size_t *count);
+int yconf_doubles(struct yconf *ctx, struct fy_node *map, const char *key, double *out, size_t nmin,
+                  size_t n, size_t *count);
 /* Like yconf_str but the key must be present. */
 int yconf_str_req(struct yconf *ctx, struct fy_node *map, const char *key, char *out,
                   size_t outlen);

@@ -12,13 +12,15 @@
 
 static void usage(FILE *f)
 {
-        fprintf(f, "Usage: goniod --rig FILE [--socket PATH] [--data DIR] [--verbose]\n"
-                   "\n"
-                   "  --rig FILE     rig file (YAML) describing the devices\n"
-                   "  --socket PATH  control socket (default $GONIO_SOCKET, else\n"
-                   "                 $XDG_RUNTIME_DIR/gonio/goniod.sock, else /run/gonio/goniod.sock)\n"
-                   "  --data DIR     directory of datasets (default $GONIO_DATA or /var/lib/gonio)\n"
-                   "  --verbose      debug logging\n");
+        fprintf(f,
+                "Usage: goniod --rig FILE [--socket PATH] [--data DIR] [--verbose]\n"
+                "\n"
+                "  --rig FILE     rig file (YAML) describing the devices\n"
+                "  --socket PATH  control socket (default $GONIO_SOCKET, else\n"
+                "                 $XDG_RUNTIME_DIR/gonio/goniod.sock, else "
+                "/run/gonio/goniod.sock)\n"
+                "  --data DIR     directory of datasets (default $GONIO_DATA or /var/lib/gonio)\n"
+                "  --verbose      debug logging\n");
 }
 
 /* Picks the default socket path (protocol/proto.h) and creates its directory. */
@@ -38,9 +40,9 @@ static void default_socket(char *out, size_t len)
 int main(int argc, char **argv)
 {
         static const struct option opts[] = {
-                { "rig", required_argument, NULL, 'r' },  { "socket", required_argument, NULL, 's' },
-                { "data", required_argument, NULL, 'd' }, { "verbose", no_argument, NULL, 'v' },
-                { "help", no_argument, NULL, 'h' },       {},
+                {"rig", required_argument, NULL, 'r'},  {"socket", required_argument, NULL, 's'},
+                {"data", required_argument, NULL, 'd'}, {"verbose", no_argument, NULL, 'v'},
+                {"help", no_argument, NULL, 'h'},       {},
         };
         const char *rig = NULL, *data = getenv("GONIO_DATA");
         char sock[PATH_MAX] = "";
@@ -50,12 +52,24 @@ int main(int argc, char **argv)
         gn_log_set_ident("goniod");
         while ((c = getopt_long(argc, argv, "r:s:d:vh", opts, NULL)) >= 0) {
                 switch (c) {
-                case 'r': rig = optarg; break;
-                case 's': snprintf(sock, sizeof(sock), "%s", optarg); break;
-                case 'd': data = optarg; break;
-                case 'v': gn_log_set_level(GN_LOG_DEBUG); break;
-                case 'h': usage(stdout); return 0;
-                default: usage(stderr); return 2;
+                case 'r':
+                        rig = optarg;
+                        break;
+                case 's':
+                        snprintf(sock, sizeof(sock), "%s", optarg);
+                        break;
+                case 'd':
+                        data = optarg;
+                        break;
+                case 'v':
+                        gn_log_set_level(GN_LOG_DEBUG);
+                        break;
+                case 'h':
+                        usage(stdout);
+                        return 0;
+                default:
+                        usage(stderr);
+                        return 2;
                 }
         }
         if (!rig || optind < argc) {

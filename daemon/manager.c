@@ -82,10 +82,10 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
                 goto fail;
         }
         if ((r = sd_event_default(&m->event)) < 0 ||
-            (r = sd_event_add_signal(m->event, NULL, SIGTERM | SD_EVENT_SIGNAL_PROCMASK,
-                                     on_signal, m)) < 0 ||
-            (r = sd_event_add_signal(m->event, NULL, SIGINT | SD_EVENT_SIGNAL_PROCMASK,
-                                     on_signal, m)) < 0 ||
+            (r = sd_event_add_signal(m->event, NULL, SIGTERM | SD_EVENT_SIGNAL_PROCMASK, on_signal,
+                                     m)) < 0 ||
+            (r = sd_event_add_signal(m->event, NULL, SIGINT | SD_EVENT_SIGNAL_PROCMASK, on_signal,
+                                     m)) < 0 ||
             (r = sd_event_set_watchdog(m->event, true)) < 0)
                 goto fail;
         r = rig_new(m->event, m->rc, manager_notify, m, &m->rig);
@@ -117,7 +117,7 @@ struct manager *manager_free(struct manager *m)
         m->server = server_free(m->server);
         m->pool = ds_pool_free(m->pool); /* completes pending stores */
         m->ds = ds_close(m->ds);
-        m->rig = rig_free(m->rig);       /* safe state */
+        m->rig = rig_free(m->rig); /* safe state */
         rigconf_free(m->rc);
         sd_event_unref(m->event);
         free(m);

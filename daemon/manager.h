@@ -21,7 +21,7 @@ struct manager {
         struct ds *ds;        /* the open dataset, or NULL */
         struct ds_pool *pool; /* its storage pool */
         char ds_name[DS_NAME_MAX];
-        int64_t ds_count;     /* rows in the open dataset */
+        int64_t ds_count;           /* rows in the open dataset */
         uint64_t shutdown_deadline; /* set once SIGTERM/SIGINT arrived */
 };
 

@@ -12,7 +12,7 @@
 #include "manager.h"
 #include "protocol/proto.h"
 
-#define KEYS(...) ((const char *const[]){ __VA_ARGS__, NULL })
+#define KEYS(...) ((const char *const[]){__VA_ARGS__, NULL})
 
 /* Completion of a rig operation that answers one request with a fixed result. */
 struct op {
@@ -98,13 +98,13 @@ static void op_refused(struct op *o, int r, const char *device)
 /* Result listing the axes of o with their positions now. */
 static json_t *axes_result(struct op *o)
 {
-        json_t *st = rig_status(o->m->rig), *axes = json_object_get(st, "axes"), *out = json_array();
+        json_t *st = rig_status(o->m->rig), *axes = json_object_get(st, "axes"),
+               *out = json_array();
 
         for (int i = 0; i < o->n_axes; i++) {
                 json_t *a = json_array_get(axes, o->axes[i]);
                 json_array_append_new(out, json_pack("{sOsO}", "name", json_object_get(a, "name"),
-                                                     "position",
-                                                     json_object_get(a, "position")));
+                                                     "position", json_object_get(a, "position")));
         }
         json_decref(st);
         return json_pack("{so}", "axes", out);
@@ -123,8 +123,8 @@ static int m_hello(struct srv_req *req, json_t *params, void *userdata)
                 return srv_req_errmsg(req, -EPROTONOSUPPORT,
                                       "protocol %ld not supported (server speaks %d)", proto,
                                       PROTO_VERSION);
-        srv_reply(req, json_pack("{sssssiss}", "server", "goniod", "version", "0.1.0",
-                                 "protocol", PROTO_VERSION, "rig", m->rc->name));
+        srv_reply(req, json_pack("{sssssiss}", "server", "goniod", "version", "0.1.0", "protocol",
+                                 PROTO_VERSION, "rig", m->rc->name));
         return 0;
 }
 
@@ -167,8 +167,8 @@ static int m_home(struct srv_req *req, json_t *params, void *userdata)
         o->m = m;
         o->build = axes_result;
         for (size_t i = 0; i < n; i++) {
-                const char *name = axes ? json_string_value(json_array_get(axes, i))
-                                        : rc->axes[i].name;
+                const char *name =
+                        axes ? json_string_value(json_array_get(axes, i)) : rc->axes[i].name;
                 if (!name || (o->axes[i] = rig_axis_index(m->rig, name)) < 0) {
                         free(o);
                         return srv_req_errmsg(req, -ENOENT, "no axis named '%s'",
@@ -206,8 +206,7 @@ static int m_move(struct srv_req *req, json_t *params, void *userdata)
         struct op *o;
         int i, r;
 
-        if ((r = srv_params_check(req, params, KEYS("axis", "position", "relative", "wait"))) <
-                    0 ||
+        if ((r = srv_params_check(req, params, KEYS("axis", "position", "relative", "wait"))) < 0 ||
             (r = srv_param_str(req, params, "axis", &axis)) < 0 ||
             (r = srv_param_double(req, params, "position", &pos)) < 0 ||
             (r = srv_param_bool(req, params, "relative", &relative)) < 0 ||
@@ -247,8 +246,8 @@ static int m_stop(struct srv_req *req, json_t *params, void *userdata)
 }
 
 /* Switches lamp i (or the laser, i < 0) and answers with {key: name, on}. */
-static int switch_and_reply(struct srv_req *req, struct manager *m, int i, bool on,
-                            const char *key, const char *name)
+static int switch_and_reply(struct srv_req *req, struct manager *m, int i, bool on, const char *key,
+                            const char *name)
 {
         struct op *o = op_new(req, json_pack("{sssb}", key, name, "on", on));
         int r;
@@ -330,11 +329,10 @@ static json_t *num_or_null(double v)
 
 static json_t *capture_json(const struct ds_capture *c)
 {
-        return json_pack("{sIsssssssisisssosososssb}", "id", (json_int_t)c->id, "camera",
-                         c->camera, "file", c->file, "sha256", c->sha256, "width", c->width,
-                         "height", c->height, "pixfmt", c->pixfmt, "turntable",
-                         num_or_null(c->turntable_deg), "light_arm",
-                         num_or_null(c->light_arm_deg), "camera_arm",
+        return json_pack("{sIsssssssisisssosososssb}", "id", (json_int_t)c->id, "camera", c->camera,
+                         "file", c->file, "sha256", c->sha256, "width", c->width, "height",
+                         c->height, "pixfmt", c->pixfmt, "turntable", num_or_null(c->turntable_deg),
+                         "light_arm", num_or_null(c->light_arm_deg), "camera_arm",
                          num_or_null(c->camera_arm_deg), "lamps", c->lamps, "laser", c->laser);
 }
 
@@ -353,11 +351,10 @@ static void on_stored(int result, const struct ds_capture *c, void *userdata)
 
         if (result >= 0) {
                 s->m->ds_count++;
-                json_array_append_new(json_object_get(s->o->result, "captures"),
-                                      capture_json(c));
+                json_array_append_new(json_object_get(s->o->result, "captures"), capture_json(c));
                 manager_notify(s->m, "capture.stored",
-                               json_pack("{sIssssss}", "id", (json_int_t)c->id, "camera",
-                                         c->camera, "file", c->file, "sha256", c->sha256));
+                               json_pack("{sIssssss}", "id", (json_int_t)c->id, "camera", c->camera,
+                                         "file", c->file, "sha256", c->sha256));
         } else {
                 snprintf(msg, sizeof(msg), "storing the frame of '%s' failed: %s", c->camera,
                          strerror(-result));
@@ -371,7 +368,7 @@ static void on_frame(struct rig *rig, int result, const char *msg, struct gn_fra
 {
         struct shot *s = userdata;
         struct rig_snapshot snap;
-        struct ds_capture c = { .t_request_ns = s->t_request_ns };
+        struct ds_capture c = {.t_request_ns = s->t_request_ns};
         int r = result;
 
         if (r >= 0 && !s->m->pool)
@@ -418,7 +415,7 @@ static int read_cam_request(struct srv_req *req, json_t *params, struct cam_requ
                 return srv_req_errmsg(req, -EINVAL, "param 'bits': must be 8 or 16");
         if (gain < 0 || gain > 1000)
                 return srv_req_errmsg(req, -EINVAL, "param 'gain': must be in [0, 1000]");
-        *cr = (struct cam_request){ .exposure_us = exposure, .gain = gain, .bits = bits };
+        *cr = (struct cam_request){.exposure_us = exposure, .gain = gain, .bits = bits};
         return 0;
 }
 
@@ -430,8 +427,8 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
         int first = 0, last = m->rc->n_cameras, r;
         struct op *o;
 
-        if ((r = srv_params_check(req, params,
-                                  KEYS("camera", "exposure_us", "gain", "bits"))) < 0 ||
+        if ((r = srv_params_check(req, params, KEYS("camera", "exposure_us", "gain", "bits"))) <
+                    0 ||
             (r = srv_param_str(req, params, "camera", &camera)) < 0 ||
             (r = read_cam_request(req, params, &cr)) < 0)
                 return r;
@@ -450,7 +447,7 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
                         op_part_done(o, -ENOMEM, NULL);
                         continue;
                 }
-                *s = (struct shot){ .o = o, .m = m, .cam = i, .t_request_ns = realtime_ns() };
+                *s = (struct shot){.o = o, .m = m, .cam = i, .t_request_ns = realtime_ns()};
                 r = rig_capture(m->rig, i, &cr, on_frame, s);
                 if (r < 0) {
                         free(s);
@@ -555,7 +552,8 @@ static json_t *sorted_keys(json_t *set)
         json_t *out = json_array(), *v;
         const char *key;
 
-        json_object_foreach(set, key, v) {
+        json_object_foreach(set, key, v)
+        {
                 size_t i = 0;
                 while (i < json_array_size(out) &&
                        strcmp(json_string_value(json_array_get(out, i)), key) < 0)
@@ -580,7 +578,7 @@ static json_t *dataset_summary(const char *path, const char *name, bool rows)
         }
         count = ds_count(d);
         if (rows) {
-                struct last_rows lr = { caps, count - 20, cams };
+                struct last_rows lr = {caps, count - 20, cams};
                 ds_foreach(d, add_recent_row, &lr);
         }
         ds_close(d);
@@ -653,19 +651,19 @@ static int m_dataset_info(struct srv_req *req, json_t *params, void *userdata)
 }
 
 const struct srv_method manager_methods[] = {
-        { "hello", m_hello },
-        { "status", m_status },
-        { "describe", m_describe },
-        { "home", m_home },
-        { "move", m_move },
-        { "stop", m_stop },
-        { "lamp.set", m_lamp_set },
-        { "laser.set", m_laser_set },
-        { "capture", m_capture },
-        { "dataset.open", m_dataset_open },
-        { "dataset.close", m_dataset_close },
-        { "dataset.list", m_dataset_list },
-        { "dataset.info", m_dataset_info },
-        { "fault.clear", m_fault_clear },
-        { NULL, NULL },
+        {"hello", m_hello},
+        {"status", m_status},
+        {"describe", m_describe},
+        {"home", m_home},
+        {"move", m_move},
+        {"stop", m_stop},
+        {"lamp.set", m_lamp_set},
+        {"laser.set", m_laser_set},
+        {"capture", m_capture},
+        {"dataset.open", m_dataset_open},
+        {"dataset.close", m_dataset_close},
+        {"dataset.list", m_dataset_list},
+        {"dataset.info", m_dataset_info},
+        {"fault.clear", m_fault_clear},
+        {NULL, NULL},
 };

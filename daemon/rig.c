@@ -56,8 +56,8 @@ struct rig {
         struct rig_switch lamps[RIG_MAX_LAMPS], laser;
         struct cam *cams[RIG_MAX_CAMERAS];
         bool cam_open[RIG_MAX_CAMERAS];
-        unsigned pending;   /* jobs in flight */
-        unsigned captures;  /* captures in flight */
+        unsigned pending;  /* jobs in flight */
+        unsigned captures; /* captures in flight */
         rig_notify_fn notify;
         void *notify_ud;
         bool fault;
@@ -72,8 +72,19 @@ struct rig {
 };
 
 /* Axis jobs come first: is_axis_job() relies on the order. */
-enum job_kind { J_OPEN_AXIS, J_HOME, J_MOVE, J_POLL, J_STOP, J_RESET, J_OPEN_SW, J_CHECK_SW,
-                J_SWITCH, J_OPEN_CAM, J_CAPTURE };
+enum job_kind {
+        J_OPEN_AXIS,
+        J_HOME,
+        J_MOVE,
+        J_POLL,
+        J_STOP,
+        J_RESET,
+        J_OPEN_SW,
+        J_CHECK_SW,
+        J_SWITCH,
+        J_OPEN_CAM,
+        J_CAPTURE
+};
 
 struct job {
         struct rig *rig;
@@ -219,7 +230,7 @@ static int submit_new(struct rig *rig, enum job_kind kind, int idx, double arg, 
 
         if (!j)
                 return -ENOMEM;
-        *j = (struct job){ .rig = rig, .kind = kind, .idx = idx, .arg = arg, .on = on };
+        *j = (struct job){.rig = rig, .kind = kind, .idx = idx, .arg = arg, .on = on};
         if (is_axis_job(kind))
                 j->gen = atomic_load(&rig->axes[idx].gen);
         return submit(j, urgent);
@@ -260,8 +271,9 @@ static void rig_fault(struct rig *rig, const char *device, int err, const char *
         rig->fault = true;
         snprintf(rig->fault_device, sizeof(rig->fault_device), "%s", device);
         snprintf(rig->fault_msg, sizeof(rig->fault_msg), "%s", msg);
-        emit(rig, "fault", json_pack("{sssiss}", "device", device, "code",
-                                     proto_errno_to_code(err), "message", msg));
+        emit(rig, "fault",
+             json_pack("{sssiss}", "device", device, "code", proto_errno_to_code(err), "message",
+                       msg));
         for (size_t i = 0; i < rig->rc->n_axes; i++)
                 if (rig->axes[i].op != AX_IDLE)
                         axis_finish(&rig->axes[i], -EIO, msg);
@@ -311,8 +323,7 @@ static uint64_t now_usec(struct rig *rig)
 static void axis_progress(struct rig_axis *a)
 {
         struct rig *rig = a->rig;
-        bool arrived = !a->st.moving && a->st.in_position &&
-                       (a->op != AX_HOMING || a->st.homed);
+        bool arrived = !a->st.moving && a->st.in_position && (a->op != AX_HOMING || a->st.homed);
         uint64_t now = now_usec(rig);
 
         if (a->st.fault)
@@ -398,9 +409,9 @@ static void done_later(struct rig *rig, int ms, rig_done_fn done, void *ud)
         sd_event_source *s = NULL;
 
         if (l) {
-                *l = (struct later){ rig, done, ud };
-                if (sd_event_add_time_relative(rig->event, &s, CLOCK_MONOTONIC, ms * 1000ULL,
-                                               1000, on_later, l) >= 0) {
+                *l = (struct later){rig, done, ud};
+                if (sd_event_add_time_relative(rig->event, &s, CLOCK_MONOTONIC, ms * 1000ULL, 1000,
+                                               on_later, l) >= 0) {
                         sd_event_source_set_description(s, "lamp-warmup");
                         return;
                 }
@@ -447,8 +458,7 @@ static void camera_job_done(struct job *j, int result)
         if (j->kind == J_OPEN_CAM) {
                 rig->cam_open[j->idx] = result >= 0;
                 if (result < 0)
-                        rig_fault(rig, job_device(j), result, "open failed: %s",
-                                  strerror(-result));
+                        rig_fault(rig, job_device(j), result, "open failed: %s", strerror(-result));
                 return;
         }
         rig->captures--;
@@ -464,8 +474,7 @@ static void clear_finished(struct rig *rig)
         rig->clear_done = NULL;
         update_state(rig);
         if (done)
-                done(rig, rig->fault ? -EIO : 0, rig->fault ? rig->fault_msg : NULL,
-                     rig->clear_ud);
+                done(rig, rig->fault ? -EIO : 0, rig->fault ? rig->fault_msg : NULL, rig->clear_ud);
 }
 
 static void job_done(struct bus *b, int result, void *userdata)
@@ -492,8 +501,8 @@ static void job_done(struct bus *b, int result, void *userdata)
         free(j);
 }
 
-static int start_motion(struct rig *rig, int i, enum axis_op op, double target,
-                        rig_done_fn done, void *ud)
+static int start_motion(struct rig *rig, int i, enum axis_op op, double target, rig_done_fn done,
+                        void *ud)
 {
         struct rig_axis *a = &rig->axes[i];
         const struct rig_axis_conf *c = a->ax->conf;
@@ -579,8 +588,8 @@ int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata
         j = calloc(1, sizeof(*j));
         if (!j)
                 return -ENOMEM;
-        *j = (struct job){ .rig = rig, .kind = J_SWITCH, .idx = i, .on = on, .done = done,
-                           .ud = userdata };
+        *j = (struct job){
+                .rig = rig, .kind = J_SWITCH, .idx = i, .on = on, .done = done, .ud = userdata};
         return submit(j, false);
 }
 
@@ -600,8 +609,12 @@ int rig_capture(struct rig *rig, int i, const struct cam_request *req, rig_frame
         j = calloc(1, sizeof(*j));
         if (!j)
                 return -ENOMEM;
-        *j = (struct job){ .rig = rig, .kind = J_CAPTURE, .idx = i, .creq = *req,
-                           .frame_done = done, .ud = userdata };
+        *j = (struct job){.rig = rig,
+                          .kind = J_CAPTURE,
+                          .idx = i,
+                          .creq = *req,
+                          .frame_done = done,
+                          .ud = userdata};
         r = submit(j, false);
         if (r >= 0) {
                 rig->captures++;
@@ -612,8 +625,8 @@ int rig_capture(struct rig *rig, int i, const struct cam_request *req, rig_frame
 
 void rig_snapshot(const struct rig *rig, struct rig_snapshot *snap)
 {
-        double *pose[] = { &snap->turntable_deg, &snap->light_arm_deg, &snap->camera_arm_deg };
-        static const char *const names[] = { "turntable", "light_arm", "camera_arm" };
+        double *pose[] = {&snap->turntable_deg, &snap->light_arm_deg, &snap->camera_arm_deg};
+        static const char *const names[] = {"turntable", "light_arm", "camera_arm"};
 
         memset(snap, 0, sizeof(*snap));
         for (size_t k = 0; k < ELEMENTSOF(names); k++) {
@@ -697,7 +710,7 @@ static int build_devices(struct rig *rig)
                         return log_error_errno(r, "bus '%s': %m", rc->buses[i].name);
         for (size_t i = 0; i < rc->n_axes; i++) {
                 struct rig_axis *a = &rig->axes[i];
-                *a = (struct rig_axis){ .rig = rig, .idx = i };
+                *a = (struct rig_axis){.rig = rig, .idx = i};
                 if ((r = axis_new(&rc->axes[i], bus_of(rig, rc->axes[i].bus), &a->ax)) < 0 ||
                     (r = sd_event_add_time_relative(rig->event, &a->timer, CLOCK_MONOTONIC, 0, 0,
                                                     on_axis_timer, a)) < 0)
@@ -707,15 +720,15 @@ static int build_devices(struct rig *rig)
                 sd_event_source_set_description(a->timer, "axis-poll");
         }
         for (size_t i = 0; i < rc->n_lamps; i++)
-                if ((r = sw_new(&rc->lamps[i], bus_of(rig, rc->lamps[i].bus),
-                                &rig->lamps[i].sw)) < 0)
+                if ((r = sw_new(&rc->lamps[i], bus_of(rig, rc->lamps[i].bus), &rig->lamps[i].sw)) <
+                    0)
                         return log_error_errno(r, "lamp '%s': %m", rc->lamps[i].name);
         if (rc->has_laser &&
             (r = sw_new(&rc->laser, bus_of(rig, rc->laser.bus), &rig->laser.sw)) < 0)
                 return log_error_errno(r, "laser '%s': %m", rc->laser.name);
         for (size_t i = 0; i < rc->n_cameras; i++)
-                if ((r = cam_new(&rc->cameras[i], bus_of(rig, rc->cameras[i].bus),
-                                 &rig->cams[i])) < 0)
+                if ((r = cam_new(&rc->cameras[i], bus_of(rig, rc->cameras[i].bus), &rig->cams[i])) <
+                    0)
                         return log_error_errno(r, "camera '%s': %m", rc->cameras[i].name);
         return 0;
 }
@@ -793,11 +806,10 @@ static json_t *axis_status(const struct rig_axis *a)
 {
         const struct rig_axis_conf *c = a->ax->conf;
 
-        return json_pack("{sssfsbsbsbsbsisfsfsb}", "name", c->name, "position",
-                         a->st.position_deg, "moving", a->op != AX_IDLE || a->st.moving,
-                         "homed", a->st.homed, "fault", a->st.fault, "open", a->open,
-                         "fault_code", a->st.fault_code, "min", c->min_deg, "max", c->max_deg,
-                         "continuous", c->continuous);
+        return json_pack("{sssfsbsbsbsbsisfsfsb}", "name", c->name, "position", a->st.position_deg,
+                         "moving", a->op != AX_IDLE || a->st.moving, "homed", a->st.homed, "fault",
+                         a->st.fault, "open", a->open, "fault_code", a->st.fault_code, "min",
+                         c->min_deg, "max", c->max_deg, "continuous", c->continuous);
 }
 
 json_t *rig_status(const struct rig *rig)
@@ -811,22 +823,22 @@ json_t *rig_status(const struct rig *rig)
                 homed = homed && rig->axes[i].st.homed;
         }
         for (size_t i = 0; i < rc->n_lamps; i++)
-                json_array_append_new(lamps, json_pack("{sssb}", "name", rc->lamps[i].name,
-                                                       "on", rig->lamps[i].sw->on));
+                json_array_append_new(lamps, json_pack("{sssb}", "name", rc->lamps[i].name, "on",
+                                                       rig->lamps[i].sw->on));
         for (size_t i = 0; i < rc->n_cameras; i++)
                 json_array_append_new(cams, json_pack("{sssisisi}", "name", rc->cameras[i].name,
                                                       "width", rc->cameras[i].width, "height",
                                                       rc->cameras[i].height, "bits",
                                                       rc->cameras[i].bits));
-        return json_pack("{sssbsososososo}", "state", rig_state(rig), "homed", homed, "axes",
-                         axes, "lamps", lamps, "laser",
-                         rc->has_laser ? json_pack("{sssb}", "name", rc->laser.name, "on",
-                                                   rig->laser.sw->on)
-                                       : json_null(),
-                         "cameras", cams, "fault",
-                         rig->fault ? json_pack("{ssss}", "device", rig->fault_device,
-                                                "message", rig->fault_msg)
-                                    : json_null());
+        return json_pack(
+                "{sssbsososososo}", "state", rig_state(rig), "homed", homed, "axes", axes, "lamps",
+                lamps, "laser",
+                rc->has_laser ? json_pack("{sssb}", "name", rc->laser.name, "on", rig->laser.sw->on)
+                              : json_null(),
+                "cameras", cams, "fault",
+                rig->fault ? json_pack("{ssss}", "device", rig->fault_device, "message",
+                                       rig->fault_msg)
+                           : json_null());
 }
 
 static json_t *opts_json(const struct opt_desc *opts, int n)
@@ -842,11 +854,11 @@ static json_t *opts_json(const struct opt_desc *opts, int n)
         return a;
 }
 
-static json_t *device_json(const char *cls, const char *name, const char *backend,
-                           const char *bus, const struct opt_desc *opts, int n)
+static json_t *device_json(const char *cls, const char *name, const char *backend, const char *bus,
+                           const struct opt_desc *opts, int n)
 {
-        return json_pack("{ssssssssso}", "class", cls, "name", name, "backend", backend, "bus",
-                         bus, "options", opts_json(opts, n));
+        return json_pack("{ssssssssso}", "class", cls, "name", name, "backend", backend, "bus", bus,
+                         "options", opts_json(opts, n));
 }
 
 json_t *rig_describe(const struct rig *rig)
@@ -856,22 +868,21 @@ json_t *rig_describe(const struct rig *rig)
 
         for (size_t i = 0; i < rc->n_axes; i++) {
                 const struct axis *ax = rig->axes[i].ax;
-                json_array_append_new(devs, device_json("axis", rc->axes[i].name, ax->ops->name,
-                                                        rc->axes[i].bus, ax->ops->opts,
-                                                        ax->ops->n_opts));
+                json_array_append_new(devs,
+                                      device_json("axis", rc->axes[i].name, ax->ops->name,
+                                                  rc->axes[i].bus, ax->ops->opts, ax->ops->n_opts));
         }
         for (size_t i = 0; i < rc->n_lamps + rc->has_laser; i++) {
                 const struct sw *s = i < rc->n_lamps ? rig->lamps[i].sw : rig->laser.sw;
                 json_array_append_new(devs, device_json(i < rc->n_lamps ? "lamp" : "laser",
-                                                        s->conf->name, s->ops->name,
-                                                        s->conf->bus, s->ops->opts,
-                                                        s->ops->n_opts));
+                                                        s->conf->name, s->ops->name, s->conf->bus,
+                                                        s->ops->opts, s->ops->n_opts));
         }
         for (size_t i = 0; i < rc->n_cameras; i++) {
                 const struct cam *c = rig->cams[i];
-                json_array_append_new(devs, device_json("camera", c->conf->name, c->ops->name,
-                                                        c->conf->bus, c->ops->opts,
-                                                        c->ops->n_opts));
+                json_array_append_new(devs,
+                                      device_json("camera", c->conf->name, c->ops->name,
+                                                  c->conf->bus, c->ops->opts, c->ops->n_opts));
         }
         return json_pack("{ssso}", "rig", rc->name, "devices", devs);
 }

@@ -23,8 +23,8 @@ struct rig;
 typedef void (*rig_done_fn)(struct rig *rig, int result, const char *msg, void *userdata);
 
 /* Completion of a capture: frame is owned by the callee on success. */
-typedef void (*rig_frame_fn)(struct rig *rig, int result, const char *msg,
-                             struct gn_frame *frame, void *userdata);
+typedef void (*rig_frame_fn)(struct rig *rig, int result, const char *msg, struct gn_frame *frame,
+                             void *userdata);
 
 /* Receives the rig's notifications (params stolen): axis.moved, move.done,
  * switch.changed, fault, state.changed. */

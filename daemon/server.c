@@ -22,7 +22,7 @@
 #include "protocol/proto.h"
 #include "server.h"
 
-#define SRV_MAX_OUTPUT (8u << 20)
+#define SRV_MAX_OUTPUT  (8u << 20)
 #define SRV_MAX_CLIENTS 64
 
 struct client {
@@ -238,7 +238,7 @@ static void dispatch(struct client *c, struct proto_msg *msg)
 
 static void handle_line(struct client *c, const char *line, size_t len)
 {
-        struct proto_msg msg = { 0 };
+        struct proto_msg msg = {0};
         json_t *id = NULL;
         char err[256] = "";
         int r = proto_parse(line, len, &msg, &id, err, sizeof(err));
@@ -340,8 +340,8 @@ static int listen_unix(const char *path)
         return TAKE_FD(fd);
 }
 
-int server_new(sd_event *event, const char *path, const struct srv_method *methods,
-               void *userdata, struct server **ret)
+int server_new(sd_event *event, const char *path, const struct srv_method *methods, void *userdata,
+               struct server **ret)
 {
         struct server *s = calloc(1, sizeof(*s));
         int r;
@@ -405,7 +405,8 @@ int srv_params_check(struct srv_req *req, json_t *params, const char *const *all
         const char *key;
         json_t *v = NULL;
 
-        json_object_foreach(params, key, v) {
+        json_object_foreach(params, key, v)
+        {
                 bool ok = false;
                 for (const char *const *a = allowed; *a; a++)
                         ok = ok || strcmp(*a, key) == 0;
@@ -459,8 +460,8 @@ int srv_param_int(struct srv_req *req, json_t *params, const char *key, long min
         if (r <= 0)
                 return r;
         if (json_integer_value(v) < min || json_integer_value(v) > max)
-                return srv_req_errmsg(req, -EINVAL, "param '%s': %lld is outside [%ld, %ld]",
-                                      key, (long long)json_integer_value(v), min, max);
+                return srv_req_errmsg(req, -EINVAL, "param '%s': %lld is outside [%ld, %ld]", key,
+                                      (long long)json_integer_value(v), min, max);
         *out = json_integer_value(v);
         return 1;
 }

@@ -27,8 +27,8 @@ struct srv_method {
 
 /* Listens on path (removing a stale socket; mode 0660) and serves methods (a table ending
  * in {NULL}) with userdata. Returns 0 or -errno. */
-int server_new(sd_event *event, const char *path, const struct srv_method *methods,
-               void *userdata, struct server **ret);
+int server_new(sd_event *event, const char *path, const struct srv_method *methods, void *userdata,
+               struct server **ret);
 
 /* Closes every connection and the socket, unlinks the path. Pending requests get no
  * answer. NULL is a no-op; returns NULL. */
@@ -44,7 +44,8 @@ unsigned server_clients(const struct server *s);
 void srv_reply(struct srv_req *req, json_t *result);
 
 /* Answers req with the error for -errno err and a message, and frees req. */
-void srv_fail(struct srv_req *req, int err, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+void srv_fail(struct srv_req *req, int err, const char *fmt, ...)
+        __attribute__((format(printf, 3, 4)));
 
 /* Sets the message used when the handler returns -errno. Returns err. */
 int srv_req_errmsg(struct srv_req *req, int err, const char *fmt, ...)

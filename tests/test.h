@@ -12,7 +12,7 @@
 #define CHECK(cond)                                                                                \
         do {                                                                                       \
                 if (!(cond)) {                                                                     \
-                        fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond);  \
+                        fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond);   \
                         exit(1);                                                                   \
                 }                                                                                  \
         } while (0)
@@ -51,8 +51,8 @@
         do {                                                                                       \
                 const char *_s = (s);                                                              \
                 if (!_s || !strstr(_s, (sub))) {                                                   \
-                        fprintf(stderr, "%s:%d: '%s' does not contain '%s'\n", __FILE__,           \
-                                __LINE__, _s ? _s : "(null)", (sub));                              \
+                        fprintf(stderr, "%s:%d: '%s' does not contain '%s'\n", __FILE__, __LINE__, \
+                                _s ? _s : "(null)", (sub));                                        \
                         exit(1);                                                                   \
                 }                                                                                  \
         } while (0)

@@ -19,8 +19,10 @@
 static const char *const test_rig =
         "rig: e2e\n"
         "buses:\n"
-        "  - { name: drives, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/drives\", timeout_ms: 300 }\n"
-        "  - { name: relays, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/relays\", timeout_ms: 300 }\n"
+        "  - { name: drives, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/drives\", timeout_ms: 300 "
+        "}\n"
+        "  - { name: relays, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/relays\", timeout_ms: 300 "
+        "}\n"
         "  - { name: frames, type: sim, port: \"${GONIO_SIM_DIR}/frames.sock\" }\n"
         "axes:\n"
         "  - { name: turntable, backend: modbus, bus: drives, unit: 1, continuous: true,\n"
@@ -95,7 +97,7 @@ static bool wait_word(int fd, const char *word, double timeout)
         double end = now_s() + timeout;
 
         while (now_s() < end) {
-                struct pollfd pfd = { .fd = fd, .events = POLLIN };
+                struct pollfd pfd = {.fd = fd, .events = POLLIN};
                 ssize_t n;
 
                 if (poll(&pfd, 1, 200) <= 0)
@@ -115,7 +117,7 @@ static bool wait_word(int fd, const char *word, double timeout)
 
 static int connect_path(const char *path)
 {
-        struct sockaddr_un sa = { .sun_family = AF_UNIX };
+        struct sockaddr_un sa = {.sun_family = AF_UNIX};
         int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
 
         CHECK(fd >= 0);
@@ -218,14 +220,16 @@ void rigenv_start(struct rigenv *e, char **argv, double time_scale)
         write_file(e->rig, test_rig);
         setenv("GONIO_SIM_DIR", e->simdir, 1);
         snprintf(scale, sizeof(scale), "%g", time_scale);
-        memcpy(sim_argv, (char *[]){ (char *)e->gonio_sim, "--rig", e->rig, "--dir", e->simdir,
-                                     "--time-scale", scale, NULL },
+        memcpy(sim_argv,
+               (char *[]){(char *)e->gonio_sim, "--rig", e->rig, "--dir", e->simdir, "--time-scale",
+                          scale, NULL},
                sizeof(sim_argv));
         e->sim = spawn(sim_argv, &fd);
         CHECK(wait_word(fd, "ready", 30));
         close(fd);
-        memcpy(d_argv, (char *[]){ (char *)e->goniod, "--rig", e->rig, "--socket", e->sock,
-                                   "--data", e->data, NULL },
+        memcpy(d_argv,
+               (char *[]){(char *)e->goniod, "--rig", e->rig, "--socket", e->sock, "--data",
+                          e->data, NULL},
                sizeof(char *) * 8);
         e->daemon = spawn(d_argv, &fd);
         close(fd);
@@ -290,8 +294,8 @@ int run_capture(char *const argv[], char *out, size_t outlen, char *err, size_t 
                 char sink[4096];
                 ssize_t n;
 
-                while ((n = read(fd, buf ? buf + len : sink,
-                                 buf ? cap - 1 - len : sizeof(sink))) > 0)
+                while ((n = read(fd, buf ? buf + len : sink, buf ? cap - 1 - len : sizeof(sink))) >
+                       0)
                         if (buf)
                                 len += n;
                 if (buf)
@@ -304,7 +308,7 @@ int run_capture(char *const argv[], char *out, size_t outlen, char *err, size_t 
 
 static int vctl(struct rigenv *e, json_t **out, va_list ap)
 {
-        char *argv[32] = { (char *)e->gonioctl, "--socket", e->sock, "--json" };
+        char *argv[32] = {(char *)e->gonioctl, "--socket", e->sock, "--json"};
         static char buf[1 << 20];
         char err[4096];
         int n = 4, r;
@@ -370,7 +374,7 @@ json_t *raw_call(int fd, const char *text)
         for (;;) {
                 char *nl;
                 ssize_t n;
-                struct pollfd pfd = { .fd = fd, .events = POLLIN };
+                struct pollfd pfd = {.fd = fd, .events = POLLIN};
 
                 CHECK(poll(&pfd, 1, 20000) == 1);
                 n = read(fd, buf + len, sizeof(buf) - 1 - len);

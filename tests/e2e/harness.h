@@ -7,11 +7,11 @@
 #include <sys/types.h>
 
 struct rigenv {
-        char dir[256];     /* temp dir holding everything below */
-        char simdir[300];  /* gonio-sim's ptys and frame socket */
-        char rig[300];     /* rig file */
-        char sock[300];    /* goniod's control socket */
-        char data[300];    /* datasets */
+        char dir[256];    /* temp dir holding everything below */
+        char simdir[300]; /* gonio-sim's ptys and frame socket */
+        char rig[300];    /* rig file */
+        char sock[300];   /* goniod's control socket */
+        char data[300];   /* datasets */
         pid_t sim, daemon;
         const char *goniod, *gonioctl, *gonio_sim;
 };

@@ -18,8 +18,8 @@ static long error_code(json_t *reply)
 static void expect_error(int fd, const char *text, long code, const char *msg_part)
 {
         json_t *r = raw_call(fd, text);
-        const char *msg = json_string_value(json_object_get(json_object_get(r, "error"),
-                                                            "message"));
+        const char *msg =
+                json_string_value(json_object_get(json_object_get(r, "error"), "message"));
 
         if (error_code(r) != code || !msg || !strstr(msg, msg_part))
                 fprintf(stderr, "for %s got %s\n", text, json_dumps(r, 0));
@@ -109,8 +109,8 @@ static void test_bad_rig_file(struct rigenv *e)
               "axes:\n  - { name: a, backend: modbus, bus: b, accel: -5 }\n",
               f);
         fclose(f);
-        CHECK_INT(run_capture((char *[]){ (char *)e->goniod, "--rig", path, "--socket",
-                                          "/tmp/never.sock", NULL },
+        CHECK_INT(run_capture((char *[]){(char *)e->goniod, "--rig", path, "--socket",
+                                         "/tmp/never.sock", NULL},
                               NULL, 0, err, sizeof(err)),
                   1);
         CHECK_STR_CONTAINS(err, path);

@@ -18,9 +18,9 @@ static double axis_pos(struct rigenv *e, const char *axis)
         size_t i;
         double pos = NAN;
 
-        json_array_foreach(json_object_get(st, "axes"), i, a)
-                if (strcmp(json_string_value(json_object_get(a, "name")), axis) == 0)
-                        pos = json_number_value(json_object_get(a, "position"));
+        json_array_foreach(json_object_get(st, "axes"), i,
+                           a) if (strcmp(json_string_value(json_object_get(a, "name")), axis) == 0)
+                pos = json_number_value(json_object_get(a, "position"));
         json_decref(st);
         return pos;
 }
@@ -140,8 +140,8 @@ static void test_captures(struct rigenv *e)
         json_decref(r);
         r = ctl_ok(e, "dataset", "list", NULL);
         CHECK_INT(json_array_size(json_object_get(r, "datasets")), 1);
-        CHECK_STR(json_string_value(json_object_get(json_array_get(json_object_get(r, "datasets"), 0),
-                                                    "name")),
+        CHECK_STR(json_string_value(json_object_get(
+                          json_array_get(json_object_get(r, "datasets"), 0), "name")),
                   "e2e");
         json_decref(r);
         gn_frame_free_data(&lit0);

@@ -16,9 +16,9 @@ static bool switch_on(json_t *st, const char *name)
 
         if (strcmp(name, "laser") == 0)
                 return json_is_true(json_object_get(json_object_get(st, "laser"), "on"));
-        json_array_foreach(json_object_get(st, "lamps"), i, l)
-                if (strcmp(json_string_value(json_object_get(l, "name")), name) == 0)
-                        return json_is_true(json_object_get(l, "on"));
+        json_array_foreach(json_object_get(st, "lamps"), i,
+                           l) if (strcmp(json_string_value(json_object_get(l, "name")), name) ==
+                                  0) return json_is_true(json_object_get(l, "on"));
         return false;
 }
 
@@ -27,8 +27,8 @@ static void wait_all_off(struct rigenv *e)
 {
         for (int tries = 0; tries < 100; tries++) {
                 json_t *st = ctl_ok(e, "status", NULL);
-                bool any = switch_on(st, "lamp0") || switch_on(st, "lamp1") ||
-                           switch_on(st, "laser");
+                bool any =
+                        switch_on(st, "lamp0") || switch_on(st, "lamp1") || switch_on(st, "laser");
                 json_decref(st);
                 if (!any)
                         return;
@@ -62,7 +62,8 @@ static void test_relay_timeout(struct rigenv *e)
 {
         json_t *st;
 
-        sim_request(e, "{\"cmd\":\"inject\",\"bus\":\"relays\",\"unit\":10,\"fault\":\"timeout\"}\n");
+        sim_request(e,
+                    "{\"cmd\":\"inject\",\"bus\":\"relays\",\"unit\":10,\"fault\":\"timeout\"}\n");
         CHECK_INT(ctl(e, NULL, "lamp", "lamp1", "on", NULL), 5);
         st = wait_state(e, "fault", 10);
         CHECK_STR(json_string_value(json_object_get(json_object_get(st, "fault"), "device")),
