@@ -347,7 +347,7 @@ struct shot {
 static void on_stored(int result, const struct ds_capture *c, void *userdata)
 {
         struct shot *s = userdata;
-        char msg[300];
+        char msg[300] = "the store was canceled";
 
         if (result >= 0) {
                 s->m->ds_count++;
@@ -355,9 +355,10 @@ static void on_stored(int result, const struct ds_capture *c, void *userdata)
                 manager_notify(s->m, "capture.stored",
                                json_pack("{sIssssss}", "id", (json_int_t)c->id, "camera", c->camera,
                                          "file", c->file, "sha256", c->sha256));
-        } else {
+        } else if (result != -ECANCELED) {
                 snprintf(msg, sizeof(msg), "storing the frame of '%s' failed: %s", c->camera,
                          strerror(-result));
+                rig_fault(s->m->rig, "dataset", result, "%s", msg);
         }
         op_part_done(s->o, result, result < 0 ? msg : NULL);
         free(s);

@@ -255,7 +255,7 @@ static void axis_finish(struct rig_axis *a, int result, const char *msg);
 /* Latches the first fault, tells clients, and goes to the safe state. A device that
  * fails while the rig is already faulted (e.g. during the safe state) is only logged,
  * so a dead bus cannot make the safe state loop. */
-static void rig_fault(struct rig *rig, const char *device, int err, const char *fmt, ...)
+void rig_fault(struct rig *rig, const char *device, int err, const char *fmt, ...)
 {
         char msg[256];
         va_list ap;

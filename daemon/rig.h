@@ -71,6 +71,11 @@ int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata
 int rig_capture(struct rig *rig, int i, const struct cam_request *req, rig_frame_fn done,
                 void *userdata);
 
+/* Latches a fault of device (the first one is kept), notifies clients and goes to the safe
+ * state. Used by the rig itself and for faults outside it (a full disk). */
+void rig_fault(struct rig *rig, const char *device, int err, const char *fmt, ...)
+        __attribute__((format(printf, 4, 5)));
+
 /* Stops every axis and switches lamps and laser off, urgently (asynchronous). */
 void rig_safe_state(struct rig *rig);
 
