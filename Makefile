@@ -26,6 +26,7 @@ demo: build
 
 # The whole suite, then once more under AddressSanitizer + UndefinedBehaviorSanitizer.
 test: test-fast test-asan
+	@scripts/test-summary $(BUILD) $(ASAN_BUILD)
 
 test-fast: build
 	meson test -C $(BUILD) --print-errorlogs
