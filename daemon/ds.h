@@ -25,21 +25,21 @@ struct ds;
 
 /* What the index records for one capture. */
 struct ds_capture {
-        int64_t id;               /* row id, set by ds_store */
-        char session[DS_NAME_MAX];/* may be empty */
+        int64_t id;                /* row id, set by ds_store */
+        char session[DS_NAME_MAX]; /* may be empty */
         double turntable_deg, light_arm_deg, camera_arm_deg;
         char camera[DS_NAME_MAX];
-        char lamps[256];          /* comma-separated names of the lit lamps, "" for none */
+        char lamps[256]; /* comma-separated names of the lit lamps, "" for none */
         bool laser;
         int exposure_us;
         double gain;
-        uint64_t t_request_ns;    /* CLOCK_REALTIME when the capture was requested */
-        uint64_t t_exposure_ns;   /* frame timestamp */
-        uint64_t t_stored_ns;     /* set by ds_store */
-        char file[256];           /* relative to the dataset dir, set by ds_store */
-        char sha256[65];          /* hex, set by ds_store */
+        uint64_t t_request_ns;  /* CLOCK_REALTIME when the capture was requested */
+        uint64_t t_exposure_ns; /* frame timestamp */
+        uint64_t t_stored_ns;   /* set by ds_store */
+        char file[256];         /* relative to the dataset dir, set by ds_store */
+        char sha256[65];        /* hex, set by ds_store */
         int width, height;
-        char pixfmt[16];          /* "rgb8", "rgb16", "mono8", "mono16" */
+        char pixfmt[16]; /* "rgb8", "rgb16", "mono8", "mono16" */
 };
 
 /* Creates a new dataset directory at path (must not exist, parent must) and stores

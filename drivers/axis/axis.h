@@ -24,12 +24,12 @@ struct axis_ops {
         const char *name; /* backend name as written in the rig file */
         const struct opt_desc *opts;
         int n_opts;
-        int (*open)(struct axis *ax);   /* probe the drive, load speed/accel */
+        int (*open)(struct axis *ax); /* probe the drive, load speed/accel */
         void (*close)(struct axis *ax);
-        int (*home)(struct axis *ax);   /* start homing */
+        int (*home)(struct axis *ax);                 /* start homing */
         int (*move_abs)(struct axis *ax, double deg); /* start a move, limits already checked */
-        int (*stop)(struct axis *ax);   /* immediate stop */
-        int (*reset)(struct axis *ax);  /* clear a drive fault */
+        int (*stop)(struct axis *ax);                 /* immediate stop */
+        int (*reset)(struct axis *ax);                /* clear a drive fault */
         int (*poll)(struct axis *ax, struct axis_state *st);
 };
 

@@ -91,8 +91,8 @@ static void test_full_disk(struct rigenv *e)
         json_t *st;
         int r = 0, i;
 
-        snprintf(cmd, sizeof(cmd), "mkdir -p %s && mount -t tmpfs -o size=600k tmpfs %s",
-                 e->data, e->data);
+        snprintf(cmd, sizeof(cmd), "mkdir -p %s && mount -t tmpfs -o size=600k tmpfs %s", e->data,
+                 e->data);
         if (system(cmd) != 0) {
                 fprintf(stderr, "full-disk case skipped: cannot mount a tmpfs\n");
                 return;
