@@ -475,6 +475,13 @@ static int dataset_path(struct srv_req *req, struct manager *m, const char *name
         return 0;
 }
 
+/* True while a capture is being taken or stored: the dataset must not change under it. */
+static bool storing(const struct manager *m)
+{
+        return strcmp(rig_state(m->rig), "capturing") == 0 ||
+               (m->pool && ds_pool_in_flight(m->pool) > 0);
+}
+
 static void dataset_close(struct manager *m)
 {
         m->pool = ds_pool_free(m->pool);
@@ -497,8 +504,8 @@ static int m_dataset_open(struct srv_req *req, json_t *params, void *userdata)
             (r = srv_param_bool(req, params, "create", &create)) < 0 ||
             (r = dataset_path(req, m, name, path, sizeof(path))) < 0)
                 return r;
-        if (m->pool && ds_pool_in_flight(m->pool) > 0)
-                return srv_req_errmsg(req, -EBUSY, "captures are still being stored");
+        if (storing(m))
+                return srv_req_errmsg(req, -EBUSY, "captures are still in progress");
         r = create ? ds_create(path, name, m->rc->text, &d) : ds_open(path, &d);
         if (r < 0)
                 return srv_req_errmsg(req, r, "%s dataset '%s': %s",
@@ -524,8 +531,8 @@ static int m_dataset_close(struct srv_req *req, json_t *params, void *userdata)
 {
         struct manager *m = userdata;
 
-        if (m->pool && ds_pool_in_flight(m->pool) > 0)
-                return srv_req_errmsg(req, -EBUSY, "captures are still being stored");
+        if (storing(m))
+                return srv_req_errmsg(req, -EBUSY, "captures are still in progress");
         dataset_close(m);
         srv_reply(req, json_object());
         return 0;
