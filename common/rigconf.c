@@ -101,13 +101,23 @@ static int parse_profile(struct yconf *yc, struct fy_node *m, struct rig_modbus_
         return 0;
 }
 
+/* Reads an int-valued key into an int field with bounds. */
+static int read_int(struct yconf *yc, struct fy_node *m, const char *key, long min, long max,
+                    int *out)
+{
+        long v = *out;
+        int r = yconf_int(yc, m, key, min, max, &v);
+
+        *out = (int)v;
+        return r;
+}
+
 static int parse_bus(struct yconf *yc, struct fy_node *m, struct rig_bus_conf *b)
 {
         static const char *const keys[] = {"name",      "type",       "port",    "host",
                                            "tcp_port",  "baud",       "parity",  "data_bits",
                                            "stop_bits", "timeout_ms", "retries", NULL};
         char type[32] = "", parity[4] = "N";
-        long v;
         int r;
 
         *b = (struct rig_bus_conf){.baud = 115200,
@@ -135,46 +145,18 @@ static int parse_bus(struct yconf *yc, struct fy_node *m, struct rig_bus_conf *b
         if (!strchr("NEO", parity[0]) || parity[1])
                 return yconf_error(yc, yconf_get(m, "parity"), "parity", "must be N, E or O");
         b->parity = parity[0];
-        v = b->baud;
-        if ((r = yconf_int(yc, m, "baud", 300, 4000000, &v)) < 0)
+        if ((r = read_int(yc, m, "baud", 300, 4000000, &b->baud)) < 0 ||
+            (r = read_int(yc, m, "tcp_port", 0, 65535, &b->tcp_port)) < 0 ||
+            (r = read_int(yc, m, "data_bits", 5, 8, &b->data_bits)) < 0 ||
+            (r = read_int(yc, m, "stop_bits", 1, 2, &b->stop_bits)) < 0 ||
+            (r = read_int(yc, m, "timeout_ms", 1, 60000, &b->timeout_ms)) < 0 ||
+            (r = read_int(yc, m, "retries", 0, 10, &b->retries)) < 0)
                 return r;
-        b->baud = v;
-        v = b->tcp_port;
-        if ((r = yconf_int(yc, m, "tcp_port", 0, 65535, &v)) < 0)
-                return r;
-        b->tcp_port = v;
-        v = b->data_bits;
-        if ((r = yconf_int(yc, m, "data_bits", 5, 8, &v)) < 0)
-                return r;
-        b->data_bits = v;
-        v = b->stop_bits;
-        if ((r = yconf_int(yc, m, "stop_bits", 1, 2, &v)) < 0)
-                return r;
-        b->stop_bits = v;
-        v = b->timeout_ms;
-        if ((r = yconf_int(yc, m, "timeout_ms", 1, 60000, &v)) < 0)
-                return r;
-        b->timeout_ms = v;
-        v = b->retries;
-        if ((r = yconf_int(yc, m, "retries", 0, 10, &v)) < 0)
-                return r;
-        b->retries = v;
         if (b->type == RIG_BUS_MODBUS_TCP && !b->host[0])
                 strcpy(b->host, "127.0.0.1");
         if (b->type != RIG_BUS_MODBUS_TCP && !b->port[0])
                 return yconf_error(yc, m, "port", "required key is missing");
         return 0;
-}
-
-/* Reads an int-valued key into an int field with bounds. */
-static int read_int(struct yconf *yc, struct fy_node *m, const char *key, long min, long max,
-                    int *out)
-{
-        long v = *out;
-        int r = yconf_int(yc, m, key, min, max, &v);
-
-        *out = (int)v;
-        return r;
 }
 
 static int parse_axis(struct yconf *yc, struct fy_node *m, struct rig_axis_conf *a)
