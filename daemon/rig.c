@@ -164,6 +164,16 @@ static struct bus *job_bus(const struct job *j)
         }
 }
 
+/* After a successful open or reset, reads the drive's state into the job (worker). */
+static int poll_after(struct job *j, struct rig_axis *a, int r)
+{
+        if (r >= 0)
+                r = axis_poll(a->ax);
+        if (r >= 0)
+                j->st = a->ax->state;
+        return r;
+}
+
 /* Runs on the bus worker: the blocking driver call for one job. */
 static int job_run(struct bus *b, void *userdata)
 {
@@ -174,8 +184,7 @@ static int job_run(struct bus *b, void *userdata)
 
         switch (j->kind) {
         case J_OPEN_AXIS:
-                r = axis_open(a->ax);
-                return r < 0 ? r : axis_poll(a->ax) < 0 ? -EIO : (j->st = a->ax->state, 0);
+                return poll_after(j, a, axis_open(a->ax));
         case J_HOME:
         case J_MOVE:
                 if (j->gen != atomic_load(&a->gen))
@@ -188,8 +197,7 @@ static int job_run(struct bus *b, void *userdata)
         case J_STOP:
                 return axis_stop(a->ax);
         case J_RESET:
-                r = axis_reset(a->ax);
-                return r < 0 ? r : axis_poll(a->ax) < 0 ? -EIO : (j->st = a->ax->state, 0);
+                return poll_after(j, a, axis_reset(a->ax));
         case J_OPEN_SW:
                 r = sw_open(switch_slot(rig, j->idx)->sw);
                 return r < 0 ? r : sw_get(switch_slot(rig, j->idx)->sw, &j->on);
@@ -765,7 +773,9 @@ struct rig *rig_free(struct rig *rig)
         for (size_t i = 0; i < rig->rc->n_axes; i++)
                 if (rig->axes[i].op != AX_IDLE)
                         axis_finish(&rig->axes[i], -ECANCELED, "daemon is shutting down");
-        if (rig->pending == 0 && rig->buses[0]) { /* not brought down by manager_shutdown */
+        /* After a normal shutdown the manager has reached the safe state and the loop has
+         * finished; otherwise (a failed start) reach it here while the loop can still run. */
+        if (rig->buses[0] && sd_event_get_state(rig->event) != SD_EVENT_FINISHED) {
                 rig_safe_state(rig);
                 wait_idle(rig, 5 * 1000 * 1000ULL);
         }
