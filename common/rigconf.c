@@ -40,6 +40,14 @@ static int read_name(struct yconf *yc, struct fy_node *m, char *out, size_t len)
         return 0;
 }
 
+int rigconf_axis_of_role(const struct rig_config *rc, enum gn_role role)
+{
+        for (size_t i = 0; i < rc->n_axes; i++)
+                if (rc->axes[i].role == (int)role)
+                        return i;
+        return -ENOENT;
+}
+
 void rigconf_default_profile(struct rig_modbus_profile *p)
 {
         *p = (struct rig_modbus_profile){
@@ -159,11 +167,36 @@ static int parse_bus(struct yconf *yc, struct fy_node *m, struct rig_bus_conf *b
         return 0;
 }
 
+/* The axis's role: the key 'role' ("turntable", "light_arm", "camera_arm" or "none"),
+ * else the role named like the axis, else none. */
+static int read_role(struct yconf *yc, struct fy_node *m, struct rig_axis_conf *a)
+{
+        char role[RIG_NAME_MAX] = "";
+        int r = yconf_str(yc, m, "role", role, sizeof(role));
+
+        if (r < 0)
+                return r;
+        if (!role[0]) {
+                a->role = gn_role_from_name(a->name);
+                a->role = a->role < 0 ? -1 : a->role;
+                return 0;
+        }
+        if (strcmp(role, "none") == 0)
+                return a->role = -1, 0;
+        a->role = gn_role_from_name(role);
+        if (a->role < 0)
+                return yconf_error(yc, yconf_get(m, "role"), "role",
+                                   "unknown role '%s' (turntable, light_arm, camera_arm or none)",
+                                   role);
+        return 0;
+}
+
 static int parse_axis(struct yconf *yc, struct fy_node *m, struct rig_axis_conf *a)
 {
         static const char *const keys[] = {
                 "name",   "backend",   "bus",   "unit",      "profile",         "continuous",
-                "limits", "max_speed", "accel", "settle_ms", "move_timeout_ms", NULL};
+                "limits", "max_speed", "accel", "settle_ms", "move_timeout_ms", "role",
+                NULL};
         double lim[2] = {-180, 180};
         int r;
 
@@ -183,7 +216,8 @@ static int parse_axis(struct yconf *yc, struct fy_node *m, struct rig_axis_conf 
             (r = yconf_double(yc, m, "max_speed", 0.1, 6553.5, &a->max_speed)) < 0 ||
             (r = yconf_double(yc, m, "accel", 0.1, 6553.5, &a->accel)) < 0 ||
             (r = read_int(yc, m, "settle_ms", 0, 60000, &a->settle_ms)) < 0 ||
-            (r = read_int(yc, m, "move_timeout_ms", 0, 3600000, &a->move_timeout_ms)) < 0)
+            (r = read_int(yc, m, "move_timeout_ms", 0, 3600000, &a->move_timeout_ms)) < 0 ||
+            (r = read_role(yc, m, a)) < 0)
                 return r;
         if (a->continuous && yconf_get(m, "limits"))
                 return yconf_error(yc, yconf_get(m, "limits"), "limits",
@@ -353,6 +387,13 @@ static int check_unique(struct yconf *yc, struct rig_config *rc)
                         if (strcmp(names[i], names[j]) == 0)
                                 return yconf_error(yc, yconf_root(yc), names[j],
                                                    "device name '%s' is used twice", names[j]);
+        for (size_t i = 0; i < rc->n_axes; i++)
+                for (size_t j = i + 1; j < rc->n_axes; j++)
+                        if (rc->axes[i].role >= 0 && rc->axes[i].role == rc->axes[j].role)
+                                return yconf_error(yc, yconf_get(yconf_root(yc), "axes"), "role",
+                                                   "axes '%s' and '%s' both have role '%s'",
+                                                   rc->axes[i].name, rc->axes[j].name,
+                                                   gn_role_name(rc->axes[j].role));
         for (size_t i = 0; i < rc->n_buses; i++)
                 for (size_t j = i + 1; j < rc->n_buses; j++)
                         if (strcmp(rc->buses[i].name, rc->buses[j].name) == 0)

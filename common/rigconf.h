@@ -10,6 +10,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "pose.h"
 #include "yconf.h"
 
 #define RIG_NAME_MAX    32
@@ -61,6 +62,7 @@ struct rig_axis_conf {
         char bus[RIG_NAME_MAX];
         int unit;                   /* Modbus unit id */
         char profile[RIG_NAME_MAX]; /* name of a profile; "gonio-default" is built in */
+        int role;                   /* enum gn_role, or -1: moves nothing the pose records */
         bool continuous;            /* wraps at 360 deg; no soft limits */
         double min_deg, max_deg;    /* soft limits (when !continuous) */
         double max_speed;           /* deg/s */
@@ -135,6 +137,9 @@ struct fy_node *rigconf_scene(struct rig_config *rc);
 /* Lookups by name; NULL if absent. */
 const struct rig_bus_conf *rigconf_bus(const struct rig_config *rc, const char *name);
 const struct rig_modbus_profile *rigconf_profile(const struct rig_config *rc, const char *name);
+
+/* Index of the axis of role in rc, or -ENOENT when the rig has none. */
+int rigconf_axis_of_role(const struct rig_config *rc, enum gn_role role);
 
 /* Fills p with the built-in "gonio-default" register profile. */
 void rigconf_default_profile(struct rig_modbus_profile *p);
