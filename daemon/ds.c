@@ -19,8 +19,10 @@
 #include <jansson.h>
 #include <libgen.h>
 #include <limits.h>
+#include <math.h>
 #include <openssl/evp.h>
 #include <sqlite3.h>
+#include <stdarg.h>
 #include <string.h>
 #include <sys/file.h>
 #include <sys/stat.h>
@@ -31,35 +33,62 @@
 #include "ds.h"
 #include "ds_png.h"
 
-#define DS_SCHEMA_VERSION "1"
-#define DS_INDEX          "index.sqlite"
-#define DS_JSON           "dataset.json"
-#define DS_RIG            "rig.yaml"
-#define DS_IMAGES         "images"
-#define DS_BUSY_MS        5000
-#define DS_IO_CHUNK       (1u << 20)
-#define DS_FILE_MAX       (1ll << 31)
+#define DS_SCHEMA_VERSION     2 /* PRAGMA user_version; schema 1 had user_version 0 */
+#define DS_SCHEMA_VERSION_STR "2"
+#define DS_INDEX              "index.sqlite"
+#define DS_JSON               "dataset.json"
+#define DS_RIG                "rig.yaml"
+#define DS_IMAGES             "images"
+#define DS_BUSY_MS            5000
+#define DS_IO_CHUNK           (1u << 20)
+#define DS_FILE_MAX           (1ll << 31)
 
 /* Columns of captures in the order of struct ds_capture; shared by INSERT and SELECT. */
 #define CAPTURE_COLUMNS                                                                            \
-        "id, session, turntable_deg, light_arm_deg, camera_arm_deg, camera, lamps, laser, "        \
-        "exposure_us, gain, t_request_ns, t_exposure_ns, t_stored_ns, file, sha256, width, "       \
-        "height, pixfmt"
+        "id, session, turntable_deg, light_arm_deg, camera_arm_deg, camera, lamps, lamp_bits, "    \
+        "laser, exposure_us, gain, t_request_ns, t_exposure_ns, t_stored_ns, file, sha256, "       \
+        "width, height, pixfmt"
+
+/* The captures table; the angle of an axis the rig does not have is NULL. */
+#define CAPTURES_TABLE(name)                                                                       \
+        "CREATE TABLE " name " ("                                                                  \
+        " id INTEGER PRIMARY KEY,"                                                                 \
+        " session TEXT NOT NULL DEFAULT '',"                                                       \
+        " turntable_deg REAL, light_arm_deg REAL, camera_arm_deg REAL,"                            \
+        " camera TEXT NOT NULL, lamps TEXT NOT NULL, lamp_bits INTEGER NOT NULL DEFAULT 0,"        \
+        " laser INTEGER NOT NULL,"                                                                 \
+        " exposure_us INTEGER NOT NULL, gain REAL NOT NULL,"                                       \
+        " t_request_ns INTEGER NOT NULL, t_exposure_ns INTEGER NOT NULL,"                          \
+        " t_stored_ns INTEGER NOT NULL,"                                                           \
+        " file TEXT NOT NULL UNIQUE, sha256 TEXT NOT NULL,"                                        \
+        " width INTEGER NOT NULL, height INTEGER NOT NULL, pixfmt TEXT NOT NULL);"
+
+#define CAPTURES_POSE_INDEX                                                                        \
+        "CREATE INDEX captures_pose ON captures"                                                   \
+        " (session, turntable_deg, light_arm_deg, camera_arm_deg);"
 
 static const char schema_sql[] =
-        "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);"
-        "CREATE TABLE captures ("
-        " id INTEGER PRIMARY KEY,"
-        " session TEXT NOT NULL DEFAULT '',"
-        " turntable_deg REAL NOT NULL, light_arm_deg REAL NOT NULL, camera_arm_deg REAL NOT NULL,"
-        " camera TEXT NOT NULL, lamps TEXT NOT NULL, laser INTEGER NOT NULL,"
-        " exposure_us INTEGER NOT NULL, gain REAL NOT NULL,"
-        " t_request_ns INTEGER NOT NULL, t_exposure_ns INTEGER NOT NULL,"
-        " t_stored_ns INTEGER NOT NULL,"
-        " file TEXT NOT NULL UNIQUE, sha256 TEXT NOT NULL,"
-        " width INTEGER NOT NULL, height INTEGER NOT NULL, pixfmt TEXT NOT NULL);"
-        "CREATE INDEX captures_pose ON captures"
-        " (session, turntable_deg, light_arm_deg, camera_arm_deg);";
+        "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);" CAPTURES_TABLE("captures")
+                CAPTURES_POSE_INDEX "PRAGMA user_version = 2;";
+
+/* Schema 1 -> 2: the angles become nullable and lamp_bits is added (0: unknown for
+ * rows taken before; their lamp names stay in lamps). SQLite cannot drop NOT NULL in
+ * place, so the table is copied. */
+static const char migrate_v1_sql[] = CAPTURES_TABLE(
+        "captures_v2") "INSERT INTO captures_v2 (id, session, turntable_deg, light_arm_deg, "
+                       "camera_arm_deg,"
+                       " camera, lamps, laser, exposure_us, gain, t_request_ns, t_exposure_ns, "
+                       "t_stored_ns,"
+                       " file, sha256, width, height, pixfmt)"
+                       " SELECT id, session, turntable_deg, light_arm_deg, camera_arm_deg, camera, "
+                       "lamps, laser,"
+                       " exposure_us, gain, t_request_ns, t_exposure_ns, t_stored_ns, file, "
+                       "sha256, width,"
+                       " height, pixfmt FROM captures;"
+                       "DROP TABLE captures;"
+                       "ALTER TABLE captures_v2 RENAME TO captures;" CAPTURES_POSE_INDEX
+                       "UPDATE meta SET value = '2' WHERE key = 'schema_version';"
+                       "PRAGMA user_version = 2;";
 
 struct ds {
         char *path; /* absolute */
@@ -72,6 +101,7 @@ struct ds {
         int png_level;
         sqlite3 *db;
         sqlite3_stmt *insert;
+        char error[256]; /* ds_last_error() */
 };
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(sqlite3_stmt *, sqlite3_finalize);
@@ -100,20 +130,18 @@ static int sqlite_sys_errno(sqlite3 *db)
         return e;
 }
 
-/* Maps an SQLite result code to -errno; I/O failures keep the errno of the syscall. */
+/* Maps an SQLite result code to -errno, the one place that does. I/O failures keep
+ * the errno of the failing syscall when SQLite recorded one (EFBIG, EDQUOT...). */
 static int sqlite_errno(sqlite3 *db, int rc)
 {
-        int e = db && ((rc & 0xff) == SQLITE_FULL || (rc & 0xff) == SQLITE_IOERR ||
-                       (rc & 0xff) == SQLITE_CANTOPEN)
-                        ? sqlite_sys_errno(db)
-                        : 0;
+        int e = 0;
 
         switch (rc & 0xff) {
         case SQLITE_FULL:
-                return e > 0 ? -e : -ENOSPC;
         case SQLITE_IOERR:
         case SQLITE_CANTOPEN:
-                return e > 0 ? -e : -EIO;
+                e = db ? sqlite_sys_errno(db) : 0;
+                return e > 0 ? -e : (rc & 0xff) == SQLITE_FULL ? -ENOSPC : -EIO;
         case SQLITE_NOMEM:
                 return -ENOMEM;
         case SQLITE_BUSY:
@@ -122,7 +150,9 @@ static int sqlite_errno(sqlite3 *db, int rc)
         case SQLITE_READONLY:
                 return -EROFS;
         case SQLITE_CONSTRAINT:
-                return -EEXIST;
+        case SQLITE_MISMATCH:
+        case SQLITE_RANGE:
+                return -EINVAL;
         case SQLITE_CORRUPT:
         case SQLITE_NOTADB:
                 return -EBADMSG;
@@ -130,14 +160,25 @@ static int sqlite_errno(sqlite3 *db, int rc)
         case SQLITE_AUTH:
                 return -EACCES;
         default:
-                return -EIO;
+                return -EPROTO;
         }
+}
+
+/* Records what failed for ds_last_error() and logs it; returns r. */
+static int ds_fail(struct ds *d, int r, const char *fmt, ...) _printf_(3, 4);
+static int ds_fail(struct ds *d, int r, const char *fmt, ...)
+{
+        va_list ap;
+
+        va_start(ap, fmt);
+        vsnprintf(d->error, sizeof(d->error), fmt, ap);
+        va_end(ap);
+        return log_error_errno(r, "dataset '%s': %s (%m)", d->path, d->error);
 }
 
 static int db_fail(struct ds *d, int rc, const char *what)
 {
-        return log_error_errno(sqlite_errno(d->db, rc), "dataset '%s': %s: %s: %m", d->path, what,
-                               sqlite3_errmsg(d->db));
+        return ds_fail(d, sqlite_errno(d->db, rc), "%s: %s", what, sqlite3_errmsg(d->db));
 }
 
 static int db_prepare(struct ds *d, const char *sql, sqlite3_stmt **ret)
@@ -443,7 +484,7 @@ static int write_json(struct ds *d)
         j = json_pack("{s:s, s:s, s:s, s:I, s:O, s:O, s:s, s:s, s:i}", "name", d->name, "created",
                       d->created, "rig", d->rig, "captures", (json_int_t)n, "cameras", cameras,
                       "lamps", lamps, "format", "png", "index", DS_INDEX, "schema_version",
-                      atoi(DS_SCHEMA_VERSION));
+                      DS_SCHEMA_VERSION);
         text = j ? json_dumps(j, JSON_INDENT(2)) : NULL;
         if (!text)
                 return -ENOMEM;
@@ -520,7 +561,7 @@ static int create_index(struct ds *d)
         if (r == 0)
                 r = db_exec(d, schema_sql);
         if (r == 0)
-                r = meta_set(d, "schema_version", DS_SCHEMA_VERSION);
+                r = meta_set(d, "schema_version", DS_SCHEMA_VERSION_STR);
         if (r == 0)
                 r = meta_set(d, "name", d->name);
         if (r == 0)
@@ -613,15 +654,45 @@ int ds_create(const char *path, const char *name, const char *rig_text, struct d
         return 0;
 }
 
-static int read_meta(struct ds *d)
+/* Brings an index of an older schema to DS_SCHEMA_VERSION, in one transaction that
+ * holds SQLite's write lock, so two openers cannot both migrate. */
+static int migrate(struct ds *d)
 {
         char version[16];
+        int64_t v = 0;
         int r;
 
-        r = meta_get(d, "schema_version", version, sizeof(version));
-        if (r == 0 && strcmp(version, DS_SCHEMA_VERSION) != 0)
-                r = log_error_errno(SYNTHETIC_ERRNO(EBADMSG),
-                                    "dataset '%s': unknown schema version %s", d->path, version);
+        r = db_exec(d, "BEGIN IMMEDIATE");
+        if (r == 0)
+                r = db_int64(d, "PRAGMA user_version", &v);
+        if (r == 0 && v == 0)
+                r = meta_get(d, "schema_version", version, sizeof(version));
+        if (r == 0 && v == 0 && strcmp(version, "1") != 0)
+                r = ds_fail(d, -EBADMSG, "unknown schema version %s", version);
+        if (r == 0 && v == 0) {
+                log_notice("dataset '%s': migrating its index from schema 1 to %d", d->path,
+                           DS_SCHEMA_VERSION);
+                r = db_exec(d, migrate_v1_sql);
+        }
+        if (r == 0)
+                return db_exec(d, "COMMIT");
+        (void)sqlite3_exec(d->db, "ROLLBACK", NULL, NULL, NULL);
+        return r;
+}
+
+static int read_meta(struct ds *d)
+{
+        int64_t v = 0;
+        int r;
+
+        r = db_int64(d, "PRAGMA user_version", &v);
+        if (r == 0 && v < DS_SCHEMA_VERSION) {
+                r = migrate(d);
+                v = DS_SCHEMA_VERSION;
+        }
+        if (r == 0 && v != DS_SCHEMA_VERSION)
+                r = ds_fail(d, -EBADMSG, "unknown schema version %lld (newer software?)",
+                            (long long)v);
         if (r == 0)
                 r = meta_get(d, "name", d->name, sizeof(d->name));
         if (r == 0)
@@ -682,6 +753,11 @@ const char *ds_path(const struct ds *d)
 const char *ds_name(const struct ds *d)
 {
         return d->name;
+}
+
+const char *ds_last_error(const struct ds *d)
+{
+        return d->error;
 }
 
 int64_t ds_count(struct ds *d)
@@ -747,16 +823,15 @@ static int become_writer(struct ds *d)
         if (d->writer)
                 return 0;
         if (flock(d->dir_fd, LOCK_EX | LOCK_NB) < 0)
-                return log_error_errno(errno == EWOULDBLOCK ? EBUSY : errno,
-                                       "dataset '%s' is being written by another process: %m",
-                                       d->path);
+                return ds_fail(d, errno == EWOULDBLOCK ? -EBUSY : -errno,
+                               "being written by another process");
         r = db_int64(d, "SELECT coalesce(max(id), 0) + 1 FROM captures", &d->next_id);
         if (r == 0)
                 r = remove_orphans(d);
         if (r == 0 && !d->insert)
                 r = db_prepare(d,
                                "INSERT INTO captures (" CAPTURE_COLUMNS ") VALUES "
-                               "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+                               "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
                                &d->insert);
         if (r < 0) {
                 (void)flock(d->dir_fd, LOCK_UN);
@@ -807,12 +882,13 @@ static int bind_capture(sqlite3_stmt *s, const struct ds_capture *c)
 
         rc |= sqlite3_bind_int64(s, i++, c->id);
         rc |= sqlite3_bind_text(s, i++, c->session, -1, SQLITE_STATIC);
-        rc |= sqlite3_bind_double(s, i++, c->turntable_deg);
-        rc |= sqlite3_bind_double(s, i++, c->light_arm_deg);
-        rc |= sqlite3_bind_double(s, i++, c->camera_arm_deg);
+        for (int k = 0; k < GN_ROLE_COUNT; k++, i++)
+                rc |= gn_pose_has(&c->pose, k) ? sqlite3_bind_double(s, i, c->pose.deg[k])
+                                               : sqlite3_bind_null(s, i);
         rc |= sqlite3_bind_text(s, i++, c->camera, -1, SQLITE_STATIC);
         rc |= sqlite3_bind_text(s, i++, c->lamps, -1, SQLITE_STATIC);
-        rc |= sqlite3_bind_int(s, i++, c->laser);
+        rc |= sqlite3_bind_int64(s, i++, c->pose.lamps);
+        rc |= sqlite3_bind_int(s, i++, c->pose.laser);
         rc |= sqlite3_bind_int(s, i++, c->exposure_us);
         rc |= sqlite3_bind_double(s, i++, c->gain);
         rc |= sqlite3_bind_int64(s, i++, (sqlite3_int64)c->t_request_ns);
@@ -840,7 +916,6 @@ static int insert_row(struct ds *d, const struct ds_capture *c)
 }
 
 /* Writes the encoded image of row (named after row->id) and commits the row. */
-/* Writes the encoded image of row (named after row->id) and commits the row. */
 static int store_encoded(struct ds *d, const void *png, size_t len, struct ds_capture *row)
 {
         const char *name = image_name(row);
@@ -848,8 +923,7 @@ static int store_encoded(struct ds *d, const void *png, size_t len, struct ds_ca
 
         r = write_atomic(d->img_fd, name, png, len, row->sha256);
         if (r < 0)
-                return log_error_errno(r, "dataset '%s': Failed to write %s: %m", d->path,
-                                       row->file);
+                return ds_fail(d, r, "Failed to write %s: %s", row->file, strerror(-r));
         row->t_stored_ns = now_ns();
         r = insert_row(d, row);
         if (r < 0 && unlinkat(d->img_fd, name, 0) == 0)
@@ -865,6 +939,7 @@ int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_fram
 
         if (!d || !png || !shape || !c)
                 return -EINVAL;
+        d->error[0] = 0;
         r = become_writer(d);
         if (r < 0)
                 return r;
@@ -891,9 +966,8 @@ int ds_store(struct ds *d, const struct gn_frame *frame, struct ds_capture *c)
                 return -EINVAL;
         r = ds_png_encode(frame, d->png_level, &png, &len);
         if (r < 0)
-                return log_error_errno(r, "dataset '%s': Failed to encode %dx%d %s frame: %m",
-                                       d->path, frame->width, frame->height,
-                                       gn_frame_format(frame));
+                return ds_fail(d, r, "Failed to encode %dx%d %s frame: %s", frame->width,
+                               frame->height, gn_frame_format(frame), strerror(-r));
         return ds_store_png(d, png, len, frame, c);
 }
 
@@ -913,12 +987,14 @@ static void row_to_capture(sqlite3_stmt *s, struct ds_capture *c)
         memset(c, 0, sizeof(*c));
         c->id = sqlite3_column_int64(s, i++);
         column_text(s, i++, c->session, sizeof(c->session));
-        c->turntable_deg = sqlite3_column_double(s, i++);
-        c->light_arm_deg = sqlite3_column_double(s, i++);
-        c->camera_arm_deg = sqlite3_column_double(s, i++);
+        for (int k = 0; k < GN_ROLE_COUNT; k++, i++)
+                c->pose.deg[k] = sqlite3_column_type(s, i) == SQLITE_NULL
+                                         ? NAN
+                                         : sqlite3_column_double(s, i);
         column_text(s, i++, c->camera, sizeof(c->camera));
         column_text(s, i++, c->lamps, sizeof(c->lamps));
-        c->laser = sqlite3_column_int(s, i++) != 0;
+        c->pose.lamps = (uint32_t)sqlite3_column_int64(s, i++);
+        c->pose.laser = sqlite3_column_int(s, i++) != 0;
         c->exposure_us = sqlite3_column_int(s, i++);
         c->gain = sqlite3_column_double(s, i++);
         c->t_request_ns = (uint64_t)sqlite3_column_int64(s, i++);

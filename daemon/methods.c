@@ -331,9 +331,11 @@ static json_t *capture_json(const struct ds_capture *c)
 {
         return json_pack("{sIsssssssisisssosososssb}", "id", (json_int_t)c->id, "camera", c->camera,
                          "file", c->file, "sha256", c->sha256, "width", c->width, "height",
-                         c->height, "pixfmt", c->pixfmt, "turntable", num_or_null(c->turntable_deg),
-                         "light_arm", num_or_null(c->light_arm_deg), "camera_arm",
-                         num_or_null(c->camera_arm_deg), "lamps", c->lamps, "laser", c->laser);
+                         c->height, "pixfmt", c->pixfmt, "turntable",
+                         num_or_null(c->pose.deg[GN_ROLE_TURNTABLE]), "light_arm",
+                         num_or_null(c->pose.deg[GN_ROLE_LIGHT_ARM]), "camera_arm",
+                         num_or_null(c->pose.deg[GN_ROLE_CAMERA_ARM]), "lamps", c->lamps, "laser",
+                         c->pose.laser);
 }
 
 /* One camera's part of a capture request. */
@@ -364,6 +366,25 @@ static void on_stored(int result, const struct ds_capture *c, void *userdata)
         free(s);
 }
 
+/* The row's pose and lamps from a rig snapshot (lamp bits by rig-file index). */
+static void snapshot_pose(struct rig *rig, const struct rig_snapshot *snap, struct ds_capture *c)
+{
+        char names[sizeof(snap->lamps)], *save = NULL;
+
+        c->pose = gn_pose_none();
+        c->pose.deg[GN_ROLE_TURNTABLE] = snap->turntable_deg;
+        c->pose.deg[GN_ROLE_LIGHT_ARM] = snap->light_arm_deg;
+        c->pose.deg[GN_ROLE_CAMERA_ARM] = snap->camera_arm_deg;
+        c->pose.laser = snap->laser;
+        snprintf(c->lamps, sizeof(c->lamps), "%s", snap->lamps);
+        snprintf(names, sizeof(names), "%s", snap->lamps);
+        for (char *t = strtok_r(names, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+                int i = rig_lamp_index(rig, t);
+                if (i >= 0 && i < GN_POSE_MAX_LAMPS)
+                        c->pose.lamps |= UINT32_C(1) << i;
+        }
+}
+
 static void on_frame(struct rig *rig, int result, const char *msg, struct gn_frame *frame,
                      void *userdata)
 {
@@ -376,11 +397,7 @@ static void on_frame(struct rig *rig, int result, const char *msg, struct gn_fra
                 r = -ESTALE, msg = "the dataset was closed during the capture";
         if (r >= 0) {
                 rig_snapshot(rig, &snap);
-                c.turntable_deg = snap.turntable_deg;
-                c.light_arm_deg = snap.light_arm_deg;
-                c.camera_arm_deg = snap.camera_arm_deg;
-                snprintf(c.lamps, sizeof(c.lamps), "%s", snap.lamps);
-                c.laser = snap.laser;
+                snapshot_pose(rig, &snap, &c);
                 snprintf(c.camera, sizeof(c.camera), "%s", s->m->rc->cameras[s->cam].name);
                 c.exposure_us = frame->exposure_us;
                 c.gain = frame->gain;
