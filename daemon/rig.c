@@ -22,12 +22,12 @@
 #include "drivers/registry.h"
 #include "rig_internal.h"
 
-#define POLL_USEC       (20 * 1000)
-#define NOTIFY_USEC     (100 * 1000)
-#define IDLE_POLL_USEC  (1000 * 1000)
-#define TIMER_ACCURACY  1000 /* usec: sd-event's default (250 ms) would delay every move */
-#define OPEN_WAIT_USEC  (15 * 1000 * 1000ULL)
-#define STOP_WAIT_USEC  (30 * 1000 * 1000ULL)
+#define POLL_USEC        (20 * 1000)
+#define NOTIFY_USEC      (100 * 1000)
+#define IDLE_POLL_USEC   (1000 * 1000)
+#define TIMER_ACCURACY   1000 /* usec: sd-event's default (250 ms) would delay every move */
+#define OPEN_WAIT_USEC   (15 * 1000 * 1000ULL)
+#define STOP_WAIT_USEC   (30 * 1000 * 1000ULL)
 #define SHORT_GRACE_USEC (200 * 1000) /* a drive may take this long to start moving */
 
 static bool is_axis_job(enum job_kind kind)
@@ -81,8 +81,8 @@ static const char *job_device(const struct job *j)
 static const char *job_operation(const struct job *j)
 {
         static const char *const names[] = {
-                [J_OPEN_AXIS] = "open", [J_HOME] = "home",         [J_MOVE] = "move",
-                [J_POLL] = "read state", [J_STOP] = "stop",        [J_RESET] = "reset",
+                [J_OPEN_AXIS] = "open",  [J_HOME] = "home",           [J_MOVE] = "move",
+                [J_POLL] = "read state", [J_STOP] = "stop",           [J_RESET] = "reset",
                 [J_OPEN_SW] = "open",    [J_CHECK_SW] = "read state", [J_SWITCH] = "switch",
                 [J_OPEN_CAM] = "open",   [J_CAPTURE] = "capture",
         };
@@ -232,10 +232,9 @@ void rig_fault(struct rig *rig, const char *device, int err, const char *fmt, ..
         rig->fault = true;
         snprintf(rig->fault_device, sizeof(rig->fault_device), "%s", device);
         snprintf(rig->fault_msg, sizeof(rig->fault_msg), "%s", msg);
-        rig_emit(rig, &(struct rig_event){.type = RIG_EVENT_FAULT,
-                                          .device = device,
-                                          .error = err,
-                                          .message = msg});
+        rig_emit(rig,
+                 &(struct rig_event){
+                         .type = RIG_EVENT_FAULT, .device = device, .error = err, .message = msg});
         rig_update_state(rig);
         for (size_t i = 0; i < rig->rc->n_axes; i++)
                 if (rig->axes[i].op != AX_IDLE)
@@ -249,10 +248,10 @@ static const char *job_error(struct job *j, int result)
         struct rig *rig = j->rig;
 
         snprintf(rig->last_error, sizeof(rig->last_error), "%s '%s': %s failed: %s",
-                 is_axis_job(j->kind)                        ? "axis"
+                 is_axis_job(j->kind)                            ? "axis"
                  : j->kind == J_OPEN_CAM || j->kind == J_CAPTURE ? "camera"
-                 : j->idx < 0                                ? "laser"
-                                                             : "lamp",
+                 : j->idx < 0                                    ? "laser"
+                                                                 : "lamp",
                  job_device(j), job_operation(j), strerror(-result));
         return rig->last_error;
 }
@@ -320,8 +319,9 @@ static void axis_progress(struct rig_axis *a)
         uint64_t now = now_usec(rig);
 
         if (a->st.fault)
-                return rig_fault(rig, name, -EIO, "axis '%s': drive reports fault code %d at %.3f deg",
-                                 name, a->st.fault_code, a->st.position_deg);
+                return rig_fault(rig, name, -EIO,
+                                 "axis '%s': drive reports fault code %d at %.3f deg", name,
+                                 a->st.fault_code, a->st.position_deg);
         if (now - a->last_notify >= NOTIFY_USEC) {
                 a->last_notify = now;
                 notify_axis(a, RIG_EVENT_AXIS_MOVED);
@@ -332,7 +332,7 @@ static void axis_progress(struct rig_axis *a)
                 a->settling = true;
                 return arm(a, a->ax->conf->settle_ms * 1000ULL);
         }
-        if (a->op != AX_STOPPING && !a->st.moving && !a->st.in_position &&
+        if (a->op == AX_MOVING && !a->st.moving && !a->st.in_position &&
             now - a->started > SHORT_GRACE_USEC)
                 return rig_fault(rig, name, -EIO,
                                  "axis '%s': the drive stopped at %.3f deg without reaching its "
@@ -340,9 +340,9 @@ static void axis_progress(struct rig_axis *a)
                                  name, a->st.position_deg);
         if (now > a->deadline)
                 return rig_fault(rig, name, -ETIMEDOUT,
-                                 "axis '%s': %s did not complete within %.1f s (at %.3f deg)",
-                                 name, a->op == AX_STOPPING ? "stop" : "move",
-                                 (now - a->started) / 1e6, a->st.position_deg);
+                                 "axis '%s': %s did not complete within %.1f s (at %.3f deg)", name,
+                                 a->op == AX_STOPPING ? "stop" : "move", (now - a->started) / 1e6,
+                                 a->st.position_deg);
         arm(a, POLL_USEC);
 }
 
@@ -520,8 +520,7 @@ static int start_motion(struct rig *rig, int i, enum axis_op op, double target, 
         if (rig->fault)
                 return -ESTALE;
         if (rig->exposure)
-                return snprintf(rig->busy, sizeof(rig->busy), "a capture is being exposed"),
-                       -EBUSY;
+                return snprintf(rig->busy, sizeof(rig->busy), "a capture is being exposed"), -EBUSY;
         if (a->op != AX_IDLE)
                 return snprintf(rig->busy, sizeof(rig->busy), "axis '%s' is %s", c->name,
                                 a->op == AX_STOPPING ? "stopping" : "moving"),
@@ -598,8 +597,7 @@ int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata
         if (on && rig->fault)
                 return -ESTALE;
         if (rig->exposure)
-                return snprintf(rig->busy, sizeof(rig->busy), "a capture is being exposed"),
-                       -EBUSY;
+                return snprintf(rig->busy, sizeof(rig->busy), "a capture is being exposed"), -EBUSY;
         if (!switch_slot(rig, i)->open)
                 return -ENODEV;
         j = calloc(1, sizeof(*j));
@@ -834,9 +832,9 @@ const char *rig_state(const struct rig *rig)
                 moving = moving || rig->axes[i].op == AX_MOVING;
                 stopping = stopping || rig->axes[i].op == AX_STOPPING;
         }
-        return homing     ? "homing"
-               : moving   ? "moving"
-               : stopping ? "stopping"
+        return homing          ? "homing"
+               : moving        ? "moving"
+               : stopping      ? "stopping"
                : rig->exposure ? "capturing"
                                : "idle";
 }

@@ -49,9 +49,9 @@ typedef void (*rig_event_fn)(void *userdata, const struct rig_event *ev);
 
 /* One camera's frame of an exposure (rig_expose). */
 struct rig_shot {
-        int cam;             /* camera index */
-        int result;          /* 0, or -errno: no frame */
-        char msg[256];       /* why it failed: device, operation, cause */
+        int cam;               /* camera index */
+        int result;            /* 0, or -errno: no frame */
+        char msg[256];         /* why it failed: device, operation, cause */
         struct gn_frame frame; /* owned by the rig; the callee may take frame.data (set it NULL) */
 };
 
@@ -70,7 +70,8 @@ typedef void (*rig_expose_fn)(struct rig *rig, struct rig_exposure *e, void *use
 /* Builds the devices of rc (which must outlive the rig) and opens them, running the
  * loop until every device answered (a device that does not puts the rig in fault state
  * rather than failing). A drive found moving (goniod restarted during a move) is stopped
- * and followed until it stands still, so the rig starts with true positions. Returns 0 or -errno (bad backend names, no memory). */
+ * and followed until it stands still, so the rig starts with true positions. Returns 0 or -errno
+ * (bad backend names, no memory). */
 int rig_new(sd_event *event, struct rig_config *rc, rig_event_fn notify, void *userdata,
             struct rig **ret);
 

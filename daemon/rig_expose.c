@@ -104,7 +104,8 @@ static void check_before(struct exposure *x)
         x->e.pose = rig_pose(x->rig);
         if (!a)
                 return;
-        snprintf(msg, sizeof(msg), "axis '%s' is moving (at %.3f deg) although no move was commanded",
+        snprintf(msg, sizeof(msg),
+                 "axis '%s' is moving (at %.3f deg) although no move was commanded",
                  a->ax->conf->name, a->st.position_deg);
         fail_all(x, -EBUSY, msg);
 }
@@ -119,7 +120,8 @@ static void check_after(struct exposure *x)
                 return;
         for (int r = 0; r < GN_ROLE_COUNT; r++) {
                 int i = rigconf_axis_of_role(rig->rc, r);
-                if (i >= 0 && gn_angle_distance(x->e.pose.deg[r], now.deg[r]) > POSE_TOLERANCE_DEG) {
+                if (i >= 0 &&
+                    gn_angle_distance(x->e.pose.deg[r], now.deg[r]) > POSE_TOLERANCE_DEG) {
                         rig_fault(rig, rig->rc->axes[i].name, -EIO,
                                   "axis '%s' moved during the exposure, from %.3f to %.3f deg",
                                   rig->rc->axes[i].name, x->e.pose.deg[r], now.deg[r]);
@@ -128,7 +130,7 @@ static void check_after(struct exposure *x)
         }
         if (!rig->fault)
                 rig_fault(rig, "rig", -EIO, "lamps or laser changed during the exposure");
-        fail_all(x, -EIO, rig->fault_msg);
+        fail_all(x, -EIO, rig_last_error(rig));
 }
 
 /* Moves to the next stage once the current one's jobs are all back. */
@@ -164,10 +166,11 @@ void rig_expose_job_done(struct job *j, int result)
                         snprintf(s->msg, sizeof(s->msg), "camera '%s': capture failed: %s",
                                  rig->rc->cameras[j->idx].name, strerror(-result));
         } else if (result < 0 && result != -ECANCELED) {
-                snprintf(x->msg, sizeof(x->msg), "axis '%s': reading the position failed: %s",
+                char msg[256];
+                snprintf(msg, sizeof(msg), "axis '%s': reading the position failed: %s",
                          rig->rc->axes[j->idx].name, strerror(-result));
-                rig_fault(rig, rig->rc->axes[j->idx].name, result, "%s", x->msg);
-                fail_all(x, result, x->msg);
+                rig_fault(rig, rig->rc->axes[j->idx].name, result, "%s", msg);
+                fail_all(x, result, msg);
         }
         if (result == -ECANCELED)
                 fail_all(x, result, "the capture was canceled");

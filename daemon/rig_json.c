@@ -10,8 +10,8 @@ static json_t *axis_status(const struct rig_axis *a)
                          a->st.position_deg, "moving",
                          a->op != AX_IDLE || (a->open && a->st.moving), "homed", a->st.homed,
                          "fault", a->st.fault, "open", a->open, "fault_code", a->st.fault_code,
-                         "min", c->min_deg, "max", c->max_deg, "continuous", c->continuous,
-                         "role", gn_role_name(c->role));
+                         "min", c->min_deg, "max", c->max_deg, "continuous", c->continuous, "role",
+                         gn_role_name(c->role));
 }
 
 static json_t *switch_status(const struct rig_switch *s)
@@ -32,11 +32,10 @@ json_t *rig_status(const struct rig *rig)
         for (size_t i = 0; i < rc->n_lamps; i++)
                 json_array_append_new(lamps, switch_status(&rig->lamps[i]));
         for (size_t i = 0; i < rc->n_cameras; i++)
-                json_array_append_new(cams, json_pack("{sssisisisb}", "name", rc->cameras[i].name,
-                                                      "width", rc->cameras[i].width, "height",
-                                                      rc->cameras[i].height, "bits",
-                                                      rc->cameras[i].bits, "open",
-                                                      rig->cam_open[i]));
+                json_array_append_new(
+                        cams, json_pack("{sssisisisb}", "name", rc->cameras[i].name, "width",
+                                        rc->cameras[i].width, "height", rc->cameras[i].height,
+                                        "bits", rc->cameras[i].bits, "open", rig->cam_open[i]));
         return json_pack("{sssbsososososo}", "state", rig_state(rig), "homed", homed, "axes", axes,
                          "lamps", lamps, "laser",
                          rc->has_laser ? switch_status(&rig->laser) : json_null(), "cameras", cams,
