@@ -22,6 +22,7 @@
 struct srv {
         int fd;
         struct proto_lines lines;
+        json_int_t requests; /* requests received: gonioctl numbers them from 1 */
 };
 
 struct scenario;
@@ -35,6 +36,7 @@ struct scenario {
         int want_exit;
         const char *want_out; /* exact stdout, or NULL */
         const char *want_err; /* substring of stderr, or NULL */
+        const char *reply_id; /* for serve_reply_id: the id (JSON text) the peer answers with */
 };
 
 static char tmpdir[64], sock_path[96];
@@ -60,7 +62,7 @@ static json_t *recv_msg(struct srv *s)
         }
 }
 
-/* Receives the next message and checks it is a request for method. */
+/* Receives the next message and checks it is a request for method with the next id. */
 static json_t *recv_request(struct srv *s, const char *method)
 {
         json_t *m = recv_msg(s);
@@ -68,6 +70,7 @@ static json_t *recv_request(struct srv *s, const char *method)
         CHECK(m);
         CHECK_STR(json_string_value(json_object_get(m, "method")), method);
         CHECK(json_is_integer(json_object_get(m, "id")));
+        CHECK_INT(json_integer_value(json_object_get(m, "id")), ++s->requests);
         return m;
 }
 
@@ -274,12 +277,20 @@ static void serve_garbage(struct srv *s, const struct scenario *sc)
         wait_eof(s);
 }
 
-/* The server could not read the request's id: an error with id null answers it. */
-static void serve_null_id_error(struct srv *s, const struct scenario *sc)
+/* Answers status with the scenario's reply_id instead of the request's: an error with
+ * the scenario's code, or a result when the code is 0. */
+static void serve_reply_id(struct srv *s, const struct scenario *sc)
 {
+        json_t *id = json_loads(sc->reply_id, JSON_DECODE_ANY, NULL);
+
+        CHECK(id);
         hello(s, PROTO_VERSION);
         json_decref(recv_request(s, "status"));
-        send_msg(s, proto_error(NULL, PROTO_E_LINE_TOO_LONG, "line too long", NULL));
+        if (sc->code)
+                send_msg(s, proto_error(id, sc->code, "line unreadable", NULL));
+        else
+                send_msg(s, proto_result(id, json_pack("{s:s}", "state", "idle")));
+        json_decref(id);
         wait_eof(s);
 }
 
@@ -293,10 +304,27 @@ static void serve_watch(struct srv *s, const struct scenario *sc)
         wait_eof(s);
 }
 
+/* A reply arrives while watch has no request outstanding (hello's id, answered twice). */
+static void serve_watch_stray_reply(struct srv *s, const struct scenario *sc)
+{
+        json_t *id = json_integer(1);
+
+        hello(s, PROTO_VERSION);
+        send_msg(s, proto_result(id, NULL));
+        json_decref(id);
+        wait_eof(s);
+}
+
 #define ERR(c, e)                                                                                  \
         {                                                                                          \
                 "error " #c, {"lamp", "lamp9", "on"}, serve_error, c, e, "",                       \
                         "gonioctl: lamp.set: boom\n"                                               \
+        }
+
+/* status answered with id (JSON text) and error code c (0: a result): exit 4, stderr e */
+#define REPLY_ID(what, c, id, e)                                                                   \
+        {                                                                                          \
+                "reply id " what, {"status"}, serve_reply_id, c, 4, "", e, id                      \
         }
 
 static const struct scenario usage_scenarios[] = {
@@ -404,13 +432,26 @@ static const struct scenario peer_scenarios[] = {
         {"hangup", {"status"}, serve_hangup, 0, 4, "", "gonioctl: status: connection closed"},
         {"over-long reply", {"status"}, serve_overlong, 0, 4, "", "longer than 65536"},
         {"malformed reply", {"status"}, serve_garbage, 0, 4, "", "bad message"},
-        {"null-id error",
-         {"status"},
-         serve_null_id_error,
+        /* documented: an error the server sends with id null when it cannot read a request */
+        REPLY_ID("null, line too long", PROTO_E_LINE_TOO_LONG, "null", "status: line unreadable"),
+        REPLY_ID("null, parse error", PROTO_PARSE_ERROR, "null", "status: line unreadable"),
+        REPLY_ID("null, invalid request", PROTO_INVALID_REQUEST, "null", "status: line unreadable"),
+        /* anything else that does not carry the request's id (2) is a protocol error */
+        REPLY_ID("null, result", 0, "null", "reply with id null to request 2"),
+        REPLY_ID("null, device error", PROTO_E_DEVICE, "null", "reply with id null to request 2"),
+        REPLY_ID("null, not found", PROTO_E_NOT_FOUND, "null", "reply with id null to request 2"),
+        REPLY_ID("1, result", 0, "1", "reply with id 1 to request 2"),
+        REPLY_ID("3, result", 0, "3", "reply with id 3 to request 2"),
+        REPLY_ID("3, range error", PROTO_E_RANGE, "3", "reply with id 3 to request 2"),
+        REPLY_ID("\"2\", result", 0, "\"2\"", "reply with id \"2\" to request 2"),
+        REPLY_ID("\"2\", busy error", PROTO_E_BUSY, "\"2\"", "reply with id \"2\" to request 2"),
+        {"watch: a reply with no request outstanding",
+         {"watch"},
+         serve_watch_stray_reply,
          0,
          4,
          "",
-         "gonioctl: status: line too long"},
+         "reply with id 1, no request outstanding"},
         {"watch --count",
          {"--json", "watch", "--count", "2"},
          serve_watch,
