@@ -2,7 +2,8 @@
  * stderr. Group "usage": command-line errors (exit 2) and connection failures (exit 3).
  * Group "peer": gonioctl against a scripted peer that speaks the wire protocol through
  * protocol/ (hello, request params, replies, notifications, error codes -> exit codes,
- * timeouts, over-long and malformed replies). Usage: test-gonioctl GONIOCTL usage|peer */
+ * timeouts, over-long and malformed replies, replies that do not carry the request's id).
+ * Usage: test-gonioctl GONIOCTL [usage|peer] */
 #include <errno.h>
 #include <fcntl.h>
 #include <poll.h>
@@ -40,6 +41,7 @@ struct scenario {
 };
 
 static char tmpdir[64], sock_path[96];
+static const char *ctl_path; /* the gonioctl binary under test */
 
 static json_t *recv_msg(struct srv *s)
 {
@@ -552,33 +554,61 @@ static int bound_socket(bool listening)
 static const struct scenario refused = {"connection refused", {"status"}, NULL, 0, 3, "",
                                         "Connection refused"};
 
-int main(int argc, char **argv)
+/* The scratch directory for the socket and gonioctl's captured output. */
+static void scratch_make(void)
 {
-        bool peer;
-        int lfd = -1;
-
-        CHECK(argc == 3);
-        peer = strcmp(argv[2], "peer") == 0;
         snprintf(tmpdir, sizeof(tmpdir), "/tmp/test-gonioctl-XXXXXX");
         CHECK(mkdtemp(tmpdir));
         snprintf(sock_path, sizeof(sock_path), "%s/goniod.sock", tmpdir);
-        signal(SIGPIPE, SIG_IGN);
-        if (peer) {
-                lfd = bound_socket(true);
-                for (size_t i = 0; i < sizeof(peer_scenarios) / sizeof(peer_scenarios[0]); i++)
-                        run(argv[1], &peer_scenarios[i], lfd);
-        } else {
-                for (size_t i = 0; i < sizeof(usage_scenarios) / sizeof(usage_scenarios[0]); i++)
-                        run(argv[1], &usage_scenarios[i], -1);
-                lfd = bound_socket(false); /* a stale socket file: nobody accepts */
-                run(argv[1], &refused, -1);
-        }
-        close(lfd);
+}
+
+static void scratch_remove(void)
+{
+        char path[128];
+
         unlink(sock_path);
-        snprintf(sock_path, sizeof(sock_path), "%s/out", tmpdir);
-        unlink(sock_path);
-        snprintf(sock_path, sizeof(sock_path), "%s/err", tmpdir);
-        unlink(sock_path);
+        snprintf(path, sizeof(path), "%s/out", tmpdir);
+        unlink(path);
+        snprintf(path, sizeof(path), "%s/err", tmpdir);
+        unlink(path);
         CHECK_INT(rmdir(tmpdir), 0);
-        return 0;
+}
+
+static void test_usage(void)
+{
+        int lfd;
+
+        scratch_make();
+        for (size_t i = 0; i < sizeof(usage_scenarios) / sizeof(usage_scenarios[0]); i++)
+                run(ctl_path, &usage_scenarios[i], -1);
+        lfd = bound_socket(false); /* a stale socket file: nobody accepts */
+        run(ctl_path, &refused, -1);
+        close(lfd);
+        scratch_remove();
+}
+
+static void test_peer(void)
+{
+        int lfd;
+
+        scratch_make();
+        lfd = bound_socket(true);
+        for (size_t i = 0; i < sizeof(peer_scenarios) / sizeof(peer_scenarios[0]); i++)
+                run(ctl_path, &peer_scenarios[i], lfd);
+        close(lfd);
+        scratch_remove();
+}
+
+int main(int argc, char **argv)
+{
+        static const struct test_case cases[] = {
+                {"usage", test_usage},
+                {"peer", test_peer},
+        };
+
+        CHECK(argc >= 2);
+        signal(SIGPIPE, SIG_IGN);
+        ctl_path = argv[1];
+        argv[1] = argv[0]; /* the group, if any, becomes the case name */
+        return TEST_RUN_CASES(cases, argc - 1, argv + 1);
 }

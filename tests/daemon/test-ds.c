@@ -444,17 +444,11 @@ static void test_fsize(void)
 
 int main(int argc, char **argv)
 {
-        static const struct {
-                const char *name;
-                void (*fn)(void);
-        } cases[] = {
+        static const struct test_case cases[] = {
                 {"create", test_create}, {"roundtrip", test_roundtrip}, {"verify", test_verify},
                 {"wal", test_wal},       {"reopen", test_reopen},       {"tmpfiles", test_tmpfiles},
                 {"lock", test_lock},     {"fsize", test_fsize},
         };
 
-        for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++)
-                if (argc < 2 || strcmp(argv[1], cases[i].name) == 0)
-                        cases[i].fn();
-        return 0;
+        return TEST_RUN_CASES(cases, argc, argv);
 }

@@ -177,15 +177,12 @@ static void test_mosaic(void)
 
 int main(int argc, char **argv)
 {
-        const char *which = argc > 1 ? argv[1] : "all";
+        static const struct test_case cases[] = {
+                {"determinism", test_determinism},
+                {"noise", test_noise_statistics},
+                {"levels", test_levels},
+                {"mosaic", test_mosaic},
+        };
 
-        if (!strcmp(which, "determinism") || !strcmp(which, "all"))
-                test_determinism();
-        if (!strcmp(which, "noise") || !strcmp(which, "all"))
-                test_noise_statistics();
-        if (!strcmp(which, "levels") || !strcmp(which, "all"))
-                test_levels();
-        if (!strcmp(which, "mosaic") || !strcmp(which, "all"))
-                test_mosaic();
-        return 0;
+        return TEST_RUN_CASES(cases, argc, argv);
 }
