@@ -578,10 +578,7 @@ static void test_fsize(void)
 
 int main(int argc, char **argv)
 {
-        static const struct {
-                const char *name;
-                void (*fn)(void);
-        } cases[] = {
+        static const struct test_case cases[] = {
                 {"create", test_create},     {"roundtrip", test_roundtrip},
                 {"verify", test_verify},     {"wal", test_wal},
                 {"reopen", test_reopen},     {"tmpfiles", test_tmpfiles},
@@ -589,14 +586,6 @@ int main(int argc, char **argv)
                 {"nullpose", test_nullpose}, {"refused", test_refused},
                 {"migrate", test_migrate},
         };
-        bool ran = false;
 
-        for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++)
-                if (argc < 2 || strcmp(argv[1], cases[i].name) == 0) {
-                        cases[i].fn();
-                        ran = true;
-                }
-        if (!ran)
-                fprintf(stderr, "unknown case '%s'\n", argv[1]);
-        return ran ? 0 : 1;
+        return TEST_RUN_CASES(cases, argc, argv);
 }

@@ -213,13 +213,11 @@ static void test_chessboard(void)
 
 int main(int argc, char **argv)
 {
-        const char *which = argc > 1 ? argv[1] : "all";
+        static const struct test_case cases[] = {
+                {"projection", test_projection},
+                {"charuco", test_charuco},
+                {"chessboard", test_chessboard},
+        };
 
-        if (!strcmp(which, "projection") || !strcmp(which, "all"))
-                test_projection();
-        if (!strcmp(which, "charuco") || !strcmp(which, "all"))
-                test_charuco();
-        if (!strcmp(which, "chessboard") || !strcmp(which, "all"))
-                test_chessboard();
-        return 0;
+        return TEST_RUN_CASES(cases, argc, argv);
 }

@@ -224,15 +224,12 @@ static void test_dome(void)
 
 int main(int argc, char **argv)
 {
-        const char *which = argc > 1 ? argv[1] : "all";
+        static const struct test_case cases[] = {
+                {"lambert", test_lambert_sphere},
+                {"inverse-square", test_inverse_square},
+                {"shadow", test_shadow_edge},
+                {"dome", test_dome},
+        };
 
-        if (!strcmp(which, "lambert") || !strcmp(which, "all"))
-                test_lambert_sphere();
-        if (!strcmp(which, "inverse-square") || !strcmp(which, "all"))
-                test_inverse_square();
-        if (!strcmp(which, "shadow") || !strcmp(which, "all"))
-                test_shadow_edge();
-        if (!strcmp(which, "dome") || !strcmp(which, "all"))
-                test_dome();
-        return 0;
+        return TEST_RUN_CASES(cases, argc, argv);
 }

@@ -340,25 +340,25 @@ static void test_soft_shadow(void)
         rt_close(&t);
 }
 
+/* Meshes and textures from files in a scratch directory. */
+static void test_mesh_files(void)
+{
+        char dir[] = "/tmp/gonio-rtest-mesh-XXXXXX", cmd[64];
+
+        CHECK(mkdtemp(dir));
+        test_meshes(dir);
+        test_texture(dir);
+        snprintf(cmd, sizeof(cmd), "rm -rf %s", dir);
+        CHECK(system(cmd) == 0);
+}
+
 int main(int argc, char **argv)
 {
-        const char *which = argc > 1 ? argv[1] : "all";
+        static const struct test_case cases[] = {
+                {"schema", test_schema_errors},    {"meshes", test_mesh_files},
+                {"shapes", test_shapes},           {"mirror", test_mirror_sphere},
+                {"soft-shadow", test_soft_shadow},
+        };
 
-        if (!strcmp(which, "schema") || !strcmp(which, "all"))
-                test_schema_errors();
-        if (!strcmp(which, "meshes") || !strcmp(which, "all")) {
-                char dir[] = "/tmp/gonio-rtest-mesh-XXXXXX", cmd[64];
-                CHECK(mkdtemp(dir));
-                test_meshes(dir);
-                test_texture(dir);
-                snprintf(cmd, sizeof(cmd), "rm -rf %s", dir);
-                CHECK(system(cmd) == 0);
-        }
-        if (!strcmp(which, "shapes") || !strcmp(which, "all"))
-                test_shapes();
-        if (!strcmp(which, "mirror") || !strcmp(which, "all"))
-                test_mirror_sphere();
-        if (!strcmp(which, "soft-shadow") || !strcmp(which, "all"))
-                test_soft_shadow();
-        return 0;
+        return TEST_RUN_CASES(cases, argc, argv);
 }
