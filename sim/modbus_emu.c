@@ -847,17 +847,6 @@ struct sim_emu *sim_emu_free(struct sim_emu *e)
 
 /* ---- queries and faults ---- */
 
-static double *axis_slot(struct sim_rig_state *st, const char *name)
-{
-        if (strcmp(name, "turntable") == 0)
-                return &st->turntable_deg;
-        if (strcmp(name, "light_arm") == 0)
-                return &st->light_arm_deg;
-        if (strcmp(name, "camera_arm") == 0)
-                return &st->camera_arm_deg;
-        return NULL;
-}
-
 static bool coil_state(struct sim_emu *e, const struct rig_switch_conf *c)
 {
         int bi = bus_index(e, c->bus);
@@ -867,11 +856,11 @@ static bool coil_state(struct sim_emu *e, const struct rig_switch_conf *c)
                u->map->tab_bits[c->coil];
 }
 
-void sim_emu_snapshot(struct sim_emu *e, struct sim_rig_state *st)
+void sim_emu_snapshot(struct sim_emu *e, struct gn_pose *st)
 {
         const struct rig_config *rc = e->rc;
 
-        *st = (struct sim_rig_state){0};
+        *st = gn_pose_none();
         pthread_mutex_lock(&e->lock);
         double now = emu_now(e);
         for (size_t i = 0; i < e->n_units; i++) {
@@ -879,13 +868,14 @@ void sim_emu_snapshot(struct sim_emu *e, struct sim_rig_state *st)
                 if (!e->units[i].is_axis)
                         continue;
                 axis_update(a, now);
-                double *slot = axis_slot(st, a->conf->name), pos = axis_phys(a, now);
-                if (slot)
-                        *slot = a->conf->continuous ? wrap360(pos) : pos;
+                int role = a->conf->role;
+                double pos = axis_phys(a, now);
+                if (role >= 0 && role < GN_ROLE_COUNT)
+                        st->deg[role] = a->conf->continuous ? wrap360(pos) : pos;
         }
-        for (size_t i = 0; i < rc->n_lamps; i++)
-                st->lamp_on[i] = coil_state(e, &rc->lamps[i]);
-        st->laser_on = rc->has_laser && coil_state(e, &rc->laser);
+        for (size_t i = 0; i < rc->n_lamps && i < GN_POSE_MAX_LAMPS; i++)
+                st->lamps |= (uint32_t)coil_state(e, &rc->lamps[i]) << i;
+        st->laser = rc->has_laser && coil_state(e, &rc->laser);
         pthread_mutex_unlock(&e->lock);
 }
 

@@ -33,8 +33,10 @@ int sim_emu_new(const struct rig_config *rc, double time_scale, struct sim_emu *
 /* Stops the threads, removes the symlinks. NULL is a no-op. Returns NULL. */
 struct sim_emu *sim_emu_free(struct sim_emu *e);
 
-/* The emulated rig's state now (axis positions along their motion profiles). */
-void sim_emu_snapshot(struct sim_emu *e, struct sim_rig_state *st);
+/* The emulated rig's state now: each Modbus axis with a role at its physical angle along
+ * its motion profile (wrapped to [0, 360) when continuous), NAN for roles no axis has;
+ * lamps and laser from their coils. Any thread. */
+void sim_emu_snapshot(struct sim_emu *e, struct gn_pose *st);
 
 /* The pty slave path of bus name (RTU), or NULL. Valid for the emulator's lifetime. */
 const char *sim_emu_pty(struct sim_emu *e, const char *bus);
