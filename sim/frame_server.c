@@ -482,7 +482,7 @@ static int inject_modbus(struct fs_req *rq, const char *fault)
         static const char *const names[] = {
                 [SIM_FAULT_NONE] = "none",   [SIM_FAULT_TIMEOUT] = "timeout",
                 [SIM_FAULT_CRC] = "crc",     [SIM_FAULT_EXCEPTION] = "exception",
-                [SIM_FAULT_STALL] = "stall",
+                [SIM_FAULT_STALL] = "stall", [SIM_FAULT_SHORT] = "short",
         };
         const char *bus = json_string_value(json_object_get(rq->req, "bus"));
         long unit = -1;
@@ -496,7 +496,8 @@ static int inject_modbus(struct fs_req *rq, const char *fault)
         for (f = 0; f < ELEMENTSOF(names) && strcmp(names[f], fault) != 0; f++)
                 ;
         if (f == ELEMENTSOF(names))
-                return fail(rq, EINVAL, "Modbus faults are none, timeout, crc, exception, stall");
+                return fail(rq, EINVAL,
+                            "Modbus faults are none, timeout, crc, exception, stall, short");
         r = sim_emu_inject(rq->fs->emu, bus, (int)unit, (enum sim_fault)f);
         if (r == -ENOENT)
                 return fail(rq, ENOENT, "no emulated device at bus '%s' unit %ld", bus, unit);

@@ -21,6 +21,8 @@ enum sim_fault {
         SIM_FAULT_CRC,       /* replies with a corrupt CRC */
         SIM_FAULT_EXCEPTION, /* replies with exception 0x04 (slave device failure) */
         SIM_FAULT_STALL,     /* the axis stalls mid-move and reports fault code 1 */
+        SIM_FAULT_SHORT,     /* the axis stops a few degrees short of its target: not moving,
+                              * not in position, no fault code (sim/drive.h) */
 };
 
 /* Creates the servers for every Modbus bus of rc. For modbus-rtu buses a pty is
@@ -45,6 +47,7 @@ const char *sim_emu_pty(struct sim_emu *e, const char *bus);
 int sim_emu_tcp_port(struct sim_emu *e, const char *bus);
 
 /* Injects a fault into the device at (bus, unit); SIM_FAULT_NONE clears it (a latched
- * stall stays until the drive's reset command). Returns 0, -ENOENT for an unknown
- * device, -EINVAL for a stall of a device that is no axis. Any thread. */
+ * stall stays until the drive's reset command). Stall and short apply to the current move,
+ * or the next one when the axis is at rest. Returns 0, -ENOENT for an unknown device,
+ * -EINVAL for a stall or short of a device that is no axis. Any thread. */
 int sim_emu_inject(struct sim_emu *e, const char *bus, int unit, enum sim_fault fault);

@@ -1,7 +1,8 @@
 /* test-modbus-emu.c - the Modbus emulators of gonio-sim, through a plain libmodbus
  * client on the pty (RTU) or on loopback (TCP): register reads and writes, several
  * units on one bus, the timing of a move against the motion model, homing, stop,
- * and the client-side error of every injected fault. */
+ * the client-side error of every injected fault, a stall and a move that ends short,
+ * and the pose of a rig whose only axis is found by its role. */
 #include <errno.h>
 #include <math.h>
 #include <string.h>
@@ -10,6 +11,7 @@
 #include <modbus/modbus.h>
 
 #include "common/cleanup.h"
+#include "sim/drive.h"
 #include "sim/modbus_emu.h"
 #include "sim/motion.h"
 #include "tests/sim/simtest.h"
@@ -170,6 +172,39 @@ static void test_stall(struct sim_emu *e, modbus_t *mb)
         CHECK_NEAR(position_deg(mb, 3), from, 1e-9);
 }
 
+/* Waits until unit has stopped moving, then past its settle time; returns the status. */
+static uint16_t wait_stopped(modbus_t *mb, int unit)
+{
+        simtest_wait_status(mb, unit, SIMTEST_ST_MOVING, 0, 5.0);
+        usleep((useconds_t)(0.2 / TIME_SCALE * 1e6)); /* twice settle_ms */
+        return simtest_reg(mb, unit, SIMTEST_R_STATUS);
+}
+
+/* A short stop ends the move SIM_DRIVE_SHORT_DEG before its target: not moving, not in
+ * position, no fault; injected at rest (the next move) and into a running move. The next
+ * move completes. */
+static void test_short(struct sim_emu *e, modbus_t *mb)
+{
+        double from = position_deg(mb, 3);
+
+        CHECK(sim_emu_inject(e, "drives", 3, SIM_FAULT_SHORT) == 0);
+        CHECK(simtest_command(mb, 3, from + 20.0, SIMTEST_CMD_MOVE) == 1);
+        uint16_t st = wait_stopped(mb, 3);
+        CHECK(!(st & (SIMTEST_ST_MOVING | SIMTEST_ST_INPOS | SIMTEST_ST_FAULT)));
+        CHECK(simtest_reg(mb, 3, SIMTEST_R_FAULT) == 0);
+        CHECK_NEAR(position_deg(mb, 3), from + 20.0 - SIM_DRIVE_SHORT_DEG, 1e-3);
+
+        CHECK(simtest_command(mb, 3, from, SIMTEST_CMD_MOVE) == 1);
+        CHECK(sim_emu_inject(e, "drives", 3, SIM_FAULT_SHORT) == 0);
+        st = wait_stopped(mb, 3);
+        CHECK(!(st & (SIMTEST_ST_MOVING | SIMTEST_ST_INPOS | SIMTEST_ST_FAULT)));
+        CHECK_NEAR(position_deg(mb, 3), from + SIM_DRIVE_SHORT_DEG, 1e-3);
+
+        CHECK(simtest_command(mb, 3, from, SIMTEST_CMD_MOVE) == 1);
+        simtest_wait_status(mb, 3, SIMTEST_ST_MOVING | SIMTEST_ST_INPOS, SIMTEST_ST_INPOS, 5.0);
+        CHECK_NEAR(position_deg(mb, 3), from, 1e-9);
+}
+
 static void test_rtu(void)
 {
         char dir[64], link[300];
@@ -192,6 +227,7 @@ static void test_rtu(void)
         test_stop(mb);
         test_comm_faults(e, mb);
         test_stall(e, mb);
+        test_short(e, mb);
         modbus_close(mb);
         modbus_free(mb);
 
