@@ -120,7 +120,7 @@ static void raw_frame(struct raw *c, int threads)
                 pthread_join(th[i], NULL);
 }
 
-static void raw_setup(struct raw *c, const struct sim_scene *s, const struct sim_rig_state *st)
+static void raw_setup(struct raw *c, const struct sim_scene *s, const struct gn_pose *st)
 {
         struct sim_cam_geom g;
         double lamp[3];
@@ -164,7 +164,7 @@ int main(int argc, char **argv)
 {
         struct rig_config *rc = NULL;
         struct sim_scene *s = NULL;
-        struct sim_rig_state st = {.turntable_deg = 10, .lamp_on = {true}, .laser_on = true};
+        struct gn_pose st = {.deg[GN_ROLE_TURNTABLE] = 10, .lamps = 1, .laser = true};
         struct raw raw = {0};
         double secs = argc > 1 ? atof(argv[1]) : 3, t0, fps, raw_fps, t_render = 0, t_raw = 0;
         int frames = 0, raw_frames = 0;
