@@ -147,9 +147,12 @@ static int parse_bus(struct yconf *yc, struct fy_node *m, struct rig_bus_conf *b
                 b->type = RIG_BUS_MODBUS_TCP;
         else if (strcmp(type, "sim") == 0)
                 b->type = RIG_BUS_SIM;
+        else if (strcmp(type, "serial") == 0)
+                b->type = RIG_BUS_SERIAL;
         else
                 return yconf_error(yc, yconf_get(m, "type"), "type",
-                                   "'%s' is not a bus type (modbus-rtu, modbus-tcp, sim)", type);
+                                   "'%s' is not a bus type (modbus-rtu, modbus-tcp, sim, serial)",
+                                   type);
         if (!strchr("NEO", parity[0]) || parity[1])
                 return yconf_error(yc, yconf_get(m, "parity"), "parity", "must be N, E or O");
         b->parity = parity[0];

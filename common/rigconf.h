@@ -23,7 +23,8 @@
 enum rig_bus_type {
         RIG_BUS_MODBUS_RTU,
         RIG_BUS_MODBUS_TCP,
-        RIG_BUS_SIM, /* gonio-sim frame socket (Unix stream socket path in port) */
+        RIG_BUS_SIM,    /* gonio-sim frame socket (Unix stream socket path in port) */
+        RIG_BUS_SERIAL, /* a plain serial line (G-code controllers), port and line settings */
 };
 
 struct rig_bus_conf {

@@ -6,6 +6,8 @@
 #include "drivers/axis/axis.h"
 #include "drivers/bus/bus.h"
 #include "drivers/registry.h"
+#include "drivers/transport/modbus.h"
+#include "drivers/transport/transport.h"
 #include "tests/test.h"
 
 static void test_limits(void)
@@ -85,13 +87,13 @@ static void test_new_unknown(void)
 
 static void test_errno_map(void)
 {
-        CHECK_INT(bus_modbus_errno(ETIMEDOUT), -ETIMEDOUT);
-        CHECK_INT(bus_modbus_errno(EMBXSFAIL), -EPROTO);
-        CHECK_INT(bus_modbus_errno(EMBXILVAL), -EPROTO);
-        CHECK_INT(bus_modbus_errno(EMBBADCRC), -EPROTO);
-        CHECK_INT(bus_modbus_errno(EMBBADDATA), -EPROTO);
-        CHECK_INT(bus_modbus_errno(ECONNRESET), -EIO);
-        CHECK_INT(bus_modbus_errno(-EPIPE), -EIO);
+        CHECK_INT(mbus_errno(ETIMEDOUT), -ETIMEDOUT);
+        CHECK_INT(mbus_errno(EMBXSFAIL), -EPROTO);
+        CHECK_INT(mbus_errno(EMBXILVAL), -EPROTO);
+        CHECK_INT(mbus_errno(EMBBADCRC), -EPROTO);
+        CHECK_INT(mbus_errno(EMBBADDATA), -EPROTO);
+        CHECK_INT(mbus_errno(ECONNRESET), -EIO);
+        CHECK_INT(mbus_errno(-EPIPE), -EIO);
 }
 
 int main(void)

@@ -10,6 +10,8 @@
 #include "drivers/axis/axis.h"
 #include "drivers/axis/modbus/proto.h"
 #include "tests/drivers/testrig.h"
+#include "drivers/transport/modbus.h"
+#include "drivers/transport/transport.h"
 #include "tests/test.h"
 
 static const char rig_yaml[] =
@@ -82,7 +84,8 @@ static int32_t raw_position(struct axis *ax)
         uint16_t regs[2];
 
         rigconf_default_profile(&p);
-        CHECK_INT(bus_read_regs(ax->bus, ax->conf->unit, p.reg_position, 2, regs), 2);
+        CHECK_INT(mbus_read_regs(bus_transport(ax->bus), ax->conf->unit, p.reg_position, 2, regs),
+                  2);
         return mbax_get_i32(&p, regs);
 }
 
@@ -114,13 +117,13 @@ static void test_move_timing(struct fixture *f)
 
 static void test_soft_limits(struct fixture *f)
 {
-        struct bus_stats before, after;
+        struct transport_stats before, after;
 
-        bus_get_stats(f->drives, &before);
+        transport_get_stats(bus_transport(f->drives), &before);
         CHECK_INT(axis_move_abs(f->arm, 170.5), -ERANGE);
         CHECK_INT(axis_move_abs(f->arm, -171.0), -ERANGE);
         CHECK_INT(axis_move_abs(f->arm, NAN), -ERANGE);
-        bus_get_stats(f->drives, &after);
+        transport_get_stats(bus_transport(f->drives), &after);
         CHECK_INT(after.requests, before.requests); /* refused before any I/O */
         CHECK_INT(axis_poll(f->arm), 0);
         CHECK_NEAR(f->arm->state.position_deg, 150.0, POS_TOL);
@@ -169,15 +172,15 @@ static void test_stop_mid_move(struct fixture *f)
 static void test_timeout(struct fixture *f)
 {
         const struct rig_bus_conf *c = bus_conf(f->drives);
-        struct bus_stats before, after;
+        struct transport_stats before, after;
         double t0, took;
 
-        bus_get_stats(f->drives, &before);
+        transport_get_stats(bus_transport(f->drives), &before);
         CHECK_INT(sim_emu_inject(f->rig.emu, "drives", 1, SIM_FAULT_TIMEOUT), 0);
         t0 = testrig_now();
         CHECK_INT(axis_poll(f->tt), -ETIMEDOUT);
         took = testrig_now() - t0;
-        bus_get_stats(f->drives, &after);
+        transport_get_stats(bus_transport(f->drives), &after);
         CHECK_INT(after.retries - before.retries, c->retries);
         CHECK_INT(after.failures - before.failures, 1);
         CHECK(took >= 0.9 * (c->retries + 1) * c->timeout_ms / 1000.0);
@@ -193,18 +196,18 @@ static void test_timeout(struct fixture *f)
 static void test_crc_and_exception(struct fixture *f)
 {
         const struct rig_bus_conf *c = bus_conf(f->drives);
-        struct bus_stats s0, s1, s2;
+        struct transport_stats s0, s1, s2;
 
-        bus_get_stats(f->drives, &s0);
+        transport_get_stats(bus_transport(f->drives), &s0);
         CHECK_INT(sim_emu_inject(f->rig.emu, "drives", 1, SIM_FAULT_CRC), 0);
         CHECK_INT(axis_poll(f->tt), -EPROTO);
-        bus_get_stats(f->drives, &s1);
+        transport_get_stats(bus_transport(f->drives), &s1);
         CHECK_INT(s1.retries - s0.retries, c->retries);
 
         CHECK_INT(sim_emu_inject(f->rig.emu, "drives", 1, SIM_FAULT_EXCEPTION), 0);
         CHECK_INT(axis_poll(f->tt), -EPROTO);
         CHECK_INT(axis_move_abs(f->tt, 20.0), -EPROTO);
-        bus_get_stats(f->drives, &s2);
+        transport_get_stats(bus_transport(f->drives), &s2);
         CHECK_INT(s2.retries, s1.retries);
         CHECK_INT(s2.failures - s1.failures, 2);
 
