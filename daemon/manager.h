@@ -5,8 +5,8 @@
 #include <limits.h>
 
 #include "common/rigconf.h"
-#include "ds.h"
-#include "ds_pool.h"
+#include "dataset/ds.h"
+#include "dataset/ds_pool.h"
 #include "rig.h"
 #include "server.h"
 

@@ -8,7 +8,7 @@
 #include <unistd.h>
 
 #include "common/frame.h"
-#include "daemon/ds.h"
+#include "dataset/ds.h"
 #include "harness.h"
 #include "tests/test.h"
 

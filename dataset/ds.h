@@ -73,7 +73,7 @@ int ds_get_compression(const struct ds *d);
  * -errno of the failing call (-EFBIG, -EDQUOT...); ds_last_error() tells why. */
 int ds_store(struct ds *d, const struct gn_frame *frame, struct ds_capture *c);
 
-/* Like ds_store for an image already encoded with ds_png_encode (daemon/ds_png.h):
+/* Like ds_store for an image already encoded with ds_png_encode (dataset/ds_png.h):
  * png holds len bytes encoding a frame of shape's width, height, channels and bits
  * (shape->data is not read). Lets ds_pool encode on several threads and write on one.
  * Same returns and effects as ds_store. */

@@ -14,7 +14,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "daemon/ds.h"
+#include "dataset/ds.h"
 #include "ds-util.h"
 #include "tests/test.h"
 
