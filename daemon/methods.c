@@ -8,6 +8,7 @@
 #include <sys/stat.h>
 #include <time.h>
 
+#include "common/clock.h"
 #include "common/log.h"
 #include "manager.h"
 #include "protocol/proto.h"
@@ -411,14 +412,6 @@ static void on_frame(struct rig *rig, int result, const char *msg, struct gn_fra
         free(s);
 }
 
-static uint64_t realtime_ns(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_REALTIME, &ts);
-        return ts.tv_sec * 1000000000ULL + ts.tv_nsec;
-}
-
 static int read_cam_request(struct srv_req *req, json_t *params, struct cam_request *cr)
 {
         long exposure = 0, bits = 0;
@@ -465,7 +458,7 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
                         op_part_done(o, -ENOMEM, NULL);
                         continue;
                 }
-                *s = (struct shot){.o = o, .m = m, .cam = i, .t_request_ns = realtime_ns()};
+                *s = (struct shot){.o = o, .m = m, .cam = i, .t_request_ns = gn_realtime_ns()};
                 r = rig_capture(m->rig, i, &cr, on_frame, s);
                 if (r < 0) {
                         free(s);

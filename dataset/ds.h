@@ -100,6 +100,3 @@ int ds_verify(struct ds *d);
 /* The dataset's absolute directory and name; valid until ds_close. */
 const char *ds_path(const struct ds *d);
 const char *ds_name(const struct ds *d);
-
-/* Computes the SHA-256 of a file as 64 hex chars + NUL. Returns 0 or -errno. */
-int ds_sha256_file(const char *path, char hex[65]);

@@ -26,6 +26,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "common/clock.h"
 #include "common/log.h"
 #include "common/workq.h"
 #include "drivers/bus/bus.h"
@@ -296,19 +297,11 @@ static int do_request(modbus_t *mb, const struct mb_req *q)
         return -1;
 }
 
-static uint64_t now_ns(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return (uint64_t)ts.tv_sec * 1000000000ULL + (uint64_t)ts.tv_nsec;
-}
-
 /* At most RATELIMIT_BURST retry messages per interval and bus; reports what it hid. */
 static bool ratelimit_ok(struct bus *b)
 {
         struct ratelimit *rl = &b->rl;
-        uint64_t now = now_ns();
+        uint64_t now = gn_monotonic_ns();
 
         if (rl->n == 0 || now - rl->begin_ns >= RATELIMIT_INTERVAL_NS) {
                 if (rl->suppressed > 0)

@@ -10,6 +10,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "common/clock.h"
 #include "common/log.h"
 #include "drivers/bus/bus.h"
 #include "drivers/camera/sim/api.h"
@@ -29,10 +30,7 @@ static const struct opt_desc cam_sim_opts[] = {
 
 static int64_t now_ms(void)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+        return (int64_t)(gn_monotonic_ns() / 1000000);
 }
 
 /* Waits for events on fd until deadline (ms). Returns 0 or -ETIMEDOUT/-errno. */
