@@ -10,6 +10,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "common/clock.h"
 #include "common/rigconf.h"
 #include "sim/render/internal.h"
 
@@ -45,10 +46,7 @@ struct raw {
 
 static double now(void)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return ts.tv_sec + ts.tv_nsec * 1e-9;
+        return (double)gn_monotonic_ns() * 1e-9;
 }
 
 /* The same packets as the renderer: 4x4 tiles, primary rays, one shadow packet. */

@@ -9,6 +9,7 @@
 #include <time.h>
 
 #include "client/conn.h"
+#include "common/clock.h"
 #include "common/cleanup.h"
 #include "protocol/proto.h"
 
@@ -22,10 +23,7 @@ struct conn {
 
 int64_t conn_now_ms(void)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+        return (int64_t)(gn_monotonic_ns() / 1000000);
 }
 
 /* The poll() timeout left until deadline: -1 for none, else >= 0. */

@@ -6,8 +6,8 @@
 
 #include <systemd/sd-event.h>
 
-#include "ds.h"
-#include "ds_pool.h"
+#include "dataset/ds.h"
+#include "dataset/ds_pool.h"
 #include "rig.h"
 
 struct capture;

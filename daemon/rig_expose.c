@@ -10,8 +10,8 @@
 #include <errno.h>
 #include <stdio.h>
 #include <string.h>
-#include <time.h>
 
+#include "common/clock.h"
 #include "common/log.h"
 #include "rig_internal.h"
 
@@ -208,14 +208,6 @@ static int refusal(struct rig *rig, const int *cams, size_t n)
         return 0;
 }
 
-static uint64_t realtime_ns(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_REALTIME, &ts);
-        return ts.tv_sec * 1000000000ULL + ts.tv_nsec;
-}
-
 int rig_expose(struct rig *rig, const int *cams, size_t n, const struct cam_request *req,
                rig_expose_fn done, void *userdata)
 {
@@ -229,7 +221,7 @@ int rig_expose(struct rig *rig, const int *cams, size_t n, const struct cam_requ
         if (!(x = calloc(1, sizeof(*x))))
                 return -ENOMEM;
         *x = (struct exposure){.rig = rig, .req = *req, .done = done, .ud = userdata};
-        x->e.t_request_ns = realtime_ns();
+        x->e.t_request_ns = gn_realtime_ns();
         x->e.n_shots = n;
         for (size_t i = 0; i < n; i++)
                 x->e.shots[i].cam = cams[i];

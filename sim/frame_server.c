@@ -21,6 +21,7 @@
 
 #include <jansson.h>
 
+#include "common/clock.h"
 #include "common/log.h"
 #include "sim/frame_server.h"
 
@@ -373,14 +374,6 @@ static json_t *truth_list(const struct sim_truth *t, unsigned flags, size_t pixe
         return a;
 }
 
-static uint64_t realtime_ns(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_REALTIME, &ts);
-        return (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec;
-}
-
 static int send_frame(struct fs_req *rq, int ci, const struct gn_pose *st,
                       const struct sim_expose *ex, const struct gn_frame *f,
                       const struct sim_truth *t, unsigned flags)
@@ -443,7 +436,7 @@ static int do_render(struct fs_req *rq)
                 return r;
 
         sim_emu_snapshot(fs->emu, &st);
-        uint64_t seq = fs->seq[ci]++, ts = realtime_ns();
+        uint64_t seq = fs->seq[ci]++, ts = gn_realtime_ns();
         r = sim_render(fs->scene, &st, ci, &ex, seq, &f, flags, &t);
         if (r < 0)
                 return fail(rq, -r, "rendering failed: %s", strerror(-r));

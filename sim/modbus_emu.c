@@ -35,6 +35,7 @@
 #include <modbus/modbus.h>
 #include <netinet/in.h>
 
+#include "common/clock.h"
 #include "common/log.h"
 #include "sim/modbus_emu.h"
 #include "sim/pty.h"
@@ -79,7 +80,7 @@ struct emu_bus {
 struct sim_emu {
         const struct rig_config *rc;
         double time_scale;
-        struct timespec epoch;
+        uint64_t epoch_ns; /* CLOCK_MONOTONIC at start */
         atomic_bool stop;
         pthread_mutex_t lock; /* guards units[] and their mappings */
         struct emu_unit units[EMU_MAX_UNITS];
@@ -92,11 +93,7 @@ struct sim_emu {
 
 static double emu_now(const struct sim_emu *e)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        double s = (double)(ts.tv_sec - e->epoch.tv_sec) + (ts.tv_nsec - e->epoch.tv_nsec) * 1e-9;
-        return s * e->time_scale;
+        return (double)(gn_monotonic_ns() - e->epoch_ns) * 1e-9 * e->time_scale;
 }
 
 static uint16_t crc16(const uint8_t *p, size_t n)
@@ -680,7 +677,7 @@ int sim_emu_new(const struct rig_config *rc, double time_scale, struct sim_emu *
                 return -ENOMEM;
         e->rc = rc;
         e->time_scale = time_scale;
-        clock_gettime(CLOCK_MONOTONIC, &e->epoch);
+        e->epoch_ns = gn_monotonic_ns();
         pthread_mutex_init(&e->lock, NULL);
 
         int r = add_devices(e);

@@ -14,6 +14,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "common/clock.h"
 #include "common/log.h"
 #include "drivers/transport/transport.h"
 
@@ -120,17 +121,9 @@ void transport_count(uint64_t *counter)
         __atomic_fetch_add(counter, 1, __ATOMIC_RELAXED);
 }
 
-static uint64_t now_ns(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return (uint64_t)ts.tv_sec * 1000000000ULL + (uint64_t)ts.tv_nsec;
-}
-
 bool transport_ratelimit_ok(struct transport *t)
 {
-        uint64_t now = now_ns();
+        uint64_t now = gn_monotonic_ns();
 
         if (t->rl_n == 0 || now - t->rl_begin_ns >= RATELIMIT_INTERVAL_NS) {
                 if (t->rl_suppressed > 0)

@@ -17,6 +17,7 @@
 #include <time.h>
 
 #include "common/cleanup.h"
+#include "common/clock.h"
 #include "common/log.h"
 #include "internal.h"
 
@@ -676,9 +677,7 @@ static int setup_frame(struct fctx *c, const struct sim_expose *exp, uint64_t se
         r = gn_frame_alloc(out, c->w, c->h, c->s->sensor.format == FMT_RGB ? 3 : 1, bits);
         if (r < 0)
                 return r;
-        struct timespec ts;
-        clock_gettime(CLOCK_REALTIME, &ts);
-        out->timestamp_ns = (uint64_t)ts.tv_sec * 1000000000ULL + (uint64_t)ts.tv_nsec;
+        out->timestamp_ns = gn_realtime_ns();
         out->exposure_us = exposure;
         out->gain = gain;
         out->seq = seq;

@@ -7,6 +7,7 @@
 
 #include <math.h>
 
+#include "common/clock.h"
 #include "common/cleanup.h"
 #include "tests/sim/simtest.h"
 
@@ -115,10 +116,7 @@ void simtest_rmdir(const char *dir)
 
 double simtest_now(void)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+        return (double)gn_monotonic_ns() * 1e-9;
 }
 
 modbus_t *simtest_modbus(const char *dir, const char *bus)

@@ -20,7 +20,6 @@
 #include <libgen.h>
 #include <limits.h>
 #include <math.h>
-#include <openssl/evp.h>
 #include <sqlite3.h>
 #include <stdarg.h>
 #include <string.h>
@@ -28,7 +27,10 @@
 #include <sys/stat.h>
 #include <time.h>
 
+#include "common/clock.h"
+#include "common/fileio.h"
 #include "common/log.h"
+#include "common/sha256.h"
 #include "common/yconf.h"
 #include "ds.h"
 #include "ds_png.h"
@@ -40,8 +42,7 @@
 #define DS_RIG                "rig.yaml"
 #define DS_IMAGES             "images"
 #define DS_BUSY_MS            5000
-#define DS_IO_CHUNK           (1u << 20)
-#define DS_FILE_MAX           (1ll << 31)
+#define DS_FILE_MAX           (1u << 31)
 
 /* Columns of captures in the order of struct ds_capture; shared by INSERT and SELECT. */
 #define CAPTURE_COLUMNS                                                                            \
@@ -105,7 +106,6 @@ struct ds {
 };
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(sqlite3_stmt *, sqlite3_finalize);
-DEFINE_TRIVIAL_CLEANUP_FUNC(EVP_MD_CTX *, EVP_MD_CTX_free);
 DEFINE_TRIVIAL_CLEANUP_FUNC(DIR *, closedir);
 
 static struct ds *ds_free(struct ds *d);
@@ -266,163 +266,6 @@ static int db_open(struct ds *d, bool create)
         return db_exec(d, "PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;");
 }
 
-/* ---- files: hashing and atomic writes ---- */
-
-static int sha_new(EVP_MD_CTX **ret)
-{
-        EVP_MD_CTX *md = EVP_MD_CTX_new();
-
-        if (!md)
-                return -ENOMEM;
-        if (!EVP_DigestInit_ex(md, EVP_sha256(), NULL)) {
-                EVP_MD_CTX_free(md);
-                return -EIO;
-        }
-        *ret = md;
-        return 0;
-}
-
-static int sha_hex(EVP_MD_CTX *md, char hex[65])
-{
-        unsigned char h[EVP_MAX_MD_SIZE];
-        unsigned n = 0;
-
-        if (!EVP_DigestFinal_ex(md, h, &n))
-                return -EIO;
-        for (unsigned i = 0; i < n; i++)
-                sprintf(hex + 2 * i, "%02x", h[i]);
-        return 0;
-}
-
-/* Writes all of buf to fd, feeding md (if any) with the bytes as they are written. */
-static int write_all(int fd, const uint8_t *p, size_t len, EVP_MD_CTX *md)
-{
-        while (len > 0) {
-                ssize_t k = write(fd, p, MIN(len, DS_IO_CHUNK));
-
-                if (k < 0 && errno == EINTR)
-                        continue;
-                if (k < 0)
-                        return -errno;
-                if (md && !EVP_DigestUpdate(md, p, (size_t)k))
-                        return -EIO;
-                p += k;
-                len -= (size_t)k;
-        }
-        return 0;
-}
-
-static int write_synced(int fd, const void *buf, size_t len, EVP_MD_CTX *md)
-{
-        int r = write_all(fd, buf, len, md);
-
-        if (r == 0 && fsync(fd) < 0)
-                r = -errno;
-        return r;
-}
-
-/* Writes buf to dir_fd/name atomically: name.tmp, fsync, rename, fsync(dir). With
- * hex, also returns the SHA-256 of the bytes written. On failure nothing is left
- * behind and the errno of the failing syscall is returned. */
-static int write_atomic(int dir_fd, const char *name, const void *buf, size_t len, char hex[65])
-{
-        _cleanup_(EVP_MD_CTX_freep) EVP_MD_CTX *md = NULL;
-        char tmp[NAME_MAX + 1];
-        int fd, r;
-
-        if (snprintf(tmp, sizeof(tmp), "%s.tmp", name) >= (int)sizeof(tmp))
-                return -ENAMETOOLONG;
-        if (hex && (r = sha_new(&md)) < 0)
-                return r;
-        fd = openat(dir_fd, tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-        if (fd < 0)
-                return -errno;
-        r = write_synced(fd, buf, len, md);
-        if (close(fd) < 0 && r == 0)
-                r = -errno;
-        if (r == 0 && md)
-                r = sha_hex(md, hex);
-        if (r == 0 && renameat(dir_fd, tmp, dir_fd, name) < 0)
-                r = -errno;
-        if (r < 0) {
-                (void)unlinkat(dir_fd, tmp, 0);
-                return r;
-        }
-        if (fsync(dir_fd) < 0) {
-                r = -errno;
-                (void)unlinkat(dir_fd, name, 0);
-                return r;
-        }
-        return 0;
-}
-
-static int sha256_fd(int fd, char hex[65])
-{
-        _cleanup_(EVP_MD_CTX_freep) EVP_MD_CTX *md = NULL;
-        _cleanup_free_ uint8_t *buf = malloc(DS_IO_CHUNK);
-        ssize_t k;
-        int r;
-
-        if (!buf)
-                return -ENOMEM;
-        r = sha_new(&md);
-        if (r < 0)
-                return r;
-        while ((k = read(fd, buf, DS_IO_CHUNK)) != 0) {
-                if (k < 0 && errno == EINTR)
-                        continue;
-                if (k < 0)
-                        return -errno;
-                if (!EVP_DigestUpdate(md, buf, (size_t)k))
-                        return -EIO;
-        }
-        return sha_hex(md, hex);
-}
-
-/* SHA-256 of the file name below dir_fd (or AT_FDCWD). */
-static int sha256_at(int dir_fd, const char *name, char hex[65])
-{
-        _cleanup_close_ int fd = openat(dir_fd, name, O_RDONLY | O_CLOEXEC);
-
-        return fd < 0 ? -errno : sha256_fd(fd, hex);
-}
-
-int ds_sha256_file(const char *path, char hex[65])
-{
-        if (!path || !hex)
-                return -EINVAL;
-        return sha256_at(AT_FDCWD, path, hex);
-}
-
-/* Reads a whole file below dir_fd into a malloc'ed buffer. */
-static int read_file_at(int dir_fd, const char *name, void **ret, size_t *ret_len)
-{
-        _cleanup_close_ int fd = openat(dir_fd, name, O_RDONLY | O_CLOEXEC);
-        _cleanup_free_ uint8_t *buf = NULL;
-        struct stat st;
-        size_t n = 0;
-
-        if (fd < 0 || fstat(fd, &st) < 0)
-                return -errno;
-        if (!S_ISREG(st.st_mode) || st.st_size > DS_FILE_MAX)
-                return -EBADMSG;
-        buf = malloc(st.st_size > 0 ? (size_t)st.st_size : 1);
-        if (!buf)
-                return -ENOMEM;
-        while (n < (size_t)st.st_size) {
-                ssize_t k = read(fd, buf + n, (size_t)st.st_size - n);
-
-                if (k < 0 && errno == EINTR)
-                        continue;
-                if (k <= 0)
-                        return k < 0 ? -errno : -EIO;
-                n += (size_t)k;
-        }
-        *ret = TAKE_PTR(buf);
-        *ret_len = n;
-        return 0;
-}
-
 /* ---- dataset.json ---- */
 
 static int json_add_unique(json_t *arr, const char *s)
@@ -488,7 +331,7 @@ static int write_json(struct ds *d)
         text = j ? json_dumps(j, JSON_INDENT(2)) : NULL;
         if (!text)
                 return -ENOMEM;
-        r = write_atomic(d->dir_fd, DS_JSON, text, strlen(text), NULL);
+        r = gn_write_atomic(d->dir_fd, DS_JSON, text, strlen(text), NULL);
         if (r < 0)
                 return log_error_errno(r, "dataset '%s': Failed to write %s: %m", d->path, DS_JSON);
         return 0;
@@ -573,19 +416,6 @@ static int create_index(struct ds *d)
         return r;
 }
 
-static int fsync_parent(const char *path)
-{
-        _cleanup_free_ char *copy = strdup(path);
-        _cleanup_close_ int fd = -EBADF;
-
-        if (!copy)
-                return -ENOMEM;
-        fd = open(dirname(copy), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-        if (fd < 0 || fsync(fd) < 0)
-                return -errno;
-        return 0;
-}
-
 /* Fills the new, empty directory path with a dataset. */
 static int create_contents(const char *path, const char *name, const char *rig_text,
                            struct ds **ret)
@@ -605,7 +435,8 @@ static int create_contents(const char *path, const char *name, const char *rig_t
         d->img_fd = openat(d->dir_fd, DS_IMAGES, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
         if (d->img_fd < 0)
                 return -errno;
-        if (rig_text && (r = write_atomic(d->dir_fd, DS_RIG, rig_text, strlen(rig_text), NULL)) < 0)
+        if (rig_text &&
+            (r = gn_write_atomic(d->dir_fd, DS_RIG, rig_text, strlen(rig_text), NULL)) < 0)
                 return r;
         r = create_index(d);
         if (r == 0)
@@ -613,7 +444,7 @@ static int create_contents(const char *path, const char *name, const char *rig_t
         if (r == 0 && fsync(d->dir_fd) < 0)
                 r = -errno;
         if (r == 0)
-                r = fsync_parent(d->path);
+                r = gn_fsync_parent(d->path);
         if (r == 0)
                 *ret = TAKE_PTR(d);
         return r;
@@ -868,14 +699,6 @@ static const char *image_name(struct ds_capture *c)
         return c->file + strlen(DS_IMAGES "/");
 }
 
-static uint64_t now_ns(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_REALTIME, &ts);
-        return (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec;
-}
-
 static int bind_capture(sqlite3_stmt *s, const struct ds_capture *c)
 {
         int i = 1, rc = 0;
@@ -915,16 +738,31 @@ static int insert_row(struct ds *d, const struct ds_capture *c)
         return r;
 }
 
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct gn_sha256 *, gn_sha256_free);
+
+/* Writes an image atomically, hashing its bytes on the way into hex. */
+static int write_image(int dir_fd, const char *name, const void *png, size_t len,
+                       char hex[GN_SHA256_HEX])
+{
+        _cleanup_(gn_sha256_freep) struct gn_sha256 *sha = NULL;
+        int r;
+
+        r = gn_sha256_new(&sha);
+        if (r == 0)
+                r = gn_write_atomic(dir_fd, name, png, len, sha);
+        return r < 0 ? r : gn_sha256_final(sha, hex);
+}
+
 /* Writes the encoded image of row (named after row->id) and commits the row. */
 static int store_encoded(struct ds *d, const void *png, size_t len, struct ds_capture *row)
 {
         const char *name = image_name(row);
         int r;
 
-        r = write_atomic(d->img_fd, name, png, len, row->sha256);
+        r = write_image(d->img_fd, name, png, len, row->sha256);
         if (r < 0)
                 return ds_fail(d, r, "Failed to write %s: %s", row->file, strerror(-r));
-        row->t_stored_ns = now_ns();
+        row->t_stored_ns = gn_realtime_ns();
         r = insert_row(d, row);
         if (r < 0 && unlinkat(d->img_fd, name, 0) == 0)
                 (void)fsync(d->img_fd);
@@ -1041,7 +879,7 @@ int ds_load_image(struct ds *d, const char *file, struct gn_frame *out)
 
         if (!d || !file_name_ok(file) || !out)
                 return -EINVAL;
-        r = read_file_at(d->dir_fd, file, &buf, &len);
+        r = gn_read_file_at(d->dir_fd, file, DS_FILE_MAX, &buf, &len);
         if (r == 0)
                 r = ds_png_decode(buf, len, out);
         if (r < 0)
@@ -1060,7 +898,7 @@ static int verify_one(const struct ds_capture *c, void *ud)
         char hex[65];
         int r;
 
-        r = file_name_ok(c->file) ? sha256_at(v->d->dir_fd, c->file, hex) : -ENOENT;
+        r = file_name_ok(c->file) ? gn_sha256_file_at(v->d->dir_fd, c->file, hex) : -ENOENT;
         if (r < 0 && r != -ENOENT)
                 return log_error_errno(r, "dataset '%s': Failed to hash %s: %m", v->d->path,
                                        c->file);

@@ -73,7 +73,7 @@ int ds_get_compression(const struct ds *d);
  * -errno of the failing call (-EFBIG, -EDQUOT...); ds_last_error() tells why. */
 int ds_store(struct ds *d, const struct gn_frame *frame, struct ds_capture *c);
 
-/* Like ds_store for an image already encoded with ds_png_encode (daemon/ds_png.h):
+/* Like ds_store for an image already encoded with ds_png_encode (dataset/ds_png.h):
  * png holds len bytes encoding a frame of shape's width, height, channels and bits
  * (shape->data is not read). Lets ds_pool encode on several threads and write on one.
  * Same returns and effects as ds_store. */
@@ -100,6 +100,3 @@ int ds_verify(struct ds *d);
 /* The dataset's absolute directory and name; valid until ds_close. */
 const char *ds_path(const struct ds *d);
 const char *ds_name(const struct ds *d);
-
-/* Computes the SHA-256 of a file as 64 hex chars + NUL. Returns 0 or -errno. */
-int ds_sha256_file(const char *path, char hex[65]);
