@@ -157,7 +157,7 @@ void transport_unlock_line(int fd)
 
 int64_t transport_deadline(int timeout_ms)
 {
-        return (int64_t)(now_ns() / 1000000) + timeout_ms;
+        return (int64_t)(gn_monotonic_ns() / 1000000) + timeout_ms;
 }
 
 /* Waits for events on fd until deadline. Returns 0 or -ETIMEDOUT/-errno. */
@@ -166,7 +166,7 @@ static int wait_fd(int fd, short events, int64_t deadline)
         struct pollfd p = {.fd = fd, .events = events};
 
         for (;;) {
-                int64_t left = deadline - (int64_t)(now_ns() / 1000000);
+                int64_t left = deadline - (int64_t)(gn_monotonic_ns() / 1000000);
                 if (left <= 0)
                         return -ETIMEDOUT;
                 int r = poll(&p, 1, (int)MIN(left, (int64_t)INT32_MAX));
