@@ -9,6 +9,7 @@
 #include <time.h>
 
 #include "client/conn.h"
+#include "common/clock.h"
 #include "common/cleanup.h"
 #include "protocol/proto.h"
 
@@ -22,10 +23,7 @@ struct conn {
 
 int64_t conn_now_ms(void)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+        return (int64_t)(gn_monotonic_ns() / 1000000);
 }
 
 /* The poll() timeout left until deadline: -1 for none, else >= 0. */
@@ -180,6 +178,23 @@ static int read_msg(struct conn *c, int64_t deadline, int intr_fd, struct proto_
         }
 }
 
+/* Fails on a response that does not answer request id (0 when none is outstanding). */
+static int unexpected_reply(const struct proto_msg *m, json_int_t id, struct conn_error *err)
+{
+        _cleanup_free_ char *got = json_dumps(m->id, JSON_ENCODE_ANY);
+
+        if (id > 0)
+                snprintf(err->message, sizeof(err->message),
+                         "bad message from server: reply with id %s to request "
+                         "%" JSON_INTEGER_FORMAT,
+                         got ? got : "?", id);
+        else
+                snprintf(err->message, sizeof(err->message),
+                         "bad message from server: reply with id %s, no request outstanding",
+                         got ? got : "?");
+        return -EPROTO;
+}
+
 static void dispatch(const struct proto_msg *m, conn_notify_fn fn, void *userdata)
 {
         if (fn && m->kind == PROTO_NOTIFICATION)
@@ -231,20 +246,14 @@ int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadli
                 r = read_msg(c, deadline, -1, &m, err);
                 if (r < 0)
                         return r;
-                /* A reply with id null answers a request the server could not read: ours. */
-                if (m.kind == PROTO_RESPONSE &&
-                    (json_integer_value(m.id) == id || (json_is_null(m.id) && m.error))) {
+                if (proto_answers(&m, id))
                         r = take_reply(&m, result, err);
-                        json_decref(m.root);
-                        return r;
-                }
-                if (m.kind == PROTO_RESPONSE) {
-                        snprintf(err->message, sizeof(err->message), "reply to unknown id");
-                        r = -EPROTO;
-                } else
+                else if (m.kind == PROTO_RESPONSE)
+                        r = unexpected_reply(&m, id, err);
+                else
                         dispatch(&m, fn, userdata);
                 json_decref(m.root);
-                if (r < 0)
+                if (r < 0 || m.kind == PROTO_RESPONSE)
                         return r;
         }
 }
@@ -255,15 +264,16 @@ int conn_wait_notification(struct conn *c, int64_t deadline, int intr_fd, conn_n
         *err = (struct conn_error){};
         for (;;) {
                 struct proto_msg m;
-                bool notification;
                 int r = read_msg(c, deadline, intr_fd, &m, err);
 
                 if (r < 0)
                         return r;
-                notification = m.kind == PROTO_NOTIFICATION;
-                dispatch(&m, fn, userdata);
+                if (m.kind == PROTO_RESPONSE)
+                        r = unexpected_reply(&m, 0, err);
+                else
+                        dispatch(&m, fn, userdata);
                 json_decref(m.root);
-                if (notification)
-                        return 1;
+                if (r < 0 || m.kind == PROTO_NOTIFICATION)
+                        return r < 0 ? r : 1;
         }
 }

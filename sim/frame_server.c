@@ -21,6 +21,7 @@
 
 #include <jansson.h>
 
+#include "common/clock.h"
 #include "common/log.h"
 #include "sim/frame_server.h"
 
@@ -270,19 +271,29 @@ static json_t *reals(const double *v, size_t n)
         return a;
 }
 
-static json_t *state_json(const struct rig_config *rc, const struct sim_rig_state *st)
+static bool lamp_lit(const struct gn_pose *st, size_t i)
 {
-        json_t *lamps = json_array();
-
-        for (size_t i = 0; lamps && i < rc->n_lamps; i++)
-                if (json_array_append_new(lamps, json_boolean(st->lamp_on[i])) < 0)
-                        json_decref(TAKE_PTR(lamps));
-        return json_pack("{s:f, s:f, s:f, s:o, s:b}", "turntable", st->turntable_deg, "light_arm",
-                         st->light_arm_deg, "camera_arm", st->camera_arm_deg, "lamps", lamps,
-                         "laser", st->laser_on);
+        return i < GN_POSE_MAX_LAMPS && (st->lamps & (UINT32_C(1) << i));
 }
 
-static json_t *camera_json(struct sim_frame_server *fs, const struct sim_rig_state *st, int ci)
+/* {"turntable": deg or null, "light_arm": ..., "camera_arm": ..., "lamps": [bool], "laser": b} */
+static json_t *state_json(const struct rig_config *rc, const struct gn_pose *st)
+{
+        json_t *o = json_pack("{s:o, s:b}", "lamps", json_array(), "laser", st->laser);
+        json_t *lamps = json_object_get(o, "lamps");
+
+        for (size_t i = 0; lamps && i < rc->n_lamps; i++)
+                if (json_array_append_new(lamps, json_boolean(lamp_lit(st, i))) < 0)
+                        json_decref(TAKE_PTR(o));
+        for (int i = 0; o && i < GN_ROLE_COUNT; i++)
+                if (json_object_set_new(o, gn_role_name(i),
+                                        gn_pose_has(st, i) ? json_real(st->deg[i]) : json_null()) <
+                    0)
+                        json_decref(TAKE_PTR(o));
+        return o;
+}
+
+static json_t *camera_json(struct sim_frame_server *fs, const struct gn_pose *st, int ci)
 {
         struct sim_cam_geom g;
 
@@ -294,30 +305,30 @@ static json_t *camera_json(struct sim_frame_server *fs, const struct sim_rig_sta
                          reals(g.R, 9), "t", reals(g.t, 3));
 }
 
-static json_t *lamp_json(struct sim_frame_server *fs, const struct sim_rig_state *st, int i)
+static json_t *lamp_json(struct sim_frame_server *fs, const struct gn_pose *st, int i)
 {
         double p[3];
 
         if (sim_lamp_position(fs->scene, st, i, p) < 0)
                 return NULL;
         return json_pack("{s:s, s:o, s:b}", "name", fs->rc->lamps[i].name, "position", reals(p, 3),
-                         "on", st->lamp_on[i]);
+                         "on", lamp_lit(st, (size_t)i));
 }
 
-static json_t *laser_json(struct sim_frame_server *fs, const struct sim_rig_state *st)
+static json_t *laser_json(struct sim_frame_server *fs, const struct gn_pose *st)
 {
         double n[3], d;
 
         if (!fs->rc->has_laser || sim_laser_plane(fs->scene, n, &d) < 0)
                 return json_null();
-        return json_pack("{s:o, s:f, s:b}", "n", reals(n, 3), "d", d, "on", st->laser_on);
+        return json_pack("{s:o, s:f, s:b}", "n", reals(n, 3), "d", d, "on", st->laser);
 }
 
 /* ---- commands ---- */
 
 static int do_state(struct fs_req *rq)
 {
-        struct sim_rig_state st;
+        struct gn_pose st;
 
         sim_emu_snapshot(rq->fs->emu, &st);
         return send_json(rq,
@@ -327,7 +338,7 @@ static int do_state(struct fs_req *rq)
 static int do_geometry(struct fs_req *rq)
 {
         struct sim_frame_server *fs = rq->fs;
-        struct sim_rig_state st;
+        struct gn_pose st;
         json_t *cams = json_array(), *lamps = json_array();
         int r = 0;
 
@@ -363,15 +374,7 @@ static json_t *truth_list(const struct sim_truth *t, unsigned flags, size_t pixe
         return a;
 }
 
-static uint64_t realtime_ns(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_REALTIME, &ts);
-        return (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec;
-}
-
-static int send_frame(struct fs_req *rq, int ci, const struct sim_rig_state *st,
+static int send_frame(struct fs_req *rq, int ci, const struct gn_pose *st,
                       const struct sim_expose *ex, const struct gn_frame *f,
                       const struct sim_truth *t, unsigned flags)
 {
@@ -416,7 +419,7 @@ static int do_render(struct fs_req *rq)
 {
         struct sim_frame_server *fs = rq->fs;
         struct sim_expose ex = {0};
-        struct sim_rig_state st;
+        struct gn_pose st;
         struct gn_frame f = {0};
         struct sim_truth t = {0};
         unsigned flags = 0;
@@ -433,7 +436,7 @@ static int do_render(struct fs_req *rq)
                 return r;
 
         sim_emu_snapshot(fs->emu, &st);
-        uint64_t seq = fs->seq[ci]++, ts = realtime_ns();
+        uint64_t seq = fs->seq[ci]++, ts = gn_realtime_ns();
         r = sim_render(fs->scene, &st, ci, &ex, seq, &f, flags, &t);
         if (r < 0)
                 return fail(rq, -r, "rendering failed: %s", strerror(-r));
@@ -472,7 +475,7 @@ static int inject_modbus(struct fs_req *rq, const char *fault)
         static const char *const names[] = {
                 [SIM_FAULT_NONE] = "none",   [SIM_FAULT_TIMEOUT] = "timeout",
                 [SIM_FAULT_CRC] = "crc",     [SIM_FAULT_EXCEPTION] = "exception",
-                [SIM_FAULT_STALL] = "stall",
+                [SIM_FAULT_STALL] = "stall", [SIM_FAULT_SHORT] = "short",
         };
         const char *bus = json_string_value(json_object_get(rq->req, "bus"));
         long unit = -1;
@@ -486,7 +489,8 @@ static int inject_modbus(struct fs_req *rq, const char *fault)
         for (f = 0; f < ELEMENTSOF(names) && strcmp(names[f], fault) != 0; f++)
                 ;
         if (f == ELEMENTSOF(names))
-                return fail(rq, EINVAL, "Modbus faults are none, timeout, crc, exception, stall");
+                return fail(rq, EINVAL,
+                            "Modbus faults are none, timeout, crc, exception, stall, short");
         r = sim_emu_inject(rq->fs->emu, bus, (int)unit, (enum sim_fault)f);
         if (r == -ENOENT)
                 return fail(rq, ENOENT, "no emulated device at bus '%s' unit %ld", bus, unit);

@@ -3,6 +3,7 @@
  * socket, writes where everything listens (the ports file, JSON) and prints it, then
  * "ready", and runs until SIGTERM or SIGINT. See docs/sim.md. */
 #include <errno.h>
+#include <fcntl.h>
 #include <getopt.h>
 #include <signal.h>
 #include <stdio.h>
@@ -12,6 +13,7 @@
 
 #include <jansson.h>
 
+#include "common/fileio.h"
 #include "common/log.h"
 #include "common/rigconf.h"
 #include "sim/frame_server.h"
@@ -134,19 +136,17 @@ static json_t *ports_json(const struct rig_config *rc, struct sim_emu *emu)
         return json_pack("{s:s, s:o}", "rig", rc->name, "buses", buses);
 }
 
-/* Writes the ports to path (via a temporary file and rename) and to stdout. */
+/* Writes the ports to path (atomically) and to stdout. */
 static int publish_ports(const struct rig_config *rc, struct sim_emu *emu, const char *path)
 {
         json_auto_t *o = ports_json(rc, emu);
-        char tmp[RIG_PATH_MAX + 8];
+        _cleanup_free_ char *text = o ? json_dumps(o, JSON_INDENT(2)) : NULL;
+        int r;
 
-        if (!o)
+        if (!text)
                 return log_error_errno(SYNTHETIC_ERRNO(ENOMEM), "Out of memory");
-        if (path) {
-                snprintf(tmp, sizeof tmp, "%s.tmp", path);
-                if (json_dump_file(o, tmp, JSON_INDENT(2)) < 0 || rename(tmp, path) < 0)
-                        return log_error_errno(SYNTHETIC_ERRNO(EIO), "Cannot write %s", path);
-        }
+        if (path && (r = gn_write_atomic(AT_FDCWD, path, text, strlen(text), NULL)) < 0)
+                return log_error_errno(r, "Cannot write %s: %m", path);
         if (json_dumpf(o, stdout, JSON_COMPACT) < 0)
                 return -EIO;
         printf("\nready\n");

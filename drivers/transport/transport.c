@@ -14,6 +14,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "common/clock.h"
 #include "common/log.h"
 #include "drivers/transport/transport.h"
 
@@ -121,17 +122,9 @@ void transport_count(uint64_t *counter)
         __atomic_fetch_add(counter, 1, __ATOMIC_RELAXED);
 }
 
-static uint64_t now_ns(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return (uint64_t)ts.tv_sec * 1000000000ULL + (uint64_t)ts.tv_nsec;
-}
-
 bool transport_ratelimit_ok(struct transport *t)
 {
-        uint64_t now = now_ns();
+        uint64_t now = gn_monotonic_ns();
 
         if (t->rl_n == 0 || now - t->rl_begin_ns >= RATELIMIT_INTERVAL_NS) {
                 if (t->rl_suppressed > 0)
@@ -165,7 +158,7 @@ void transport_unlock_line(int fd)
 
 int64_t transport_deadline(int timeout_ms)
 {
-        return (int64_t)(now_ns() / 1000000) + timeout_ms;
+        return (int64_t)(gn_monotonic_ns() / 1000000) + timeout_ms;
 }
 
 /* Waits for events on fd until deadline. Returns 0 or -ETIMEDOUT/-errno. */
@@ -174,7 +167,7 @@ static int wait_fd(int fd, short events, int64_t deadline)
         struct pollfd p = {.fd = fd, .events = events};
 
         for (;;) {
-                int64_t left = deadline - (int64_t)(now_ns() / 1000000);
+                int64_t left = deadline - (int64_t)(gn_monotonic_ns() / 1000000);
                 if (left <= 0)
                         return -ETIMEDOUT;
                 int r = poll(&p, 1, (int)MIN(left, (int64_t)INT32_MAX));

@@ -43,10 +43,10 @@ static struct sw *open_switch(struct bus *b, const struct rig_switch_conf *c)
 /* The emulator's own view of the coils, as lamp0 lamp1 laser bits. */
 static int emu_coils(struct fixture *f)
 {
-        struct sim_rig_state st;
+        struct gn_pose st;
 
         sim_emu_snapshot(f->rig.emu, &st);
-        return st.lamp_on[0] | st.lamp_on[1] << 1 | st.laser_on << 2;
+        return (int)(st.lamps & 3) | st.laser << 2;
 }
 
 static void test_set_readback(struct fixture *f)

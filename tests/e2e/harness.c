@@ -13,6 +13,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "common/clock.h"
 #include "harness.h"
 #include "tests/test.h"
 
@@ -64,10 +65,7 @@ static void write_file(const char *path, const char *text)
 
 static double now_s(void)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return ts.tv_sec + ts.tv_nsec * 1e-9;
+        return (double)gn_monotonic_ns() * 1e-9;
 }
 
 /* Starts argv with stdout on a pipe; returns the read end in *out_fd. */
