@@ -11,9 +11,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <termios.h>
-#include <time.h>
 #include <unistd.h>
 
+#include "common/clock.h"
 #include "drivers/bus/bus.h"
 #include "drivers/transport/transport.h"
 #include "tests/test.h"
@@ -45,10 +45,7 @@ static void pty_open(struct pty *p)
 
 static double now_s(void)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+        return (double)gn_monotonic_ns() * 1e-9;
 }
 
 static void master_write(struct pty *p, const char *s)
