@@ -21,7 +21,7 @@ struct cam_sim {
 };
 
 static const struct opt_desc cam_sim_opts[] = {
-        {OPT_EXPOSURE, OPT_GET | OPT_SET, .unit = "us", .min = 1, .max = 60000000},
+        {OPT_EXPOSURE, OPT_GET | OPT_SET, .unit = "us", .min = 1, .max = 10000000},
         {OPT_GAIN, OPT_GET | OPT_SET, .min = 0.1, .max = 64},
         {OPT_BITS, OPT_GET | OPT_SET | OPT_LIST, .min = 8, .max = 16},
 };
