@@ -141,11 +141,19 @@ bool transport_ratelimit_ok(struct transport *t)
         return false;
 }
 
+int transport_port_error(struct transport *t, int err)
+{
+        err = err < 0 ? err : -err;
+        if (err == -EBUSY)
+                return transport_set_cause(t, err, "port %s is in use by another process",
+                                           t->conf->port);
+        return transport_set_cause(t, err, "cannot open port %s: %m", t->conf->port);
+}
+
 int transport_lock_line(struct transport *t, int fd)
 {
         if (flock(fd, LOCK_EX | LOCK_NB) < 0)
-                return transport_set_cause(t, errno == EWOULDBLOCK ? -EBUSY : -errno,
-                                           "port %s is in use by another process", t->conf->port);
+                return transport_port_error(t, errno == EWOULDBLOCK ? EBUSY : errno);
         (void)ioctl(fd, TIOCEXCL); /* not every device has it; the flock is what counts */
         return 0;
 }

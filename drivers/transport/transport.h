@@ -121,6 +121,11 @@ int transport_read_bytes(struct transport *t, void *dst, size_t n, int64_t deadl
  * by another process". */
 int transport_lock_line(struct transport *t, int fd);
 
+/* Sets the cause of a failed open(2) of the port: "port PATH is in use by another
+ * process" for EBUSY (TIOCEXCL held by another process), else "cannot open port PATH: %m".
+ * Returns -abs(err). */
+int transport_port_error(struct transport *t, int err);
+
 /* Releases what transport_lock_line() took (TIOCNXCL; the flock goes with the fd). */
 void transport_unlock_line(int fd);
 
