@@ -117,9 +117,8 @@ static int poll_after(struct job *j, struct rig_axis *a, int r)
 }
 
 /* Runs on the bus worker: the blocking driver call for one job. */
-static int job_run(struct bus *b, void *userdata)
+static int job_call(struct bus *b, struct job *j)
 {
-        struct job *j = userdata;
         struct rig *rig = j->rig;
         struct rig_axis *a = is_axis_job(j->kind) ? &rig->axes[j->idx] : NULL;
         int r;
@@ -153,6 +152,29 @@ static int job_run(struct bus *b, void *userdata)
                 return cam_capture(rig->cams[j->idx], &j->creq, &j->frame);
         }
         return -EINVAL;
+}
+
+/* The device's own account of its last failure (device, operation, register, cause). */
+static const char *device_error(const struct job *j)
+{
+        struct rig *rig = j->rig;
+
+        if (is_axis_job(j->kind))
+                return rig->axes[j->idx].ax->last_error;
+        if (j->kind == J_OPEN_CAM || j->kind == J_CAPTURE)
+                return rig->cams[j->idx]->last_error;
+        return switch_slot(rig, j->idx)->sw->last_error;
+}
+
+/* Runs on the bus worker: the job, and the driver's message if it failed. */
+static int job_run(struct bus *b, void *userdata)
+{
+        struct job *j = userdata;
+        int r = job_call(b, j);
+
+        if (r < 0 && r != -ECANCELED)
+                snprintf(j->why, sizeof(j->why), "%s", device_error(j));
+        return r;
 }
 
 static void job_done(struct bus *b, int result, void *userdata);
@@ -242,11 +264,15 @@ void rig_fault(struct rig *rig, const char *device, int err, const char *fmt, ..
         rig_safe_state(rig);
 }
 
-/* Records the message of a failed device operation for replies and faults. */
+/* Records the message of a failed device operation for replies and faults: the
+ * driver's own when it gave one, else device, operation and errno. */
 static const char *job_error(struct job *j, int result)
 {
         struct rig *rig = j->rig;
 
+        if (j->why[0])
+                return snprintf(rig->last_error, sizeof(rig->last_error), "%s", j->why),
+                       rig->last_error;
         snprintf(rig->last_error, sizeof(rig->last_error), "%s '%s': %s failed: %s",
                  is_axis_job(j->kind)                            ? "axis"
                  : j->kind == J_OPEN_CAM || j->kind == J_CAPTURE ? "camera"

@@ -93,6 +93,7 @@ struct job {
         struct exposure *exp; /* the exposure this poll or capture belongs to */
         int shot;             /* index into the exposure's shots */
         bool clear;           /* part of a fault.clear */
+        char why[DEV_ERROR_MAX]; /* the driver's message when the job failed (worker) */
 };
 
 /* Queues j on its device's bus (urgent jobs first); frees j on failure. 0 or -errno. */

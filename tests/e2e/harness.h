@@ -20,6 +20,13 @@ struct rigenv {
  * with time_scale and goniod. Exits the test on failure. */
 void rigenv_start(struct rigenv *e, char **argv, double time_scale);
 
+/* Like rigenv_start with the rig file rig_text (YAML; NULL: the default test rig). */
+void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text);
+
+/* Kills goniod with SIGKILL (as a crash would) and starts it again on the same rig,
+ * socket and data. */
+void rigenv_crash_daemon(struct rigenv *e);
+
 /* SIGTERMs both processes, waits, and removes the temp dir. */
 void rigenv_stop(struct rigenv *e);
 
@@ -38,6 +45,9 @@ json_t *raw_call(int fd, const char *text);
 
 /* Sends one request to gonio-sim's frame socket (e.g. a fault injection) and checks "ok". */
 void sim_request(struct rigenv *e, const char *json_line);
+
+/* Sends one request to gonio-sim's frame socket and returns its parsed reply ("ok" checked). */
+json_t *sim_query(struct rigenv *e, const char *json_line);
 
 /* Polls status until field state == want (or fails the test after timeout seconds). */
 json_t *wait_state(struct rigenv *e, const char *want, double timeout);
