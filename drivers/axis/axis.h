@@ -15,6 +15,9 @@
 struct bus;
 struct axis;
 
+/* What the drive itself reports. in_position is the drive's own flag, never derived from
+ * the position: a move is done only when moving is clear and in_position set. A drive
+ * may stop short (moving clear, in_position clear, no fault): that move failed. */
 struct axis_state {
         double position_deg;
         bool enabled, homed, moving, in_position, fault;

@@ -104,7 +104,8 @@ static int check_control(const struct cam *c, enum opt_key key, double v, char *
                 return -EOPNOTSUPP;
         }
         if (o->max > o->min && (v < o->min || v > o->max)) {
-                snprintf(msg, len, "%s %g outside [%g, %g]", opt_key_name(key), v, o->min, o->max);
+                snprintf(msg, len, "%s %.10g outside [%.10g, %.10g]", opt_key_name(key), v, o->min,
+                         o->max);
                 return -ERANGE;
         }
         return 0;

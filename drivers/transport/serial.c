@@ -18,7 +18,8 @@ static const struct {
         {230400, B230400}, {460800, B460800}, {921600, B921600},
 };
 
-/* Fills *tio for conf: raw, 8N1 or as configured, no flow control, reads return at once.
+/* Fills *tio for conf: raw, 8N1 or as configured, no flow control. VMIN 1 with O_NONBLOCK:
+ * no data is EAGAIN (VMIN 0 would return 0, which the stream helpers take for a hangup).
  * Returns 0 or -EINVAL for a baud rate termios does not name. */
 static int make_termios(const struct rig_bus_conf *c, struct termios *tio)
 {
@@ -39,7 +40,7 @@ static int make_termios(const struct rig_bus_conf *c, struct termios *tio)
         if (c->stop_bits == 2)
                 tio->c_cflag |= CSTOPB;
         tio->c_iflag &= ~(IXON | IXOFF | IXANY);
-        tio->c_cc[VMIN] = 0;
+        tio->c_cc[VMIN] = 1;
         tio->c_cc[VTIME] = 0;
         cfsetispeed(tio, speed);
         cfsetospeed(tio, speed);

@@ -63,6 +63,7 @@ int transport_open(struct transport *t)
                 return 0;
         t->cause[0] = '\0';
         r = t->ops->open(t);
+        t->open_failed = r < 0;
         if (r < 0)
                 return log_error_errno(r, "bus '%s': %s", t->conf->name, t->cause);
         if (t->opened_once)

@@ -50,6 +50,7 @@ struct transport {
         int fd;                          /* stream or locked line fd, -1 when closed */
         void *priv;                      /* backend state (the modbus_t of Modbus links) */
         bool is_open, opened_once;
+        bool open_failed; /* the last use failed to open the link: the cause names the port */
         struct transport_stats stats;
         char cause[256]; /* last failure, without the bus name */
         char in[TRANSPORT_BUF_MAX];

@@ -5,6 +5,7 @@
 
 #include "drivers/axis/axis.h"
 #include "drivers/bus/bus.h"
+#include "drivers/camera/camera.h"
 #include "drivers/registry.h"
 #include "drivers/transport/modbus.h"
 #include "drivers/transport/transport.h"
@@ -85,6 +86,38 @@ static void test_new_unknown(void)
         CHECK(bus_free(b) == NULL);
 }
 
+/* The camera's option table is the one source of its control ranges. */
+static void test_cam_check_request(void)
+{
+        struct rig_bus_conf bc = {.name = "frames", .type = RIG_BUS_SIM, .port = "/x/f.sock"};
+        struct rig_camera_conf cc = {.name = "cam1", .backend = "sim"};
+        struct bus *b = NULL;
+        struct cam *c = NULL;
+        char msg[128];
+
+        CHECK_INT(bus_new_sync(&bc, &b), 0);
+        CHECK_INT(cam_new(&cc, b, &c), 0);
+        CHECK_INT(cam_check_request(c, NULL, msg, sizeof(msg)), 0);
+        CHECK_STR(msg, "");
+        CHECK_INT(cam_check_request(c, &(struct cam_request){.gain = 100}, msg, sizeof(msg)),
+                  -ERANGE);
+        CHECK_STR(msg, "gain 100 outside [0.1, 64]");
+        CHECK_INT(cam_check_request(c, &(struct cam_request){.gain = 64, .exposure_us = 60000000},
+                                    msg, sizeof(msg)),
+                  0);
+        CHECK_INT(cam_check_request(c, &(struct cam_request){.exposure_us = 60000001}, msg,
+                                    sizeof(msg)),
+                  -ERANGE);
+        CHECK_STR(msg, "exposure 60000001 outside [1, 60000000]");
+        CHECK_INT(cam_check_request(c, &(struct cam_request){.bits = 12}, NULL, 0), -EINVAL);
+        CHECK_INT(cam_capture(c, &(struct cam_request){.gain = 0.05}, NULL), -ERANGE);
+        CHECK_STR(c->last_error,
+                  "camera 'cam1' [sim@f.sock]: Failed to capture: gain 0.05 outside [0.1, 64]");
+        CHECK_INT(cam_stream_start(c, &(struct cam_request){.gain = 65}), -ERANGE);
+        CHECK(cam_free(c) == NULL);
+        CHECK(bus_free(b) == NULL);
+}
+
 static void test_errno_map(void)
 {
         CHECK_INT(mbus_errno(ETIMEDOUT), -ETIMEDOUT);
@@ -103,5 +136,6 @@ int main(void)
         test_registry();
         test_new_unknown();
         test_errno_map();
+        test_cam_check_request();
         return 0;
 }

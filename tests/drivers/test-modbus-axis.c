@@ -1,7 +1,8 @@
 /* test-modbus-axis.c - the "modbus" axis driver against gonio-sim's emulated drives,
  * over a real pty (RTU) and loopback TCP through libmodbus: open, home, move timing,
  * soft limits, shortest way round, stop mid-move (also as an urgent job on a bus worker
- * with an sd-event loop), and injected faults: timeout, bad CRC, exception, stall. */
+ * with an sd-event loop), and injected faults: timeout, bad CRC, exception, stall, and a
+ * move that ends short of its target without a fault. */
 #include <errno.h>
 #include <math.h>
 #include <semaphore.h>
@@ -239,6 +240,32 @@ static void test_stall(struct fixture *f)
         CHECK_NEAR(f->tt->state.position_deg, 100.0, POS_TOL);
 }
 
+/* A drive that ends a move short of its target without a fault: the state says so from
+ * the drive's own in-position flag (moving clear, in_position clear), never from the
+ * position being "close enough"; the next move is normal. */
+static void test_short(struct fixture *f)
+{
+        double t0;
+
+        CHECK_INT(sim_emu_inject(f->rig.emu, "drives", 1, SIM_FAULT_SHORT), 0); /* armed */
+        CHECK_INT(axis_move_abs(f->tt, 150.0), 0);
+        wait_stopped(f->tt, 10.0);
+        t0 = testrig_now();
+        do { /* longer than any settle time: the flag never comes */
+                CHECK_INT(axis_poll(f->tt), 0);
+                CHECK(!f->tt->state.moving);
+                CHECK(!f->tt->state.in_position);
+                CHECK(!f->tt->state.fault);
+                CHECK_INT(f->tt->state.fault_code, 0);
+                testrig_sleep(0.01);
+        } while (testrig_now() - t0 < 0.3);
+        CHECK_NEAR(f->tt->state.position_deg, 147.0, 0.01); /* 3 deg short */
+
+        CHECK_INT(axis_move_abs(f->tt, 150.0), 0);
+        wait_in_position(f->tt);
+        CHECK_NEAR(f->tt->state.position_deg, 150.0, POS_TOL);
+}
+
 static void test_tcp(struct fixture *f)
 {
         CHECK_INT(axis_move_abs(f->remote, -45.0), 0);
@@ -262,6 +289,7 @@ static void run_sync(struct fixture *f)
         test_timeout(f);
         test_crc_and_exception(f);
         test_stall(f);
+        test_short(f);
         test_tcp(f);
 
         f->tt = axis_free(f->tt);

@@ -33,13 +33,18 @@ static const struct rig_modbus_profile *prof(const struct axis *ax)
         return m ? &m->prof : NULL;
 }
 
-/* Register accesses that name what failed: "read position (reg 0x0102): cause". */
+/* Register accesses that name what failed: "read position (reg 0x0102): cause", or the
+ * port alone when it could not be opened. */
 static int reg_result(struct axis *ax, int r, const char *what, int reg)
 {
+        const struct transport *t = bus_transport(ax->bus);
+
         if (r >= 0)
                 return r;
+        if (t->open_failed)
+                return axis_set_cause(ax, r, "%s", transport_cause(t));
         return axis_set_cause(ax, r, "%s (reg 0x%04x): %s", what, (unsigned)reg,
-                              transport_cause(bus_transport(ax->bus)));
+                              transport_cause(t));
 }
 
 static int read_regs(struct axis *ax, const char *what, int reg, int n, uint16_t *dest)

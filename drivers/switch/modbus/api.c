@@ -12,6 +12,17 @@ static const struct opt_desc mbsw_opts[] = {
         {OPT_STATE, OPT_GET | OPT_SET},
 };
 
+/* A failed coil access: "write coil 3: cause", or the port alone when it could not be
+ * opened. Returns r. */
+static int coil_error(struct sw *s, int r, const char *what)
+{
+        const struct transport *t = bus_transport(s->bus);
+
+        if (t->open_failed)
+                return sw_set_cause(s, r, "%s", transport_cause(t));
+        return sw_set_cause(s, r, "%s coil %d: %s", what, s->conf->coil, transport_cause(t));
+}
+
 static int mbsw_get(struct sw *s, bool *on)
 {
         uint8_t v;
@@ -19,8 +30,7 @@ static int mbsw_get(struct sw *s, bool *on)
 
         r = mbus_read_coils(bus_transport(s->bus), s->conf->unit, s->conf->coil, 1, &v);
         if (r < 0)
-                return sw_set_cause(s, r, "read coil %d: %s", s->conf->coil,
-                                    transport_cause(bus_transport(s->bus)));
+                return coil_error(s, r, "read");
         r = mbsw_decode_coil(v, on);
         if (r < 0)
                 return sw_set_cause(s, r, "coil %d read back as 0x%02x", s->conf->coil, v);
@@ -44,8 +54,7 @@ static int mbsw_set(struct sw *s, bool on)
 
         r = mbus_write_coil(bus_transport(s->bus), s->conf->unit, s->conf->coil, on);
         if (r < 0)
-                return sw_set_cause(s, r, "write coil %d: %s", s->conf->coil,
-                                    transport_cause(bus_transport(s->bus)));
+                return coil_error(s, r, "write");
         r = mbsw_get(s, &now);
         if (r < 0)
                 return r;
