@@ -214,7 +214,15 @@ static int send_request(struct conn *c, const char *method, json_t *params, int6
         return send_all(c, s, n, deadline);
 }
 
-int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadline,
+/* True for a reply to a request sent before id: one whose wait was abandoned (-EINTR,
+ * -ETIMEDOUT) and that the server answered late, e.g. a move canceled by our stop. */
+static bool late_reply(const struct proto_msg *m, json_int_t id)
+{
+        return m->kind == PROTO_RESPONSE && json_is_integer(m->id) &&
+               json_integer_value(m->id) > 0 && json_integer_value(m->id) < id;
+}
+
+int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadline, int intr_fd,
               conn_notify_fn fn, void *userdata, json_t **result, struct conn_error *err)
 {
         json_int_t id = c->next_id;
@@ -228,7 +236,7 @@ int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadli
         for (;;) {
                 struct proto_msg m;
 
-                r = read_msg(c, deadline, -1, &m, err);
+                r = read_msg(c, deadline, intr_fd, &m, err);
                 if (r < 0)
                         return r;
                 /* A reply with id null answers a request the server could not read: ours. */
@@ -238,7 +246,7 @@ int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadli
                         json_decref(m.root);
                         return r;
                 }
-                if (m.kind == PROTO_RESPONSE) {
+                if (m.kind == PROTO_RESPONSE && !late_reply(&m, id)) {
                         snprintf(err->message, sizeof(err->message), "reply to unknown id");
                         r = -EPROTO;
                 } else
