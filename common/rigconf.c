@@ -1,8 +1,9 @@
 /* rigconf.c - loads and validates the rig file (docs/rig-file.md).
  *
- * The parse is strict: unknown keys, missing required keys, out-of-range values,
- * duplicate names and references to undefined buses are errors that name the
- * file, line and key. Defaults are filled in here, so the rest of gonio reads
+ * The parse is strict: unknown keys (in every entry), missing required keys,
+ * out-of-range values, unset ${VAR}s, duplicate names and roles, references to
+ * undefined buses, two devices on one Modbus address and two buses on one port are
+ * errors that name the file, line and key. Defaults are filled in here, so the rest of gonio reads
  * plain values. */
 #include <errno.h>
 #include <libfyaml.h>
@@ -396,22 +397,32 @@ struct ref {
         int unit, coil;  /* coil -1: a drive (the whole unit) */
 };
 
+/* The ref of a switch (lamp or laser). */
+static struct ref switch_ref(const char *section, size_t index, const struct rig_switch_conf *s)
+{
+        return (struct ref){.section = section,
+                            .kind = s->kind == RIG_SWITCH_LASER ? "laser" : "lamp",
+                            .index = index,
+                            .name = s->name,
+                            .bus = s->bus,
+                            .unit = s->unit,
+                            .coil = s->coil};
+}
+
 /* Lists the devices of rc (axes, lamps, laser, cameras) into refs; returns their number. */
 static size_t device_refs(const struct rig_config *rc, struct ref *refs)
 {
         size_t n = 0;
 
-        for (size_t i = 0; i < rc->n_axes; i++)
-                refs[n++] = (struct ref){"axes",          "axis",           i, rc->axes[i].name,
-                                         rc->axes[i].bus, rc->axes[i].unit, -1};
+        for (size_t i = 0; i < rc->n_axes; i++) {
+                const struct rig_axis_conf *a = &rc->axes[i];
+
+                refs[n++] = (struct ref){"axes", "axis", i, a->name, a->bus, a->unit, -1};
+        }
         for (size_t i = 0; i < rc->n_lamps; i++)
-                refs[n++] = (struct ref){"lamps",           "lamp",           i,
-                                         rc->lamps[i].name, rc->lamps[i].bus, rc->lamps[i].unit,
-                                         rc->lamps[i].coil};
+                refs[n++] = switch_ref("lamps", i, &rc->lamps[i]);
         if (rc->has_laser)
-                refs[n++] = (struct ref){"laser",        "laser",       0,
-                                         rc->laser.name, rc->laser.bus, rc->laser.unit,
-                                         rc->laser.coil};
+                refs[n++] = switch_ref("laser", 0, &rc->laser);
         for (size_t i = 0; i < rc->n_cameras; i++)
                 refs[n++] = (struct ref){"cameras", "camera", i, rc->cameras[i].name};
         return n;
