@@ -3,8 +3,8 @@
  * The parse is strict: unknown keys (in every entry), missing required keys,
  * out-of-range values, unset ${VAR}s, duplicate names and roles, references to
  * undefined buses, two devices on one Modbus address and two buses on one port are
- * errors that name the file, line and key. Defaults are filled in here, so the rest of gonio reads
- * plain values. */
+ * errors that name the file, line and key. Defaults are filled in here, so the rest
+ * of gonio reads plain values. */
 #include <errno.h>
 #include <libfyaml.h>
 #include <math.h>
