@@ -22,13 +22,14 @@
 #include "drivers/registry.h"
 #include "rig_internal.h"
 
-#define POLL_USEC        (20 * 1000)
-#define NOTIFY_USEC      (100 * 1000)
-#define IDLE_POLL_USEC   (1000 * 1000)
-#define TIMER_ACCURACY   1000 /* usec: sd-event's default (250 ms) would delay every move */
-#define OPEN_WAIT_USEC   (15 * 1000 * 1000ULL)
-#define STOP_WAIT_USEC   (30 * 1000 * 1000ULL)
-#define SHORT_GRACE_USEC (200 * 1000) /* a drive may take this long to start moving */
+#define POLL_USEC          (20 * 1000)
+#define NOTIFY_USEC        (100 * 1000)
+#define IDLE_POLL_USEC     (1000 * 1000)
+#define TIMER_ACCURACY     1000 /* usec: sd-event's default (250 ms) would delay every move */
+#define OPEN_WAIT_USEC     (15 * 1000 * 1000ULL)
+#define STOP_WAIT_USEC     (30 * 1000 * 1000ULL)
+#define SHORT_GRACE_USEC   (200 * 1000) /* a drive may take this long to start moving */
+#define SHORT_DEADBAND_DEG 0.05         /* farther than this from the target at rest: short */
 
 static bool is_axis_job(enum job_kind kind)
 {
@@ -359,11 +360,12 @@ static void axis_progress(struct rig_axis *a)
                 return arm(a, a->ax->conf->settle_ms * 1000ULL);
         }
         if (a->op == AX_MOVING && !a->st.moving && !a->st.in_position &&
-            now - a->started > SHORT_GRACE_USEC)
+            now - a->started > SHORT_GRACE_USEC &&
+            gn_angle_distance(a->st.position_deg, a->target) > SHORT_DEADBAND_DEG)
                 return rig_fault(rig, name, -EIO,
-                                 "axis '%s': the drive stopped at %.3f deg without reaching its "
-                                 "target (not in position)",
-                                 name, a->st.position_deg);
+                                 "axis '%s': the drive stopped at %.3f deg, short of its target "
+                                 "%.3f deg (not in position)",
+                                 name, a->st.position_deg, a->target);
         if (now > a->deadline)
                 return rig_fault(rig, name, -ETIMEDOUT,
                                  "axis '%s': %s did not complete within %.1f s (at %.3f deg)", name,
@@ -557,6 +559,7 @@ static int start_motion(struct rig *rig, int i, enum axis_op op, double target, 
         if (r < 0)
                 return r;
         a->op = op;
+        a->target = target;
         a->done = done;
         a->ud = ud;
         a->started = now_usec(rig);
@@ -650,7 +653,7 @@ struct gn_pose rig_pose(const struct rig *rig)
         struct gn_pose p = gn_pose_none();
 
         for (size_t i = 0; i < rig->rc->n_axes; i++)
-                if (rig->rc->axes[i].role >= 0)
+                if (rig->rc->axes[i].role >= 0 && rig->axes[i].st.homed)
                         p.deg[rig->rc->axes[i].role] = rig->axes[i].st.position_deg;
         for (size_t i = 0; i < rig->rc->n_lamps && i < GN_POSE_MAX_LAMPS; i++)
                 if (rig->lamps[i].sw->on)

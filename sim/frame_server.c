@@ -264,9 +264,9 @@ static int send_frame(struct fs_req *rq, const struct exposure *x, const struct 
  * time), in slices so that sim_frame_server_free() is not held up. */
 static void expose_wait(struct sim_frame_server *fs, int exposure_us)
 {
-        uint64_t end = clock_ns(CLOCK_MONOTONIC) + (uint64_t)(exposure_us * 1e3 / fs->time_scale);
+        uint64_t end = gn_monotonic_ns() + (uint64_t)(exposure_us * 1e3 / fs->time_scale);
 
-        for (uint64_t now; !atomic_load(&fs->stop) && (now = clock_ns(CLOCK_MONOTONIC)) < end;) {
+        for (uint64_t now; !atomic_load(&fs->stop) && (now = gn_monotonic_ns()) < end;) {
                 uint64_t ns = MIN(end - now, FS_POLL_MS * UINT64_C(1000000));
                 struct timespec ts = {.tv_sec = (time_t)(ns / 1000000000u),
                                       .tv_nsec = (long)(ns % 1000000000u)};

@@ -205,8 +205,8 @@ static void kill_children(void)
 
 static void start_daemon(struct rigenv *e)
 {
-        char *argv[] = {(char *)e->goniod, "--rig", e->rig, "--socket", e->sock, "--data",
-                        e->data,           NULL};
+        char *argv[] = {(char *)e->goniod, "--rig",  e->rig,  "--socket",
+                        e->sock,           "--data", e->data, NULL};
         int fd;
 
         e->daemon = spawn(argv, &fd);
@@ -216,7 +216,7 @@ static void start_daemon(struct rigenv *e)
 
 void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
 {
-        char scale[32];
+        char scale[32], log[320];
         int fd;
 
         memset(e, 0, sizeof(*e));
@@ -234,8 +234,9 @@ void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const ch
         write_file(e->rig, rig_text ? rig_text : test_rig);
         setenv("GONIO_SIM_DIR", e->simdir, 1);
         snprintf(scale, sizeof(scale), "%g", time_scale);
+        snprintf(log, sizeof(log), "%s/render.log", e->dir);
         e->sim = spawn((char *[]){(char *)e->gonio_sim, "--rig", e->rig, "--dir", e->simdir,
-                                  "--time-scale", scale, NULL},
+                                  "--time-scale", scale, "--render-log", log, NULL},
                        &fd);
         CHECK(wait_word(fd, "ready", 30));
         close(fd);
@@ -386,19 +387,17 @@ const char *raw_seen(void)
 json_t *raw_call(int fd, const char *text)
 {
         static char buf[1 << 20];
-        size_t len = 0;
+        static size_t len;
+        static int last_fd = -1; /* lines read past a reply stay for the next call on fd */
 
+        if (fd != last_fd)
+                len = 0, buf[0] = 0, last_fd = fd;
         CHECK(write(fd, text, strlen(text)) == (ssize_t)strlen(text));
         for (;;) {
                 char *nl;
                 ssize_t n;
                 struct pollfd pfd = {.fd = fd, .events = POLLIN};
 
-                CHECK(poll(&pfd, 1, 20000) == 1);
-                n = read(fd, buf + len, sizeof(buf) - 1 - len);
-                CHECK(n > 0);
-                len += n;
-                buf[len] = 0;
                 while ((nl = strchr(buf, '\n'))) {
                         json_t *msg;
                         *nl = 0;
@@ -411,5 +410,10 @@ json_t *raw_call(int fd, const char *text)
                         note_seen(json_string_value(json_object_get(msg, "method")));
                         json_decref(msg); /* a notification */
                 }
+                CHECK(poll(&pfd, 1, 20000) == 1);
+                n = read(fd, buf + len, sizeof(buf) - 1 - len);
+                CHECK(n > 0);
+                len += n;
+                buf[len] = 0;
         }
 }

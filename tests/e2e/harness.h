@@ -17,7 +17,7 @@ struct rigenv {
 };
 
 /* Creates a temp dir, writes the test rig (small cameras) there and starts gonio-sim
- * with time_scale and goniod. Exits the test on failure. */
+ * with time_scale (its render log at DIR/render.log) and goniod. Exits the test on failure. */
 void rigenv_start(struct rigenv *e, char **argv, double time_scale);
 
 /* Like rigenv_start with the rig file rig_text (YAML; NULL: the default test rig). */
@@ -40,7 +40,8 @@ json_t *ctl_ok(struct rigenv *e, ...) __attribute__((sentinel));
 /* Connects a raw client to the daemon's socket. Returns the fd. */
 int raw_connect(struct rigenv *e);
 
-/* Sends text as is and reads one reply line (parsed), skipping notifications. */
+/* Sends text as is and reads one reply line (parsed), skipping notifications; lines read
+ * past it are kept for the next call on the same fd (pipelined requests). */
 json_t *raw_call(int fd, const char *text);
 
 /* Sends one request to gonio-sim's frame socket (e.g. a fault injection) and checks "ok". */
