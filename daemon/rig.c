@@ -22,13 +22,14 @@
 #include "drivers/registry.h"
 #include "rig_internal.h"
 
-#define POLL_USEC        (20 * 1000)
-#define NOTIFY_USEC      (100 * 1000)
-#define IDLE_POLL_USEC   (1000 * 1000)
-#define TIMER_ACCURACY   1000 /* usec: sd-event's default (250 ms) would delay every move */
-#define OPEN_WAIT_USEC   (15 * 1000 * 1000ULL)
-#define STOP_WAIT_USEC   (30 * 1000 * 1000ULL)
-#define SHORT_GRACE_USEC (200 * 1000) /* a drive may take this long to start moving */
+#define POLL_USEC          (20 * 1000)
+#define NOTIFY_USEC        (100 * 1000)
+#define IDLE_POLL_USEC     (1000 * 1000)
+#define TIMER_ACCURACY     1000 /* usec: sd-event's default (250 ms) would delay every move */
+#define OPEN_WAIT_USEC     (15 * 1000 * 1000ULL)
+#define STOP_WAIT_USEC     (30 * 1000 * 1000ULL)
+#define SHORT_GRACE_USEC   (200 * 1000) /* a drive may take this long to start moving */
+#define SHORT_DEADBAND_DEG 0.05         /* farther than this from the target at rest: short */
 
 static bool is_axis_job(enum job_kind kind)
 {
@@ -117,9 +118,8 @@ static int poll_after(struct job *j, struct rig_axis *a, int r)
 }
 
 /* Runs on the bus worker: the blocking driver call for one job. */
-static int job_run(struct bus *b, void *userdata)
+static int job_call(struct bus *b, struct job *j)
 {
-        struct job *j = userdata;
         struct rig *rig = j->rig;
         struct rig_axis *a = is_axis_job(j->kind) ? &rig->axes[j->idx] : NULL;
         int r;
@@ -153,6 +153,29 @@ static int job_run(struct bus *b, void *userdata)
                 return cam_capture(rig->cams[j->idx], &j->creq, &j->frame);
         }
         return -EINVAL;
+}
+
+/* The device's own account of its last failure (device, operation, register, cause). */
+static const char *device_error(const struct job *j)
+{
+        struct rig *rig = j->rig;
+
+        if (is_axis_job(j->kind))
+                return rig->axes[j->idx].ax->last_error;
+        if (j->kind == J_OPEN_CAM || j->kind == J_CAPTURE)
+                return rig->cams[j->idx]->last_error;
+        return switch_slot(rig, j->idx)->sw->last_error;
+}
+
+/* Runs on the bus worker: the job, and the driver's message if it failed. */
+static int job_run(struct bus *b, void *userdata)
+{
+        struct job *j = userdata;
+        int r = job_call(b, j);
+
+        if (r < 0 && r != -ECANCELED)
+                snprintf(j->why, sizeof(j->why), "%s", device_error(j));
+        return r;
 }
 
 static void job_done(struct bus *b, int result, void *userdata);
@@ -242,11 +265,15 @@ void rig_fault(struct rig *rig, const char *device, int err, const char *fmt, ..
         rig_safe_state(rig);
 }
 
-/* Records the message of a failed device operation for replies and faults. */
+/* Records the message of a failed device operation for replies and faults: the
+ * driver's own when it gave one, else device, operation and errno. */
 static const char *job_error(struct job *j, int result)
 {
         struct rig *rig = j->rig;
 
+        if (j->why[0])
+                return snprintf(rig->last_error, sizeof(rig->last_error), "%s", j->why),
+                       rig->last_error;
         snprintf(rig->last_error, sizeof(rig->last_error), "%s '%s': %s failed: %s",
                  is_axis_job(j->kind)                            ? "axis"
                  : j->kind == J_OPEN_CAM || j->kind == J_CAPTURE ? "camera"
@@ -333,11 +360,12 @@ static void axis_progress(struct rig_axis *a)
                 return arm(a, a->ax->conf->settle_ms * 1000ULL);
         }
         if (a->op == AX_MOVING && !a->st.moving && !a->st.in_position &&
-            now - a->started > SHORT_GRACE_USEC)
+            now - a->started > SHORT_GRACE_USEC &&
+            gn_angle_distance(a->st.position_deg, a->target) > SHORT_DEADBAND_DEG)
                 return rig_fault(rig, name, -EIO,
-                                 "axis '%s': the drive stopped at %.3f deg without reaching its "
-                                 "target (not in position)",
-                                 name, a->st.position_deg);
+                                 "axis '%s': the drive stopped at %.3f deg, short of its target "
+                                 "%.3f deg (not in position)",
+                                 name, a->st.position_deg, a->target);
         if (now > a->deadline)
                 return rig_fault(rig, name, -ETIMEDOUT,
                                  "axis '%s': %s did not complete within %.1f s (at %.3f deg)", name,
@@ -531,6 +559,7 @@ static int start_motion(struct rig *rig, int i, enum axis_op op, double target, 
         if (r < 0)
                 return r;
         a->op = op;
+        a->target = target;
         a->done = done;
         a->ud = ud;
         a->started = now_usec(rig);
@@ -624,7 +653,7 @@ struct gn_pose rig_pose(const struct rig *rig)
         struct gn_pose p = gn_pose_none();
 
         for (size_t i = 0; i < rig->rc->n_axes; i++)
-                if (rig->rc->axes[i].role >= 0)
+                if (rig->rc->axes[i].role >= 0 && rig->axes[i].st.homed)
                         p.deg[rig->rc->axes[i].role] = rig->axes[i].st.position_deg;
         for (size_t i = 0; i < rig->rc->n_lamps && i < GN_POSE_MAX_LAMPS; i++)
                 if (rig->lamps[i].sw->on)

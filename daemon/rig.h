@@ -124,7 +124,8 @@ void rig_safe_state(struct rig *rig);
 /* Device jobs in flight; 0 once the safe state has been reached. */
 unsigned rig_pending(const struct rig *rig);
 
-/* The last confirmed pose: angles by role (NAN where the rig has none), lit lamps, laser. */
+/* The last confirmed pose: angles by role (NAN where the rig has no such axis, or where
+ * it is not homed, so its angle means nothing in the world frame), lit lamps, laser. */
 struct gn_pose rig_pose(const struct rig *rig);
 
 /* The last error message a device of the rig reported (device, operation, cause), or ""

@@ -162,13 +162,17 @@ void rig_expose_job_done(struct job *j, int result)
                 s->result = result;
                 if (result >= 0)
                         s->frame = j->frame, j->frame = (struct gn_frame){0};
+                else if (j->why[0])
+                        snprintf(s->msg, sizeof(s->msg), "%s", j->why);
                 else
                         snprintf(s->msg, sizeof(s->msg), "camera '%s': capture failed: %s",
                                  rig->rc->cameras[j->idx].name, strerror(-result));
         } else if (result < 0 && result != -ECANCELED) {
                 char msg[256];
-                snprintf(msg, sizeof(msg), "axis '%s': reading the position failed: %s",
-                         rig->rc->axes[j->idx].name, strerror(-result));
+                snprintf(msg, sizeof(msg), "%s", j->why);
+                if (!j->why[0])
+                        snprintf(msg, sizeof(msg), "axis '%s': reading the position failed: %s",
+                                 rig->rc->axes[j->idx].name, strerror(-result));
                 rig_fault(rig, rig->rc->axes[j->idx].name, result, "%s", msg);
                 fail_all(x, result, msg);
         }

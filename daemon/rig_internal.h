@@ -24,6 +24,7 @@ struct rig_axis {
         rig_done_fn done;
         void *ud;
         sd_event_source *timer;
+        double target; /* of the running move, degrees */
         uint64_t started, deadline, last_notify;
         bool settling;
         bool polling; /* an idle poll is queued */
@@ -90,9 +91,10 @@ struct job {
         struct gn_frame frame;
         rig_done_fn done;
         void *ud;
-        struct exposure *exp; /* the exposure this poll or capture belongs to */
-        int shot;             /* index into the exposure's shots */
-        bool clear;           /* part of a fault.clear */
+        struct exposure *exp;    /* the exposure this poll or capture belongs to */
+        int shot;                /* index into the exposure's shots */
+        bool clear;              /* part of a fault.clear */
+        char why[DEV_ERROR_MAX]; /* the driver's message when the job failed (worker) */
 };
 
 /* Queues j on its device's bus (urgent jobs first); frees j on failure. 0 or -errno. */

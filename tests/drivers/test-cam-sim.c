@@ -118,7 +118,7 @@ int main(void)
 
         testrig_start(&f.rig, rig_yaml);
         CHECK_INT(sim_scene_new(f.rig.rc, &f.scene, err, sizeof(err)), 0);
-        CHECK_INT(sim_frame_server_new(f.rig.rc, f.scene, f.rig.emu, &f.fs), 0);
+        CHECK_INT(sim_frame_server_new(f.rig.rc, f.scene, f.rig.emu, NULL, &f.fs), 0);
         CHECK_INT(bus_new_sync(testrig_bus(&f.rig, "frames"), &f.bus), 0);
         CHECK_INT(cam_new(&f.rig.rc->cameras[0], f.bus, &f.cam), 0);
         CHECK_INT(cam_open(f.cam), 0);
