@@ -306,7 +306,7 @@ static void test_exposure(struct rig *t, const char *path, int frames_before)
                             5.0);
 }
 
-/* A Modbus fault injected over the frame socket reaches the emulated drive. */
+/* Modbus faults injected over the frame socket reach the emulated drive. */
 static void test_modbus_fault(struct rig *t, const char *path)
 {
         uint16_t v;
@@ -318,6 +318,14 @@ static void test_modbus_fault(struct rig *t, const char *path)
               errno == EMBXSFAIL);
         inject(path, "{\"cmd\":\"inject\",\"bus\":\"drives\",\"unit\":2,\"fault\":\"none\"}\n");
         CHECK(simtest_reg(t->drives, 2, SIMTEST_R_STATUS) & 1);
+
+        /* A short stop: the move ends, not in position, no fault. */
+        inject(path, "{\"cmd\":\"inject\",\"bus\":\"drives\",\"unit\":2,\"fault\":\"short\"}\n");
+        CHECK(simtest_command(t->drives, 2, 30.0, SIMTEST_CMD_MOVE) == 1);
+        simtest_wait_status(t->drives, 2, SIMTEST_ST_MOVING, 0, 5.0);
+        usleep(20000); /* past settle_ms (80 ms emulated) */
+        CHECK(!(simtest_reg(t->drives, 2, SIMTEST_R_STATUS) &
+                (SIMTEST_ST_INPOS | SIMTEST_ST_FAULT)));
 }
 
 int main(void)
