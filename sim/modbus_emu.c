@@ -37,9 +37,9 @@
 
 #include "common/clock.h"
 #include "common/log.h"
+#include "sim/drive.h"
 #include "sim/modbus_emu.h"
 #include "sim/pty.h"
-#include "sim/drive.h"
 
 #define EMU_MAX_UNITS     (RIG_MAX_AXES + RIG_MAX_LAMPS + 1)
 #define EMU_MAX_CONNS     4

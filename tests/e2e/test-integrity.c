@@ -299,23 +299,28 @@ static void test_causes(struct rigenv *e)
         close(fd);
 }
 
-/* Bug 8: progress comes at 10 Hz and moves end when the drive is there. */
+/* Bug 8: progress comes at 10 Hz while an axis moves (sd-event's default timer
+ * accuracy of 250 ms made it 4 Hz and every move 0.3 s longer). */
 static void test_progress(struct rigenv *e)
 {
-        int fd = raw_connect(e);
+        int fd;
         char buf[256];
         const char *p;
+        double t0, t1, rate;
         int n = 0;
 
         json_decref(ctl_ok(e, "home", NULL));
+        fd = raw_connect(e); /* hears nothing of the homing */
         /* camera_arm: 30 deg/s, accel 60: 60 deg take 2.5 s */
-        json_decref(raw_call(
-                fd, rpc(buf, sizeof(buf), 5, "move", "{\"axis\":\"camera_arm\",\"position\":60}")));
+        t0 = gn_monotonic_ns() * 1e-9;
+        json_decref(raw_call(fd, rpc(buf, sizeof(buf), 5, "move",
+                                     "{\"axis\":\"camera_arm\",\"position\":60}")));
+        t1 = gn_monotonic_ns() * 1e-9;
         for (p = raw_seen(); (p = strstr(p, "axis.moved")); p++)
                 n++;
-        if (n < 15)
-                fprintf(stderr, "%d progress notifications during a 2.5 s move\n", n);
-        CHECK(n >= 15);
+        rate = n / (t1 - t0);
+        fprintf(stderr, "%d progress notifications in %.2f s: %.1f Hz\n", n, t1 - t0, rate);
+        CHECK(rate >= 7);
         close(fd);
 }
 

@@ -68,7 +68,8 @@ static void test_projection(void)
         /* the renderer's rays: each hit point projects back onto its pixel centre */
         rt_render(&t, &st, &ex, 0, &f, SIM_TRUTH_POINT, &tr);
         pts.clear();
-        double c = cos(st.deg[GN_ROLE_TURNTABLE] * M_PI / 180), s = sin(st.deg[GN_ROLE_TURNTABLE] * M_PI / 180);
+        double c = cos(st.deg[GN_ROLE_TURNTABLE] * M_PI / 180),
+               s = sin(st.deg[GN_ROLE_TURNTABLE] * M_PI / 180);
         for (int v = 0; v < f.height; v += 3)
                 for (int u = 0; u < f.width; u += 3) {
                         const float *p = tr.point + 3 * (v * f.width + u);
@@ -92,8 +93,7 @@ static void test_projection(void)
 }
 
 /* Board point (board frame) to pixel via the target pose and the camera model. */
-static cv::Point2d board_px(const struct rtest *t, const struct gn_pose *st, double x,
-                            double y)
+static cv::Point2d board_px(const struct rtest *t, const struct gn_pose *st, double x, double y)
 {
         struct sim_cam_geom g;
         double R[9], tt[3], w[3], q[2];

@@ -280,7 +280,8 @@ static void test_exposure(struct rig *t, const char *path, int frames_before)
 {
         int fd = raw_connect(path), lines;
 
-        CHECK(simtest_command(t->drives, 1, 0.0, SIMTEST_CMD_MOVE) == 1); /* 90 deg: 1.5 s */
+        /* From 90 to -180 deg: 3.5 s of emulated time, 175 ms of real time. */
+        CHECK(simtest_command(t->drives, 1, -180.0, SIMTEST_CMD_MOVE) == 1);
         double t0 = simtest_now();
         json_t *h = raw_request(fd, "{\"cmd\":\"render\",\"camera\":\"cam0\","
                                     "\"exposure_us\":400000}\n");
@@ -288,9 +289,13 @@ static void test_exposure(struct rig *t, const char *path, int frames_before)
         CHECK(json_is_true(json_object_get(h, "ok")));
         raw_skip(fd, (size_t)json_integer_value(json_object_get(h, "bytes")));
         double a = turntable(h, "state"), b = turntable(h, "state_end");
+        double moved = remainder(a - b, 360.0); /* backwards, wrapped to [0, 360) */
         fprintf(stderr, "exposure: turntable %.2f -> %.2f in %.3f s\n", a, b, took);
         CHECK(took >= 0.4 / TIME_SCALE);
-        CHECK(a - b > 10.0 && a - b < 40.0); /* 0.4 s at up to 90 deg/s, backwards */
+        /* Moving all the exposure long (unless the machine is very slow), and never faster
+         * than max_speed over the request's time. */
+        CHECK(moved > 5.0);
+        CHECK(moved <= 90.0 * took * TIME_SCALE + 1e-6);
 
         json_t *l = last_logged(t->dir, &lines);
         CHECK(lines == frames_before + 1);
@@ -306,7 +311,7 @@ static void test_exposure(struct rig *t, const char *path, int frames_before)
                             5.0);
 }
 
-/* A Modbus fault injected over the frame socket reaches the emulated drive. */
+/* Modbus faults injected over the frame socket reach the emulated drive. */
 static void test_modbus_fault(struct rig *t, const char *path)
 {
         uint16_t v;
@@ -318,6 +323,14 @@ static void test_modbus_fault(struct rig *t, const char *path)
               errno == EMBXSFAIL);
         inject(path, "{\"cmd\":\"inject\",\"bus\":\"drives\",\"unit\":2,\"fault\":\"none\"}\n");
         CHECK(simtest_reg(t->drives, 2, SIMTEST_R_STATUS) & 1);
+
+        /* A short stop: the move ends, not in position, no fault. */
+        inject(path, "{\"cmd\":\"inject\",\"bus\":\"drives\",\"unit\":2,\"fault\":\"short\"}\n");
+        CHECK(simtest_command(t->drives, 2, 30.0, SIMTEST_CMD_MOVE) == 1);
+        simtest_wait_status(t->drives, 2, SIMTEST_ST_MOVING, 0, 5.0);
+        usleep(20000); /* past settle_ms (80 ms emulated) */
+        CHECK(!(simtest_reg(t->drives, 2, SIMTEST_R_STATUS) &
+                (SIMTEST_ST_INPOS | SIMTEST_ST_FAULT)));
 }
 
 int main(void)
