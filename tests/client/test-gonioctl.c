@@ -2,8 +2,9 @@
  * stderr. Group "usage": command-line errors (exit 2) and connection failures (exit 3).
  * Group "peer": gonioctl against a scripted peer that speaks the wire protocol through
  * protocol/ (hello, request params, replies, notifications, error codes -> exit codes,
- * timeouts, over-long and malformed replies, replies that do not carry the request's id).
- * Usage: test-gonioctl GONIOCTL [usage|peer] */
+ * timeouts, over-long and malformed replies, replies that do not carry the request's id;
+ * Ctrl-C, SIGTERM and --timeout during a waiting move or home send `stop`).
+ * Usage: test-gonioctl GONIOCTL usage|peer */
 #include <errno.h>
 #include <fcntl.h>
 #include <poll.h>
@@ -33,7 +34,7 @@ struct scenario {
         const char *name;
         const char *argv[10];
         serve_fn serve; /* NULL: nobody listens */
-        int code;       /* error code the peer answers with, for serve_error */
+        int code;       /* error code for serve_error; signal for serve_*_interrupted */
         int want_exit;
         const char *want_out; /* exact stdout, or NULL */
         const char *want_err; /* substring of stderr, or NULL */
@@ -42,6 +43,7 @@ struct scenario {
 
 static char tmpdir[64], sock_path[96];
 static const char *ctl_path; /* the gonioctl binary under test */
+static pid_t client_pid; /* the running gonioctl */
 
 static json_t *recv_msg(struct srv *s)
 {
@@ -317,6 +319,52 @@ static void serve_watch_stray_reply(struct srv *s, const struct scenario *sc)
         wait_eof(s);
 }
 
+/* After the waiting request req was interrupted (by signal sc->code sent here, or by the
+ * client's --timeout when 0): expects `stop`, answers it and cancels req as goniod does
+ * (the cancel before or after stop's reply), then answers `status` with the positions. */
+static void expect_stop(struct srv *s, const struct scenario *sc, json_t *req, bool cancel_first)
+{
+        json_t *stop, *cancel;
+
+        if (sc->code)
+                CHECK_INT(kill(client_pid, sc->code), 0);
+        stop = recv_request(s, "stop");
+        expect_params(stop, "{}");
+        cancel =
+                proto_error(json_object_get(req, "id"), PROTO_E_CANCELED, "canceled by stop", NULL);
+        if (cancel_first)
+                send_msg(s, cancel);
+        reply(s, stop, json_pack("{s:[s]}", "stopped", "turntable"));
+        if (!cancel_first)
+                send_msg(s, cancel);
+        json_decref(req);
+        reply(s, recv_request(s, "status"),
+              json_pack("{s:s,s:[{s:s,s:f},{s:s,s:f}]}", "state", "idle", "axes", "name",
+                        "turntable", "position", 42.125, "name", "light_arm", "position", 2.5));
+        wait_eof(s);
+}
+
+static void serve_move_interrupted(struct srv *s, const struct scenario *sc)
+{
+        hello(s, PROTO_VERSION);
+        expect_stop(s, sc, recv_request(s, "move"), false);
+}
+
+static void serve_home_interrupted(struct srv *s, const struct scenario *sc)
+{
+        hello(s, PROTO_VERSION);
+        expect_stop(s, sc, recv_request(s, "home"), true);
+}
+
+/* The client's --timeout expires, and its stop is never answered either. */
+static void serve_stop_unanswered(struct srv *s, const struct scenario *sc)
+{
+        hello(s, PROTO_VERSION);
+        json_decref(recv_request(s, "move"));
+        json_decref(recv_request(s, "stop"));
+        wait_eof(s);
+}
+
 #define ERR(c, e)                                                                                  \
         {                                                                                          \
                 "error " #c, {"lamp", "lamp9", "on"}, serve_error, c, e, "",                       \
@@ -454,6 +502,45 @@ static const struct scenario peer_scenarios[] = {
          4,
          "",
          "reply with id 1, no request outstanding"},
+        {"move Ctrl-C",
+         {"move", "turntable", "90"},
+         serve_move_interrupted,
+         SIGINT,
+         10,
+         "",
+         "gonioctl: move: interrupted: stopped turntable at 42.125 (Ctrl-C; stop halts every "
+         "axis of the rig)\n"},
+        {"move --timeout",
+         {"--timeout", "0.3", "move", "turntable", "90"},
+         serve_move_interrupted,
+         0,
+         10,
+         "",
+         "gonioctl: move: interrupted: stopped turntable at 42.125 (no reply within 0.3 s; "},
+        {"move Ctrl-C --json",
+         {"--json", "move", "turntable", "90"},
+         serve_move_interrupted,
+         SIGINT,
+         10,
+         "{\"error\":{\"code\":\"interrupted\",\"message\":\"interrupted: stopped turntable at "
+         "42.125 (Ctrl-C; stop halts every axis of the rig)\",\"cause\":\"SIGINT\",\"stopped\":"
+         "[{\"axis\":\"turntable\",\"position\":42.125}]}}\n",
+         "interrupted: stopped turntable"},
+        {"home SIGTERM",
+         {"home"},
+         serve_home_interrupted,
+         SIGTERM,
+         10,
+         "",
+         "gonioctl: home: interrupted: stopped turntable at 42.125, light_arm at 2.500 (SIGTERM; "},
+        {"stop unanswered",
+         {"--timeout", "0.3", "move", "turntable", "90"},
+         serve_stop_unanswered,
+         0,
+         4,
+         "",
+         "gonioctl: move: interrupted (no reply within 0.3 s), but stop failed: no reply; the "
+         "axes may still be moving"},
         {"watch --count",
          {"--json", "watch", "--count", "2"},
          serve_watch,
@@ -519,6 +606,7 @@ static void run(const char *gonioctl, const struct scenario *sc, int lfd)
         snprintf(out, sizeof(out), "%s/out", tmpdir);
         snprintf(err, sizeof(err), "%s/err", tmpdir);
         pid = spawn(gonioctl, sc, out, err);
+        client_pid = pid;
         if (sc->serve)
                 serve_one(lfd, sc);
         CHECK_INT(waitpid(pid, &status, 0), pid);

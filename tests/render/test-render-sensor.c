@@ -38,7 +38,7 @@ static bool same(const struct gn_frame *a, const struct gn_frame *b)
 static void test_determinism(void)
 {
         struct rtest t1, t2, t3;
-        struct sim_rig_state st = {.turntable_deg = 33, .lamp_on = {true}};
+        struct gn_pose st = {.deg[GN_ROLE_TURNTABLE] = 33, .lamps = 1};
         struct gn_frame a, b, c, d, e;
 
         open_scene(&t1, 7, 2, "");
@@ -71,7 +71,7 @@ static void test_determinism(void)
 static void test_noise_statistics(void)
 {
         struct rtest t;
-        struct sim_rig_state st = {.lamp_on = {true}};
+        struct gn_pose st = {.lamps = 1};
         struct sim_expose ideal = {.bits = 16, .no_noise = true}, noisy = {.bits = 16};
         struct gn_frame f0, f1, f2;
         double k = 65535 / 10000.0, sum = 0, want = 0;
@@ -105,7 +105,7 @@ static void test_noise_statistics(void)
 static void test_levels(void)
 {
         struct rtest t;
-        struct sim_rig_state st = {.lamp_on = {true}};
+        struct gn_pose st = {.lamps = 1};
         struct sim_expose e1 = {.bits = 16, .no_noise = true, .exposure_us = 2000};
         struct sim_expose e2 = {.bits = 16, .no_noise = true, .exposure_us = 4000};
         struct sim_expose g2 = {.bits = 16, .no_noise = true, .exposure_us = 2000, .gain = 2.5};
@@ -148,7 +148,7 @@ static void test_levels(void)
 static void test_mosaic(void)
 {
         struct rtest rgb, bayer, mono;
-        struct sim_rig_state st = {.lamp_on = {true}};
+        struct gn_pose st = {.lamps = 1};
         struct sim_expose ex = {.bits = 16, .no_noise = true};
         struct gn_frame a, b, c;
 
