@@ -43,7 +43,7 @@ struct scenario {
 
 static char tmpdir[64], sock_path[96];
 static const char *ctl_path; /* the gonioctl binary under test */
-static pid_t client_pid; /* the running gonioctl */
+static pid_t client_pid;     /* the running gonioctl */
 
 static json_t *recv_msg(struct srv *s)
 {
@@ -356,6 +356,24 @@ static void serve_home_interrupted(struct srv *s, const struct scenario *sc)
         expect_stop(s, sc, recv_request(s, "home"), true);
 }
 
+/* After Ctrl-C, the canceled move is answered twice: the second reply carries no
+ * outstanding request's id. */
+static void serve_cancel_twice(struct srv *s, const struct scenario *sc)
+{
+        json_t *move, *stop;
+
+        hello(s, PROTO_VERSION);
+        move = recv_request(s, "move");
+        CHECK_INT(kill(client_pid, SIGINT), 0);
+        stop = recv_request(s, "stop");
+        for (int i = 0; i < 2; i++)
+                send_msg(s, proto_error(json_object_get(move, "id"), PROTO_E_CANCELED,
+                                        "canceled by stop", NULL));
+        reply(s, stop, json_pack("{s:[s]}", "stopped", "turntable"));
+        json_decref(move);
+        wait_eof(s);
+}
+
 /* The client's --timeout expires, and its stop is never answered either. */
 static void serve_stop_unanswered(struct srv *s, const struct scenario *sc)
 {
@@ -533,6 +551,13 @@ static const struct scenario peer_scenarios[] = {
          10,
          "",
          "gonioctl: home: interrupted: stopped turntable at 42.125, light_arm at 2.500 (SIGTERM; "},
+        {"move Ctrl-C, the canceled move answered twice",
+         {"move", "turntable", "90"},
+         serve_cancel_twice,
+         SIGINT,
+         4,
+         "",
+         "reply with id 2 to request 3"},
         {"stop unanswered",
          {"--timeout", "0.3", "move", "turntable", "90"},
          serve_stop_unanswered,
