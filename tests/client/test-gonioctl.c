@@ -356,6 +356,16 @@ static void serve_home_interrupted(struct srv *s, const struct scenario *sc)
         expect_stop(s, sc, recv_request(s, "home"), true);
 }
 
+/* Too many clients: goniod closes this connection with its documented id-null error. */
+static void serve_too_many_clients(struct srv *s, const struct scenario *sc)
+{
+        json_decref(recv_request(s, "hello"));
+        send_msg(s, proto_error(NULL, PROTO_E_BUSY,
+                                "too many clients (256); this connection never said hello and is "
+                                "closed",
+                                json_pack("{s:s}", "errno", "EUSERS")));
+}
+
 /* After Ctrl-C, the canceled move is answered twice: the second reply carries no
  * outstanding request's id. */
 static void serve_cancel_twice(struct srv *s, const struct scenario *sc)
@@ -505,6 +515,15 @@ static const struct scenario peer_scenarios[] = {
         REPLY_ID("null, parse error", PROTO_PARSE_ERROR, "null", "status: line unreadable"),
         REPLY_ID("null, invalid request", PROTO_INVALID_REQUEST, "null", "status: line unreadable"),
         /* anything else that does not carry the request's id (2) is a protocol error */
+        REPLY_ID("null, busy without EUSERS", PROTO_E_BUSY, "null",
+                 "reply with id null to request 2"),
+        {"too many clients (id null, EUSERS)",
+         {"status"},
+         serve_too_many_clients,
+         0,
+         9,
+         "",
+         "gonioctl: hello: too many clients (256)"},
         REPLY_ID("null, result", 0, "null", "reply with id null to request 2"),
         REPLY_ID("null, device error", PROTO_E_DEVICE, "null", "reply with id null to request 2"),
         REPLY_ID("null, not found", PROTO_E_NOT_FOUND, "null", "reply with id null to request 2"),
