@@ -385,22 +385,34 @@ static void on_captured(struct capture *cp, const struct capture_result *res, vo
                       res->n_shots);
 }
 
-/* Reads exposure, gain and bits, checked against the rig file's and the driver's ranges. */
+/* Reads exposure, gain and bits; their ranges are each camera's (rig_check_camera_request). */
 static int read_cam_request(struct srv_req *req, json_t *params, struct cam_request *cr)
 {
         long exposure = 0, bits = 0;
         double gain = 0;
         int r;
 
-        if ((r = srv_param_int(req, params, "exposure_us", 1, 60000000, &exposure)) < 0 ||
+        if ((r = srv_param_int(req, params, "exposure_us", 1, INT32_MAX, &exposure)) < 0 ||
             (r = srv_param_double(req, params, "gain", &gain)) < 0 ||
             (r = srv_param_int(req, params, "bits", 8, 16, &bits)) < 0)
                 return r;
-        if (bits && bits != 8 && bits != 16)
-                return srv_req_errmsg(req, -EINVAL, "param 'bits': must be 8 or 16");
-        if (gain < 0 || gain > 1000)
-                return srv_req_errmsg(req, -EINVAL, "param 'gain': must be in [0, 1000]");
+        if (!isfinite(gain) || gain < 0)
+                return srv_req_errmsg(req, -EINVAL, "param 'gain': must be a positive number");
         *cr = (struct cam_request){.exposure_us = exposure, .gain = gain, .bits = bits};
+        return 0;
+}
+
+/* Checks cr against every camera of cams; answers with the first camera's objection. */
+static int check_cameras(struct srv_req *req, struct manager *m, const int *cams, size_t n,
+                         const struct cam_request *cr)
+{
+        char msg[256];
+        int r;
+
+        for (size_t i = 0; i < n; i++)
+                if ((r = rig_check_camera_request(m->rig, cams[i], cr, msg, sizeof(msg))) < 0)
+                        return srv_req_errmsg(req, r, "camera '%s': %s", m->rc->cameras[cams[i]].name,
+                                              msg);
         return 0;
 }
 
@@ -418,12 +430,14 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
             (r = srv_param_str(req, params, "camera", &camera)) < 0 ||
             (r = read_cam_request(req, params, &cr)) < 0)
                 return r;
-        if (!capture_dataset(m->capture))
-                return srv_req_errmsg(req, -ESTALE, "no dataset is open (dataset.open first)");
         if (camera && (cams[n++] = rig_camera_index(m->rig, camera)) < 0)
                 return srv_req_errmsg(req, -ENOENT, "no camera named '%s'", camera);
         for (size_t i = 0; !camera && i < m->rc->n_cameras; i++)
                 cams[n++] = i;
+        if ((r = check_cameras(req, m, cams, n, &cr)) < 0)
+                return r;
+        if (!capture_dataset(m->capture))
+                return srv_req_errmsg(req, -ESTALE, "no dataset is open (dataset.open first)");
         r = capture_take(m->capture, cams, n, &cr, NULL, on_captured, req);
         if (r < 0)
                 return srv_req_errmsg(req, r, "capture refused: %s", refusal(m, r));

@@ -10,11 +10,10 @@
 #include "drivers/bus/bus.h"
 #include "drivers/registry.h"
 
-int axis_log_full(const struct axis *ax, int level, int err, const char *fmt, ...)
+int axis_log_full(struct axis *ax, int level, int err, const char *fmt, ...)
 {
-        struct axis *w = (struct axis *)ax; /* last_error is the log's memory, not state */
         const struct bus_dev_ref ref = {"axis",         ax->conf->name, ax->ops->name,
-                                        ax->conf->unit, w->last_error,  sizeof(w->last_error)};
+                                        ax->conf->unit, ax->last_error, sizeof(ax->last_error)};
         va_list ap;
         int r;
 

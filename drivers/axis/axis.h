@@ -77,8 +77,8 @@ int axis_reset(struct axis *ax);
 int axis_poll(struct axis *ax); /* refreshes ax->state */
 
 /* Logs "axis 'NAME' [BACKEND@PORT#UNIT]: message" at level (GN_LOG_*); %m prints err.
- * Returns -abs(err). Any thread. */
-int axis_log_full(const struct axis *ax, int level, int err, const char *fmt, ...)
+ * Returns -abs(err). At warning level or worse also fills last_error: the ops' thread. */
+int axis_log_full(struct axis *ax, int level, int err, const char *fmt, ...)
         __attribute__((format(printf, 4, 5)));
 
 /* For backends: records the detail of the current op's failure ("read position (reg

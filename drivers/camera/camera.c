@@ -10,14 +10,12 @@
 #include "drivers/camera/camera.h"
 #include "drivers/registry.h"
 
-static int cam_log_full(const struct cam *c, int level, int err, const char *fmt, ...)
-        _printf_(4, 5);
+static int cam_log_full(struct cam *c, int level, int err, const char *fmt, ...) _printf_(4, 5);
 
-static int cam_log_full(const struct cam *c, int level, int err, const char *fmt, ...)
+static int cam_log_full(struct cam *c, int level, int err, const char *fmt, ...)
 {
-        struct cam *w = (struct cam *)c; /* last_error is the log's memory, not state */
         const struct bus_dev_ref ref = {"camera", c->conf->name, c->ops->name,
-                                        -1,       w->last_error, sizeof(w->last_error)};
+                                        -1,       c->last_error, sizeof(c->last_error)};
         va_list ap;
         int r;
 

@@ -79,8 +79,10 @@ int cam_capture(struct cam *c, const struct cam_request *req, struct gn_frame *o
 
 /* Streaming wrappers (see struct cam_ops); -EOPNOTSUPP when the backend cannot stream.
  * cam_stream_start checks req first. cam_stream_fd returns the fd or -errno and never
- * logs. cam_stream_dequeue returns 0, -EAGAIN (not logged) or -errno. Bus worker, except
- * cam_stream_fd (any thread once started). */
+ * logs. cam_stream_dequeue returns 0, -EAGAIN (not logged) or -errno. Bus worker; the
+ * loop thread may call cam_stream_fd in the done callback of the start job (the fd stays
+ * valid until cam_stream_stop, but a failed dequeue may close and reopen it: ask again
+ * after each dequeue). */
 int cam_stream_start(struct cam *c, const struct cam_request *req);
 int cam_stream_fd(struct cam *c);
 int cam_stream_dequeue(struct cam *c, struct gn_frame *out);

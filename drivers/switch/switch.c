@@ -9,11 +9,10 @@
 #include "drivers/registry.h"
 #include "drivers/switch/switch.h"
 
-int sw_log_full(const struct sw *s, int level, int err, const char *fmt, ...)
+int sw_log_full(struct sw *s, int level, int err, const char *fmt, ...)
 {
-        struct sw *w = (struct sw *)s; /* last_error is the log's memory, not state */
         const struct bus_dev_ref ref = {"switch",      s->conf->name, s->ops->name,
-                                        s->conf->unit, w->last_error, sizeof(w->last_error)};
+                                        s->conf->unit, s->last_error, sizeof(s->last_error)};
         va_list ap;
         int r;
 

@@ -49,8 +49,8 @@ int sw_set(struct sw *s, bool on); /* writes, reads back, updates s->on, waits w
 int sw_get(struct sw *s, bool *on);
 
 /* Logs "switch 'NAME' [BACKEND@PORT#UNIT]: message" at level (GN_LOG_*); %m prints err.
- * Returns -abs(err). Any thread. */
-int sw_log_full(const struct sw *s, int level, int err, const char *fmt, ...)
+ * Returns -abs(err). At warning level or worse also fills last_error: the ops' thread. */
+int sw_log_full(struct sw *s, int level, int err, const char *fmt, ...)
         __attribute__((format(printf, 4, 5)));
 
 /* For backends: records the detail of the current op's failure without logging (see

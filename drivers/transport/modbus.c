@@ -58,7 +58,7 @@ static int mb_open(struct transport *t)
                 if (c->type == RIG_BUS_MODBUS_TCP)
                         return transport_set_cause(t, r, "cannot connect to %s:%d: %m", c->host,
                                                    c->tcp_port);
-                return transport_set_cause(t, r, "cannot open port %s: %m", c->port);
+                return transport_port_error(t, r);
         }
         t->fd = modbus_get_socket(mb);
         t->priv = mb;

@@ -56,7 +56,7 @@ static int serial_open(struct transport *t)
 
         fd = open(port, O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
         if (fd < 0)
-                return transport_set_cause(t, -errno, "cannot open port %s: %m", port);
+                return transport_port_error(t, errno);
         r = transport_lock_line(t, fd);
         if (r < 0)
                 return r;

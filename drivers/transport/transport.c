@@ -10,6 +10,9 @@
 #include <sys/file.h>
 #include <sys/ioctl.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
+#include <linux/major.h>
 #include <termios.h>
 #include <time.h>
 #include <unistd.h>
@@ -141,18 +144,40 @@ bool transport_ratelimit_ok(struct transport *t)
         return false;
 }
 
+int transport_port_error(struct transport *t, int err)
+{
+        err = err < 0 ? err : -err;
+        if (err == -EBUSY)
+                return transport_set_cause(t, err, "port %s is in use by another process",
+                                           t->conf->port);
+        return transport_set_cause(t, err, "cannot open port %s: %m", t->conf->port);
+}
+
+/* True for the slave side of a Unix98 pseudo-terminal (gonio-sim's emulated lines). */
+static bool is_pty_slave(int fd)
+{
+        struct stat st;
+
+        return fstat(fd, &st) == 0 && S_ISCHR(st.st_mode) &&
+               major(st.st_rdev) >= UNIX98_PTY_SLAVE_MAJOR &&
+               major(st.st_rdev) < UNIX98_PTY_SLAVE_MAJOR + UNIX98_PTY_MAJOR_COUNT;
+}
+
 int transport_lock_line(struct transport *t, int fd)
 {
         if (flock(fd, LOCK_EX | LOCK_NB) < 0)
-                return transport_set_cause(t, errno == EWOULDBLOCK ? -EBUSY : -errno,
-                                           "port %s is in use by another process", t->conf->port);
-        (void)ioctl(fd, TIOCEXCL); /* not every device has it; the flock is what counts */
+                return transport_port_error(t, errno == EWOULDBLOCK ? EBUSY : errno);
+        /* BEWARE: TIOCEXCL outlives a crashed holder while anyone keeps the tty open, and
+         * gonio-sim keeps its pty slaves open: a restarted goniod would be locked out of
+         * its own line. The flock dies with its process, so ptys get only that. Devices
+         * without TIOCEXCL fail it harmlessly. */
+        if (!is_pty_slave(fd))
+                (void)ioctl(fd, TIOCEXCL);
         return 0;
 }
 
 void transport_unlock_line(int fd)
 {
-        /* a pty keeps the flag while its other side holds the slave open */
         (void)ioctl(fd, TIOCNXCL);
 }
 

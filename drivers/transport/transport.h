@@ -117,9 +117,14 @@ ssize_t transport_read_line(struct transport *t, char *buf, size_t len, int64_t 
 int transport_read_bytes(struct transport *t, void *dst, size_t n, int64_t deadline);
 
 /* Takes the exclusive lock of an open serial line fd (flock LOCK_EX|LOCK_NB, and TIOCEXCL
- * where the device supports it). Returns 0 or -EBUSY with the cause "port PATH is in use
- * by another process". */
+ * where the device supports it, ptys excepted: see transport.c). Returns 0 or -EBUSY with
+ * the cause "port PATH is in use by another process". */
 int transport_lock_line(struct transport *t, int fd);
+
+/* Sets the cause of a failed open(2) of the port: "port PATH is in use by another
+ * process" for EBUSY (TIOCEXCL held by another process), else "cannot open port PATH: %m".
+ * Returns -abs(err). */
+int transport_port_error(struct transport *t, int err);
 
 /* Releases what transport_lock_line() took (TIOCNXCL; the flock goes with the fd). */
 void transport_unlock_line(int fd);

@@ -10,9 +10,9 @@
 
 #include "drivers/axis/axis.h"
 #include "drivers/axis/modbus/proto.h"
-#include "tests/drivers/testrig.h"
 #include "drivers/transport/modbus.h"
 #include "drivers/transport/transport.h"
+#include "tests/drivers/testrig.h"
 #include "tests/test.h"
 
 static const char rig_yaml[] =

@@ -6,9 +6,8 @@
 #include <systemd/sd-event.h>
 
 #include "drivers/switch/switch.h"
-#include "tests/drivers/testrig.h"
-#include "drivers/transport/modbus.h"
 #include "drivers/transport/transport.h"
+#include "tests/drivers/testrig.h"
 #include "tests/test.h"
 
 static const char rig_yaml[] =

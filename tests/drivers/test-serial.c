@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <termios.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "common/clock.h"
@@ -151,6 +152,34 @@ static void test_write_deadline(struct transport *t)
         CHECK(took >= 0.14 && took < 1.0);
 }
 
+/* While the port is held, another process is refused too (by the flock: ptys get no
+ * TIOCEXCL), also an unprivileged one (as root the child drops to nobody); and it can
+ * still open(2) the pty: no TIOCEXCL that a crashed goniod would leave behind. */
+static void test_lock_other_process(struct pty *p)
+{
+        struct transport *t = NULL;
+        int status;
+        pid_t pid;
+
+        if (geteuid() == 0)
+                CHECK(chown(p->conf.port, 65534, -1) == 0);
+        pid = fork();
+        CHECK(pid >= 0);
+        if (pid == 0) {
+                if (geteuid() == 0 && (setgid(65534) < 0 || setuid(65534) < 0))
+                        _exit(2);
+                int fd = open(p->conf.port, O_RDWR | O_NOCTTY | O_CLOEXEC);
+                CHECK(fd >= 0);
+                close(fd);
+                CHECK_INT(transport_new(&p->conf, &t), 0);
+                CHECK_INT(transport_open(t), -EBUSY);
+                CHECK_STR_CONTAINS(transport_cause(t), "is in use by another process");
+                _exit(0);
+        }
+        CHECK(waitpid(pid, &status, 0) == pid);
+        CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+}
+
 /* A second bus on the same port is refused with -EBUSY, at once, naming the port; the
  * lock goes with the first bus. */
 static void test_lock(struct pty *p)
@@ -169,6 +198,7 @@ static void test_lock(struct pty *p)
                   -EBUSY);
         transport_get_stats(bus_transport(b), &st);
         CHECK_INT(st.retries, 0);
+        test_lock_other_process(p);
         a = bus_free(a);
         CHECK_INT(transport_open(bus_transport(b)), 0);
         b = bus_free(b);

@@ -275,6 +275,9 @@ static void test_causes(struct rigenv *e)
                 fd, rpc(buf, sizeof(buf), 3, "move", "{\"axis\":\"camera_arm\",\"position\":200}"));
         CHECK(strstr(err_message(r), "[-170, 170]"));
         json_decref(r);
+        r = raw_call(fd, rpc(buf, sizeof(buf), 6, "capture", "{\"gain\":100}"));
+        CHECK(strstr(err_message(r), "camera 'cam0': gain 100 outside [0.1, 64]"));
+        json_decref(r);
         rpc(buf, sizeof(buf), 4, "move", "{\"axis\":\"turntable\",\"position\":180}");
         CHECK(write(fd, buf, strlen(buf)) == (ssize_t)strlen(buf));
         usleep(300 * 1000);

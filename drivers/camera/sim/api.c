@@ -20,9 +20,11 @@ struct cam_sim {
         bool pending; /* a render request is in flight (streaming only) */
 };
 
+/* The rig file checks a camera's default controls against the same bounds (rigconf.h). */
 static const struct opt_desc cam_sim_opts[] = {
-        {OPT_EXPOSURE, OPT_GET | OPT_SET, .unit = "us", .min = 1, .max = 60000000},
-        {OPT_GAIN, OPT_GET | OPT_SET, .min = 0.1, .max = 64},
+        {OPT_EXPOSURE, OPT_GET | OPT_SET, .unit = "us", .min = RIG_EXPOSURE_US_MIN,
+         .max = RIG_EXPOSURE_US_MAX},
+        {OPT_GAIN, OPT_GET | OPT_SET, .min = RIG_GAIN_MIN, .max = RIG_GAIN_MAX},
         {OPT_BITS, OPT_GET | OPT_SET | OPT_LIST, .min = 8, .max = 16},
 };
 
