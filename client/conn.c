@@ -231,7 +231,8 @@ static int send_request(struct conn *c, const char *method, json_t *params, int6
 }
 
 /* True for the late reply to the request whose wait was abandoned (-EINTR, -ETIMEDOUT),
- * e.g. a move canceled by the stop sent after the interruption. Any other id is an error. */
+ * e.g. a move canceled by the stop sent after the interruption, until it came once. Any
+ * other id is an error. */
 static bool late_reply(const struct conn *c, const struct proto_msg *m)
 {
         return c->abandoned_id > 0 && m->kind == PROTO_RESPONSE && json_is_integer(m->id) &&
@@ -251,19 +252,21 @@ int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadli
                 return r;
         for (;;) {
                 struct proto_msg m;
+                bool answered;
 
                 r = read_msg(c, deadline, intr_fd, &m, err);
                 if (r == -EINTR || r == -ETIMEDOUT)
                         c->abandoned_id = id;
                 if (r < 0)
                         return r;
-                bool answered = proto_answers(&m, id);
-
+                answered = proto_answers(&m, id);
                 if (answered)
                         r = take_reply(&m, result, err);
-                else if (m.kind == PROTO_RESPONSE && !late_reply(c, &m))
+                else if (late_reply(c, &m))
+                        c->abandoned_id = 0; /* a second reply to it is an error */
+                else if (m.kind == PROTO_RESPONSE)
                         r = unexpected_reply(&m, id, err);
-                else if (m.kind != PROTO_RESPONSE)
+                else
                         dispatch(&m, fn, userdata);
                 json_decref(m.root);
                 if (r < 0 || answered)

@@ -44,13 +44,16 @@ static inline void conn_freep(struct conn **c)
  * reference to the result in *result; -EREMOTEIO when the server answered with an error
  * (in *err); -ETIMEDOUT; -EINTR when intr_fd (ignored if negative) became readable;
  * -ECONNRESET when the server closed the connection; -EPROTO or -EMSGSIZE for a malformed
- * or over-long reply; -ENOMEM. Local failures also fill err->message. After -ETIMEDOUT or
- * -EINTR the request stays pending in goniod; later calls skip its reply. */
+ * or over-long reply, or a reply that does not answer this request (proto_answers: another
+ * id, or null outside the documented unreadable-request errors); -ENOMEM. Local failures
+ * also fill err->message. After -ETIMEDOUT or -EINTR the request stays pending in goniod;
+ * later calls skip its one reply. */
 int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadline, int intr_fd,
               conn_notify_fn fn, void *userdata, json_t **result, struct conn_error *err);
 
 /* Waits for the next notification before deadline and passes it to fn. Returns 1 after a
  * notification; -EINTR when intr_fd (ignored if negative) became readable; -ETIMEDOUT;
- * -ECONNRESET; -EPROTO / -EMSGSIZE for malformed input (err->message says why). */
+ * -ECONNRESET; -EPROTO / -EMSGSIZE for malformed input or any reply, since no request is
+ * outstanding (err->message says why). */
 int conn_wait_notification(struct conn *c, int64_t deadline, int intr_fd, conn_notify_fn fn,
                            void *userdata, struct conn_error *err);

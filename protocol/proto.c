@@ -195,6 +195,7 @@ int proto_parse(const char *line, size_t len, struct proto_msg *msg, json_t **id
 
 bool proto_answers(const struct proto_msg *m, json_int_t id)
 {
+        const char *errname;
         int code;
 
         if (m->kind != PROTO_RESPONSE)
@@ -204,8 +205,10 @@ bool proto_answers(const struct proto_msg *m, json_int_t id)
         if (!json_is_null(m->id) || !m->error)
                 return false;
         code = (int)json_integer_value(json_object_get(m->error, "code"));
+        errname = json_string_value(json_object_get(json_object_get(m->error, "data"), "errno"));
         return code == PROTO_PARSE_ERROR || code == PROTO_INVALID_REQUEST ||
-               code == PROTO_E_LINE_TOO_LONG;
+               code == PROTO_E_LINE_TOO_LONG ||
+               (code == PROTO_E_BUSY && errname && strcmp(errname, "EUSERS") == 0);
 }
 
 /* {"jsonrpc":"2.0", "id": id} (id borrowed, NULL meaning JSON null), or NULL. */

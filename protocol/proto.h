@@ -78,11 +78,12 @@ int proto_parse(const char *line, size_t len, struct proto_msg *msg, json_t **id
                 size_t errlen);
 
 /* Whether the response m answers the request sent with integer id: its id is that
- * integer, or it is an error with "id": null and a code the server sends when it could not
- * read a request's id (-32700 parse error, -32600 invalid request, -32009 line too long;
- * docs/protocol.md section 3), which a client with one request outstanding takes as that
- * request's answer. A response with any other id (a string, null with a result or with
- * another code, another integer) does not answer it. */
+ * integer, or it is one of the errors with "id": null that docs/protocol.md documents,
+ * which a client with one request outstanding takes as that request's answer: the server
+ * could not read a request's id (-32700 parse error, -32600 invalid request, -32009 line
+ * too long), or it closes the connection because it has too many clients (-32001 with
+ * data.errno "EUSERS"). A response with any other id (a string, null with a result or
+ * with another error, another integer) does not answer it. */
 bool proto_answers(const struct proto_msg *m, json_int_t id);
 
 /* Builders; each returns a new reference (NULL on ENOMEM). params/result/data are stolen

@@ -43,7 +43,7 @@ struct scenario {
 
 static char tmpdir[64], sock_path[96];
 static const char *ctl_path; /* the gonioctl binary under test */
-static pid_t client_pid; /* the running gonioctl */
+static pid_t client_pid;     /* the running gonioctl */
 
 static json_t *recv_msg(struct srv *s)
 {
@@ -356,6 +356,34 @@ static void serve_home_interrupted(struct srv *s, const struct scenario *sc)
         expect_stop(s, sc, recv_request(s, "home"), true);
 }
 
+/* Too many clients: goniod closes this connection with its documented id-null error. */
+static void serve_too_many_clients(struct srv *s, const struct scenario *sc)
+{
+        json_decref(recv_request(s, "hello"));
+        send_msg(s, proto_error(NULL, PROTO_E_BUSY,
+                                "too many clients (256); this connection never said hello and is "
+                                "closed",
+                                json_pack("{s:s}", "errno", "EUSERS")));
+}
+
+/* After Ctrl-C, the canceled move is answered twice: the second reply carries no
+ * outstanding request's id. */
+static void serve_cancel_twice(struct srv *s, const struct scenario *sc)
+{
+        json_t *move, *stop;
+
+        hello(s, PROTO_VERSION);
+        move = recv_request(s, "move");
+        CHECK_INT(kill(client_pid, SIGINT), 0);
+        stop = recv_request(s, "stop");
+        for (int i = 0; i < 2; i++)
+                send_msg(s, proto_error(json_object_get(move, "id"), PROTO_E_CANCELED,
+                                        "canceled by stop", NULL));
+        reply(s, stop, json_pack("{s:[s]}", "stopped", "turntable"));
+        json_decref(move);
+        wait_eof(s);
+}
+
 /* The client's --timeout expires, and its stop is never answered either. */
 static void serve_stop_unanswered(struct srv *s, const struct scenario *sc)
 {
@@ -487,6 +515,15 @@ static const struct scenario peer_scenarios[] = {
         REPLY_ID("null, parse error", PROTO_PARSE_ERROR, "null", "status: line unreadable"),
         REPLY_ID("null, invalid request", PROTO_INVALID_REQUEST, "null", "status: line unreadable"),
         /* anything else that does not carry the request's id (2) is a protocol error */
+        REPLY_ID("null, busy without EUSERS", PROTO_E_BUSY, "null",
+                 "reply with id null to request 2"),
+        {"too many clients (id null, EUSERS)",
+         {"status"},
+         serve_too_many_clients,
+         0,
+         9,
+         "",
+         "gonioctl: hello: too many clients (256)"},
         REPLY_ID("null, result", 0, "null", "reply with id null to request 2"),
         REPLY_ID("null, device error", PROTO_E_DEVICE, "null", "reply with id null to request 2"),
         REPLY_ID("null, not found", PROTO_E_NOT_FOUND, "null", "reply with id null to request 2"),
@@ -533,6 +570,13 @@ static const struct scenario peer_scenarios[] = {
          10,
          "",
          "gonioctl: home: interrupted: stopped turntable at 42.125, light_arm at 2.500 (SIGTERM; "},
+        {"move Ctrl-C, the canceled move answered twice",
+         {"move", "turntable", "90"},
+         serve_cancel_twice,
+         SIGINT,
+         4,
+         "",
+         "reply with id 2 to request 3"},
         {"stop unanswered",
          {"--timeout", "0.3", "move", "turntable", "90"},
          serve_stop_unanswered,

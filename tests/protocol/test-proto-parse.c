@@ -139,7 +139,19 @@ static void test_answers(void)
         check_answers(
                 "{\"jsonrpc\":\"2.0\",\"id\":null,\"error\":{\"code\":-32009,\"message\":\"m\"}}",
                 true);
+        /* the server closes the connection: too many clients */
+        check_answers(
+                "{\"jsonrpc\":\"2.0\",\"id\":null,\"error\":{\"code\":-32001,\"message\":\"m\","
+                "\"data\":{\"errno\":\"EUSERS\"}}}",
+                true);
         /* any other id does not */
+        check_answers(
+                "{\"jsonrpc\":\"2.0\",\"id\":null,\"error\":{\"code\":-32001,\"message\":\"m\"}}",
+                false);
+        check_answers(
+                "{\"jsonrpc\":\"2.0\",\"id\":null,\"error\":{\"code\":-32001,\"message\":\"m\","
+                "\"data\":{\"errno\":\"EBUSY\"}}}",
+                false);
         check_answers("{\"jsonrpc\":\"2.0\",\"id\":null,\"result\":{}}", false);
         check_answers(
                 "{\"jsonrpc\":\"2.0\",\"id\":null,\"error\":{\"code\":-32003,\"message\":\"m\"}}",
