@@ -10,6 +10,7 @@
 
 #include "common/clock.h"
 #include "common/log.h"
+#include "datasets.h"
 #include "manager.h"
 #include "protocol/proto.h"
 
@@ -323,22 +324,6 @@ static int m_fault_clear(struct srv_req *req, json_t *params, void *userdata)
         return 0;
 }
 
-static json_t *num_or_null(double v)
-{
-        return isnan(v) ? json_null() : json_real(v);
-}
-
-static json_t *capture_json(const struct ds_capture *c)
-{
-        return json_pack("{sIsssssssisisssosososssb}", "id", (json_int_t)c->id, "camera", c->camera,
-                         "file", c->file, "sha256", c->sha256, "width", c->width, "height",
-                         c->height, "pixfmt", c->pixfmt, "turntable",
-                         num_or_null(c->pose.deg[GN_ROLE_TURNTABLE]), "light_arm",
-                         num_or_null(c->pose.deg[GN_ROLE_LIGHT_ARM]), "camera_arm",
-                         num_or_null(c->pose.deg[GN_ROLE_CAMERA_ARM]), "lamps", c->lamps, "laser",
-                         c->pose.laser);
-}
-
 /* One camera's part of a capture request. */
 struct shot {
         struct op *o;
@@ -354,7 +339,8 @@ static void on_stored(int result, const struct ds_capture *c, void *userdata)
 
         if (result >= 0) {
                 s->m->ds_count++;
-                json_array_append_new(json_object_get(s->o->result, "captures"), capture_json(c));
+                json_array_append_new(json_object_get(s->o->result, "captures"),
+                                      datasets_row_json(c));
                 manager_notify(s->m, "capture.stored",
                                json_pack("{sIssssss}", "id", (json_int_t)c->id, "camera", c->camera,
                                          "file", c->file, "sha256", c->sha256));
@@ -469,205 +455,6 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
         return 0;
 }
 
-/* A dataset name is one path component of [A-Za-z0-9._-], not starting with '.'. */
-static int dataset_path(struct srv_req *req, struct manager *m, const char *name, char *path,
-                        size_t len)
-{
-        if (!name || !name[0] || name[0] == '.' || strlen(name) >= DS_NAME_MAX ||
-            strspn(name, "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789._-") !=
-                    strlen(name))
-                return srv_req_errmsg(req, -EINVAL,
-                                      "param 'name': '%s' is not a valid dataset name "
-                                      "(letters, digits, '.', '_', '-')",
-                                      name ? name : "");
-        if ((size_t)snprintf(path, len, "%s/%s", m->data_dir, name) >= len)
-                return srv_req_errmsg(req, -ENAMETOOLONG, "dataset path too long");
-        return 0;
-}
-
-/* True while a capture is being taken or stored: the dataset must not change under it. */
-static bool storing(const struct manager *m)
-{
-        return strcmp(rig_state(m->rig), "capturing") == 0 ||
-               (m->pool && ds_pool_in_flight(m->pool) > 0);
-}
-
-static void dataset_close(struct manager *m)
-{
-        m->pool = ds_pool_free(m->pool);
-        m->ds = ds_close(m->ds);
-        m->ds_name[0] = 0;
-        m->ds_count = 0;
-}
-
-static int m_dataset_open(struct srv_req *req, json_t *params, void *userdata)
-{
-        struct manager *m = userdata;
-        const char *name = NULL;
-        bool create = false;
-        char path[PATH_MAX];
-        struct ds *d = NULL;
-        int r;
-
-        if ((r = srv_params_check(req, params, KEYS("name", "create"))) < 0 ||
-            (r = srv_param_str(req, params, "name", &name)) < 0 ||
-            (r = srv_param_bool(req, params, "create", &create)) < 0 ||
-            (r = dataset_path(req, m, name, path, sizeof(path))) < 0)
-                return r;
-        if (storing(m))
-                return srv_req_errmsg(req, -EBUSY, "captures are still in progress");
-        r = create ? ds_create(path, name, m->rc->text, &d) : ds_open(path, &d);
-        if (r < 0)
-                return srv_req_errmsg(req, r, "%s dataset '%s': %s",
-                                      create ? "cannot create" : "cannot open", name,
-                                      r == -EEXIST   ? "it exists already"
-                                      : r == -ENOENT ? "no such dataset"
-                                                     : strerror(-r));
-        dataset_close(m);
-        r = ds_pool_new(m->event, d, 2, 16, &m->pool);
-        if (r < 0) {
-                ds_close(d);
-                return srv_req_errmsg(req, r, "cannot start the storage pool: %s", strerror(-r));
-        }
-        m->ds = d;
-        m->ds_count = ds_count(d);
-        snprintf(m->ds_name, sizeof(m->ds_name), "%s", name);
-        srv_reply(req, json_pack("{sssssI}", "path", ds_path(d), "name", name, "count",
-                                 (json_int_t)m->ds_count));
-        return 0;
-}
-
-static int m_dataset_close(struct srv_req *req, json_t *params, void *userdata)
-{
-        struct manager *m = userdata;
-
-        if (storing(m))
-                return srv_req_errmsg(req, -EBUSY, "captures are still in progress");
-        dataset_close(m);
-        srv_reply(req, json_object());
-        return 0;
-}
-
-struct last_rows {
-        json_t *rows;
-        int64_t after_id;
-        json_t *cameras; /* object used as a set of camera names */
-};
-
-static int add_recent_row(const struct ds_capture *c, void *userdata)
-{
-        struct last_rows *lr = userdata;
-
-        json_object_set_new(lr->cameras, c->camera, json_true());
-        if (c->id > lr->after_id)
-                json_array_append_new(lr->rows, capture_json(c));
-        return 0;
-}
-
-/* The keys of a set object as a sorted array. */
-static json_t *sorted_keys(json_t *set)
-{
-        json_t *out = json_array(), *v;
-        const char *key;
-
-        json_object_foreach(set, key, v)
-        {
-                size_t i = 0;
-                while (i < json_array_size(out) &&
-                       strcmp(json_string_value(json_array_get(out, i)), key) < 0)
-                        i++;
-                json_array_insert_new(out, i, json_string(key));
-        }
-        return out;
-}
-
-/* Summary of the dataset at path (name given), from its index and dataset.json. */
-static json_t *dataset_summary(const char *path, const char *name, bool rows)
-{
-        _cleanup_free_ char *jpath = NULL;
-        json_t *meta, *out, *caps = json_array(), *cams = json_object();
-        struct ds *d = NULL;
-        int64_t count;
-
-        if (ds_open(path, &d) < 0) {
-                json_decref(caps);
-                json_decref(cams);
-                return NULL;
-        }
-        count = ds_count(d);
-        if (rows) {
-                struct last_rows lr = {caps, count - 20, cams};
-                ds_foreach(d, add_recent_row, &lr);
-        }
-        ds_close(d);
-        if (asprintf(&jpath, "%s/dataset.json", path) < 0)
-                jpath = NULL;
-        meta = jpath ? json_load_file(jpath, 0, NULL) : NULL;
-        out = json_pack("{sssssIsO?sO?}", "name", name, "path", path, "count", (json_int_t)count,
-                        "created", json_object_get(meta, "created"), "rig",
-                        json_object_get(meta, "rig"));
-        json_decref(meta);
-        if (rows) {
-                json_object_set_new(out, "cameras", sorted_keys(cams));
-                json_object_set_new(out, "captures", caps);
-        } else {
-                json_decref(caps);
-        }
-        json_decref(cams);
-        return out;
-}
-
-static int m_dataset_list(struct srv_req *req, json_t *params, void *userdata)
-{
-        struct manager *m = userdata;
-        DIR *dir = opendir(m->data_dir);
-        json_t *list = json_array();
-        struct dirent *de;
-
-        if (!dir)
-                return json_decref(list),
-                       srv_req_errmsg(req, -errno, "cannot read %s: %m", m->data_dir);
-        while ((de = readdir(dir))) {
-                char path[PATH_MAX];
-                json_t *info;
-
-                if (de->d_name[0] == '.' ||
-                    (size_t)snprintf(path, sizeof(path), "%s/%s", m->data_dir, de->d_name) >=
-                            sizeof(path))
-                        continue;
-                info = dataset_summary(path, de->d_name, false);
-                if (info)
-                        json_array_append_new(list, info);
-        }
-        closedir(dir);
-        srv_reply(req, json_pack("{so}", "datasets", list));
-        return 0;
-}
-
-static int m_dataset_info(struct srv_req *req, json_t *params, void *userdata)
-{
-        struct manager *m = userdata;
-        const char *name = NULL;
-        char path[PATH_MAX];
-        json_t *info;
-        int r;
-
-        if ((r = srv_params_check(req, params, KEYS("name"))) < 0 ||
-            (r = srv_param_str(req, params, "name", &name)) < 0)
-                return r;
-        if (!name && !m->ds)
-                return srv_req_errmsg(req, -ENOENT, "no dataset is open and no name given");
-        if (!name)
-                name = m->ds_name;
-        if ((r = dataset_path(req, m, name, path, sizeof(path))) < 0)
-                return r;
-        info = dataset_summary(path, name, true);
-        if (!info)
-                return srv_req_errmsg(req, -ENOENT, "no dataset named '%s'", name);
-        srv_reply(req, info);
-        return 0;
-}
-
 const struct srv_method manager_methods[] = {
         {"hello", m_hello},
         {"status", m_status},
@@ -678,10 +465,10 @@ const struct srv_method manager_methods[] = {
         {"lamp.set", m_lamp_set},
         {"laser.set", m_laser_set},
         {"capture", m_capture},
-        {"dataset.open", m_dataset_open},
-        {"dataset.close", m_dataset_close},
-        {"dataset.list", m_dataset_list},
-        {"dataset.info", m_dataset_info},
+        {"dataset.open", datasets_open},
+        {"dataset.close", datasets_close},
+        {"dataset.list", datasets_list},
+        {"dataset.info", datasets_info},
         {"fault.clear", m_fault_clear},
         {NULL, NULL},
 };

@@ -216,7 +216,7 @@ static void test_verify(void)
         for (int i = 0; i < 5; i++)
                 CHECK_INT(store(fx.d, 64, 48, 3, 8, "cam0", "l1", i, &c[i]), 0);
         CHECK_INT(ds_verify(fx.d), 0);
-        CHECK_INT(ds_foreach(fx.d, collect, &rows), 0);
+        CHECK(ds_rows(fx.d, 0, -1, collect, &rows) >= 0);
         CHECK_INT(rows.n, 5);
         for (int i = 0; i < 5; i++) {
                 path_of(&fx, rows.c[i].file, p, sizeof(p));
@@ -321,7 +321,7 @@ static void test_reopen(void)
         CHECK_INT(c[4].id, 5);
         fx.d = ds_close(fx.d);
         CHECK_INT(ds_open(fx.path, &fx.d), 0);
-        CHECK_INT(ds_foreach(fx.d, collect, &rows), 0);
+        CHECK(ds_rows(fx.d, 0, -1, collect, &rows) >= 0);
         CHECK_INT(rows.n, 5);
         for (int i = 0; i < 5; i++)
                 check_rows_equal(&rows.c[i], &c[i]);
@@ -380,7 +380,7 @@ static void test_nullpose(void)
         gn_frame_free_data(&f);
         fx.d = ds_close(fx.d);
         CHECK_INT(ds_open(fx.path, &fx.d), 0);
-        CHECK_INT(ds_foreach(fx.d, collect, &rows), 0);
+        CHECK(ds_rows(fx.d, 0, -1, collect, &rows) >= 0);
         CHECK_INT(rows.n, 1);
         check_rows_equal(&rows.c[0], &c);
         CHECK(rows.c[0].pose.deg[GN_ROLE_TURNTABLE] == 33.5);
@@ -427,7 +427,7 @@ static void test_migrate(void)
 
         setup(&fx);
         fx.d = ds_close(fx.d);
-        raw_sql(&fx, "DROP TABLE captures;"
+        raw_sql(&fx, "DROP TABLE captures; DROP TABLE names;"
                      "CREATE TABLE captures (id INTEGER PRIMARY KEY,"
                      " session TEXT NOT NULL DEFAULT '',"
                      " turntable_deg REAL NOT NULL, light_arm_deg REAL NOT NULL,"
@@ -442,14 +442,20 @@ static void test_migrate(void)
                      "UPDATE meta SET value = '1' WHERE key = 'schema_version';"
                      "PRAGMA user_version = 0;");
         CHECK_INT(ds_open(fx.path, &fx.d), 0);
-        CHECK_INT(ds_foreach(fx.d, collect, &rows), 0);
+        CHECK(ds_rows(fx.d, 0, -1, collect, &rows) >= 0);
         CHECK_INT(rows.n, 1);
         CHECK(rows.c[0].pose.deg[GN_ROLE_TURNTABLE] == 10);
         CHECK(rows.c[0].pose.deg[GN_ROLE_CAMERA_ARM] == 30);
         CHECK(rows.c[0].pose.laser);
         CHECK_STR(rows.c[0].lamps, "l1");
+        struct ds_summary sum;
+        CHECK_INT(ds_summary(fx.d, &sum), 0); /* names counted from the old rows */
+        CHECK_INT(sum.captures, 1);
+        CHECK_INT(sum.n_cameras, 1);
+        CHECK_INT(sum.n_lamps, 1);
+        CHECK_STR(sum.lamps[0].name, "l1");
         fx.d = ds_close(fx.d);
-        raw_sql(&fx, "DELETE FROM captures"); /* its image does not exist */
+        raw_sql(&fx, "DELETE FROM captures; DELETE FROM names"); /* its image does not exist */
         CHECK_INT(ds_open(fx.path, &fx.d), 0);
         tu_capture(&c, "cam0", "", 1);
         c.pose.deg[GN_ROLE_CAMERA_ARM] = NAN;
@@ -459,8 +465,122 @@ static void test_migrate(void)
         gn_frame_free_data(&f);
         /* a schema from the future is refused */
         fx.d = ds_close(fx.d);
-        raw_sql(&fx, "PRAGMA user_version = 3");
+        raw_sql(&fx, "PRAGMA user_version = 4");
         CHECK_INT(ds_open(fx.path, &fx.d), -EBADMSG);
+        teardown(&fx);
+}
+
+/* The summary comes from the index: names with their counts, rows, last id. */
+static void test_summary(void)
+{
+        struct fixture fx = {};
+        struct ds_summary sum;
+        struct ds_capture c;
+
+        setup(&fx);
+        CHECK_INT(ds_summary(fx.d, &sum), 0);
+        CHECK_STR(sum.name, "test-set");
+        CHECK_STR(sum.rig, "test-rig");
+        CHECK_INT(sum.captures, 0);
+        CHECK_INT(sum.last_id, 0);
+        CHECK_INT(sum.n_cameras, 0);
+        CHECK_INT(store(fx.d, 8, 8, 1, 8, "cam1", "l2,l1", 0, &c), 0);
+        CHECK_INT(store(fx.d, 8, 8, 1, 8, "cam0", "l1", 1, &c), 0);
+        CHECK_INT(store(fx.d, 8, 8, 1, 8, "cam0", "", 2, &c), 0);
+        fx.d = ds_close(fx.d);
+        CHECK_INT(ds_open(fx.path, &fx.d), 0);
+        CHECK_INT(ds_summary(fx.d, &sum), 0);
+        CHECK_INT(sum.captures, 3);
+        CHECK_INT(ds_count(fx.d), 3);
+        CHECK_INT(sum.last_id, 3);
+        CHECK_INT(sum.n_cameras, 2);
+        CHECK_STR(sum.cameras[0].name, "cam0");
+        CHECK_INT(sum.cameras[0].captures, 2);
+        CHECK_STR(sum.cameras[1].name, "cam1");
+        CHECK_INT(sum.n_lamps, 2);
+        CHECK_STR(sum.lamps[0].name, "l1");
+        CHECK_INT(sum.lamps[0].captures, 2);
+        CHECK_STR(sum.lamps[1].name, "l2");
+        CHECK_INT(sum.lamps[1].captures, 1);
+        CHECK(strlen(sum.created) == 20);
+        /* dataset.json is not read: removing it changes nothing */
+        char p[4200];
+        path_of(&fx, "dataset.json", p, sizeof(p));
+        CHECK(unlink(p) == 0);
+        CHECK_INT(ds_summary(fx.d, &sum), 0);
+        CHECK_INT(sum.captures, 3);
+        teardown(&fx);
+}
+
+/* Rows by range: after_id and LIMIT. */
+static void test_rows(void)
+{
+        struct fixture fx = {};
+        struct ds_capture c;
+        struct rows rows = {};
+
+        setup(&fx);
+        for (int i = 0; i < 10; i++)
+                CHECK_INT(store(fx.d, 4, 4, 1, 8, "cam0", "l1", i, &c), 0);
+        CHECK_INT(ds_rows(fx.d, 3, 4, collect, &rows), 4);
+        CHECK_INT(rows.n, 4);
+        for (int i = 0; i < 4; i++)
+                CHECK_INT(rows.c[i].id, 4 + i);
+        rows.n = 0;
+        CHECK_INT(ds_rows(fx.d, 8, 5, collect, &rows), 2);
+        CHECK_INT(rows.c[1].id, 10);
+        rows.n = 0;
+        CHECK_INT(ds_rows(fx.d, 10, 5, collect, &rows), 0);
+        CHECK_INT(ds_rows(fx.d, 0, -1, collect, &rows), 10);
+        CHECK_INT(ds_rows(fx.d, 0, 0, collect, &rows), 0);
+        teardown(&fx);
+}
+
+static int stop_at_two(const struct ds_capture *c, void *ud)
+{
+        return c->id == 2 ? -ECANCELED : 0;
+}
+
+/* Rows by pose: roles the query has are compared modulo 360, roles it lacks match
+ * anything, a row without the axis never matches an angle. */
+static void test_bypose(void)
+{
+        static const double tt[] = {0.0, 359.9, 90.0, 90.05, 180.0, 720.0};
+        struct fixture fx = {};
+        struct ds_capture c;
+        struct rows rows = {};
+        struct gn_pose q = gn_pose_none();
+        struct gn_frame f;
+
+        setup(&fx);
+        tu_frame(&f, 4, 4, 1, 8, 1, false);
+        for (int i = 0; i < 6; i++) {
+                tu_capture(&c, "cam0", "l1", i);
+                c.pose.deg[GN_ROLE_TURNTABLE] = tt[i];
+                c.pose.deg[GN_ROLE_CAMERA_ARM] = i == 5 ? NAN : 30.0;
+                CHECK_INT(ds_store(fx.d, &f, &c), 0);
+        }
+        gn_frame_free_data(&f);
+        q.deg[GN_ROLE_TURNTABLE] = 0.0;
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, 0.2, collect, &rows), 3); /* 0, 359.9, 720 */
+        CHECK_INT(rows.c[0].id, 1);
+        CHECK_INT(rows.c[1].id, 2);
+        CHECK_INT(rows.c[2].id, 6);
+        rows.n = 0;
+        q.deg[GN_ROLE_CAMERA_ARM] = 30.0; /* row 6 has no camera arm */
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, 0.2, collect, &rows), 2);
+        rows.n = 0;
+        q.deg[GN_ROLE_TURNTABLE] = 450.0; /* = 90 */
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, 0.1, collect, &rows), 2);
+        CHECK_INT(rows.c[0].id, 3);
+        CHECK_INT(rows.c[1].id, 4);
+        rows.n = 0;
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, 0.01, collect, &rows), 1);
+        q = gn_pose_none(); /* no role: every row */
+        rows.n = 0;
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, 0, collect, &rows), 6);
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, 0, stop_at_two, NULL), -ECANCELED);
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, -1, collect, &rows), -EINVAL);
         teardown(&fx);
 }
 
@@ -589,7 +709,8 @@ int main(int argc, char **argv)
                 {"reopen", test_reopen},     {"tmpfiles", test_tmpfiles},
                 {"lock", test_lock},         {"fsize", test_fsize},
                 {"nullpose", test_nullpose}, {"refused", test_refused},
-                {"migrate", test_migrate},
+                {"migrate", test_migrate},   {"summary", test_summary},
+                {"rows", test_rows},         {"bypose", test_bypose},
         };
         bool ran = false;
 
