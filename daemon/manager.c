@@ -8,6 +8,7 @@
 #include <systemd/sd-event.h>
 
 #include "common/log.h"
+#include "datasets.h"
 #include "manager.h"
 
 void manager_notify(void *userdata, const char *method, json_t *params)
@@ -105,15 +106,21 @@ fail:
 
 int manager_run(struct manager *m)
 {
+        int r;
+
         (void)sd_notify(false, "READY=1\nSTATUS=serving");
         log_info("rig '%s' ready (%s)", m->rc->name, rig_state(m->rig));
-        return sd_event_loop(m->event);
+        ds_forbid_thread(true); /* no dataset I/O on the loop while it serves */
+        r = sd_event_loop(m->event);
+        ds_forbid_thread(false);
+        return r;
 }
 
 struct manager *manager_free(struct manager *m)
 {
         if (!m)
                 return NULL;
+        datasets_free(m);
         m->server = server_free(m->server);
         m->pool = ds_pool_free(m->pool); /* completes pending stores */
         m->ds = ds_close(m->ds);

@@ -11,6 +11,7 @@
 #include "server.h"
 
 typedef struct sd_event sd_event;
+struct workq;
 
 struct manager {
         sd_event *event;
@@ -22,6 +23,8 @@ struct manager {
         struct ds_pool *pool; /* its storage pool */
         char ds_name[DS_NAME_MAX];
         int64_t ds_count;           /* rows in the open dataset */
+        struct workq *ds_worker;    /* runs dataset.* off the loop (datasets.c) */
+        bool ds_busy;               /* a dataset.open or close is running */
         uint64_t shutdown_deadline; /* set once SIGTERM/SIGINT arrived */
 };
 

@@ -36,6 +36,13 @@ DEFINE_TRIVIAL_CLEANUP_FUNC(DIR *, closedir);
 static struct ds *ds_free(struct ds *d);
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ds *, ds_free);
 
+_Thread_local bool ds_thread_forbidden;
+
+void ds_forbid_thread(bool forbid)
+{
+        ds_thread_forbidden = forbid;
+}
+
 /* ---- dataset.json ---- */
 
 /* The names of a summary as a JSON array. */
@@ -187,6 +194,8 @@ int ds_create(const char *path, const char *name, const char *rig_text, struct d
 {
         int r;
 
+        DS_ASSERT_THREAD_ALLOWED();
+
         if (!path || !name || !*name || strlen(name) >= DS_NAME_MAX || !ret)
                 return -EINVAL;
         if (mkdir(path, 0755) < 0)
@@ -217,6 +226,8 @@ int ds_open(const char *path, struct ds **ret)
         _cleanup_(ds_freep) struct ds *d = NULL;
         int r;
 
+        DS_ASSERT_THREAD_ALLOWED();
+
         if (!path || !ret)
                 return -EINVAL;
         r = ds_alloc(path, &d);
@@ -237,6 +248,8 @@ int ds_open(const char *path, struct ds **ret)
 
 struct ds *ds_close(struct ds *d)
 {
+        if (d)
+                DS_ASSERT_THREAD_ALLOWED();
         if (d && d->writer)
                 (void)write_json(d);
         return ds_free(d);
@@ -399,6 +412,8 @@ int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_fram
         struct ds_capture row;
         int r;
 
+        DS_ASSERT_THREAD_ALLOWED();
+
         if (!d || !png || !shape || !c || !c->camera[0])
                 return -EINVAL;
         d->error[0] = 0;
@@ -423,6 +438,8 @@ int ds_store(struct ds *d, const struct gn_frame *frame, struct ds_capture *c)
         _cleanup_free_ void *png = NULL;
         size_t len = 0;
         int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
 
         if (!d || !frame || !c)
                 return -EINVAL;

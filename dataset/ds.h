@@ -84,6 +84,13 @@ int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_fram
  * operation), "" if none yet. Valid until the next call on d; same thread as the call. */
 const char *ds_last_error(const struct ds *d);
 
+/* Marks (true) or unmarks the calling thread as one that must never wait for dataset
+ * I/O: goniod's event loop while it serves. In builds with assertions, every ds_
+ * function that touches files or the index (create, open, close, store, count,
+ * summary, rows, load, verify) aborts when called on a marked thread; without them,
+ * nothing is checked. The mark is per thread. */
+void ds_forbid_thread(bool forbid);
+
 /* Number of rows (from the per-camera counts: no scan). Returns >= 0 or -errno. */
 int64_t ds_count(struct ds *d);
 

@@ -3,6 +3,7 @@
  * (ds_index.c). */
 #pragma once
 
+#include <assert.h>
 #include <sqlite3.h>
 
 #include "common/cleanup.h"
@@ -29,6 +30,13 @@ struct ds {
 };
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(sqlite3_stmt *, sqlite3_finalize);
+
+/* Set by ds_forbid_thread() on a thread that must not wait for dataset I/O. */
+extern _Thread_local bool ds_thread_forbidden;
+
+/* At the top of every ds_ function that does I/O (see ds_forbid_thread). */
+#define DS_ASSERT_THREAD_ALLOWED()                                                                 \
+        assert(!ds_thread_forbidden && "dataset I/O on a thread that must not block")
 
 /* Records what failed for ds_last_error() and logs it with the dataset's path; returns r. */
 int ds_fail(struct ds *d, int r, const char *fmt, ...) _printf_(3, 4);

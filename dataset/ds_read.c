@@ -16,6 +16,8 @@ int64_t ds_count(struct ds *d)
         int64_t n = 0;
         int r;
 
+        DS_ASSERT_THREAD_ALLOWED();
+
         if (!d)
                 return -EINVAL;
         r = ds_db_int64(d, "SELECT coalesce(sum(captures), 0) FROM names WHERE kind = 'camera'",
@@ -48,6 +50,8 @@ int ds_summary(struct ds *d, struct ds_summary *out)
 {
         int64_t n;
         int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
 
         if (!d || !out)
                 return -EINVAL;
@@ -89,6 +93,8 @@ int ds_rows(struct ds *d, int64_t after_id, int limit, ds_row_fn fn, void *userd
         _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
         int r;
 
+        DS_ASSERT_THREAD_ALLOWED();
+
         if (!d || !fn)
                 return -EINVAL;
         r = ds_db_prepare(d,
@@ -107,6 +113,8 @@ int ds_rows_by_pose(struct ds *d, const struct gn_pose *p, double tol_deg, ds_ro
 {
         _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
         int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
 
         if (!d || !p || !fn || !(tol_deg >= 0))
                 return -EINVAL;
@@ -136,6 +144,8 @@ int ds_load_image(struct ds *d, const char *file, struct gn_frame *out)
         _cleanup_free_ void *buf = NULL;
         size_t len = 0;
         int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
 
         if (!d || !file_name_ok(file) || !out)
                 return -EINVAL;
@@ -173,6 +183,8 @@ int ds_verify(struct ds *d)
 {
         struct verify_ctx v = {.d = d};
         int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
 
         if (!d)
                 return -EINVAL;
