@@ -332,7 +332,7 @@ struct shot {
         uint64_t t_request_ns;
 };
 
-static void on_stored(int result, const struct ds_capture *c, void *userdata)
+static void on_stored(int result, const struct ds_capture *c, const char *error, void *userdata)
 {
         struct shot *s = userdata;
         char msg[300] = "the store was canceled";
@@ -346,7 +346,7 @@ static void on_stored(int result, const struct ds_capture *c, void *userdata)
                                          "file", c->file, "sha256", c->sha256));
         } else if (result != -ECANCELED) {
                 snprintf(msg, sizeof(msg), "storing the frame of '%s' failed: %s", c->camera,
-                         strerror(-result));
+                         error);
                 rig_fault(s->m->rig, "dataset", result, "%s", msg);
         }
         op_part_done(s->o, result, result < 0 ? msg : NULL);

@@ -338,8 +338,8 @@ static int become_writer(struct ds *d)
                 return ds_fail(d, errno == EWOULDBLOCK ? -EBUSY : -errno,
                                "being written by another process");
         r = ds_db_int64(d, "SELECT coalesce(max(id), 0) + 1 FROM captures", &d->next_id);
-        if (r == 0)
-                r = remove_orphans(d);
+        if (r == 0 && (r = remove_orphans(d)) < 0)
+                ds_fail(d, r, "Failed to remove what an interrupted store left: %s", strerror(-r));
         if (r == 0)
                 r = ds_db_prepare_writer(d);
         if (r < 0) {
@@ -414,9 +414,11 @@ int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_fram
 
         DS_ASSERT_THREAD_ALLOWED();
 
-        if (!d || !png || !shape || !c || !c->camera[0])
+        if (!d || !png || !shape || !c)
                 return -EINVAL;
         d->error[0] = 0;
+        if (!c->camera[0])
+                return ds_fail(d, -EINVAL, "a capture needs a camera name");
         r = become_writer(d);
         if (r < 0)
                 return r;
