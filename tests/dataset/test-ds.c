@@ -428,20 +428,9 @@ static void test_migrate(void)
 
         setup(&fx);
         fx.d = ds_close(fx.d);
-        raw_sql(&fx, "DROP TABLE captures; DROP TABLE names;"
-                     "CREATE TABLE captures (id INTEGER PRIMARY KEY,"
-                     " session TEXT NOT NULL DEFAULT '',"
-                     " turntable_deg REAL NOT NULL, light_arm_deg REAL NOT NULL,"
-                     " camera_arm_deg REAL NOT NULL, camera TEXT NOT NULL, lamps TEXT NOT NULL,"
-                     " laser INTEGER NOT NULL, exposure_us INTEGER NOT NULL, gain REAL NOT NULL,"
-                     " t_request_ns INTEGER NOT NULL, t_exposure_ns INTEGER NOT NULL,"
-                     " t_stored_ns INTEGER NOT NULL, file TEXT NOT NULL UNIQUE,"
-                     " sha256 TEXT NOT NULL, width INTEGER NOT NULL, height INTEGER NOT NULL,"
-                     " pixfmt TEXT NOT NULL);"
-                     "INSERT INTO captures VALUES (1, 's', 10, 20, 30, 'cam0', 'l1', 1, 1000, 1.5,"
-                     " 5, 6, 7, 'images/000001_cam0_l1.png', 'ab', 4, 4, 'mono8');"
-                     "UPDATE meta SET value = '1' WHERE key = 'schema_version';"
-                     "PRAGMA user_version = 0;");
+        tu_make_schema1(fx.path,
+                        "INSERT INTO captures VALUES (1, 's', 10, 20, 30, 'cam0', 'l1', 1, 1000,"
+                        " 1.5, 5, 6, 7, 'images/000001_cam0_l1.png', 'ab', 4, 4, 'mono8');");
         CHECK_INT(ds_open(fx.path, &fx.d), 0);
         CHECK(ds_rows(fx.d, 0, -1, collect, &rows) >= 0);
         CHECK_INT(rows.n, 1);

@@ -7,12 +7,12 @@
  * goniod: the next call would then fail. That is how this test proves they run on the
  * dataset worker (no timing involved). */
 #include <errno.h>
-#include <sqlite3.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "common/frame.h"
 #include "dataset/ds.h"
+#include "tests/dataset/ds-util.h"
 #include "harness.h"
 #include "tests/test.h"
 
@@ -89,32 +89,13 @@ static void test_lifecycle(struct rigenv *e)
 /* A dataset written by the first schema (NOT NULL angles, no lamp_bits, no names). */
 static void make_schema1(struct rigenv *e, const char *name)
 {
-        char path[400], index[450];
+        char path[400];
         struct ds *d = NULL;
-        sqlite3 *db;
 
         snprintf(path, sizeof(path), "%s/%s", e->data, name);
-        snprintf(index, sizeof(index), "%s/index.sqlite", path);
         CHECK_INT(ds_create(path, name, "rig: e2e\n", &d), 0);
-        d = ds_close(d);
-        CHECK_INT(sqlite3_open(index, &db), SQLITE_OK);
-        CHECK_INT(sqlite3_exec(db,
-                               "DROP TABLE captures; DROP TABLE names;"
-                               "CREATE TABLE captures (id INTEGER PRIMARY KEY,"
-                               " session TEXT NOT NULL DEFAULT '', turntable_deg REAL NOT NULL,"
-                               " light_arm_deg REAL NOT NULL, camera_arm_deg REAL NOT NULL,"
-                               " camera TEXT NOT NULL, lamps TEXT NOT NULL,"
-                               " laser INTEGER NOT NULL, exposure_us INTEGER NOT NULL,"
-                               " gain REAL NOT NULL, t_request_ns INTEGER NOT NULL,"
-                               " t_exposure_ns INTEGER NOT NULL, t_stored_ns INTEGER NOT NULL,"
-                               " file TEXT NOT NULL UNIQUE, sha256 TEXT NOT NULL,"
-                               " width INTEGER NOT NULL, height INTEGER NOT NULL,"
-                               " pixfmt TEXT NOT NULL);"
-                               "UPDATE meta SET value = '1' WHERE key = 'schema_version';"
-                               "PRAGMA user_version = 0;",
-                               NULL, NULL, NULL),
-                  SQLITE_OK);
-        CHECK_INT(sqlite3_close(db), SQLITE_OK);
+        ds_close(d);
+        tu_make_schema1(path, NULL);
 }
 
 static void test_old_schema(struct rigenv *e)
