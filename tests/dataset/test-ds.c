@@ -14,6 +14,7 @@
 #include <string.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "common/sha256.h"
@@ -620,6 +621,34 @@ static void test_camera(void)
         teardown(&fx);
 }
 
+/* A thread marked with ds_forbid_thread (goniod's loop) aborts on dataset I/O in builds
+ * with assertions; unmarked again, it may. */
+static void test_forbid(void)
+{
+#ifdef NDEBUG
+        exit(TEST_SKIP);
+#else
+        struct fixture fx = {};
+        int status;
+        pid_t pid;
+
+        setup(&fx);
+        pid = fork();
+        CHECK(pid >= 0);
+        if (pid == 0) {
+                ds_forbid_thread(true);
+                (void)ds_count(fx.d);
+                _exit(0);
+        }
+        CHECK(waitpid(pid, &status, 0) == pid);
+        CHECK(WIFSIGNALED(status) && WTERMSIG(status) == SIGABRT);
+        ds_forbid_thread(true);
+        ds_forbid_thread(false);
+        CHECK_INT(ds_count(fx.d), 0);
+        teardown(&fx);
+#endif
+}
+
 static void touch(const struct fixture *fx, const char *rel)
 {
         char p[4200];
@@ -747,7 +776,7 @@ int main(int argc, char **argv)
                 {"nullpose", test_nullpose}, {"refused", test_refused},
                 {"migrate", test_migrate},   {"summary", test_summary},
                 {"rows", test_rows},         {"bypose", test_bypose},
-                {"camera", test_camera},
+                {"camera", test_camera},     {"forbid", test_forbid},
         };
         bool ran = false;
 
