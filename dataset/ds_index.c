@@ -1,15 +1,6 @@
-/* ds_index.c - the SQLite index of a dataset: connection, schema and its migrations,
- * the row codec, the commit of a row, and the one mapping of SQLite result codes to
- * -errno (see ds_internal.h, docs/dataset.md).
- *
- * DESIGN
- * Schema versions are PRAGMA user_version (mirrored in meta.schema_version for humans):
- *   1 (user_version 0): angles NOT NULL, no lamp bits.
- *   2: angles nullable (NULL = the rig has no axis of that role), lamp_bits added.
- *   3: the names table: each camera and lamp name with its number of captures, kept in
- *      the transaction of each row, so a summary never scans the captures.
- * An older index is brought to DS_SCHEMA_VERSION step by step in one BEGIN IMMEDIATE
- * transaction (SQLite's write lock: two openers cannot both migrate). */
+/* ds_index.c - the SQLite index of a dataset: connection, current schema, the row
+ * codec, the commit of a row with its names, and the one mapping of SQLite result
+ * codes to -errno (see ds_internal.h, docs/dataset.md; older schemas: ds_migrate.c). */
 #include <math.h>
 #include <stdarg.h>
 #include <string.h>
@@ -20,49 +11,11 @@
 
 #define DS_BUSY_MS 5000
 
-/* The captures table; the angle of an axis the rig does not have is NULL. */
-#define CAPTURES_TABLE(name)                                                                       \
-        "CREATE TABLE " name " ("                                                                  \
-        " id INTEGER PRIMARY KEY,"                                                                 \
-        " session TEXT NOT NULL DEFAULT '',"                                                       \
-        " turntable_deg REAL, light_arm_deg REAL, camera_arm_deg REAL,"                            \
-        " camera TEXT NOT NULL, lamps TEXT NOT NULL, lamp_bits INTEGER NOT NULL DEFAULT 0,"        \
-        " laser INTEGER NOT NULL,"                                                                 \
-        " exposure_us INTEGER NOT NULL, gain REAL NOT NULL,"                                       \
-        " t_request_ns INTEGER NOT NULL, t_exposure_ns INTEGER NOT NULL,"                          \
-        " t_stored_ns INTEGER NOT NULL,"                                                           \
-        " file TEXT NOT NULL UNIQUE, sha256 TEXT NOT NULL,"                                        \
-        " width INTEGER NOT NULL, height INTEGER NOT NULL, pixfmt TEXT NOT NULL);"
-
-#define CAPTURES_POSE_INDEX                                                                        \
-        "CREATE INDEX captures_pose ON captures"                                                   \
-        " (session, turntable_deg, light_arm_deg, camera_arm_deg);"
-
-#define NAMES_TABLE                                                                                \
-        "CREATE TABLE names (kind TEXT NOT NULL, name TEXT NOT NULL,"                              \
-        " captures INTEGER NOT NULL, PRIMARY KEY (kind, name)) WITHOUT ROWID;"
-
 static const char schema_sql[] =
-        "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);" CAPTURES_TABLE("captures")
-                CAPTURES_POSE_INDEX NAMES_TABLE
+        "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);" DS_CAPTURES_TABLE(
+                "captures") DS_CAPTURES_POSE_INDEX DS_NAMES_TABLE
         "PRAGMA user_version = 3;"
         "INSERT INTO meta (key, value) VALUES ('schema_version', '3');";
-
-/* Schema 1 -> 2: SQLite cannot drop NOT NULL in place, so the table is copied; old
- * rows get lamp_bits 0 (unknown; their lamp names stay in lamps). */
-static const char migrate_v1_sql[] = CAPTURES_TABLE(
-        "captures_v2") "INSERT INTO captures_v2 (id, session, turntable_deg, light_arm_deg,"
-                       " camera_arm_deg, camera, lamps, laser, exposure_us, gain, t_request_ns,"
-                       " t_exposure_ns, t_stored_ns, file, sha256, width, height, pixfmt)"
-                       " SELECT id, session, turntable_deg, light_arm_deg, camera_arm_deg,"
-                       " camera, lamps, laser, exposure_us, gain, t_request_ns, t_exposure_ns,"
-                       " t_stored_ns, file, sha256, width, height, pixfmt FROM captures;"
-                       "DROP TABLE captures;"
-                       "ALTER TABLE captures_v2 RENAME TO captures;" CAPTURES_POSE_INDEX;
-
-static const char add_name_sql[] =
-        "INSERT INTO names (kind, name, captures) VALUES (?1, ?2, ?3)"
-        " ON CONFLICT (kind, name) DO UPDATE SET captures = captures + ?3";
 
 /* ---- errors ---- */
 
@@ -197,8 +150,7 @@ int ds_meta_get(struct ds *d, const char *key, char *out, size_t outlen)
 
 /* ---- names (schema 3) ---- */
 
-/* Adds n captures to kind's name, and to each name of a comma-separated list. */
-static int add_names(struct ds *d, sqlite3_stmt *s, const char *kind, const char *list, int64_t n)
+int ds_db_add_names(struct ds *d, sqlite3_stmt *s, const char *kind, const char *list, int64_t n)
 {
         char copy[sizeof(((struct ds_capture *)0)->lamps)], *save = NULL;
         int r = 0, rc;
@@ -213,79 +165,6 @@ static int add_names(struct ds *d, sqlite3_stmt *s, const char *kind, const char
                         r = ds_db_fail(d, rc, "Failed to count a name");
                 sqlite3_reset(s);
         }
-        return r;
-}
-
-/* Schema 2 -> 3: the names table, counted from the rows there are. */
-static int migrate_v2(struct ds *d)
-{
-        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL, *add = NULL;
-        int r, rc = SQLITE_DONE;
-
-        r = ds_db_exec(d, NAMES_TABLE);
-        if (r == 0)
-                r = ds_db_prepare(d, add_name_sql, &add);
-        if (r == 0)
-                r = ds_db_prepare(d,
-                                  "SELECT camera, lamps, count(*) FROM captures"
-                                  " GROUP BY camera, lamps",
-                                  &s);
-        while (r == 0 && (rc = sqlite3_step(s)) == SQLITE_ROW) {
-                int64_t n = sqlite3_column_int64(s, 2);
-
-                r = add_names(d, add, "camera", (const char *)sqlite3_column_text(s, 0), n);
-                if (r == 0)
-                        r = add_names(d, add, "lamp", (const char *)sqlite3_column_text(s, 1), n);
-        }
-        if (r == 0 && rc != SQLITE_DONE)
-                r = ds_db_fail(d, rc, "Failed to count names");
-        return r;
-}
-
-/* Brings the index from user_version v to DS_SCHEMA_VERSION (caller's transaction). */
-static int migrate_from(struct ds *d, int64_t v)
-{
-        char version[16];
-        int r = 0;
-
-        if (v == 0) {
-                r = ds_meta_get(d, "schema_version", version, sizeof(version));
-                if (r == 0 && strcmp(version, "1") != 0)
-                        r = ds_fail(d, -EBADMSG, "unknown schema version %s", version);
-                if (r == 0)
-                        r = ds_db_exec(d, migrate_v1_sql);
-        }
-        if (r == 0 && v <= 2)
-                r = migrate_v2(d);
-        if (r == 0)
-                r = ds_db_exec(d, "PRAGMA user_version = 3;"
-                                  "UPDATE meta SET value = '3' WHERE key = 'schema_version';");
-        return r;
-}
-
-/* Checks the schema version and migrates an older index in one transaction. */
-static int upgrade(struct ds *d)
-{
-        int64_t v = 0;
-        int r;
-
-        r = ds_db_int64(d, "PRAGMA user_version", &v);
-        if (r < 0 || v == DS_SCHEMA_VERSION)
-                return r;
-        if (v > DS_SCHEMA_VERSION || v == 1)
-                return ds_fail(d, -EBADMSG, "unknown schema version %lld (newer software?)",
-                               (long long)v);
-        r = ds_db_exec(d, "BEGIN IMMEDIATE");
-        if (r == 0)
-                r = ds_db_int64(d, "PRAGMA user_version", &v); /* another opener may have won */
-        if (r == 0 && v < DS_SCHEMA_VERSION) {
-                log_notice("dataset '%s': migrating its index from schema %lld to %d", d->path,
-                           (long long)(v == 0 ? 1 : v), DS_SCHEMA_VERSION);
-                r = migrate_from(d, v);
-        }
-        if (r == 0)
-                return ds_db_exec(d, "COMMIT");
-        (void)sqlite3_exec(d->db, "ROLLBACK", NULL, NULL, NULL);
         return r;
 }
 
@@ -347,7 +226,7 @@ int ds_db_open(struct ds *d, bool create)
                 return ds_db_fail(d, rc, "Failed to register gn_angle_dist");
         r = ds_db_exec(d, "PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;");
         if (r == 0)
-                r = create ? create_schema(d) : upgrade(d);
+                r = create ? create_schema(d) : ds_db_upgrade(d);
         return r;
 }
 
@@ -363,7 +242,7 @@ int ds_db_prepare_writer(struct ds *d)
                                   "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
                                   &d->insert);
         if (r == 0 && !d->add_name)
-                r = ds_db_prepare(d, add_name_sql, &d->add_name);
+                r = ds_db_prepare(d, DS_ADD_NAME_SQL, &d->add_name);
         return r;
 }
 
@@ -414,9 +293,9 @@ int ds_db_insert(struct ds *d, const struct ds_capture *c)
         if (r == 0)
                 r = insert_row(d, c);
         if (r == 0)
-                r = add_names(d, d->add_name, "camera", c->camera, 1);
+                r = ds_db_add_names(d, d->add_name, "camera", c->camera, 1);
         if (r == 0)
-                r = add_names(d, d->add_name, "lamp", c->lamps, 1);
+                r = ds_db_add_names(d, d->add_name, "lamp", c->lamps, 1);
         if (r == 0)
                 r = ds_db_exec(d, "COMMIT");
         if (r < 0 && !sqlite3_get_autocommit(d->db))

@@ -62,6 +62,44 @@ int ds_meta_get(struct ds *d, const char *key, char *out, size_t outlen);
  * migrated. Returns 0, -EBADMSG (not a dataset, unknown schema) or -errno. */
 int ds_db_open(struct ds *d, bool create);
 
+/* The captures table of the current schema; the angle of an axis the rig does not have
+ * is NULL. */
+#define DS_CAPTURES_TABLE(name)                                                                    \
+        "CREATE TABLE " name " ("                                                                  \
+        " id INTEGER PRIMARY KEY,"                                                                 \
+        " session TEXT NOT NULL DEFAULT '',"                                                       \
+        " turntable_deg REAL, light_arm_deg REAL, camera_arm_deg REAL,"                            \
+        " camera TEXT NOT NULL, lamps TEXT NOT NULL, lamp_bits INTEGER NOT NULL DEFAULT 0,"        \
+        " laser INTEGER NOT NULL,"                                                                 \
+        " exposure_us INTEGER NOT NULL, gain REAL NOT NULL,"                                       \
+        " t_request_ns INTEGER NOT NULL, t_exposure_ns INTEGER NOT NULL,"                          \
+        " t_stored_ns INTEGER NOT NULL,"                                                           \
+        " file TEXT NOT NULL UNIQUE, sha256 TEXT NOT NULL,"                                        \
+        " width INTEGER NOT NULL, height INTEGER NOT NULL, pixfmt TEXT NOT NULL);"
+
+#define DS_CAPTURES_POSE_INDEX                                                                     \
+        "CREATE INDEX captures_pose ON captures"                                                   \
+        " (session, turntable_deg, light_arm_deg, camera_arm_deg);"
+
+/* Each camera ('camera') and lamp ('lamp') name with the number of rows naming it. */
+#define DS_NAMES_TABLE                                                                             \
+        "CREATE TABLE names (kind TEXT NOT NULL, name TEXT NOT NULL,"                              \
+        " captures INTEGER NOT NULL, PRIMARY KEY (kind, name)) WITHOUT ROWID;"
+
+/* Adds ?3 captures to the name ?2 of kind ?1. */
+#define DS_ADD_NAME_SQL                                                                            \
+        "INSERT INTO names (kind, name, captures) VALUES (?1, ?2, ?3)"                             \
+        " ON CONFLICT (kind, name) DO UPDATE SET captures = captures + ?3"
+
+/* Runs s (prepared from DS_ADD_NAME_SQL) for kind and each name of the comma-separated
+ * list, adding n. Returns 0 or -errno. */
+int ds_db_add_names(struct ds *d, sqlite3_stmt *s, const char *kind, const char *list, int64_t n);
+
+/* Brings an index of an older schema to DS_SCHEMA_VERSION in one transaction
+ * (ds_migrate.c); a current one is left alone. Returns 0, -EBADMSG (unknown version) or
+ * -errno. */
+int ds_db_upgrade(struct ds *d);
+
 /* Commits c's row and its camera and lamp names (for ds_summary) in one transaction.
  * Returns 0 or -errno; on failure nothing is committed. Writer only. */
 int ds_db_insert(struct ds *d, const struct ds_capture *c);

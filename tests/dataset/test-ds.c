@@ -334,6 +334,17 @@ static void test_reopen(void)
         teardown(&fx);
 }
 
+/* Replaces the file rel of the dataset with text. */
+static void touch_text(const struct fixture *fx, const char *rel, const char *text)
+{
+        char p[4200];
+        FILE *fp;
+
+        path_of(fx, rel, p, sizeof(p));
+        fp = fopen(p, "w");
+        CHECK(fp && fputs(text, fp) >= 0 && fclose(fp) == 0);
+}
+
 /* Runs sql on the dataset's index with a second connection. */
 static void raw_sql(const struct fixture *fx, const char *sql)
 {
@@ -429,6 +440,7 @@ static void test_migrate(void)
 
         setup(&fx);
         fx.d = ds_close(fx.d);
+        touch_text(&fx, "rig.yaml", "rig: old\nlamps:\n  - { name: l0 }\n  - { name: l1 }\n");
         tu_make_schema1(fx.path,
                         "INSERT INTO captures VALUES (1, 's', 10, 20, 30, 'cam0', 'l1', 1, 1000,"
                         " 1.5, 5, 6, 7, 'images/000001_cam0_l1.png', 'ab', 4, 4, 'mono8');");
@@ -439,6 +451,7 @@ static void test_migrate(void)
         CHECK(rows.c[0].pose.deg[GN_ROLE_CAMERA_ARM] == 30);
         CHECK(rows.c[0].pose.laser);
         CHECK_STR(rows.c[0].lamps, "l1");
+        CHECK_INT(rows.c[0].pose.lamps, 0x2); /* l1 is the second lamp of rig.yaml */
         struct ds_summary sum;
         CHECK_INT(ds_summary(fx.d, &sum), 0); /* names counted from the old rows */
         CHECK_INT(sum.captures, 1);
@@ -651,12 +664,7 @@ static void test_forbid(void)
 
 static void touch(const struct fixture *fx, const char *rel)
 {
-        char p[4200];
-        FILE *fp;
-
-        path_of(fx, rel, p, sizeof(p));
-        fp = fopen(p, "w");
-        CHECK(fp && fputs("torn", fp) >= 0 && fclose(fp) == 0);
+        touch_text(fx, rel, "torn");
 }
 
 static void test_tmpfiles(void)
