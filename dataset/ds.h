@@ -1,16 +1,20 @@
-/* ds.h - the dataset store: a directory of lossless PNG images, an SQLite index
- * (WAL) with one row per capture, the rig file used, and dataset.json.
+/* ds.h - the dataset library (gn_dataset): a directory of lossless PNG images, an
+ * SQLite index (WAL) with one row per capture, the rig file used, and dataset.json;
+ * used by goniod and, offline, by calibration, the appearance fit and the exporters.
+ * It never touches devices.
  *
  * Layout of a dataset directory:
  *   dataset.json          summary (name, created, rig, counts), rewritten on close
- *   index.sqlite          captures table (+ WAL files while open)
+ *   index.sqlite          captures and names tables (+ WAL files while open)
  *   rig.yaml              the rig file the captures were taken with
  *   images/NNNNNN_<camera>_<lamp>.png
  *
  * Every image is written to a temporary name, fsynced, renamed and its directory
  * fsynced before its row is committed, so a crash leaves no torn file and no row
- * without its image. A struct ds is used from one thread at a time (the storage
- * worker); ds_pool runs stores off the event loop. */
+ * without its image. Readers use the read API (ds_summary, ds_rows, ds_rows_by_pose)
+ * and never parse dataset.json or walk the whole index themselves. Every function but the accessors
+ * does blocking I/O: call it from a worker (see ds_forbid_thread). A struct ds is used from one
+ * thread at a time; ds_pool (ds_pool.h) stores frames off the event loop. */
 #pragma once
 
 #include <stdbool.h>
@@ -49,8 +53,9 @@ struct ds_capture {
  * create removes what it made. */
 int ds_create(const char *path, const char *name, const char *rig_text, struct ds **ret);
 
-/* Opens an existing dataset for appending or reading. An index of schema 1 (angles
- * NOT NULL, no lamp bits) is migrated to the current schema in one transaction.
+/* Opens an existing dataset for appending or reading. An index of an older schema (1:
+ * angles NOT NULL, no lamp bits; 2: no names table) is migrated to the current one in
+ * one transaction (docs/dataset.md).
  * Returns 0, -ENOENT, -EBADMSG (not a dataset / corrupt index / unknown schema) or
  * -errno. */
 int ds_open(const char *path, struct ds **ret);
@@ -132,8 +137,9 @@ int ds_rows(struct ds *d, int64_t after_id, int limit, ds_row_fn fn, void *userd
 /* Calls fn, in id order, for each row taken at the pose p: for each role p has (angle
  * not NAN), the row has an axis of that role within tol_deg of p's angle (modulo 360);
  * roles p lacks match any row. p's lamps and laser are not compared: the result is one
- * view under every lighting (filter on c->pose.lamps for one lamp). Returns the number
- * of rows passed to fn, fn's negative value, -EINVAL (tol_deg < 0) or -errno. */
+ * view under every lighting (filter on c->pose.lamps for one lamp). SQLite tests every
+ * row (angles modulo 360 fit no index); only matching rows are decoded. Returns the
+ * number of rows passed to fn, fn's negative value, -EINVAL (tol_deg < 0) or -errno. */
 int ds_rows_by_pose(struct ds *d, const struct gn_pose *p, double tol_deg, ds_row_fn fn,
                     void *userdata);
 
