@@ -150,23 +150,24 @@ static int info_job(void *userdata)
         return 0;
 }
 
+DEFINE_TRIVIAL_CLEANUP_FUNC(DIR *, closedir);
+
 static int list_job(void *userdata)
 {
         struct ds_job *j = userdata;
-        DIR *dir = opendir(j->m->data_dir);
-        json_t *list = json_array();
+        _cleanup_(closedirp) DIR *dir = opendir(j->m->data_dir);
+        json_t *list;
         struct dirent *de;
 
-        if (!dir || !list) {
-                int r = dir ? -ENOMEM : -errno;
+        if (!dir) {
+                int r = -errno;
+
                 snprintf(j->msg, sizeof(j->msg), "cannot read %s: %s", j->m->data_dir,
                          strerror(-r));
-                json_decref(list);
-                if (dir)
-                        closedir(dir);
                 return r;
         }
-        while ((de = readdir(dir))) {
+        list = json_array();
+        while (list && (de = readdir(dir))) {
                 char path[PATH_MAX];
                 json_t *info;
 
@@ -178,16 +179,11 @@ static int list_job(void *userdata)
                 if (info)
                         json_array_append_new(list, info);
         }
-        closedir(dir);
         j->result = json_pack("{so}", "datasets", list);
         return j->result ? 0 : -ENOMEM;
 }
 
 /* ---- completions and requests (loop thread) ---- */
-
-/* Makes d (named name) the open dataset, with its storage pool. On failure d is handed
- * to a close job. */
-static int attach(struct manager *m, struct ds *d, const char *name, int64_t count);
 
 static void job_free(struct ds_job *j)
 {
@@ -236,6 +232,8 @@ static void close_later(struct manager *m, struct ds *d)
         log_error("Cannot close dataset '%s' off the event loop; leaving it open", ds_path(d));
 }
 
+/* Makes d (named name) the open dataset, with its storage pool. On failure d is handed
+ * to a close job. */
 static int attach(struct manager *m, struct ds *d, const char *name, int64_t count)
 {
         int r = ds_pool_new(m->event, d, 2, 16, &m->pool);
