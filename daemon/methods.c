@@ -1,12 +1,9 @@
 /* methods.c - the methods of the control protocol (docs/protocol.md): each
  * checks its params, then starts the operation on the rig or the store and
- * answers when it is done. */
-#include <dirent.h>
+ * answers when it is done (the dataset.* methods are in datasets.c). */
 #include <errno.h>
 #include <math.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <time.h>
 
 #include "common/clock.h"
 #include "common/log.h"
