@@ -103,7 +103,7 @@ int gn_read_file_at(int dir_fd, const char *name, size_t max, void **ret, size_t
                 return -EBADMSG;
         if ((uint64_t)st.st_size > max)
                 return -EFBIG;
-        buf = malloc(st.st_size > 0 ? (size_t)st.st_size : 1);
+        buf = malloc((size_t)st.st_size + 1);
         if (!buf)
                 return -ENOMEM;
         while (n < (size_t)st.st_size) {
@@ -115,6 +115,7 @@ int gn_read_file_at(int dir_fd, const char *name, size_t max, void **ret, size_t
                         return k < 0 ? -errno : -EIO;
                 n += (size_t)k;
         }
+        buf[n] = 0;
         *ret = TAKE_PTR(buf);
         *ret_len = n;
         return 0;

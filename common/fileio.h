@@ -24,6 +24,7 @@ int gn_write_atomic(int dir_fd, const char *name, const void *buf, size_t len,
 int gn_fsync_parent(const char *path);
 
 /* Reads the whole regular file name below dir_fd into a malloc'ed buffer (*ret, freed
- * by the caller) of *ret_len bytes. Returns 0, -EFBIG (larger than max), -EBADMSG (not
+ * by the caller) of *ret_len bytes, followed by a NUL byte (not counted) so that text
+ * can be used as a string. Returns 0, -EFBIG (larger than max), -EBADMSG (not
  * a regular file), -ENOMEM or -errno. */
 int gn_read_file_at(int dir_fd, const char *name, size_t max, void **ret, size_t *ret_len);

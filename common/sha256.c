@@ -57,8 +57,6 @@ int gn_sha256_final(struct gn_sha256 *s, char hex[GN_SHA256_HEX])
         return 0;
 }
 
-DEFINE_TRIVIAL_CLEANUP_FUNC(struct gn_sha256 *, gn_sha256_free);
-
 int gn_sha256_file_at(int dir_fd, const char *name, char hex[GN_SHA256_HEX])
 {
         _cleanup_(gn_sha256_freep) struct gn_sha256 *s = NULL;

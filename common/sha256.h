@@ -4,6 +4,8 @@
 
 #include <stddef.h>
 
+#include "common/cleanup.h"
+
 /* Length of a hex digest plus its NUL. */
 #define GN_SHA256_HEX 65
 
@@ -14,6 +16,7 @@ int gn_sha256_new(struct gn_sha256 **ret);
 
 /* Frees s; NULL is a no-op. Returns NULL. */
 struct gn_sha256 *gn_sha256_free(struct gn_sha256 *s);
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct gn_sha256 *, gn_sha256_free);
 
 /* Feeds len bytes. Returns 0 or -EIO. */
 int gn_sha256_update(struct gn_sha256 *s, const void *buf, size_t len);

@@ -6,6 +6,7 @@
  * last store has answered. A store that fails (a full disk) faults the rig, so it
  * goes to its safe state before anything else is tried; the rows committed before
  * stay and are reported as stored, so a retry never duplicates them. */
+#include <assert.h>
 #include <errno.h>
 #include <stdio.h>
 #include <string.h>
@@ -80,31 +81,29 @@ unsigned capture_in_flight(const struct capture *cp)
         return cp->storing + (cp->exposing != NULL) + (cp->pool ? ds_pool_in_flight(cp->pool) : 0);
 }
 
-int capture_close_dataset(struct capture *cp)
+struct ds *capture_detach(struct capture *cp)
 {
-        if (capture_in_flight(cp) > 0)
-                return -EBUSY;
+        struct ds *d = cp->ds;
+
+        assert(capture_in_flight(cp) == 0);
         cp->pool = ds_pool_free(cp->pool);
-        cp->ds = ds_close(cp->ds);
+        cp->ds = NULL;
         cp->ds_name[0] = 0;
         cp->ds_count = 0;
-        return 0;
+        return d;
 }
 
-int capture_open_dataset(struct capture *cp, struct ds *d, const char *name)
+int capture_attach(struct capture *cp, struct ds *d, const char *name, int64_t count)
 {
-        struct ds_pool *pool = NULL;
         int r;
 
-        if (capture_in_flight(cp) > 0)
+        if (capture_in_flight(cp) > 0 || cp->ds)
                 return -EBUSY;
-        r = ds_pool_new(cp->event, d, POOL_ENCODERS, POOL_CAPACITY, &pool);
+        r = ds_pool_new(cp->event, d, POOL_ENCODERS, POOL_CAPACITY, &cp->pool);
         if (r < 0)
                 return r;
-        (void)capture_close_dataset(cp);
         cp->ds = d;
-        cp->pool = pool;
-        cp->ds_count = ds_count(d);
+        cp->ds_count = count;
         snprintf(cp->ds_name, sizeof(cp->ds_name), "%s", name);
         return 0;
 }
@@ -141,7 +140,7 @@ struct store_ref {
         size_t shot;
 };
 
-static void on_stored(int result, const struct ds_capture *c, void *userdata)
+static void on_stored(int result, const struct ds_capture *c, const char *error, void *userdata)
 {
         struct store_ref *ref = userdata;
         struct take *t = ref->t;
@@ -158,8 +157,7 @@ static void on_stored(int result, const struct ds_capture *c, void *userdata)
         } else {
                 snprintf(s->msg, sizeof(s->msg),
                          "camera '%s': storing the frame in dataset '%s' failed: %s", c->camera,
-                         cp->ds_name,
-                         result == -ECANCELED ? "canceled at shutdown" : strerror(-result));
+                         cp->ds_name, result == -ECANCELED ? "canceled at shutdown" : error);
                 if (result != -ECANCELED)
                         rig_fault(cp->rig, "dataset", result, "%s", s->msg);
         }

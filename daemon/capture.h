@@ -41,12 +41,15 @@ int capture_new(sd_event *event, struct rig *rig, capture_stored_fn stored, void
  * (their requests get no completion), closes the dataset. NULL is a no-op; returns NULL. */
 struct capture *capture_free(struct capture *cp);
 
-/* Makes d (taken over; closed by the pipeline) the dataset captures go to, with a
- * storage pool of its own. -EBUSY while captures are in flight, or -errno. */
-int capture_open_dataset(struct capture *cp, struct ds *d, const char *name);
+/* Makes d (taken over: closed by capture_free, or handed back by capture_detach) the
+ * dataset captures go to, named name, holding count rows, with a storage pool of its own.
+ * No I/O on d. Returns 0, -EBUSY while captures are in flight or a dataset is attached,
+ * or -errno (d is then not taken). */
+int capture_attach(struct capture *cp, struct ds *d, const char *name, int64_t count);
 
-/* Closes the open dataset (rewriting its summary). -EBUSY while captures are in flight. */
-int capture_close_dataset(struct capture *cp);
+/* Takes the dataset away from the pipeline (its idle pool freed) and returns it for the
+ * caller to close off the loop; NULL when none. Only while capture_in_flight() is 0. */
+struct ds *capture_detach(struct capture *cp);
 
 /* The open dataset and its name, or NULL. Valid until it is closed. */
 struct ds *capture_dataset(const struct capture *cp);

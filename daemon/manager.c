@@ -8,6 +8,7 @@
 #include <systemd/sd-event.h>
 
 #include "common/log.h"
+#include "datasets.h"
 #include "manager.h"
 #include "protocol/proto.h"
 
@@ -143,15 +144,21 @@ fail:
 
 int manager_run(struct manager *m)
 {
+        int r;
+
         (void)sd_notify(false, "READY=1\nSTATUS=serving");
         log_info("rig '%s' ready (%s)", m->rc->name, rig_state(m->rig));
-        return sd_event_loop(m->event);
+        ds_forbid_thread(true); /* no dataset I/O on the loop while it serves */
+        r = sd_event_loop(m->event);
+        ds_forbid_thread(false);
+        return r;
 }
 
 struct manager *manager_free(struct manager *m)
 {
         if (!m)
                 return NULL;
+        datasets_free(m);
         m->server = server_free(m->server);
         m->capture = capture_free(m->capture); /* completes pending stores */
         m->rig = rig_free(m->rig);             /* safe state */

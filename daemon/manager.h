@@ -10,6 +10,7 @@
 #include "server.h"
 
 typedef struct sd_event sd_event;
+struct workq;
 
 struct manager {
         sd_event *event;
@@ -18,6 +19,8 @@ struct manager {
         struct server *server;
         char data_dir[PATH_MAX];
         struct capture *capture;    /* the capture pipeline and its open dataset */
+        struct workq *ds_worker;    /* runs dataset.* off the loop (datasets.c) */
+        bool ds_busy;               /* a dataset.open or close is running */
         uint64_t shutdown_deadline; /* set once SIGTERM/SIGINT arrived */
 };
 

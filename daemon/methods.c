@@ -1,15 +1,13 @@
 /* methods.c - the methods of the control protocol (docs/protocol.md): each
  * checks its params, then starts the operation on the rig or the store and
- * answers when it is done. */
-#include <dirent.h>
+ * answers when it is done (the dataset.* methods are in datasets.c). */
 #include <errno.h>
 #include <math.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <time.h>
 
 #include "common/clock.h"
 #include "common/log.h"
+#include "datasets.h"
 #include "manager.h"
 #include "protocol/proto.h"
 
@@ -341,22 +339,6 @@ static int m_fault_clear(struct srv_req *req, json_t *params, void *userdata)
         return 0;
 }
 
-static json_t *num_or_null(double v)
-{
-        return isnan(v) ? json_null() : json_real(v);
-}
-
-static json_t *capture_json(const struct ds_capture *c)
-{
-        return json_pack("{sIsssssssisisssosososssb}", "id", (json_int_t)c->id, "camera", c->camera,
-                         "file", c->file, "sha256", c->sha256, "width", c->width, "height",
-                         c->height, "pixfmt", c->pixfmt, "turntable",
-                         num_or_null(c->pose.deg[GN_ROLE_TURNTABLE]), "light_arm",
-                         num_or_null(c->pose.deg[GN_ROLE_LIGHT_ARM]), "camera_arm",
-                         num_or_null(c->pose.deg[GN_ROLE_CAMERA_ARM]), "lamps", c->lamps, "laser",
-                         c->pose.laser);
-}
-
 /* Answers a capture: every row stored, or an error whose data lists what was stored and
  * what failed, so that a client retries only the cameras that failed. */
 static void on_captured(struct capture *cp, const struct capture_result *res, void *userdata)
@@ -368,7 +350,7 @@ static void on_captured(struct capture *cp, const struct capture_result *res, vo
         for (size_t i = 0; i < res->n_shots; i++) {
                 const struct capture_shot *s = &res->shots[i];
                 if (s->result >= 0) {
-                        json_array_append_new(stored, capture_json(&s->row));
+                        json_array_append_new(stored, datasets_row_json(&s->row));
                         continue;
                 }
                 first = first ? first : s;
@@ -411,8 +393,8 @@ static int check_cameras(struct srv_req *req, struct manager *m, const int *cams
 
         for (size_t i = 0; i < n; i++)
                 if ((r = rig_check_camera_request(m->rig, cams[i], cr, msg, sizeof(msg))) < 0)
-                        return srv_req_errmsg(req, r, "camera '%s': %s", m->rc->cameras[cams[i]].name,
-                                              msg);
+                        return srv_req_errmsg(req, r, "camera '%s': %s",
+                                              m->rc->cameras[cams[i]].name, msg);
         return 0;
 }
 
@@ -444,185 +426,6 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
         return 0;
 }
 
-/* A dataset name is one path component of [A-Za-z0-9._-], not starting with '.'. */
-static int dataset_path(struct srv_req *req, struct manager *m, const char *name, char *path,
-                        size_t len)
-{
-        if (!name || !name[0] || name[0] == '.' || strlen(name) >= DS_NAME_MAX ||
-            strspn(name, "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789._-") !=
-                    strlen(name))
-                return srv_req_errmsg(req, -EINVAL,
-                                      "param 'name': '%s' is not a valid dataset name "
-                                      "(letters, digits, '.', '_', '-')",
-                                      name ? name : "");
-        if ((size_t)snprintf(path, len, "%s/%s", m->data_dir, name) >= len)
-                return srv_req_errmsg(req, -ENAMETOOLONG, "dataset path too long");
-        return 0;
-}
-
-static int m_dataset_open(struct srv_req *req, json_t *params, void *userdata)
-{
-        struct manager *m = userdata;
-        const char *name = NULL;
-        bool create = false;
-        char path[PATH_MAX];
-        struct ds *d = NULL;
-        int r;
-
-        if ((r = srv_params_check(req, params, KEYS("name", "create"))) < 0 ||
-            (r = srv_param_str(req, params, "name", &name)) < 0 ||
-            (r = srv_param_bool(req, params, "create", &create)) < 0 ||
-            (r = dataset_path(req, m, name, path, sizeof(path))) < 0)
-                return r;
-        if (capture_in_flight(m->capture) > 0)
-                return srv_req_errmsg(req, -EBUSY, "captures are still in progress");
-        r = create ? ds_create(path, name, m->rc->text, &d) : ds_open(path, &d);
-        if (r < 0)
-                return srv_req_errmsg(req, r, "%s dataset '%s': %s",
-                                      create ? "cannot create" : "cannot open", name,
-                                      r == -EEXIST   ? "it exists already"
-                                      : r == -ENOENT ? "no such dataset"
-                                                     : strerror(-r));
-        r = capture_open_dataset(m->capture, d, name);
-        if (r < 0) {
-                ds_close(d);
-                return srv_req_errmsg(req, r, "cannot use dataset '%s': %s", name, strerror(-r));
-        }
-        srv_reply(req, json_pack("{sssssI}", "path", ds_path(d), "name", name, "count",
-                                 (json_int_t)capture_dataset_count(m->capture)));
-        return 0;
-}
-
-static int m_dataset_close(struct srv_req *req, json_t *params, void *userdata)
-{
-        struct manager *m = userdata;
-
-        if (capture_close_dataset(m->capture) < 0)
-                return srv_req_errmsg(req, -EBUSY, "captures are still in progress");
-        srv_reply(req, json_object());
-        return 0;
-}
-
-struct last_rows {
-        json_t *rows;
-        int64_t after_id;
-        json_t *cameras; /* object used as a set of camera names */
-};
-
-static int add_recent_row(const struct ds_capture *c, void *userdata)
-{
-        struct last_rows *lr = userdata;
-
-        json_object_set_new(lr->cameras, c->camera, json_true());
-        if (c->id > lr->after_id)
-                json_array_append_new(lr->rows, capture_json(c));
-        return 0;
-}
-
-/* The keys of a set object as a sorted array. */
-static json_t *sorted_keys(json_t *set)
-{
-        json_t *out = json_array(), *v;
-        const char *key;
-
-        json_object_foreach(set, key, v)
-        {
-                size_t i = 0;
-                while (i < json_array_size(out) &&
-                       strcmp(json_string_value(json_array_get(out, i)), key) < 0)
-                        i++;
-                json_array_insert_new(out, i, json_string(key));
-        }
-        return out;
-}
-
-/* Summary of the dataset at path (name given), from its index and dataset.json. */
-static json_t *dataset_summary(const char *path, const char *name, bool rows)
-{
-        _cleanup_free_ char *jpath = NULL;
-        json_t *meta, *out, *caps = json_array(), *cams = json_object();
-        struct ds *d = NULL;
-        int64_t count;
-
-        if (ds_open(path, &d) < 0) {
-                json_decref(caps);
-                json_decref(cams);
-                return NULL;
-        }
-        count = ds_count(d);
-        if (rows) {
-                struct last_rows lr = {caps, count - 20, cams};
-                ds_foreach(d, add_recent_row, &lr);
-        }
-        ds_close(d);
-        if (asprintf(&jpath, "%s/dataset.json", path) < 0)
-                jpath = NULL;
-        meta = jpath ? json_load_file(jpath, 0, NULL) : NULL;
-        out = json_pack("{sssssIsO?sO?}", "name", name, "path", path, "count", (json_int_t)count,
-                        "created", json_object_get(meta, "created"), "rig",
-                        json_object_get(meta, "rig"));
-        json_decref(meta);
-        if (rows) {
-                json_object_set_new(out, "cameras", sorted_keys(cams));
-                json_object_set_new(out, "captures", caps);
-        } else {
-                json_decref(caps);
-        }
-        json_decref(cams);
-        return out;
-}
-
-static int m_dataset_list(struct srv_req *req, json_t *params, void *userdata)
-{
-        struct manager *m = userdata;
-        DIR *dir = opendir(m->data_dir);
-        json_t *list = json_array();
-        struct dirent *de;
-
-        if (!dir)
-                return json_decref(list),
-                       srv_req_errmsg(req, -errno, "cannot read %s: %m", m->data_dir);
-        while ((de = readdir(dir))) {
-                char path[PATH_MAX];
-                json_t *info;
-
-                if (de->d_name[0] == '.' ||
-                    (size_t)snprintf(path, sizeof(path), "%s/%s", m->data_dir, de->d_name) >=
-                            sizeof(path))
-                        continue;
-                info = dataset_summary(path, de->d_name, false);
-                if (info)
-                        json_array_append_new(list, info);
-        }
-        closedir(dir);
-        srv_reply(req, json_pack("{so}", "datasets", list));
-        return 0;
-}
-
-static int m_dataset_info(struct srv_req *req, json_t *params, void *userdata)
-{
-        struct manager *m = userdata;
-        const char *name = NULL;
-        char path[PATH_MAX];
-        json_t *info;
-        int r;
-
-        if ((r = srv_params_check(req, params, KEYS("name"))) < 0 ||
-            (r = srv_param_str(req, params, "name", &name)) < 0)
-                return r;
-        if (!name && !capture_dataset(m->capture))
-                return srv_req_errmsg(req, -ENOENT, "no dataset is open and no name given");
-        if (!name)
-                name = capture_dataset_name(m->capture);
-        if ((r = dataset_path(req, m, name, path, sizeof(path))) < 0)
-                return r;
-        info = dataset_summary(path, name, true);
-        if (!info)
-                return srv_req_errmsg(req, -ENOENT, "no dataset named '%s'", name);
-        srv_reply(req, info);
-        return 0;
-}
-
 const struct srv_method manager_methods[] = {
         {"hello", m_hello},
         {"status", m_status},
@@ -633,10 +436,10 @@ const struct srv_method manager_methods[] = {
         {"lamp.set", m_lamp_set},
         {"laser.set", m_laser_set},
         {"capture", m_capture},
-        {"dataset.open", m_dataset_open},
-        {"dataset.close", m_dataset_close},
-        {"dataset.list", m_dataset_list},
-        {"dataset.info", m_dataset_info},
+        {"dataset.open", datasets_open},
+        {"dataset.close", datasets_close},
+        {"dataset.list", datasets_list},
+        {"dataset.info", datasets_info},
         {"fault.clear", m_fault_clear},
         {NULL, NULL},
 };

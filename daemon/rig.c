@@ -638,8 +638,8 @@ int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata
         return 0;
 }
 
-int rig_check_camera_request(const struct rig *rig, int i, const struct cam_request *req,
-                             char *msg, size_t len)
+int rig_check_camera_request(const struct rig *rig, int i, const struct cam_request *req, char *msg,
+                             size_t len)
 {
         return cam_check_request(rig->cams[i], req, msg, len);
 }

@@ -111,8 +111,8 @@ int rig_expose(struct rig *rig, const int *cams, size_t n, const struct cam_requ
 /* Checks req against camera i's own control ranges (the driver's option table, see
  * cam_check_request): 0, or -ERANGE/-EOPNOTSUPP/-EINVAL with "gain 100 outside [0.1, 64]"
  * in msg. */
-int rig_check_camera_request(const struct rig *rig, int i, const struct cam_request *req,
-                             char *msg, size_t len);
+int rig_check_camera_request(const struct rig *rig, int i, const struct cam_request *req, char *msg,
+                             size_t len);
 
 /* Why the rig refuses a move, a switch or an exposure now with -EBUSY: "axis 'x' is
  * moving", "a capture is being exposed", "lamp 'x' is warming up". Valid until the next

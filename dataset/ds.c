@@ -4,10 +4,10 @@
  * DESIGN
  * Durability protocol of ds_store: encode -> write images/NAME.tmp while hashing
  * the bytes -> fsync(file) -> rename to NAME -> fsync(images/) -> INSERT the row
- * (autocommit). The row is committed only after its file is durable, so the index
- * never names a missing or torn file. A crash between the rename and the commit
- * leaves an image whose id is above the last row: the first writer to open the
- * dataset again removes such orphans and any *.tmp before storing.
+ * and count its names in one transaction (ds_index.c). The row is committed only after its file is
+ * durable, so the index never names a missing or torn file. A crash between the rename and the
+ * commit leaves an image whose id is above the last row: the first writer to open the dataset again
+ * removes such orphans and any *.tmp before storing.
  *
  * Row ids come from the store's own sequence (max(id) + 1 when the writer starts),
  * so the file name is known before the row exists. One process writes a dataset at
@@ -17,11 +17,7 @@
 #include <dirent.h>
 #include <fcntl.h>
 #include <jansson.h>
-#include <libgen.h>
 #include <limits.h>
-#include <math.h>
-#include <sqlite3.h>
-#include <stdarg.h>
 #include <string.h>
 #include <sys/file.h>
 #include <sys/stat.h>
@@ -32,308 +28,55 @@
 #include "common/log.h"
 #include "common/sha256.h"
 #include "common/yconf.h"
-#include "ds.h"
+#include "ds_internal.h"
 #include "ds_png.h"
 
-#define DS_SCHEMA_VERSION     2 /* PRAGMA user_version; schema 1 had user_version 0 */
-#define DS_SCHEMA_VERSION_STR "2"
-#define DS_INDEX              "index.sqlite"
-#define DS_JSON               "dataset.json"
-#define DS_RIG                "rig.yaml"
-#define DS_IMAGES             "images"
-#define DS_BUSY_MS            5000
-#define DS_FILE_MAX           (1u << 31)
-
-/* Columns of captures in the order of struct ds_capture; shared by INSERT and SELECT. */
-#define CAPTURE_COLUMNS                                                                            \
-        "id, session, turntable_deg, light_arm_deg, camera_arm_deg, camera, lamps, lamp_bits, "    \
-        "laser, exposure_us, gain, t_request_ns, t_exposure_ns, t_stored_ns, file, sha256, "       \
-        "width, height, pixfmt"
-
-/* The captures table; the angle of an axis the rig does not have is NULL. */
-#define CAPTURES_TABLE(name)                                                                       \
-        "CREATE TABLE " name " ("                                                                  \
-        " id INTEGER PRIMARY KEY,"                                                                 \
-        " session TEXT NOT NULL DEFAULT '',"                                                       \
-        " turntable_deg REAL, light_arm_deg REAL, camera_arm_deg REAL,"                            \
-        " camera TEXT NOT NULL, lamps TEXT NOT NULL, lamp_bits INTEGER NOT NULL DEFAULT 0,"        \
-        " laser INTEGER NOT NULL,"                                                                 \
-        " exposure_us INTEGER NOT NULL, gain REAL NOT NULL,"                                       \
-        " t_request_ns INTEGER NOT NULL, t_exposure_ns INTEGER NOT NULL,"                          \
-        " t_stored_ns INTEGER NOT NULL,"                                                           \
-        " file TEXT NOT NULL UNIQUE, sha256 TEXT NOT NULL,"                                        \
-        " width INTEGER NOT NULL, height INTEGER NOT NULL, pixfmt TEXT NOT NULL);"
-
-#define CAPTURES_POSE_INDEX                                                                        \
-        "CREATE INDEX captures_pose ON captures"                                                   \
-        " (session, turntable_deg, light_arm_deg, camera_arm_deg);"
-
-static const char schema_sql[] =
-        "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);" CAPTURES_TABLE("captures")
-                CAPTURES_POSE_INDEX "PRAGMA user_version = 2;";
-
-/* Schema 1 -> 2: the angles become nullable and lamp_bits is added (0: unknown for
- * rows taken before; their lamp names stay in lamps). SQLite cannot drop NOT NULL in
- * place, so the table is copied. */
-static const char migrate_v1_sql[] = CAPTURES_TABLE(
-        "captures_v2") "INSERT INTO captures_v2 (id, session, turntable_deg, light_arm_deg, "
-                       "camera_arm_deg,"
-                       " camera, lamps, laser, exposure_us, gain, t_request_ns, t_exposure_ns, "
-                       "t_stored_ns,"
-                       " file, sha256, width, height, pixfmt)"
-                       " SELECT id, session, turntable_deg, light_arm_deg, camera_arm_deg, camera, "
-                       "lamps, laser,"
-                       " exposure_us, gain, t_request_ns, t_exposure_ns, t_stored_ns, file, "
-                       "sha256, width,"
-                       " height, pixfmt FROM captures;"
-                       "DROP TABLE captures;"
-                       "ALTER TABLE captures_v2 RENAME TO captures;" CAPTURES_POSE_INDEX
-                       "UPDATE meta SET value = '2' WHERE key = 'schema_version';"
-                       "PRAGMA user_version = 2;";
-
-struct ds {
-        char *path; /* absolute */
-        char name[DS_NAME_MAX];
-        char created[32];
-        char rig[64];
-        int dir_fd, img_fd;
-        bool writer; /* holds the flock, orphans removed, next_id valid */
-        int64_t next_id;
-        int png_level;
-        sqlite3 *db;
-        sqlite3_stmt *insert;
-        char error[256]; /* ds_last_error() */
-};
-
-DEFINE_TRIVIAL_CLEANUP_FUNC(sqlite3_stmt *, sqlite3_finalize);
 DEFINE_TRIVIAL_CLEANUP_FUNC(DIR *, closedir);
 
 static struct ds *ds_free(struct ds *d);
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ds *, ds_free);
 
-/* ---- SQLite helpers ---- */
+_Thread_local bool ds_thread_forbidden;
 
-/* The errno of SQLite's last failed syscall. A failed commit does not record it in
- * sqlite3_system_errno(), so fall back to the WAL file's and the database file's own
- * last errno (SQLITE_FCNTL_LAST_ERRNO). 0 if unknown. */
-static int sqlite_sys_errno(sqlite3 *db)
+void ds_forbid_thread(bool forbid)
 {
-        sqlite3_file *wal = NULL;
-        int e = sqlite3_system_errno(db);
-
-        if (e == 0 &&
-            sqlite3_file_control(db, "main", SQLITE_FCNTL_JOURNAL_POINTER, &wal) == SQLITE_OK &&
-            wal && wal->pMethods)
-                (void)wal->pMethods->xFileControl(wal, SQLITE_FCNTL_LAST_ERRNO, &e);
-        if (e == 0)
-                (void)sqlite3_file_control(db, "main", SQLITE_FCNTL_LAST_ERRNO, &e);
-        return e;
-}
-
-/* Maps an SQLite result code to -errno, the one place that does. I/O failures keep
- * the errno of the failing syscall when SQLite recorded one (EFBIG, EDQUOT...). */
-static int sqlite_errno(sqlite3 *db, int rc)
-{
-        int e = 0;
-
-        switch (rc & 0xff) {
-        case SQLITE_FULL:
-        case SQLITE_IOERR:
-        case SQLITE_CANTOPEN:
-                e = db ? sqlite_sys_errno(db) : 0;
-                return e > 0 ? -e : (rc & 0xff) == SQLITE_FULL ? -ENOSPC : -EIO;
-        case SQLITE_NOMEM:
-                return -ENOMEM;
-        case SQLITE_BUSY:
-        case SQLITE_LOCKED:
-                return -EBUSY;
-        case SQLITE_READONLY:
-                return -EROFS;
-        case SQLITE_CONSTRAINT:
-        case SQLITE_MISMATCH:
-        case SQLITE_RANGE:
-                return -EINVAL;
-        case SQLITE_CORRUPT:
-        case SQLITE_NOTADB:
-                return -EBADMSG;
-        case SQLITE_PERM:
-        case SQLITE_AUTH:
-                return -EACCES;
-        default:
-                return -EPROTO;
-        }
-}
-
-/* Records what failed for ds_last_error() and logs it; returns r. */
-static int ds_fail(struct ds *d, int r, const char *fmt, ...) _printf_(3, 4);
-static int ds_fail(struct ds *d, int r, const char *fmt, ...)
-{
-        va_list ap;
-
-        va_start(ap, fmt);
-        vsnprintf(d->error, sizeof(d->error), fmt, ap);
-        va_end(ap);
-        return log_error_errno(r, "dataset '%s': %s (%m)", d->path, d->error);
-}
-
-static int db_fail(struct ds *d, int rc, const char *what)
-{
-        return ds_fail(d, sqlite_errno(d->db, rc), "%s: %s", what, sqlite3_errmsg(d->db));
-}
-
-static int db_prepare(struct ds *d, const char *sql, sqlite3_stmt **ret)
-{
-        int rc = sqlite3_prepare_v2(d->db, sql, -1, ret, NULL);
-
-        return rc == SQLITE_OK ? 0 : db_fail(d, rc, "Failed to prepare statement");
-}
-
-static int db_exec(struct ds *d, const char *sql)
-{
-        int rc = sqlite3_exec(d->db, sql, NULL, NULL, NULL);
-
-        return rc == SQLITE_OK ? 0 : db_fail(d, rc, sql);
-}
-
-/* Runs a query returning one integer. */
-static int db_int64(struct ds *d, const char *sql, int64_t *ret)
-{
-        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
-        int r, rc;
-
-        r = db_prepare(d, sql, &s);
-        if (r < 0)
-                return r;
-        rc = sqlite3_step(s);
-        if (rc != SQLITE_ROW)
-                return db_fail(d, rc, sql);
-        *ret = sqlite3_column_int64(s, 0);
-        return 0;
-}
-
-static int meta_set(struct ds *d, const char *key, const char *value)
-{
-        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
-        int r, rc;
-
-        r = db_prepare(d, "INSERT OR REPLACE INTO meta (key, value) VALUES (?, ?)", &s);
-        if (r < 0)
-                return r;
-        sqlite3_bind_text(s, 1, key, -1, SQLITE_STATIC);
-        sqlite3_bind_text(s, 2, value, -1, SQLITE_STATIC);
-        rc = sqlite3_step(s);
-        return rc == SQLITE_DONE ? 0 : db_fail(d, rc, "Failed to write meta");
-}
-
-/* Reads meta[key] into out; -EBADMSG if absent. */
-static int meta_get(struct ds *d, const char *key, char *out, size_t outlen)
-{
-        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
-        int r, rc;
-
-        r = db_prepare(d, "SELECT value FROM meta WHERE key = ?", &s);
-        if (r < 0)
-                return r;
-        sqlite3_bind_text(s, 1, key, -1, SQLITE_STATIC);
-        rc = sqlite3_step(s);
-        if (rc == SQLITE_DONE)
-                return log_error_errno(SYNTHETIC_ERRNO(EBADMSG),
-                                       "dataset '%s': index has no meta '%s'", d->path, key);
-        if (rc != SQLITE_ROW)
-                return db_fail(d, rc, "Failed to read meta");
-        snprintf(out, outlen, "%s", (const char *)sqlite3_column_text(s, 0));
-        return 0;
-}
-
-/* Opens index.sqlite in WAL mode with synchronous=NORMAL. */
-static int db_open(struct ds *d, bool create)
-{
-        _cleanup_free_ char *file = NULL;
-        int rc;
-
-        if (asprintf(&file, "%s/%s", d->path, DS_INDEX) < 0)
-                return -ENOMEM;
-        if (!create && access(file, F_OK) < 0)
-                return log_error_errno(errno == ENOENT ? SYNTHETIC_ERRNO(EBADMSG) : errno,
-                                       "'%s' is not a dataset: %m", d->path);
-        rc = sqlite3_open_v2(file, &d->db,
-                             SQLITE_OPEN_READWRITE | (create ? SQLITE_OPEN_CREATE : 0) |
-                                     SQLITE_OPEN_NOMUTEX | SQLITE_OPEN_EXRESCODE,
-                             NULL);
-        if (rc != SQLITE_OK)
-                return db_fail(d, rc, "Failed to open index");
-        sqlite3_busy_timeout(d->db, DS_BUSY_MS);
-        return db_exec(d, "PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;");
+        ds_thread_forbidden = forbid;
 }
 
 /* ---- dataset.json ---- */
 
-static int json_add_unique(json_t *arr, const char *s)
+/* The names of a summary as a JSON array. */
+static json_t *names_json(const struct ds_name_count *names, size_t n)
 {
-        size_t i;
-        json_t *v;
+        json_t *a = json_array();
 
-        if (!*s)
-                return 0;
-        json_array_foreach(arr, i, v) if (strcmp(json_string_value(v), s) == 0) return 0;
-        return json_array_append_new(arr, json_string(s)) == 0 ? 0 : -ENOMEM;
-}
-
-/* Adds each comma-separated name of list to arr once. */
-static int json_add_names(json_t *arr, const char *list)
-{
-        _cleanup_free_ char *copy = strdup(list);
-        char *save = NULL;
-        int r = 0;
-
-        if (!copy)
-                return -ENOMEM;
-        for (char *t = strtok_r(copy, ",", &save); t && r == 0; t = strtok_r(NULL, ",", &save))
-                r = json_add_unique(arr, t);
-        return r;
-}
-
-/* Fills arr with the distinct names found in the only column of sql. */
-static int collect_names(struct ds *d, const char *sql, json_t *arr)
-{
-        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
-        int r, rc;
-
-        if (!arr)
-                return -ENOMEM;
-        r = db_prepare(d, sql, &s);
-        while (r == 0 && (rc = sqlite3_step(s)) == SQLITE_ROW)
-                r = json_add_names(arr, (const char *)sqlite3_column_text(s, 0));
-        if (r == 0 && rc != SQLITE_DONE)
-                r = db_fail(d, rc, sql);
-        return r;
+        for (size_t i = 0; a && i < n; i++)
+                if (json_array_append_new(a, json_string(names[i].name)) < 0)
+                        return json_decref(a), NULL;
+        return a;
 }
 
 static int write_json(struct ds *d)
 {
-        _cleanup_(json_decrefp) json_t *cameras = json_array(), *lamps = json_array(), *j = NULL;
+        _cleanup_(json_decrefp) json_t *j = NULL;
         _cleanup_free_ char *text = NULL;
-        int64_t n;
+        struct ds_summary sum;
         int r;
 
-        r = db_int64(d, "SELECT count(*) FROM captures", &n);
-        if (r == 0)
-                r = collect_names(d, "SELECT DISTINCT camera FROM captures ORDER BY camera",
-                                  cameras);
-        if (r == 0)
-                r = collect_names(d, "SELECT DISTINCT lamps FROM captures ORDER BY lamps", lamps);
+        r = ds_summary(d, &sum);
         if (r < 0)
                 return r;
-        j = json_pack("{s:s, s:s, s:s, s:I, s:O, s:O, s:s, s:s, s:i}", "name", d->name, "created",
-                      d->created, "rig", d->rig, "captures", (json_int_t)n, "cameras", cameras,
-                      "lamps", lamps, "format", "png", "index", DS_INDEX, "schema_version",
-                      DS_SCHEMA_VERSION);
+        j = json_pack("{s:s, s:s, s:s, s:I, s:o?, s:o?, s:s, s:s, s:i}", "name", sum.name,
+                      "created", sum.created, "rig", sum.rig, "captures", (json_int_t)sum.captures,
+                      "cameras", names_json(sum.cameras, sum.n_cameras), "lamps",
+                      names_json(sum.lamps, sum.n_lamps), "format", "png", "index", DS_INDEX,
+                      "schema_version", sum.schema_version);
         text = j ? json_dumps(j, JSON_INDENT(2)) : NULL;
         if (!text)
                 return -ENOMEM;
         r = gn_write_atomic(d->dir_fd, DS_JSON, text, strlen(text), NULL);
         if (r < 0)
-                return log_error_errno(r, "dataset '%s': Failed to write %s: %m", d->path, DS_JSON);
+                return ds_fail(d, r, "Failed to write %s: %s", DS_JSON, strerror(-r));
         return 0;
 }
 
@@ -344,6 +87,7 @@ static struct ds *ds_free(struct ds *d)
         if (!d)
                 return NULL;
         sqlite3_finalize(d->insert);
+        sqlite3_finalize(d->add_name);
         if (sqlite3_close(d->db) != SQLITE_OK)
                 log_warning("dataset '%s': index not closed cleanly: %s", d->path,
                             sqlite3_errmsg(d->db));
@@ -394,28 +138,6 @@ static void rig_name(const char *rig_text, char *out, size_t outlen)
         yconf_close(&yc);
 }
 
-static int create_index(struct ds *d)
-{
-        int r;
-
-        r = db_open(d, true);
-        if (r == 0)
-                r = db_exec(d, "BEGIN");
-        if (r == 0)
-                r = db_exec(d, schema_sql);
-        if (r == 0)
-                r = meta_set(d, "schema_version", DS_SCHEMA_VERSION_STR);
-        if (r == 0)
-                r = meta_set(d, "name", d->name);
-        if (r == 0)
-                r = meta_set(d, "created", d->created);
-        if (r == 0)
-                r = meta_set(d, "rig", d->rig);
-        if (r == 0)
-                r = db_exec(d, "COMMIT");
-        return r;
-}
-
 /* Fills the new, empty directory path with a dataset. */
 static int create_contents(const char *path, const char *name, const char *rig_text,
                            struct ds **ret)
@@ -438,7 +160,7 @@ static int create_contents(const char *path, const char *name, const char *rig_t
         if (rig_text &&
             (r = gn_write_atomic(d->dir_fd, DS_RIG, rig_text, strlen(rig_text), NULL)) < 0)
                 return r;
-        r = create_index(d);
+        r = ds_db_open(d, true);
         if (r == 0)
                 r = write_json(d);
         if (r == 0 && fsync(d->dir_fd) < 0)
@@ -472,6 +194,8 @@ int ds_create(const char *path, const char *name, const char *rig_text, struct d
 {
         int r;
 
+        DS_ASSERT_THREAD_ALLOWED();
+
         if (!path || !name || !*name || strlen(name) >= DS_NAME_MAX || !ret)
                 return -EINVAL;
         if (mkdir(path, 0755) < 0)
@@ -485,51 +209,15 @@ int ds_create(const char *path, const char *name, const char *rig_text, struct d
         return 0;
 }
 
-/* Brings an index of an older schema to DS_SCHEMA_VERSION, in one transaction that
- * holds SQLite's write lock, so two openers cannot both migrate. */
-static int migrate(struct ds *d)
-{
-        char version[16];
-        int64_t v = 0;
-        int r;
-
-        r = db_exec(d, "BEGIN IMMEDIATE");
-        if (r == 0)
-                r = db_int64(d, "PRAGMA user_version", &v);
-        if (r == 0 && v == 0)
-                r = meta_get(d, "schema_version", version, sizeof(version));
-        if (r == 0 && v == 0 && strcmp(version, "1") != 0)
-                r = ds_fail(d, -EBADMSG, "unknown schema version %s", version);
-        if (r == 0 && v == 0) {
-                log_notice("dataset '%s': migrating its index from schema 1 to %d", d->path,
-                           DS_SCHEMA_VERSION);
-                r = db_exec(d, migrate_v1_sql);
-        }
-        if (r == 0)
-                return db_exec(d, "COMMIT");
-        (void)sqlite3_exec(d->db, "ROLLBACK", NULL, NULL, NULL);
-        return r;
-}
-
 static int read_meta(struct ds *d)
 {
-        int64_t v = 0;
         int r;
 
-        r = db_int64(d, "PRAGMA user_version", &v);
-        if (r == 0 && v < DS_SCHEMA_VERSION) {
-                r = migrate(d);
-                v = DS_SCHEMA_VERSION;
-        }
-        if (r == 0 && v != DS_SCHEMA_VERSION)
-                r = ds_fail(d, -EBADMSG, "unknown schema version %lld (newer software?)",
-                            (long long)v);
+        r = ds_meta_get(d, "name", d->name, sizeof(d->name));
         if (r == 0)
-                r = meta_get(d, "name", d->name, sizeof(d->name));
+                r = ds_meta_get(d, "created", d->created, sizeof(d->created));
         if (r == 0)
-                r = meta_get(d, "created", d->created, sizeof(d->created));
-        if (r == 0)
-                r = meta_get(d, "rig", d->rig, sizeof(d->rig));
+                r = ds_meta_get(d, "rig", d->rig, sizeof(d->rig));
         return r;
 }
 
@@ -537,6 +225,8 @@ int ds_open(const char *path, struct ds **ret)
 {
         _cleanup_(ds_freep) struct ds *d = NULL;
         int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
 
         if (!path || !ret)
                 return -EINVAL;
@@ -547,7 +237,7 @@ int ds_open(const char *path, struct ds **ret)
         if (d->img_fd < 0)
                 return log_error_errno(errno == ENOENT ? SYNTHETIC_ERRNO(EBADMSG) : errno,
                                        "'%s' is not a dataset (no %s/): %m", path, DS_IMAGES);
-        r = db_open(d, false);
+        r = ds_db_open(d, false);
         if (r == 0)
                 r = read_meta(d);
         if (r < 0)
@@ -558,6 +248,8 @@ int ds_open(const char *path, struct ds **ret)
 
 struct ds *ds_close(struct ds *d)
 {
+        if (d)
+                DS_ASSERT_THREAD_ALLOWED();
         if (d && d->writer)
                 (void)write_json(d);
         return ds_free(d);
@@ -589,17 +281,6 @@ const char *ds_name(const struct ds *d)
 const char *ds_last_error(const struct ds *d)
 {
         return d->error;
-}
-
-int64_t ds_count(struct ds *d)
-{
-        int64_t n = 0;
-        int r;
-
-        if (!d)
-                return -EINVAL;
-        r = db_int64(d, "SELECT count(*) FROM captures", &n);
-        return r < 0 ? r : n;
 }
 
 /* ---- storing ---- */
@@ -656,14 +337,11 @@ static int become_writer(struct ds *d)
         if (flock(d->dir_fd, LOCK_EX | LOCK_NB) < 0)
                 return ds_fail(d, errno == EWOULDBLOCK ? -EBUSY : -errno,
                                "being written by another process");
-        r = db_int64(d, "SELECT coalesce(max(id), 0) + 1 FROM captures", &d->next_id);
+        r = ds_db_int64(d, "SELECT coalesce(max(id), 0) + 1 FROM captures", &d->next_id);
+        if (r == 0 && (r = remove_orphans(d)) < 0)
+                ds_fail(d, r, "Failed to remove what an interrupted store left: %s", strerror(-r));
         if (r == 0)
-                r = remove_orphans(d);
-        if (r == 0 && !d->insert)
-                r = db_prepare(d,
-                               "INSERT INTO captures (" CAPTURE_COLUMNS ") VALUES "
-                               "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
-                               &d->insert);
+                r = ds_db_prepare_writer(d);
         if (r < 0) {
                 (void)flock(d->dir_fd, LOCK_UN);
                 return r;
@@ -699,47 +377,6 @@ static const char *image_name(struct ds_capture *c)
         return c->file + strlen(DS_IMAGES "/");
 }
 
-static int bind_capture(sqlite3_stmt *s, const struct ds_capture *c)
-{
-        int i = 1, rc = 0;
-
-        rc |= sqlite3_bind_int64(s, i++, c->id);
-        rc |= sqlite3_bind_text(s, i++, c->session, -1, SQLITE_STATIC);
-        for (int k = 0; k < GN_ROLE_COUNT; k++, i++)
-                rc |= gn_pose_has(&c->pose, k) ? sqlite3_bind_double(s, i, c->pose.deg[k])
-                                               : sqlite3_bind_null(s, i);
-        rc |= sqlite3_bind_text(s, i++, c->camera, -1, SQLITE_STATIC);
-        rc |= sqlite3_bind_text(s, i++, c->lamps, -1, SQLITE_STATIC);
-        rc |= sqlite3_bind_int64(s, i++, c->pose.lamps);
-        rc |= sqlite3_bind_int(s, i++, c->pose.laser);
-        rc |= sqlite3_bind_int(s, i++, c->exposure_us);
-        rc |= sqlite3_bind_double(s, i++, c->gain);
-        rc |= sqlite3_bind_int64(s, i++, (sqlite3_int64)c->t_request_ns);
-        rc |= sqlite3_bind_int64(s, i++, (sqlite3_int64)c->t_exposure_ns);
-        rc |= sqlite3_bind_int64(s, i++, (sqlite3_int64)c->t_stored_ns);
-        rc |= sqlite3_bind_text(s, i++, c->file, -1, SQLITE_STATIC);
-        rc |= sqlite3_bind_text(s, i++, c->sha256, -1, SQLITE_STATIC);
-        rc |= sqlite3_bind_int(s, i++, c->width);
-        rc |= sqlite3_bind_int(s, i++, c->height);
-        rc |= sqlite3_bind_text(s, i++, c->pixfmt, -1, SQLITE_STATIC);
-        return rc == SQLITE_OK ? 0 : -ENOMEM;
-}
-
-static int insert_row(struct ds *d, const struct ds_capture *c)
-{
-        int r, rc;
-
-        r = bind_capture(d->insert, c);
-        rc = r == 0 ? sqlite3_step(d->insert) : SQLITE_NOMEM;
-        if (rc != SQLITE_DONE)
-                r = db_fail(d, rc, "Failed to commit capture row");
-        sqlite3_reset(d->insert);
-        sqlite3_clear_bindings(d->insert);
-        return r;
-}
-
-DEFINE_TRIVIAL_CLEANUP_FUNC(struct gn_sha256 *, gn_sha256_free);
-
 /* Writes an image atomically, hashing its bytes on the way into hex. */
 static int write_image(int dir_fd, const char *name, const void *png, size_t len,
                        char hex[GN_SHA256_HEX])
@@ -763,7 +400,7 @@ static int store_encoded(struct ds *d, const void *png, size_t len, struct ds_ca
         if (r < 0)
                 return ds_fail(d, r, "Failed to write %s: %s", row->file, strerror(-r));
         row->t_stored_ns = gn_realtime_ns();
-        r = insert_row(d, row);
+        r = ds_db_insert(d, row);
         if (r < 0 && unlinkat(d->img_fd, name, 0) == 0)
                 (void)fsync(d->img_fd);
         return r;
@@ -775,9 +412,13 @@ int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_fram
         struct ds_capture row;
         int r;
 
+        DS_ASSERT_THREAD_ALLOWED();
+
         if (!d || !png || !shape || !c)
                 return -EINVAL;
         d->error[0] = 0;
+        if (!c->camera[0])
+                return ds_fail(d, -EINVAL, "a capture needs a camera name");
         r = become_writer(d);
         if (r < 0)
                 return r;
@@ -800,6 +441,8 @@ int ds_store(struct ds *d, const struct gn_frame *frame, struct ds_capture *c)
         size_t len = 0;
         int r;
 
+        DS_ASSERT_THREAD_ALLOWED();
+
         if (!d || !frame || !c)
                 return -EINVAL;
         r = ds_png_encode(frame, d->png_level, &png, &len);
@@ -807,116 +450,4 @@ int ds_store(struct ds *d, const struct gn_frame *frame, struct ds_capture *c)
                 return ds_fail(d, r, "Failed to encode %dx%d %s frame: %s", frame->width,
                                frame->height, gn_frame_format(frame), strerror(-r));
         return ds_store_png(d, png, len, frame, c);
-}
-
-/* ---- reading ---- */
-
-static void column_text(sqlite3_stmt *s, int col, char *out, size_t outlen)
-{
-        const unsigned char *t = sqlite3_column_text(s, col);
-
-        snprintf(out, outlen, "%s", t ? (const char *)t : "");
-}
-
-static void row_to_capture(sqlite3_stmt *s, struct ds_capture *c)
-{
-        int i = 0;
-
-        memset(c, 0, sizeof(*c));
-        c->id = sqlite3_column_int64(s, i++);
-        column_text(s, i++, c->session, sizeof(c->session));
-        for (int k = 0; k < GN_ROLE_COUNT; k++, i++)
-                c->pose.deg[k] = sqlite3_column_type(s, i) == SQLITE_NULL
-                                         ? NAN
-                                         : sqlite3_column_double(s, i);
-        column_text(s, i++, c->camera, sizeof(c->camera));
-        column_text(s, i++, c->lamps, sizeof(c->lamps));
-        c->pose.lamps = (uint32_t)sqlite3_column_int64(s, i++);
-        c->pose.laser = sqlite3_column_int(s, i++) != 0;
-        c->exposure_us = sqlite3_column_int(s, i++);
-        c->gain = sqlite3_column_double(s, i++);
-        c->t_request_ns = (uint64_t)sqlite3_column_int64(s, i++);
-        c->t_exposure_ns = (uint64_t)sqlite3_column_int64(s, i++);
-        c->t_stored_ns = (uint64_t)sqlite3_column_int64(s, i++);
-        column_text(s, i++, c->file, sizeof(c->file));
-        column_text(s, i++, c->sha256, sizeof(c->sha256));
-        c->width = sqlite3_column_int(s, i++);
-        c->height = sqlite3_column_int(s, i++);
-        column_text(s, i++, c->pixfmt, sizeof(c->pixfmt));
-}
-
-int ds_foreach(struct ds *d, int (*fn)(const struct ds_capture *c, void *ud), void *ud)
-{
-        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
-        struct ds_capture c;
-        int r, rc;
-
-        if (!d || !fn)
-                return -EINVAL;
-        r = db_prepare(d, "SELECT " CAPTURE_COLUMNS " FROM captures ORDER BY id", &s);
-        if (r < 0)
-                return r;
-        while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
-                row_to_capture(s, &c);
-                r = fn(&c, ud);
-                if (r < 0)
-                        return r;
-        }
-        return rc == SQLITE_DONE ? 0 : db_fail(d, rc, "Failed to read captures");
-}
-
-/* A file name of the dataset must be relative and stay inside it. */
-static bool file_name_ok(const char *file)
-{
-        return file && *file && file[0] != '/' && !strstr(file, "..");
-}
-
-int ds_load_image(struct ds *d, const char *file, struct gn_frame *out)
-{
-        _cleanup_free_ void *buf = NULL;
-        size_t len = 0;
-        int r;
-
-        if (!d || !file_name_ok(file) || !out)
-                return -EINVAL;
-        r = gn_read_file_at(d->dir_fd, file, DS_FILE_MAX, &buf, &len);
-        if (r == 0)
-                r = ds_png_decode(buf, len, out);
-        if (r < 0)
-                return log_error_errno(r, "dataset '%s': Failed to load %s: %m", d->path, file);
-        return 0;
-}
-
-struct verify_ctx {
-        struct ds *d;
-        int bad;
-};
-
-static int verify_one(const struct ds_capture *c, void *ud)
-{
-        struct verify_ctx *v = ud;
-        char hex[65];
-        int r;
-
-        r = file_name_ok(c->file) ? gn_sha256_file_at(v->d->dir_fd, c->file, hex) : -ENOENT;
-        if (r < 0 && r != -ENOENT)
-                return log_error_errno(r, "dataset '%s': Failed to hash %s: %m", v->d->path,
-                                       c->file);
-        if (r == 0 && strcmp(hex, c->sha256) == 0)
-                return 0;
-        log_warning("dataset '%s': capture %lld: %s %s", v->d->path, (long long)c->id, c->file,
-                    r < 0 ? "is missing" : "does not match its checksum");
-        v->bad++;
-        return 0;
-}
-
-int ds_verify(struct ds *d)
-{
-        struct verify_ctx v = {.d = d};
-        int r;
-
-        if (!d)
-                return -EINVAL;
-        r = ds_foreach(d, verify_one, &v);
-        return r < 0 ? r : v.bad;
 }

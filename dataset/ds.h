@@ -1,16 +1,20 @@
-/* ds.h - the dataset store: a directory of lossless PNG images, an SQLite index
- * (WAL) with one row per capture, the rig file used, and dataset.json.
+/* ds.h - the dataset library (gn_dataset): a directory of lossless PNG images, an
+ * SQLite index (WAL) with one row per capture, the rig file used, and dataset.json;
+ * used by goniod and, offline, by calibration, the appearance fit and the exporters.
+ * It never touches devices.
  *
  * Layout of a dataset directory:
  *   dataset.json          summary (name, created, rig, counts), rewritten on close
- *   index.sqlite          captures table (+ WAL files while open)
+ *   index.sqlite          captures and names tables (+ WAL files while open)
  *   rig.yaml              the rig file the captures were taken with
  *   images/NNNNNN_<camera>_<lamp>.png
  *
  * Every image is written to a temporary name, fsynced, renamed and its directory
  * fsynced before its row is committed, so a crash leaves no torn file and no row
- * without its image. A struct ds is used from one thread at a time (the storage
- * worker); ds_pool runs stores off the event loop. */
+ * without its image. Readers use the read API (ds_summary, ds_rows, ds_rows_by_pose)
+ * and never parse dataset.json or walk the whole index themselves. Every function but the accessors
+ * does blocking I/O: call it from a worker (see ds_forbid_thread). A struct ds is used from one
+ * thread at a time; ds_pool (ds_pool.h) stores frames off the event loop. */
 #pragma once
 
 #include <stdbool.h>
@@ -49,8 +53,9 @@ struct ds_capture {
  * create removes what it made. */
 int ds_create(const char *path, const char *name, const char *rig_text, struct ds **ret);
 
-/* Opens an existing dataset for appending or reading. An index of schema 1 (angles
- * NOT NULL, no lamp bits) is migrated to the current schema in one transaction.
+/* Opens an existing dataset for appending or reading. An index of an older schema (1:
+ * angles NOT NULL, no lamp bits; 2: no names table) is migrated to the current one in
+ * one transaction (docs/dataset.md).
  * Returns 0, -ENOENT, -EBADMSG (not a dataset / corrupt index / unknown schema) or
  * -errno. */
 int ds_open(const char *path, struct ds **ret);
@@ -84,11 +89,59 @@ int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_fram
  * operation), "" if none yet. Valid until the next call on d; same thread as the call. */
 const char *ds_last_error(const struct ds *d);
 
-/* Number of rows. */
+/* Marks (true) or unmarks the calling thread as one that must never wait for dataset
+ * I/O: goniod's event loop while it serves. In builds with assertions, every ds_
+ * function that touches files or the index (create, open, close, store, count,
+ * summary, rows, load, verify) aborts when called on a marked thread; without them,
+ * nothing is checked. The mark is per thread. */
+void ds_forbid_thread(bool forbid);
+
+/* Number of rows (from the per-camera counts: no scan). Returns >= 0 or -errno. */
 int64_t ds_count(struct ds *d);
 
-/* Calls fn for each row in id order; stops early and returns fn's value if negative. */
-int ds_foreach(struct ds *d, int (*fn)(const struct ds_capture *c, void *ud), void *ud);
+/* The most names a summary lists per kind. */
+#define DS_SUMMARY_MAX_NAMES 32
+
+/* A camera or lamp name and the number of captures that name it. */
+struct ds_name_count {
+        char name[DS_NAME_MAX];
+        int64_t captures;
+};
+
+/* What a dataset holds, read from its index (never from dataset.json). */
+struct ds_summary {
+        char name[DS_NAME_MAX];
+        char created[32]; /* ISO 8601, UTC */
+        char rig[64];     /* the rig's name, "" if unknown */
+        int schema_version;
+        int64_t captures; /* rows */
+        int64_t last_id;  /* highest row id, 0 when empty */
+        size_t n_cameras, n_lamps;
+        struct ds_name_count cameras[DS_SUMMARY_MAX_NAMES]; /* by name; the first 32 */
+        struct ds_name_count lamps[DS_SUMMARY_MAX_NAMES];
+};
+
+/* Fills out from the index with a few indexed queries (cost independent of the number
+ * of rows). Returns 0 or -errno. */
+int ds_summary(struct ds *d, struct ds_summary *out);
+
+/* Called for each row a query passes; c is valid during the call only. A negative
+ * return stops the query, which returns it. */
+typedef int (*ds_row_fn)(const struct ds_capture *c, void *userdata);
+
+/* Calls fn for at most limit rows (limit < 0: all) whose id is above after_id, in id
+ * order; SQLite reads only those (LIMIT on the primary key). Returns the number of rows
+ * passed to fn, fn's negative value, or -errno. */
+int ds_rows(struct ds *d, int64_t after_id, int limit, ds_row_fn fn, void *userdata);
+
+/* Calls fn, in id order, for each row taken at the pose p: for each role p has (angle
+ * not NAN), the row has an axis of that role within tol_deg of p's angle (modulo 360);
+ * roles p lacks match any row. p's lamps and laser are not compared: the result is one
+ * view under every lighting (filter on c->pose.lamps for one lamp). SQLite tests every
+ * row (angles modulo 360 fit no index); only matching rows are decoded. Returns the
+ * number of rows passed to fn, fn's negative value, -EINVAL (tol_deg < 0) or -errno. */
+int ds_rows_by_pose(struct ds *d, const struct gn_pose *p, double tol_deg, ds_row_fn fn,
+                    void *userdata);
 
 /* Reads an image of the dataset back (PNG decode) into out. Returns 0 or -errno. */
 int ds_load_image(struct ds *d, const char *file, struct gn_frame *out);

@@ -16,12 +16,17 @@
  * order the encodes finish (row ids follow commit order; t_request_ns keeps the order
  * of the requests).
  *
+ * Outcome: a job's done reports exactly what the writer did: 0 only after its row was
+ * committed, else the -errno and message of the stage that failed (the store leaves
+ * nothing behind on failure, see ds.c); the result is never changed after the commit.
+ *
  * Shutdown: ds_pool_free frees the encoders first (finished encodes are handed to the
  * writer, queued ones are cancelled), then the writer (its running store completes,
  * queued ones are cancelled). Every accepted job gets exactly one done. */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "common/cleanup.h"
 #include "common/workq.h"
@@ -47,12 +52,17 @@ struct store_job {
         size_t len;
         ds_pool_done_fn done;
         void *userdata;
+        char error[256]; /* why the job failed, set by the thread that failed it */
 };
 
 static void job_finish(struct store_job *j, int result)
 {
+        if (result == -ECANCELED && !j->error[0])
+                snprintf(j->error, sizeof(j->error), "cancelled before it was stored");
+        if (result < 0)
+                j->capture.id = 0;
         if (j->done)
-                j->done(result, &j->capture, j->userdata);
+                j->done(result, &j->capture, result < 0 ? j->error : "", j->userdata);
         j->pool->in_flight--;
         free(j->png);
         gn_frame_free_data(&j->frame);
@@ -65,6 +75,9 @@ static int encode_job(void *userdata)
         struct store_job *j = userdata;
         int r = ds_png_encode(&j->frame, j->level, &j->png, &j->len);
 
+        if (r < 0)
+                snprintf(j->error, sizeof(j->error), "Failed to encode %dx%d %s frame: %s",
+                         j->frame.width, j->frame.height, gn_frame_format(&j->frame), strerror(-r));
         free(j->frame.data);
         j->frame.data = NULL;
         return r;
@@ -74,8 +87,11 @@ static int encode_job(void *userdata)
 static int write_job(void *userdata)
 {
         struct store_job *j = userdata;
+        int r = ds_store_png(j->pool->ds, j->png, j->len, &j->frame, &j->capture);
 
-        return ds_store_png(j->pool->ds, j->png, j->len, &j->frame, &j->capture);
+        if (r < 0)
+                snprintf(j->error, sizeof(j->error), "%s", ds_last_error(j->pool->ds));
+        return r;
 }
 
 static void write_done(int result, void *userdata)
@@ -164,6 +180,7 @@ int ds_pool_store(struct ds_pool *p, struct gn_frame *frame, const struct ds_cap
                                 .level = ds_get_compression(p->ds),
                                 .done = done,
                                 .userdata = userdata};
+        j->capture.id = 0; /* set once committed */
         r = workq_push(least_busy_encoder(p), encode_job, encode_done, j, false);
         if (r < 0) {
                 free(j);

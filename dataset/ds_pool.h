@@ -12,11 +12,16 @@ typedef struct sd_event sd_event;
 
 struct ds_pool;
 
-/* Called on the loop thread once per accepted job: result is 0 (c filled in by the
- * store: id, file, sha256...), -ECANCELED (dropped by ds_pool_free before it ran)
- * or the -errno of ds_store (e.g. -ENOSPC: nothing recorded). c is valid during the
- * call only. */
-typedef void (*ds_pool_done_fn)(int result, const struct ds_capture *c, void *userdata);
+/* Called on the loop thread exactly once per accepted job, saying what became of its
+ * frame. result 0: the row is committed, and c is that row (c->id > 0, file, sha256...).
+ * result < 0: nothing of the frame is recorded (no row, no file, not even after a full
+ * disk) and c->id is 0: -ECANCELED (dropped by ds_pool_free before it ran), or the
+ * -errno of the encoder or of ds_store_png (-ENOSPC, -EFBIG...), with error saying why
+ * (ds_last_error(), or the encoder's failure); error is "" on success. A frame is never
+ * reported failed once its row is committed. c and error are valid during the call
+ * only. */
+typedef void (*ds_pool_done_fn)(int result, const struct ds_capture *c, const char *error,
+                                void *userdata);
 
 /* Starts n_encoders PNG encoder threads and one writer thread storing into d, taking
  * at most capacity jobs in flight. While the pool lives, d belongs to its writer: the

@@ -1,6 +1,7 @@
 /* ds-util.c - helpers shared by the dataset store tests (see ds-util.h). */
 #include <dirent.h>
 #include <ftw.h>
+#include <sqlite3.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -106,4 +107,30 @@ int tu_count_tmp(const char *dataset)
 
         snprintf(images, sizeof(images), "%s/images", dataset);
         return tu_count(dataset, ".tmp") + tu_count(images, ".tmp");
+}
+
+void tu_make_schema1(const char *path, const char *extra_sql)
+{
+        char index[4200];
+        sqlite3 *db;
+
+        snprintf(index, sizeof(index), "%s/index.sqlite", path);
+        CHECK(sqlite3_open_v2(index, &db, SQLITE_OPEN_READWRITE, NULL) == SQLITE_OK);
+        CHECK(sqlite3_exec(db,
+                           "DROP TABLE captures; DROP TABLE names;"
+                           "CREATE TABLE captures (id INTEGER PRIMARY KEY,"
+                           " session TEXT NOT NULL DEFAULT '',"
+                           " turntable_deg REAL NOT NULL, light_arm_deg REAL NOT NULL,"
+                           " camera_arm_deg REAL NOT NULL, camera TEXT NOT NULL,"
+                           " lamps TEXT NOT NULL, laser INTEGER NOT NULL,"
+                           " exposure_us INTEGER NOT NULL, gain REAL NOT NULL,"
+                           " t_request_ns INTEGER NOT NULL, t_exposure_ns INTEGER NOT NULL,"
+                           " t_stored_ns INTEGER NOT NULL, file TEXT NOT NULL UNIQUE,"
+                           " sha256 TEXT NOT NULL, width INTEGER NOT NULL,"
+                           " height INTEGER NOT NULL, pixfmt TEXT NOT NULL);"
+                           "UPDATE meta SET value = '1' WHERE key = 'schema_version';"
+                           "PRAGMA user_version = 0;",
+                           NULL, NULL, NULL) == SQLITE_OK);
+        CHECK(!extra_sql || sqlite3_exec(db, extra_sql, NULL, NULL, NULL) == SQLITE_OK);
+        CHECK(sqlite3_close(db) == SQLITE_OK);
 }

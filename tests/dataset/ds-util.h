@@ -26,5 +26,10 @@ void tu_capture(struct ds_capture *c, const char *camera, const char *lamps, int
 /* Number of entries of dir whose name ends with suffix ("" for all but . and ..). */
 int tu_count(const char *dir, const char *suffix);
 
+/* Turns the index of the closed dataset at path into the first schema (angles NOT NULL,
+ * no lamp_bits, no names table, user_version 0), keeping no rows, then runs extra_sql
+ * (may be NULL) on it. Exits on failure. */
+void tu_make_schema1(const char *path, const char *extra_sql);
+
 /* Number of files ending in ".tmp" anywhere in the dataset dir (top and images/). */
 int tu_count_tmp(const char *dataset);

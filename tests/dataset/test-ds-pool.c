@@ -31,11 +31,12 @@ struct job_ref {
         int index;
 };
 
-static void on_done(int result, const struct ds_capture *c, void *userdata)
+static void on_done(int result, const struct ds_capture *c, const char *error, void *userdata)
 {
         struct job_ref *ref = userdata;
         struct job_state *s = &ref->ctx->jobs[ref->index];
 
+        CHECK(result < 0 ? error[0] && c->id == 0 : !error[0] && c->id > 0);
         s->calls++;
         s->result = result;
         s->c = *c;

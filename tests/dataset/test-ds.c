@@ -7,12 +7,14 @@
 #include <fcntl.h>
 #include <jansson.h>
 #include <math.h>
+#include <openssl/sha.h>
 #include <signal.h>
 #include <sqlite3.h>
 #include <stdint.h>
 #include <string.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "common/sha256.h"
@@ -216,7 +218,7 @@ static void test_verify(void)
         for (int i = 0; i < 5; i++)
                 CHECK_INT(store(fx.d, 64, 48, 3, 8, "cam0", "l1", i, &c[i]), 0);
         CHECK_INT(ds_verify(fx.d), 0);
-        CHECK_INT(ds_foreach(fx.d, collect, &rows), 0);
+        CHECK(ds_rows(fx.d, 0, -1, collect, &rows) >= 0);
         CHECK_INT(rows.n, 5);
         for (int i = 0; i < 5; i++) {
                 path_of(&fx, rows.c[i].file, p, sizeof(p));
@@ -321,7 +323,7 @@ static void test_reopen(void)
         CHECK_INT(c[4].id, 5);
         fx.d = ds_close(fx.d);
         CHECK_INT(ds_open(fx.path, &fx.d), 0);
-        CHECK_INT(ds_foreach(fx.d, collect, &rows), 0);
+        CHECK(ds_rows(fx.d, 0, -1, collect, &rows) >= 0);
         CHECK_INT(rows.n, 5);
         for (int i = 0; i < 5; i++)
                 check_rows_equal(&rows.c[i], &c[i]);
@@ -330,6 +332,17 @@ static void test_reopen(void)
         CHECK_INT(json_integer_value(json_object_get(j, "captures")), 5);
         json_decref(j);
         teardown(&fx);
+}
+
+/* Replaces the file rel of the dataset with text. */
+static void touch_text(const struct fixture *fx, const char *rel, const char *text)
+{
+        char p[4200];
+        FILE *fp;
+
+        path_of(fx, rel, p, sizeof(p));
+        fp = fopen(p, "w");
+        CHECK(fp && fputs(text, fp) >= 0 && fclose(fp) == 0);
 }
 
 /* Runs sql on the dataset's index with a second connection. */
@@ -380,7 +393,7 @@ static void test_nullpose(void)
         gn_frame_free_data(&f);
         fx.d = ds_close(fx.d);
         CHECK_INT(ds_open(fx.path, &fx.d), 0);
-        CHECK_INT(ds_foreach(fx.d, collect, &rows), 0);
+        CHECK(ds_rows(fx.d, 0, -1, collect, &rows) >= 0);
         CHECK_INT(rows.n, 1);
         check_rows_equal(&rows.c[0], &c);
         CHECK(rows.c[0].pose.deg[GN_ROLE_TURNTABLE] == 33.5);
@@ -427,29 +440,26 @@ static void test_migrate(void)
 
         setup(&fx);
         fx.d = ds_close(fx.d);
-        raw_sql(&fx, "DROP TABLE captures;"
-                     "CREATE TABLE captures (id INTEGER PRIMARY KEY,"
-                     " session TEXT NOT NULL DEFAULT '',"
-                     " turntable_deg REAL NOT NULL, light_arm_deg REAL NOT NULL,"
-                     " camera_arm_deg REAL NOT NULL, camera TEXT NOT NULL, lamps TEXT NOT NULL,"
-                     " laser INTEGER NOT NULL, exposure_us INTEGER NOT NULL, gain REAL NOT NULL,"
-                     " t_request_ns INTEGER NOT NULL, t_exposure_ns INTEGER NOT NULL,"
-                     " t_stored_ns INTEGER NOT NULL, file TEXT NOT NULL UNIQUE,"
-                     " sha256 TEXT NOT NULL, width INTEGER NOT NULL, height INTEGER NOT NULL,"
-                     " pixfmt TEXT NOT NULL);"
-                     "INSERT INTO captures VALUES (1, 's', 10, 20, 30, 'cam0', 'l1', 1, 1000, 1.5,"
-                     " 5, 6, 7, 'images/000001_cam0_l1.png', 'ab', 4, 4, 'mono8');"
-                     "UPDATE meta SET value = '1' WHERE key = 'schema_version';"
-                     "PRAGMA user_version = 0;");
+        touch_text(&fx, "rig.yaml", "rig: old\nlamps:\n  - { name: l0 }\n  - { name: l1 }\n");
+        tu_make_schema1(fx.path,
+                        "INSERT INTO captures VALUES (1, 's', 10, 20, 30, 'cam0', 'l1', 1, 1000,"
+                        " 1.5, 5, 6, 7, 'images/000001_cam0_l1.png', 'ab', 4, 4, 'mono8');");
         CHECK_INT(ds_open(fx.path, &fx.d), 0);
-        CHECK_INT(ds_foreach(fx.d, collect, &rows), 0);
+        CHECK(ds_rows(fx.d, 0, -1, collect, &rows) >= 0);
         CHECK_INT(rows.n, 1);
         CHECK(rows.c[0].pose.deg[GN_ROLE_TURNTABLE] == 10);
         CHECK(rows.c[0].pose.deg[GN_ROLE_CAMERA_ARM] == 30);
         CHECK(rows.c[0].pose.laser);
         CHECK_STR(rows.c[0].lamps, "l1");
+        CHECK_INT(rows.c[0].pose.lamps, 0x2); /* l1 is the second lamp of rig.yaml */
+        struct ds_summary sum;
+        CHECK_INT(ds_summary(fx.d, &sum), 0); /* names counted from the old rows */
+        CHECK_INT(sum.captures, 1);
+        CHECK_INT(sum.n_cameras, 1);
+        CHECK_INT(sum.n_lamps, 1);
+        CHECK_STR(sum.lamps[0].name, "l1");
         fx.d = ds_close(fx.d);
-        raw_sql(&fx, "DELETE FROM captures"); /* its image does not exist */
+        raw_sql(&fx, "DELETE FROM captures; DELETE FROM names"); /* its image does not exist */
         CHECK_INT(ds_open(fx.path, &fx.d), 0);
         tu_capture(&c, "cam0", "", 1);
         c.pose.deg[GN_ROLE_CAMERA_ARM] = NAN;
@@ -459,19 +469,202 @@ static void test_migrate(void)
         gn_frame_free_data(&f);
         /* a schema from the future is refused */
         fx.d = ds_close(fx.d);
-        raw_sql(&fx, "PRAGMA user_version = 3");
+        raw_sql(&fx, "PRAGMA user_version = 4");
         CHECK_INT(ds_open(fx.path, &fx.d), -EBADMSG);
         teardown(&fx);
 }
 
+/* The summary comes from the index: names with their counts, rows, last id. */
+static void test_summary(void)
+{
+        struct fixture fx = {};
+        struct ds_summary sum;
+        struct ds_capture c;
+
+        setup(&fx);
+        CHECK_INT(ds_summary(fx.d, &sum), 0);
+        CHECK_STR(sum.name, "test-set");
+        CHECK_STR(sum.rig, "test-rig");
+        CHECK_INT(sum.captures, 0);
+        CHECK_INT(sum.last_id, 0);
+        CHECK_INT(sum.n_cameras, 0);
+        CHECK_INT(store(fx.d, 8, 8, 1, 8, "cam1", "l2,l1", 0, &c), 0);
+        CHECK_INT(store(fx.d, 8, 8, 1, 8, "cam0", "l1", 1, &c), 0);
+        CHECK_INT(store(fx.d, 8, 8, 1, 8, "cam0", "", 2, &c), 0);
+        fx.d = ds_close(fx.d);
+        CHECK_INT(ds_open(fx.path, &fx.d), 0);
+        CHECK_INT(ds_summary(fx.d, &sum), 0);
+        CHECK_INT(sum.captures, 3);
+        CHECK_INT(ds_count(fx.d), 3);
+        CHECK_INT(sum.last_id, 3);
+        CHECK_INT(sum.n_cameras, 2);
+        CHECK_STR(sum.cameras[0].name, "cam0");
+        CHECK_INT(sum.cameras[0].captures, 2);
+        CHECK_STR(sum.cameras[1].name, "cam1");
+        CHECK_INT(sum.n_lamps, 2);
+        CHECK_STR(sum.lamps[0].name, "l1");
+        CHECK_INT(sum.lamps[0].captures, 2);
+        CHECK_STR(sum.lamps[1].name, "l2");
+        CHECK_INT(sum.lamps[1].captures, 1);
+        CHECK(strlen(sum.created) == 20);
+        /* dataset.json is not read: removing it changes nothing */
+        char p[4200];
+        path_of(&fx, "dataset.json", p, sizeof(p));
+        CHECK(unlink(p) == 0);
+        CHECK_INT(ds_summary(fx.d, &sum), 0);
+        CHECK_INT(sum.captures, 3);
+        teardown(&fx);
+}
+
+/* Rows by range: after_id and LIMIT. */
+static void test_rows(void)
+{
+        struct fixture fx = {};
+        struct ds_capture c;
+        struct rows rows = {};
+
+        setup(&fx);
+        for (int i = 0; i < 10; i++)
+                CHECK_INT(store(fx.d, 4, 4, 1, 8, "cam0", "l1", i, &c), 0);
+        CHECK_INT(ds_rows(fx.d, 3, 4, collect, &rows), 4);
+        CHECK_INT(rows.n, 4);
+        for (int i = 0; i < 4; i++)
+                CHECK_INT(rows.c[i].id, 4 + i);
+        rows.n = 0;
+        CHECK_INT(ds_rows(fx.d, 8, 5, collect, &rows), 2);
+        CHECK_INT(rows.c[1].id, 10);
+        rows.n = 0;
+        CHECK_INT(ds_rows(fx.d, 10, 5, collect, &rows), 0);
+        CHECK_INT(ds_rows(fx.d, 0, -1, collect, &rows), 10);
+        CHECK_INT(ds_rows(fx.d, 0, 0, collect, &rows), 0);
+        teardown(&fx);
+}
+
+static int stop_at_two(const struct ds_capture *c, void *ud)
+{
+        return c->id == 2 ? -ECANCELED : 0;
+}
+
+/* Rows by pose: roles the query has are compared modulo 360, roles it lacks match
+ * anything, a row without the axis never matches an angle. */
+static void test_bypose(void)
+{
+        static const double tt[] = {0.0, 359.9, 90.0, 90.05, 180.0, 720.0};
+        struct fixture fx = {};
+        struct ds_capture c;
+        struct rows rows = {};
+        struct gn_pose q = gn_pose_none();
+        struct gn_frame f;
+
+        setup(&fx);
+        tu_frame(&f, 4, 4, 1, 8, 1, false);
+        for (int i = 0; i < 6; i++) {
+                tu_capture(&c, "cam0", "l1", i);
+                c.pose.deg[GN_ROLE_TURNTABLE] = tt[i];
+                c.pose.deg[GN_ROLE_CAMERA_ARM] = i == 5 ? NAN : 30.0;
+                CHECK_INT(ds_store(fx.d, &f, &c), 0);
+        }
+        gn_frame_free_data(&f);
+        q.deg[GN_ROLE_TURNTABLE] = 0.0;
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, 0.2, collect, &rows), 3); /* 0, 359.9, 720 */
+        CHECK_INT(rows.c[0].id, 1);
+        CHECK_INT(rows.c[1].id, 2);
+        CHECK_INT(rows.c[2].id, 6);
+        rows.n = 0;
+        q.deg[GN_ROLE_CAMERA_ARM] = 30.0; /* row 6 has no camera arm */
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, 0.2, collect, &rows), 2);
+        rows.n = 0;
+        q.deg[GN_ROLE_TURNTABLE] = 450.0; /* = 90 */
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, 0.1, collect, &rows), 2);
+        CHECK_INT(rows.c[0].id, 3);
+        CHECK_INT(rows.c[1].id, 4);
+        rows.n = 0;
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, 0.01, collect, &rows), 1);
+        q = gn_pose_none(); /* no role: every row */
+        rows.n = 0;
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, 0, collect, &rows), 6);
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, 0, stop_at_two, NULL), -ECANCELED);
+        CHECK_INT(ds_rows_by_pose(fx.d, &q, -1, collect, &rows), -EINVAL);
+        teardown(&fx);
+}
+
+/* SHA-256 of a whole file, computed apart from the store (one OpenSSL call over the
+ * file read back in one piece). */
+static void independent_sha256(const char *path, char hex[65])
+{
+        unsigned char md[SHA256_DIGEST_LENGTH];
+        FILE *fp = fopen(path, "rb");
+        uint8_t *buf;
+        long n;
+
+        CHECK(fp && fseek(fp, 0, SEEK_END) == 0 && (n = ftell(fp)) > 0 &&
+              fseek(fp, 0, SEEK_SET) == 0);
+        buf = malloc((size_t)n);
+        CHECK(buf && fread(buf, 1, (size_t)n, fp) == (size_t)n && fclose(fp) == 0);
+        CHECK(n > 4 << 20); /* several 1 MiB write chunks */
+        SHA256(buf, (size_t)n, md);
+        for (int i = 0; i < SHA256_DIGEST_LENGTH; i++)
+                snprintf(hex + 2 * i, 3, "%02x", md[i]);
+        free(buf);
+}
+
+/* Camera-sized frames (2448x2048 RGB noise, 8 and 16 bits, ~15 and ~30 MB of PNG):
+ * the checksum matches an independent hash of the file and the pixels round-trip. */
+static void test_camera(void)
+{
+        struct fixture fx = {};
+        struct gn_frame f, back = {};
+        struct ds_capture c;
+        char p[4400], hex[65];
+
+        setup(&fx);
+        for (int bits = 8; bits <= 16; bits += 8) {
+                tu_frame(&f, 2448, 2048, 3, bits, (unsigned)bits, false);
+                tu_capture(&c, "cam0", "l1", bits);
+                CHECK_INT(ds_store(fx.d, &f, &c), 0);
+                path_of(&fx, c.file, p, sizeof(p));
+                independent_sha256(p, hex);
+                CHECK_STR(c.sha256, hex);
+                CHECK_INT(ds_load_image(fx.d, c.file, &back), 0);
+                CHECK(tu_frames_equal(&f, &back));
+                gn_frame_free_data(&f);
+                gn_frame_free_data(&back);
+        }
+        CHECK_INT(ds_verify(fx.d), 0);
+        teardown(&fx);
+}
+
+/* A thread marked with ds_forbid_thread (goniod's loop) aborts on dataset I/O in builds
+ * with assertions; unmarked again, it may. */
+static void test_forbid(void)
+{
+#ifdef NDEBUG
+        exit(TEST_SKIP);
+#else
+        struct fixture fx = {};
+        int status;
+        pid_t pid;
+
+        setup(&fx);
+        pid = fork();
+        CHECK(pid >= 0);
+        if (pid == 0) {
+                ds_forbid_thread(true);
+                (void)ds_count(fx.d);
+                _exit(0);
+        }
+        CHECK(waitpid(pid, &status, 0) == pid);
+        CHECK(WIFSIGNALED(status) && WTERMSIG(status) == SIGABRT);
+        ds_forbid_thread(true);
+        ds_forbid_thread(false);
+        CHECK_INT(ds_count(fx.d), 0);
+        teardown(&fx);
+#endif
+}
+
 static void touch(const struct fixture *fx, const char *rel)
 {
-        char p[4200];
-        FILE *fp;
-
-        path_of(fx, rel, p, sizeof(p));
-        fp = fopen(p, "w");
-        CHECK(fp && fputs("torn", fp) >= 0 && fclose(fp) == 0);
+        touch_text(fx, rel, "torn");
 }
 
 static void test_tmpfiles(void)
@@ -586,7 +779,9 @@ int main(int argc, char **argv)
                 {"reopen", test_reopen},     {"tmpfiles", test_tmpfiles},
                 {"lock", test_lock},         {"fsize", test_fsize},
                 {"nullpose", test_nullpose}, {"refused", test_refused},
-                {"migrate", test_migrate},
+                {"migrate", test_migrate},   {"summary", test_summary},
+                {"rows", test_rows},         {"bypose", test_bypose},
+                {"camera", test_camera},     {"forbid", test_forbid},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);

@@ -1,0 +1,193 @@
+/* ds_read.c - the read API of the dataset library: summary, rows by range and by pose,
+ * images and verification (see ds.h). Every query is bounded by its result: the
+ * summary reads the names table and the primary key, rows use LIMIT on the key. */
+#include <fcntl.h>
+#include <math.h>
+#include <string.h>
+
+#include "common/fileio.h"
+#include "common/log.h"
+#include "common/sha256.h"
+#include "ds_internal.h"
+#include "ds_png.h"
+
+int64_t ds_count(struct ds *d)
+{
+        int64_t n = 0;
+        int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d)
+                return -EINVAL;
+        r = ds_db_int64(d, "SELECT coalesce(sum(captures), 0) FROM names WHERE kind = 'camera'",
+                        &n);
+        return r < 0 ? r : n;
+}
+
+/* Fills names with up to DS_SUMMARY_MAX_NAMES names of kind, by name. */
+static int read_names(struct ds *d, const char *kind, struct ds_name_count *names, size_t *n)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        int r, rc = SQLITE_DONE;
+
+        *n = 0;
+        r = ds_db_prepare(
+                d, "SELECT name, captures FROM names WHERE kind = ? ORDER BY name LIMIT ?", &s);
+        if (r < 0)
+                return r;
+        sqlite3_bind_text(s, 1, kind, -1, SQLITE_STATIC);
+        sqlite3_bind_int(s, 2, DS_SUMMARY_MAX_NAMES);
+        while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+                snprintf(names[*n].name, sizeof(names[*n].name), "%s",
+                         (const char *)sqlite3_column_text(s, 0));
+                names[(*n)++].captures = sqlite3_column_int64(s, 1);
+        }
+        return rc == SQLITE_DONE ? 0 : ds_db_fail(d, rc, "Failed to read names");
+}
+
+int ds_summary(struct ds *d, struct ds_summary *out)
+{
+        int64_t n;
+        int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d || !out)
+                return -EINVAL;
+        memset(out, 0, sizeof(*out));
+        snprintf(out->name, sizeof(out->name), "%s", d->name);
+        snprintf(out->created, sizeof(out->created), "%s", d->created);
+        snprintf(out->rig, sizeof(out->rig), "%s", d->rig);
+        out->schema_version = DS_SCHEMA_VERSION;
+        n = ds_count(d);
+        if (n < 0)
+                return (int)n;
+        out->captures = n;
+        r = ds_db_int64(d, "SELECT coalesce(max(id), 0) FROM captures", &out->last_id);
+        if (r == 0)
+                r = read_names(d, "camera", out->cameras, &out->n_cameras);
+        if (r == 0)
+                r = read_names(d, "lamp", out->lamps, &out->n_lamps);
+        return r;
+}
+
+/* Steps a prepared row query, calling fn for each row. */
+static int run_rows(struct ds *d, sqlite3_stmt *s, ds_row_fn fn, void *userdata)
+{
+        struct ds_capture c;
+        int n = 0, r, rc;
+
+        while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+                ds_db_read_row(s, &c);
+                r = fn(&c, userdata);
+                if (r < 0)
+                        return r;
+                n++;
+        }
+        return rc == SQLITE_DONE ? n : ds_db_fail(d, rc, "Failed to read captures");
+}
+
+int ds_rows(struct ds *d, int64_t after_id, int limit, ds_row_fn fn, void *userdata)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d || !fn)
+                return -EINVAL;
+        r = ds_db_prepare(d,
+                          "SELECT " DS_ROW_COLUMNS " FROM captures WHERE id > ? ORDER BY id"
+                          " LIMIT ?",
+                          &s);
+        if (r < 0)
+                return r;
+        sqlite3_bind_int64(s, 1, after_id);
+        sqlite3_bind_int(s, 2, limit < 0 ? -1 : limit);
+        return run_rows(d, s, fn, userdata);
+}
+
+int ds_rows_by_pose(struct ds *d, const struct gn_pose *p, double tol_deg, ds_row_fn fn,
+                    void *userdata)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d || !p || !fn || !(tol_deg >= 0))
+                return -EINVAL;
+        r = ds_db_prepare(d,
+                          "SELECT " DS_ROW_COLUMNS " FROM captures WHERE"
+                          " (?1 IS NULL OR gn_angle_dist(turntable_deg, ?1) <= ?4) AND"
+                          " (?2 IS NULL OR gn_angle_dist(light_arm_deg, ?2) <= ?4) AND"
+                          " (?3 IS NULL OR gn_angle_dist(camera_arm_deg, ?3) <= ?4) ORDER BY id",
+                          &s);
+        if (r < 0)
+                return r;
+        for (int k = 0; k < GN_ROLE_COUNT; k++)
+                if (gn_pose_has(p, k))
+                        sqlite3_bind_double(s, k + 1, p->deg[k]);
+        sqlite3_bind_double(s, 4, tol_deg);
+        return run_rows(d, s, fn, userdata);
+}
+
+/* A file name of the dataset must be relative and stay inside it. */
+static bool file_name_ok(const char *file)
+{
+        return file && *file && file[0] != '/' && !strstr(file, "..");
+}
+
+int ds_load_image(struct ds *d, const char *file, struct gn_frame *out)
+{
+        _cleanup_free_ void *buf = NULL;
+        size_t len = 0;
+        int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d || !file_name_ok(file) || !out)
+                return -EINVAL;
+        r = gn_read_file_at(d->dir_fd, file, DS_FILE_MAX, &buf, &len);
+        if (r == 0)
+                r = ds_png_decode(buf, len, out);
+        if (r < 0)
+                return ds_fail(d, r, "Failed to load %s: %s", file, strerror(-r));
+        return 0;
+}
+
+struct verify_ctx {
+        struct ds *d;
+        int bad;
+};
+
+static int verify_one(const struct ds_capture *c, void *ud)
+{
+        struct verify_ctx *v = ud;
+        char hex[GN_SHA256_HEX];
+        int r;
+
+        r = file_name_ok(c->file) ? gn_sha256_file_at(v->d->dir_fd, c->file, hex) : -ENOENT;
+        if (r < 0 && r != -ENOENT)
+                return ds_fail(v->d, r, "Failed to hash %s: %s", c->file, strerror(-r));
+        if (r == 0 && strcmp(hex, c->sha256) == 0)
+                return 0;
+        log_warning("dataset '%s': capture %lld: %s %s", v->d->path, (long long)c->id, c->file,
+                    r < 0 ? "is missing" : "does not match its checksum");
+        v->bad++;
+        return 0;
+}
+
+int ds_verify(struct ds *d)
+{
+        struct verify_ctx v = {.d = d};
+        int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d)
+                return -EINVAL;
+        r = ds_rows(d, 0, -1, verify_one, &v);
+        return r < 0 ? r : v.bad;
+}
