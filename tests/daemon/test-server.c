@@ -365,6 +365,8 @@ static void test_evict(const char *path)
         int a = conn(path), b = conn(path), c = conn(path), d = conn(path), e, f, g, h;
 
         call_ok(a, "hello");
+        send_req(a, "hold"); /* a is idle longest, but awaits a reply */
+        usleep(10000);
         call_ok(b, "hello");
         call_ok(c, "status"); /* a request is not a hello */
         /* full: the oldest without hello goes (c, then d) */
@@ -378,7 +380,6 @@ static void test_evict(const char *path)
         g = conn(path);
         expect_dropped(g, "too many clients (4)");
         /* past the idle timeout: the one idle longest goes, not one awaiting a reply */
-        send_req(a, "hold");
         usleep(EVICT_IDLE_US + 100000);
         call_ok(e, "status");
         h = conn(path);
