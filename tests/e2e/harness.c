@@ -200,9 +200,20 @@ static void kill_children(void)
                 kill(running->sim, SIGKILL);
 }
 
+void rigenv_start_daemon(struct rigenv *e)
+{
+        char *d_argv[] = {(char *)e->goniod, "--rig",  e->rig,  "--socket",
+                          e->sock,           "--data", e->data, NULL};
+        int fd;
+
+        e->daemon = spawn(d_argv, &fd);
+        close(fd);
+        wait_socket(e, 30);
+}
+
 void rigenv_start(struct rigenv *e, char **argv, double time_scale)
 {
-        char scale[32], *sim_argv[8], *d_argv[10];
+        char scale[32], *sim_argv[8];
         int fd;
 
         memset(e, 0, sizeof(*e));
@@ -227,13 +238,7 @@ void rigenv_start(struct rigenv *e, char **argv, double time_scale)
         e->sim = spawn(sim_argv, &fd);
         CHECK(wait_word(fd, "ready", 30));
         close(fd);
-        memcpy(d_argv,
-               (char *[]){(char *)e->goniod, "--rig", e->rig, "--socket", e->sock, "--data",
-                          e->data, NULL},
-               sizeof(char *) * 8);
-        e->daemon = spawn(d_argv, &fd);
-        close(fd);
-        wait_socket(e, 30);
+        rigenv_start_daemon(e);
 }
 
 /* SIGTERMs pid and checks it exits cleanly (under ASan a leak makes the status non-zero). */

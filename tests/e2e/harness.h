@@ -20,6 +20,10 @@ struct rigenv {
  * with time_scale and goniod. Exits the test on failure. */
 void rigenv_start(struct rigenv *e, char **argv, double time_scale);
 
+/* Starts goniod on e's rig, socket and data dir (again, e.g. after killing it) and waits
+ * until its socket accepts. Exits the test on failure. */
+void rigenv_start_daemon(struct rigenv *e);
+
 /* SIGTERMs both processes, waits, and removes the temp dir. */
 void rigenv_stop(struct rigenv *e);
 
