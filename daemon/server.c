@@ -66,6 +66,8 @@ struct server {
         struct client *clients;
         unsigned n_clients, max_clients;
         uint64_t idle_usec;
+        uint64_t log_quiet_until; /* log_drop */
+        unsigned log_skipped;
 };
 
 struct srv_req {
@@ -334,6 +336,21 @@ static int on_client_io(sd_event_source *es, int fd, uint32_t revents, void *use
         return 0;
 }
 
+/* Logs an eviction or refusal, at most one a second with a count of those skipped, so
+ * that a flood of connections does not flood the journal. */
+static void log_drop(struct server *s, const char *what, const char *text)
+{
+        uint64_t now = loop_now(s);
+
+        if (now < s->log_quiet_until) {
+                s->log_skipped++;
+                return;
+        }
+        log_notice("%s: %s (%u more not logged)", what, text, s->log_skipped);
+        s->log_skipped = 0;
+        s->log_quiet_until = now + 1000000;
+}
+
 /* Writes one error line for -EUSERS straight to a connection we will not serve. */
 static void refuse(struct server *s, int fd, const char *why)
 {
@@ -349,7 +366,7 @@ static void refuse(struct server *s, int fd, const char *why)
         if (msg && (line = proto_dump(msg, &len)))
                 (void)send(fd, line, len, MSG_NOSIGNAL | MSG_DONTWAIT);
         json_decref(msg);
-        log_warning("refused a connection: %s", text);
+        log_drop(s, "refused a connection", text);
 }
 
 /* The client to drop for a new one: the oldest that never said hello, else the one idle
@@ -385,7 +402,7 @@ static bool evict(struct server *s, uint64_t now)
                 snprintf(text, sizeof(text),
                          "too many clients (%u); this connection never said hello and is closed",
                          s->max_clients);
-        log_notice("client %p evicted: %s", (void *)v, text);
+        log_drop(s, "evicted a client", text);
         msg = proto_error_errno(NULL, -EUSERS, text);
         v->ref++; /* client_send may close v already */
         if (msg)
@@ -460,13 +477,13 @@ static int on_accept(sd_event_source *es, int fd, uint32_t revents, void *userda
                 int cfd = accept4(fd, NULL, NULL, SOCK_CLOEXEC | SOCK_NONBLOCK);
                 int err = cfd < 0 ? errno : 0;
 
+                if (err == EMFILE || err == ENFILE)
+                        err = -refuse_without_fd(s);
                 if (cfd >= 0)
                         admit(s, cfd);
                 else if (err == EAGAIN)
                         break;
-                else if ((err == EMFILE || err == ENFILE) && (err = -refuse_without_fd(s)) == 0)
-                        continue;
-                else if (err != EINTR && err != ECONNABORTED && err != EAGAIN)
+                else if (err != 0 && err != EINTR && err != ECONNABORTED)
                         return log_warning_errno(err, "accept() failed, ignoring: %m"), 0;
         }
         return 0;
