@@ -64,7 +64,7 @@ struct server {
         const struct srv_method *methods;
         void *userdata;
         struct client *clients;
-        unsigned n_clients, max_clients;
+        unsigned n_clients, max_clients, budget; /* budget: what RLIMIT_NOFILE allows */
         uint64_t idle_usec;
         uint64_t log_quiet_until; /* log_drop */
         unsigned log_skipped;
@@ -456,14 +456,14 @@ static void admit(struct server *s, int cfd)
  * the listening socket does not stay readable forever. Returns 0, or -errno of accept. */
 static int refuse_without_fd(struct server *s)
 {
-        _cleanup_close_ int cfd = -EBADF;
-        int r = 0;
+        int cfd, r = 0;
 
         s->spare_fd = safe_close(s->spare_fd);
         cfd = accept4(s->fd, NULL, NULL, SOCK_CLOEXEC | SOCK_NONBLOCK);
-        if (cfd >= 0)
+        if (cfd >= 0) {
                 refuse(s, cfd, " and out of file descriptors");
-        else
+                close(cfd);
+        } else
                 r = -errno;
         s->spare_fd = open("/dev/null", O_RDONLY | O_CLOEXEC);
         return r;
@@ -613,7 +613,7 @@ int server_new(sd_event *event, const char *path, const struct srv_method *metho
         s->methods = methods;
         s->userdata = userdata;
         s->lock_fd = -EBADF;
-        s->max_clients = client_budget();
+        s->max_clients = s->budget = client_budget();
         s->idle_usec = SRV_IDLE_TIMEOUT_USEC;
         s->spare_fd = open("/dev/null", O_RDONLY | O_CLOEXEC);
         r = s->spare_fd < 0 ? -errno : 0;
@@ -643,7 +643,7 @@ int server_start(struct server *s)
 
 void server_set_limits(struct server *s, unsigned max_clients, uint64_t idle_usec)
 {
-        s->max_clients = MAX(max_clients, 1u);
+        s->max_clients = CLAMP(max_clients, 1u, s->budget);
         s->idle_usec = idle_usec;
 }
 

@@ -54,7 +54,8 @@ int server_start(struct server *s);
  * returns NULL. */
 struct server *server_free(struct server *s);
 
-/* Overrides SRV_MAX_CLIENTS (at least 1) and SRV_IDLE_TIMEOUT_USEC, e.g. for tests. */
+/* Overrides SRV_MAX_CLIENTS (at least 1, at most what RLIMIT_NOFILE allows) and
+ * SRV_IDLE_TIMEOUT_USEC, e.g. for tests. */
 void server_set_limits(struct server *s, unsigned max_clients, uint64_t idle_usec);
 
 /* Sends notification method with params (stolen) to every client. */
