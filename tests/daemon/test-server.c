@@ -7,7 +7,9 @@
  *   noread  a client that never reads its replies is dropped, others keep being served;
  *   evict   with the table full, the oldest client without hello goes first, then the
  *           one idle longest (not one with a request pending); when nobody qualifies
- *           the new connection gets one error line. */
+ *           the new connection gets one error line;
+ *   nofd    out of descriptors, a connection still gets its error line, and the
+ *           server accepts again once a client leaves. */
 #include <errno.h>
 #include <fcntl.h>
 #include <poll.h>
@@ -15,6 +17,7 @@
 #include <stdio.h>
 #include <string.h>
 #include <sys/file.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -95,8 +98,26 @@ static void kill_server(void)
                 kill(server_pid, SIGKILL);
 }
 
-/* Forks a server on path with the given limits; returns its pid once it listens. */
-static pid_t serve(const char *path, unsigned max_clients, uint64_t idle_usec)
+/* Leaves the calling process exactly n free descriptors (holes filled, limit lowered). */
+static void leave_fds(unsigned n)
+{
+        struct rlimit rl;
+        int top = 0, fd;
+
+        for (int i = 0; i < 1024; i++)
+                if (fcntl(i, F_GETFD) >= 0)
+                        top = i;
+        while ((fd = open("/dev/null", O_RDONLY | O_CLOEXEC)) < top)
+                CHECK(fd >= 0); /* kept open: fills a hole */
+        close(fd);
+        CHECK(getrlimit(RLIMIT_NOFILE, &rl) == 0);
+        rl.rlim_cur = top + 1 + n;
+        CHECK(setrlimit(RLIMIT_NOFILE, &rl) == 0);
+}
+
+/* Forks a server on path with the given limits (free_fds: descriptors left to the
+ * server after start, 0 for no limit); returns its pid once it listens. */
+static pid_t serve(const char *path, unsigned max_clients, uint64_t idle_usec, unsigned free_fds)
 {
         struct child ch = {0};
         int p[2];
@@ -119,6 +140,8 @@ static pid_t serve(const char *path, unsigned max_clients, uint64_t idle_usec)
         CHECK_INT(server_new(ch.event, path, methods, &ch, &ch.server), 0);
         server_set_limits(ch.server, max_clients, idle_usec);
         CHECK_INT(server_start(ch.server), 0);
+        if (free_fds)
+                leave_fds(free_fds);
         CHECK(write(p[1], "r", 1) == 1);
         CHECK(sd_event_loop(ch.event) >= 0);
         server_free(ch.server);
@@ -312,7 +335,7 @@ static void test_socket(const char *dir)
 
 static void test_churn(const char *path)
 {
-        pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC);
+        pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 0);
         int watch = conn(path);
 
         CHECK(watch >= 0);
@@ -331,7 +354,7 @@ static void test_churn(const char *path)
 
 static void test_noread(const char *path)
 {
-        pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC);
+        pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 0);
         int watch = conn(path), rude = conn(path), sent = 0;
         double end = now_s() + 30;
 
@@ -361,7 +384,7 @@ static void test_noread(const char *path)
 
 static void test_evict(const char *path)
 {
-        pid_t pid = serve(path, EVICT_MAX, EVICT_IDLE_US);
+        pid_t pid = serve(path, EVICT_MAX, EVICT_IDLE_US, 0);
         int a = conn(path), b = conn(path), c = conn(path), d = conn(path), e, f, g, h;
 
         call_ok(a, "hello");
@@ -394,6 +417,26 @@ static void test_evict(const char *path)
         stop(pid, a);
 }
 
+static void test_nofd(const char *path)
+{
+        pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 2);
+        int a = conn(path), b = conn(path), c;
+
+        call_ok(a, "hello");
+        call_ok(b, "hello");
+        c = conn(path);
+        expect_dropped(c, "out of file descriptors");
+        c = conn(path); /* the spare descriptor is back: the same again */
+        expect_dropped(c, "out of file descriptors");
+        close(b);
+        wait_clients(a, 1);
+        c = conn(path);
+        call_ok(c, "hello");
+        wait_clients(a, 2);
+        close(c);
+        stop(pid, a);
+}
+
 int main(int argc, char **argv)
 {
         char dir[] = "/tmp/gonio-server-XXXXXX", path[300], cmd[400];
@@ -410,6 +453,8 @@ int main(int argc, char **argv)
                 test_noread(path);
         else if (strcmp(argv[1], "evict") == 0)
                 test_evict(path);
+        else if (strcmp(argv[1], "nofd") == 0)
+                test_nofd(path);
         else
                 CHECK(!"unknown case");
         snprintf(cmd, sizeof(cmd), "rm -rf '%s'", dir);
