@@ -504,8 +504,10 @@ static unsigned client_budget(void)
                 (void)getrlimit(RLIMIT_NOFILE, &rl);
         if (rl.rlim_cur >= need)
                 return SRV_MAX_CLIENTS;
-        log_warning("RLIMIT_NOFILE is %llu (hard limit), serving at most %llu clients",
-                    (unsigned long long)rl.rlim_cur, (unsigned long long)rl.rlim_cur / 2);
+        log_warning("RLIMIT_NOFILE is %llu and cannot be raised to %llu: serving at most %llu "
+                    "clients",
+                    (unsigned long long)rl.rlim_cur, (unsigned long long)need,
+                    (unsigned long long)rl.rlim_cur / 2);
         return MAX(rl.rlim_cur / 2, 1);
 }
 
