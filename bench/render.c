@@ -10,6 +10,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "common/clock.h"
 #include "common/rigconf.h"
 #include "sim/render/internal.h"
 
@@ -45,10 +46,7 @@ struct raw {
 
 static double now(void)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return ts.tv_sec + ts.tv_nsec * 1e-9;
+        return (double)gn_monotonic_ns() * 1e-9;
 }
 
 /* The same packets as the renderer: 4x4 tiles, primary rays, one shadow packet. */
@@ -120,7 +118,7 @@ static void raw_frame(struct raw *c, int threads)
                 pthread_join(th[i], NULL);
 }
 
-static void raw_setup(struct raw *c, const struct sim_scene *s, const struct sim_rig_state *st)
+static void raw_setup(struct raw *c, const struct sim_scene *s, const struct gn_pose *st)
 {
         struct sim_cam_geom g;
         double lamp[3];
@@ -164,7 +162,7 @@ int main(int argc, char **argv)
 {
         struct rig_config *rc = NULL;
         struct sim_scene *s = NULL;
-        struct sim_rig_state st = {.turntable_deg = 10, .lamp_on = {true}, .laser_on = true};
+        struct gn_pose st = {.deg[GN_ROLE_TURNTABLE] = 10, .lamps = 1, .laser = true};
         struct raw raw = {0};
         double secs = argc > 1 ? atof(argv[1]) : 3, t0, fps, raw_fps, t_render = 0, t_raw = 0;
         int frames = 0, raw_frames = 0;

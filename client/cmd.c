@@ -6,6 +6,7 @@
 #include <stdarg.h>
 #include <string.h>
 #include <sys/signalfd.h>
+#include <unistd.h>
 
 #include "client/cmd.h"
 #include "client/conn.h"
@@ -16,6 +17,7 @@
 #define TIMEOUT_S      30  /* connect, hello and quick requests */
 #define TIMEOUT_LONG_S 120 /* home, move, capture */
 #define USAGE_COL      36  /* width of the synopsis column of --help */
+#define STOP_WAIT_S    2   /* for the replies to stop and status after an interrupted wait */
 
 struct cmd;
 
@@ -37,6 +39,7 @@ struct cmd {
         out_print_fn print; /* human output */
         const char *done;   /* human output when print is NULL */
         bool watch;
+        bool stops; /* waits for motion: an interrupted wait stops the rig (not --no-wait) */
 };
 
 /* "move", "dataset open": the words naming c, for messages. */
@@ -172,9 +175,9 @@ static const struct cmd commands[] = {
         {NULL, "describe", "", "devices, backends and their options", "describe", 0, 0, 0,
          TIMEOUT_S, NULL, out_print_describe},
         {NULL, "home", "[AXIS...]", "home the given axes (default: all)", "home", 0, 64, 0,
-         TIMEOUT_LONG_S, p_home, out_print_home},
+         TIMEOUT_LONG_S, p_home, out_print_home, .stops = true},
         {NULL, "move", "AXIS DEG [--relative] [--no-wait]", "move an axis (degrees)", "move", 2, 2,
-         ARG_RELATIVE | ARG_NO_WAIT, TIMEOUT_LONG_S, p_move, out_print_move},
+         ARG_RELATIVE | ARG_NO_WAIT, TIMEOUT_LONG_S, p_move, out_print_move, .stops = true},
         {NULL, "stop", "", "stop all motion now", "stop", 0, 0, 0, TIMEOUT_S, NULL, out_print_stop},
         {NULL, "lamp", "N|NAME on|off", "switch a lamp", "lamp.set", 2, 2, 0, TIMEOUT_S, p_lamp,
          out_print_lamp},
@@ -226,7 +229,7 @@ void cmd_usage(FILE *f)
                    "  --help, --version\n"
                    "\nExit codes: 0 ok, 2 usage, 3 cannot connect, 4 protocol error or timeout,\n"
                    "5 device fault, 6 invalid/not found/out of range, 7 storage, 8 canceled,\n"
-                   "9 busy or wrong state. See gonioctl(1).\n");
+                   "9 busy or wrong state, 10 interrupted (move/home stopped). See gonioctl(1).\n");
 }
 
 /* Finds the command named by words; *used gets the number of words naming it. */
@@ -350,7 +353,7 @@ static int connect_hello(const struct args *a, struct out *o, struct conn **ret)
         }
         params = json_pack("{s:s,s:i}", "client", "gonioctl/" GONIOCTL_VERSION, "protocol",
                            PROTO_VERSION);
-        r = conn_call(*ret, "hello", params, deadline, NULL, NULL, &res, &e);
+        r = conn_call(*ret, "hello", params, deadline, -1, NULL, NULL, &res, &e);
         if (r < 0)
                 return call_failed(o, "hello", r, &e);
         proto = (int)json_integer_value(json_object_get(res, "protocol"));
@@ -363,21 +366,31 @@ static int connect_hello(const struct args *a, struct out *o, struct conn **ret)
         return EXIT_OK;
 }
 
-/* Prints notifications until SIGINT/SIGTERM, --count N, or --timeout. */
-static int run_watch(const struct args *a, struct out *o, struct conn *conn)
+/* Blocks SIGINT and SIGTERM and returns a signalfd that reports them, or -errno. */
+static int open_intr_fd(void)
 {
-        int64_t deadline = a->timeout_s > 0 ? deadline_after(a->timeout_s) : CONN_NO_DEADLINE;
-        _cleanup_close_ int sfd = -EBADF;
-        struct conn_error e;
         sigset_t mask;
-        long n = 0;
+        int fd;
 
         sigemptyset(&mask);
         sigaddset(&mask, SIGINT);
         sigaddset(&mask, SIGTERM);
-        if (sigprocmask(SIG_BLOCK, &mask, NULL) < 0 ||
-            (sfd = signalfd(-1, &mask, SFD_CLOEXEC)) < 0) {
-                out_error(o, "watch", "signalfd: %m");
+        if (sigprocmask(SIG_BLOCK, &mask, NULL) < 0)
+                return -errno;
+        fd = signalfd(-1, &mask, SFD_CLOEXEC);
+        return fd < 0 ? -errno : fd;
+}
+
+/* Prints notifications until SIGINT/SIGTERM, --count N, or --timeout. */
+static int run_watch(const struct args *a, struct out *o, struct conn *conn)
+{
+        int64_t deadline = a->timeout_s > 0 ? deadline_after(a->timeout_s) : CONN_NO_DEADLINE;
+        _cleanup_close_ int sfd = open_intr_fd();
+        struct conn_error e;
+        long n = 0;
+
+        if (sfd < 0) {
+                out_error(o, "watch", "signalfd: %s", strerror(-sfd));
                 return EXIT_PROTOCOL;
         }
         for (;;) {
@@ -392,15 +405,130 @@ static int run_watch(const struct args *a, struct out *o, struct conn *conn)
         }
 }
 
+/* What ended a wait for motion. */
+struct interruption {
+        const char *code; /* "SIGINT", "SIGTERM" or "timeout" */
+        char text[64];    /* for people: "Ctrl-C", "no reply within 0.5 s" */
+};
+
+/* r is -EINTR (a signal, read from sfd) or -ETIMEDOUT (after timeout_s). */
+static void read_interruption(int sfd, int r, double timeout_s, struct interruption *why)
+{
+        struct signalfd_siginfo si = {};
+
+        if (r == -ETIMEDOUT) {
+                why->code = "timeout";
+                snprintf(why->text, sizeof(why->text), "no reply within %g s", timeout_s);
+        } else if (read(sfd, &si, sizeof(si)) == sizeof(si) && si.ssi_signo == SIGTERM) {
+                why->code = "SIGTERM";
+                snprintf(why->text, sizeof(why->text), "SIGTERM");
+        } else {
+                why->code = "SIGINT";
+                snprintf(why->text, sizeof(why->text), "Ctrl-C");
+        }
+}
+
+/* Appends "NAME at POS" to f and {axis, position} to list, the position from a status
+ * result (NULL when unknown). */
+static void report_axis(FILE *f, json_t *list, json_t *status, const char *name)
+{
+        json_t *ax, *pos = NULL;
+        size_t i;
+
+        if (!name)
+                return;
+        json_array_foreach(json_object_get(status, "axes"), i,
+                           ax) if (strcmp(json_string_value(json_object_get(ax, "name")) ?: "",
+                                          name) == 0) pos = json_object_get(ax, "position");
+        fprintf(f, "%s%s at ", ftell(f) > 0 ? ", " : "", name);
+        if (json_is_number(pos))
+                fprintf(f, "%.3f", json_number_value(pos));
+        else
+                fputs("an unknown position", f);
+        json_array_append_new(list, json_pack("{s:s,s:O?}", "axis", name, "position", pos));
+}
+
+/* Says where the axes of the interrupted request (params: "axis", or "axes", else all
+ * axes of status) stopped: on stderr, and with --json as an error object on stdout. */
+static void report_stopped(struct out *o, const char *method, json_t *params, json_t *status,
+                           const struct interruption *why)
+{
+        const char *axis = json_string_value(json_object_get(params, "axis"));
+        json_t *axes = json_object_get(params, "axes"), *ax, *list = json_array(), *j;
+        _cleanup_free_ char *names = NULL, *msg = NULL;
+        size_t len = 0, i;
+        FILE *f = open_memstream(&names, &len);
+
+        if (!f || !list) {
+                out_error(o, method, "interrupted (%s): stopped every axis", why->text);
+                if (f)
+                        fclose(f);
+                json_decref(list);
+                return;
+        }
+        if (axis)
+                report_axis(f, list, status, axis);
+        json_array_foreach(axis ? NULL : axes ?: json_object_get(status, "axes"), i, ax)
+                report_axis(f, list, status,
+                            json_string_value(axes ? ax : json_object_get(ax, "name")));
+        fclose(f);
+        if (asprintf(&msg, "interrupted: stopped %s (%s; stop halts every axis of the rig)",
+                     names[0] ? names : "the rig", why->text) < 0)
+                msg = NULL;
+        out_error(o, method, "%s", msg ?: "interrupted: stopped the rig");
+        j = json_pack("{s:{s:s,s:s?,s:s,s:o}}", "error", "code", "interrupted", "message", msg,
+                      "cause", why->code, "stopped", list);
+        if (o->json && j)
+                out_result(o, NULL, NULL, j);
+        json_decref(j);
+}
+
+/* After a wait for motion was interrupted, sends stop (the protocol has no per-axis stop:
+ * it halts every axis), then reads where the axes stopped. Returns EXIT_INTERRUPTED, or
+ * EXIT_PROTOCOL when goniod did not confirm the stop (the axes may still move). */
+static int stop_interrupted(struct out *o, struct conn *conn, const char *method, json_t *params,
+                            const struct interruption *why)
+{
+        int64_t deadline = deadline_after(STOP_WAIT_S);
+        json_t *res = NULL, *status = NULL;
+        struct conn_error e;
+        int r = conn_call(conn, "stop", json_object(), deadline, -1, NULL, NULL, &res, &e);
+
+        if (r < 0) {
+                out_error(o, method,
+                          "interrupted (%s), but stop failed: %s; the axes may still be moving",
+                          why->text,
+                          r == -ETIMEDOUT ? "no reply"
+                          : e.message[0]  ? e.message
+                                          : strerror(-r));
+                return EXIT_PROTOCOL;
+        }
+        json_decref(res);
+        if (conn_call(conn, "status", json_object(), deadline, -1, NULL, NULL, &status, &e) < 0)
+                status = NULL;
+        report_stopped(o, method, params, status, why);
+        json_decref(status);
+        return EXIT_INTERRUPTED;
+}
+
 static int run_method(const struct cmd *c, const struct args *a, struct out *o, struct conn *conn,
                       const char *method, json_t *params)
 {
         double timeout_s = a->timeout_s > 0 ? a->timeout_s : c->timeout_s;
+        bool stops = c->stops && !(a->given & ARG_NO_WAIT);
+        _cleanup_close_ int sfd = stops ? open_intr_fd() : -EBADF;
+        _cleanup_(json_decrefp) json_t *sent = json_incref(params);
+        struct interruption why;
         struct conn_error e;
         json_t *res = NULL;
         int r;
 
-        r = conn_call(conn, method, params, deadline_after(timeout_s), on_progress, o, &res, &e);
+        r = conn_call(conn, method, params, deadline_after(timeout_s), sfd, on_progress, o, &res,
+                      &e);
+        if (stops && (r == -EINTR || r == -ETIMEDOUT)) {
+                read_interruption(sfd, r, timeout_s, &why);
+                return stop_interrupted(o, conn, method, sent, &why);
+        }
         if (r < 0)
                 return call_failed(o, method, r, &e);
         out_result(o, c->print, c->done, res);

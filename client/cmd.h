@@ -10,14 +10,16 @@
 /* gonioctl's exit codes. */
 enum gonioctl_exit {
         EXIT_OK = 0,
-        EXIT_USAGE = 2,    /* bad command line */
-        EXIT_CONNECT = 3,  /* cannot connect to goniod */
-        EXIT_PROTOCOL = 4, /* protocol error, bad reply, timeout waiting, connection lost */
-        EXIT_DEVICE = 5,   /* device fault or device timeout (-32003, -32004) */
-        EXIT_INVALID = 6,  /* invalid params, not found, out of range, no such method */
-        EXIT_STORAGE = 7,  /* storage error (-32006) */
-        EXIT_CANCELED = 8, /* canceled by stop (-32007) */
-        EXIT_BUSY = 9,     /* busy or wrong state (-32001, -32008) */
+        EXIT_USAGE = 2,        /* bad command line */
+        EXIT_CONNECT = 3,      /* cannot connect to goniod */
+        EXIT_PROTOCOL = 4,     /* protocol error, bad reply, timeout waiting, connection lost */
+        EXIT_DEVICE = 5,       /* device fault or device timeout (-32003, -32004) */
+        EXIT_INVALID = 6,      /* invalid params, not found, out of range, no such method */
+        EXIT_STORAGE = 7,      /* storage error (-32006) */
+        EXIT_CANCELED = 8,     /* canceled by stop (-32007) */
+        EXIT_BUSY = 9,         /* busy or wrong state (-32001, -32008) */
+        EXIT_INTERRUPTED = 10, /* Ctrl-C, SIGTERM or --timeout while waiting for move/home:
+                                * gonioctl sent stop and goniod confirmed it */
 };
 
 /* The exit code for a JSON-RPC error code from the server. */

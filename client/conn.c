@@ -9,6 +9,7 @@
 #include <time.h>
 
 #include "client/conn.h"
+#include "common/clock.h"
 #include "common/cleanup.h"
 #include "protocol/proto.h"
 
@@ -17,15 +18,13 @@
 struct conn {
         int fd;
         json_int_t next_id;
+        json_int_t abandoned_id; /* a request whose wait was given up (0: none) */
         struct proto_lines lines;
 };
 
 int64_t conn_now_ms(void)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return (int64_t)ts.tv_sec * 1000 + ts.tv_nsec / 1000000;
+        return (int64_t)(gn_monotonic_ns() / 1000000);
 }
 
 /* The poll() timeout left until deadline: -1 for none, else >= 0. */
@@ -180,6 +179,23 @@ static int read_msg(struct conn *c, int64_t deadline, int intr_fd, struct proto_
         }
 }
 
+/* Fails on a response that does not answer request id (0 when none is outstanding). */
+static int unexpected_reply(const struct proto_msg *m, json_int_t id, struct conn_error *err)
+{
+        _cleanup_free_ char *got = json_dumps(m->id, JSON_ENCODE_ANY);
+
+        if (id > 0)
+                snprintf(err->message, sizeof(err->message),
+                         "bad message from server: reply with id %s to request "
+                         "%" JSON_INTEGER_FORMAT,
+                         got ? got : "?", id);
+        else
+                snprintf(err->message, sizeof(err->message),
+                         "bad message from server: reply with id %s, no request outstanding",
+                         got ? got : "?");
+        return -EPROTO;
+}
+
 static void dispatch(const struct proto_msg *m, conn_notify_fn fn, void *userdata)
 {
         if (fn && m->kind == PROTO_NOTIFICATION)
@@ -214,7 +230,15 @@ static int send_request(struct conn *c, const char *method, json_t *params, int6
         return send_all(c, s, n, deadline);
 }
 
-int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadline,
+/* True for the late reply to the request whose wait was abandoned (-EINTR, -ETIMEDOUT),
+ * e.g. a move canceled by the stop sent after the interruption. Any other id is an error. */
+static bool late_reply(const struct conn *c, const struct proto_msg *m)
+{
+        return c->abandoned_id > 0 && m->kind == PROTO_RESPONSE && json_is_integer(m->id) &&
+               json_integer_value(m->id) == c->abandoned_id;
+}
+
+int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadline, int intr_fd,
               conn_notify_fn fn, void *userdata, json_t **result, struct conn_error *err)
 {
         json_int_t id = c->next_id;
@@ -228,23 +252,21 @@ int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadli
         for (;;) {
                 struct proto_msg m;
 
-                r = read_msg(c, deadline, -1, &m, err);
+                r = read_msg(c, deadline, intr_fd, &m, err);
+                if (r == -EINTR || r == -ETIMEDOUT)
+                        c->abandoned_id = id;
                 if (r < 0)
                         return r;
-                /* A reply with id null answers a request the server could not read: ours. */
-                if (m.kind == PROTO_RESPONSE &&
-                    (json_integer_value(m.id) == id || (json_is_null(m.id) && m.error))) {
+                bool answered = proto_answers(&m, id);
+
+                if (answered)
                         r = take_reply(&m, result, err);
-                        json_decref(m.root);
-                        return r;
-                }
-                if (m.kind == PROTO_RESPONSE) {
-                        snprintf(err->message, sizeof(err->message), "reply to unknown id");
-                        r = -EPROTO;
-                } else
+                else if (m.kind == PROTO_RESPONSE && !late_reply(c, &m))
+                        r = unexpected_reply(&m, id, err);
+                else if (m.kind != PROTO_RESPONSE)
                         dispatch(&m, fn, userdata);
                 json_decref(m.root);
-                if (r < 0)
+                if (r < 0 || answered)
                         return r;
         }
 }
@@ -255,15 +277,16 @@ int conn_wait_notification(struct conn *c, int64_t deadline, int intr_fd, conn_n
         *err = (struct conn_error){};
         for (;;) {
                 struct proto_msg m;
-                bool notification;
                 int r = read_msg(c, deadline, intr_fd, &m, err);
 
                 if (r < 0)
                         return r;
-                notification = m.kind == PROTO_NOTIFICATION;
-                dispatch(&m, fn, userdata);
+                if (m.kind == PROTO_RESPONSE)
+                        r = unexpected_reply(&m, 0, err);
+                else
+                        dispatch(&m, fn, userdata);
                 json_decref(m.root);
-                if (notification)
-                        return 1;
+                if (r < 0 || m.kind == PROTO_NOTIFICATION)
+                        return r < 0 ? r : 1;
         }
 }

@@ -42,10 +42,11 @@ static inline void conn_freep(struct conn **c)
 /* Sends method with params (stolen, may be NULL) and waits for its reply before deadline,
  * passing notifications that arrive meanwhile to fn (may be NULL). Returns 0 with a new
  * reference to the result in *result; -EREMOTEIO when the server answered with an error
- * (in *err); -ETIMEDOUT; -ECONNRESET when the server closed the connection; -EPROTO or
- * -EMSGSIZE for a malformed or over-long reply; -ENOMEM. Local failures also fill
- * err->message. */
-int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadline,
+ * (in *err); -ETIMEDOUT; -EINTR when intr_fd (ignored if negative) became readable;
+ * -ECONNRESET when the server closed the connection; -EPROTO or -EMSGSIZE for a malformed
+ * or over-long reply; -ENOMEM. Local failures also fill err->message. After -ETIMEDOUT or
+ * -EINTR the request stays pending in goniod; later calls skip its reply. */
+int conn_call(struct conn *c, const char *method, json_t *params, int64_t deadline, int intr_fd,
               conn_notify_fn fn, void *userdata, json_t **result, struct conn_error *err);
 
 /* Waits for the next notification before deadline and passes it to fn. Returns 1 after a

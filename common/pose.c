@@ -39,8 +39,7 @@ bool gn_pose_has(const struct gn_pose *p, enum gn_role role)
         return (unsigned)role < GN_ROLE_COUNT && !isnan(p->deg[role]);
 }
 
-/* Distance of two angles on the circle, in [0, 180]. */
-static double circle_distance(double a, double b)
+double gn_angle_distance(double a, double b)
 {
         double d = fmod(fabs(a - b), 360.0);
 
@@ -54,7 +53,7 @@ bool gn_pose_equal(const struct gn_pose *a, const struct gn_pose *b, double tol_
         for (int i = 0; i < GN_ROLE_COUNT; i++) {
                 if (isnan(a->deg[i]) != isnan(b->deg[i]))
                         return false;
-                if (!isnan(a->deg[i]) && circle_distance(a->deg[i], b->deg[i]) > tol_deg)
+                if (!isnan(a->deg[i]) && gn_angle_distance(a->deg[i], b->deg[i]) > tol_deg)
                         return false;
         }
         return true;

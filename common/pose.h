@@ -47,3 +47,6 @@ bool gn_pose_equal(const struct gn_pose *a, const struct gn_pose *b, double tol_
  * -ENOBUFS when buf is too small (buf then holds a truncated list). */
 int gn_pose_lamp_list(const struct gn_pose *p, const char *const *names, size_t n, char *buf,
                       size_t len);
+
+/* Distance of two angles in degrees on the circle, in [0, 180]. */
+double gn_angle_distance(double a, double b);

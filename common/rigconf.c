@@ -1,9 +1,10 @@
 /* rigconf.c - loads and validates the rig file (docs/rig-file.md).
  *
- * The parse is strict: unknown keys, missing required keys, out-of-range values,
- * duplicate names and references to undefined buses are errors that name the
- * file, line and key. Defaults are filled in here, so the rest of gonio reads
- * plain values. */
+ * The parse is strict: unknown keys (in every entry), missing required keys,
+ * out-of-range values, unset ${VAR}s, duplicate names and roles, references to
+ * undefined buses, two devices on one Modbus address and two buses on one port are
+ * errors that name the file, line and key. Defaults are filled in here, so the rest
+ * of gonio reads plain values. */
 #include <errno.h>
 #include <libfyaml.h>
 #include <math.h>
@@ -147,9 +148,12 @@ static int parse_bus(struct yconf *yc, struct fy_node *m, struct rig_bus_conf *b
                 b->type = RIG_BUS_MODBUS_TCP;
         else if (strcmp(type, "sim") == 0)
                 b->type = RIG_BUS_SIM;
+        else if (strcmp(type, "serial") == 0)
+                b->type = RIG_BUS_SERIAL;
         else
                 return yconf_error(yc, yconf_get(m, "type"), "type",
-                                   "'%s' is not a bus type (modbus-rtu, modbus-tcp, sim)", type);
+                                   "'%s' is not a bus type (modbus-rtu, modbus-tcp, sim, serial)",
+                                   type);
         if (!strchr("NEO", parity[0]) || parity[1])
                 return yconf_error(yc, yconf_get(m, "parity"), "parity", "must be N, E or O");
         b->parity = parity[0];
@@ -331,8 +335,9 @@ static int parse_camera(struct yconf *yc, struct fy_node *m, struct rig_camera_c
             (r = yconf_str_req(yc, m, "backend", c->backend, sizeof(c->backend))) < 0 ||
             (r = yconf_str_req(yc, m, "bus", c->bus, sizeof(c->bus))) < 0 ||
             (r = parse_camera_geometry(yc, m, c)) < 0 ||
-            (r = read_int(yc, m, "exposure_us", 1, 60000000, &c->exposure_us)) < 0 ||
-            (r = yconf_double(yc, m, "gain", 0.01, 1000, &c->gain)) < 0 ||
+            (r = read_int(yc, m, "exposure_us", RIG_EXPOSURE_US_MIN, RIG_EXPOSURE_US_MAX,
+                          &c->exposure_us)) < 0 ||
+            (r = yconf_double(yc, m, "gain", RIG_GAIN_MIN, RIG_GAIN_MAX, &c->gain)) < 0 ||
             (r = read_int(yc, m, "bits", 8, 16, &c->bits)) < 0)
                 return r;
         if (c->bits != 8 && c->bits != 16)
@@ -368,49 +373,179 @@ static int parse_section(struct yconf *yc, struct fy_node *root, const char *key
         return n < 0 ? n : 0;
 }
 
-/* Device names are unique across buses, axes, lamps, laser and cameras. */
-static int check_unique(struct yconf *yc, struct rig_config *rc)
+/* The mapping of entry index of section; for the laser, the mapping itself. */
+static struct fy_node *entry_node(struct yconf *yc, const char *section, int index)
 {
-        const char *names[RIG_MAX_BUSES + RIG_MAX_AXES + RIG_MAX_LAMPS + 1 + RIG_MAX_CAMERAS];
+        struct fy_node *n = yconf_get(yconf_root(yc), section);
+
+        return n && fy_node_get_type(n) == FYNT_SEQUENCE ? yconf_seq_item(n, index) : n;
+}
+
+/* Where an error about key of an entry points: the key's value, else the entry's name,
+ * else the entry. */
+static struct fy_node *entry_key(struct yconf *yc, const char *section, int index, const char *key)
+{
+        struct fy_node *m = entry_node(yc, section, index);
+
+        return yconf_get(m, key) ?: yconf_get(m, "name") ?: m;
+}
+
+/* A named entry of the rig file, and its Modbus address when it has one. */
+struct ref {
+        const char *section; /* rig-file section: "axes", "lamps", ... */
+        const char *kind;    /* for messages: "axis", "lamp", ... */
+        int index;           /* entry in section */
+        const char *name;
+        const char *bus; /* NULL: no Modbus address */
+        int unit, coil;  /* coil -1: a drive (the whole unit) */
+};
+
+/* The ref of a switch (lamp or laser). */
+static struct ref switch_ref(const char *section, size_t index, const struct rig_switch_conf *s)
+{
+        return (struct ref){.section = section,
+                            .kind = s->kind == RIG_SWITCH_LASER ? "laser" : "lamp",
+                            .index = index,
+                            .name = s->name,
+                            .bus = s->bus,
+                            .unit = s->unit,
+                            .coil = s->coil};
+}
+
+/* Lists the devices of rc (axes, lamps, laser, cameras) into refs; returns their number. */
+static size_t device_refs(const struct rig_config *rc, struct ref *refs)
+{
         size_t n = 0;
 
-        for (size_t i = 0; i < rc->n_axes; i++)
-                names[n++] = rc->axes[i].name;
+        for (size_t i = 0; i < rc->n_axes; i++) {
+                const struct rig_axis_conf *a = &rc->axes[i];
+
+                refs[n++] = (struct ref){"axes", "axis", i, a->name, a->bus, a->unit, -1};
+        }
         for (size_t i = 0; i < rc->n_lamps; i++)
-                names[n++] = rc->lamps[i].name;
+                refs[n++] = switch_ref("lamps", i, &rc->lamps[i]);
         if (rc->has_laser)
-                names[n++] = rc->laser.name;
+                refs[n++] = switch_ref("laser", 0, &rc->laser);
         for (size_t i = 0; i < rc->n_cameras; i++)
-                names[n++] = rc->cameras[i].name;
-        for (size_t i = 0; i < n; i++)
-                for (size_t j = i + 1; j < n; j++)
-                        if (strcmp(names[i], names[j]) == 0)
-                                return yconf_error(yc, yconf_root(yc), names[j],
-                                                   "device name '%s' is used twice", names[j]);
-        for (size_t i = 0; i < rc->n_axes; i++)
-                for (size_t j = i + 1; j < rc->n_axes; j++)
+                refs[n++] = (struct ref){"cameras", "camera", i, rc->cameras[i].name};
+        return n;
+}
+
+/* Names are unique within refs; the error points at the name written last in the file. */
+static int check_names(struct yconf *yc, const struct ref *refs, size_t n, const char *what)
+{
+        for (size_t j = 0; j < n; j++)
+                for (size_t i = 0; i < j; i++) {
+                        struct fy_node *a = entry_key(yc, refs[i].section, refs[i].index, "name");
+                        struct fy_node *b = entry_key(yc, refs[j].section, refs[j].index, "name");
+
+                        if (strcmp(refs[i].name, refs[j].name) != 0)
+                                continue;
+                        if (yconf_line(a) > yconf_line(b)) {
+                                struct fy_node *t = a;
+                                a = b, b = t;
+                        }
+                        return yconf_error(yc, b, "name",
+                                           "%s name '%s' is used twice (first at line %d)", what,
+                                           refs[j].name, yconf_line(a));
+                }
+        return 0;
+}
+
+/* One Modbus unit is one device: a drive (one axis) or a relay module (one switch per
+ * coil). Two devices on one address would drive one motor or one lamp twice. */
+static int check_addresses(struct yconf *yc, const struct ref *d, size_t n)
+{
+        for (size_t j = 0; j < n; j++)
+                for (size_t i = 0; i < j; i++) {
+                        bool switches = d[i].coil >= 0 && d[j].coil >= 0;
+
+                        if (!d[i].bus || !d[j].bus || strcmp(d[i].bus, d[j].bus) != 0 ||
+                            d[i].unit != d[j].unit || (switches && d[i].coil != d[j].coil))
+                                continue;
+                        if (switches)
+                                return yconf_error(
+                                        yc, entry_key(yc, d[j].section, d[j].index, "coil"), "coil",
+                                        "%s '%s' and %s '%s' are both on coil %d of "
+                                        "unit %d on bus '%s'",
+                                        d[i].kind, d[i].name, d[j].kind, d[j].name, d[j].coil,
+                                        d[j].unit, d[j].bus);
+                        return yconf_error(
+                                yc, entry_key(yc, d[j].section, d[j].index, "unit"), "unit",
+                                "%s '%s' and %s '%s' are both on unit %d on bus '%s' "
+                                "(a unit is one drive or one relay module)",
+                                d[i].kind, d[i].name, d[j].kind, d[j].name, d[j].unit, d[j].bus);
+                }
+        return 0;
+}
+
+/* Two buses on one serial port, socket or TCP peer would be two masters on one line. */
+static int check_ports(struct yconf *yc, const struct rig_config *rc)
+{
+        for (size_t j = 0; j < rc->n_buses; j++)
+                for (size_t i = 0; i < j; i++) {
+                        const struct rig_bus_conf *a = &rc->buses[i], *b = &rc->buses[j];
+                        bool tcp = b->type == RIG_BUS_MODBUS_TCP;
+
+                        if ((a->type == RIG_BUS_MODBUS_TCP) != tcp)
+                                continue;
+                        if (tcp && strcmp(a->host, b->host) == 0 && a->tcp_port == b->tcp_port)
+                                return yconf_error(yc, entry_key(yc, "buses", j, "tcp_port"),
+                                                   "tcp_port", "buses '%s' and '%s' both use %s:%d",
+                                                   a->name, b->name, b->host, b->tcp_port);
+                        if (!tcp && strcmp(a->port, b->port) == 0)
+                                return yconf_error(yc, entry_key(yc, "buses", j, "port"), "port",
+                                                   "buses '%s' and '%s' both use port '%s'",
+                                                   a->name, b->name, b->port);
+                }
+        return 0;
+}
+
+/* At most one axis per role; the error points at the second axis's role (or name). */
+static int check_roles(struct yconf *yc, const struct rig_config *rc)
+{
+        for (size_t j = 0; j < rc->n_axes; j++)
+                for (size_t i = 0; i < j; i++)
                         if (rc->axes[i].role >= 0 && rc->axes[i].role == rc->axes[j].role)
-                                return yconf_error(yc, yconf_get(yconf_root(yc), "axes"), "role",
+                                return yconf_error(yc, entry_key(yc, "axes", j, "role"), "role",
                                                    "axes '%s' and '%s' both have role '%s'",
                                                    rc->axes[i].name, rc->axes[j].name,
                                                    gn_role_name(rc->axes[j].role));
-        for (size_t i = 0; i < rc->n_buses; i++)
-                for (size_t j = i + 1; j < rc->n_buses; j++)
-                        if (strcmp(rc->buses[i].name, rc->buses[j].name) == 0)
-                                return yconf_error(yc, yconf_get(yconf_root(yc), "buses"), "buses",
-                                                   "bus name '%s' is used twice",
-                                                   rc->buses[j].name);
         return 0;
+}
+
+/* Names of devices, buses and profiles; Modbus addresses; bus ports; axis roles. */
+static int check_unique(struct yconf *yc, const struct rig_config *rc)
+{
+        struct ref refs[RIG_MAX_BUSES + RIG_MAX_AXES + RIG_MAX_LAMPS + 1 + RIG_MAX_CAMERAS];
+        size_t n = device_refs(rc, refs);
+        int r;
+
+        if ((r = check_names(yc, refs, n, "device")) < 0 || (r = check_addresses(yc, refs, n)) < 0)
+                return r;
+        n = 0;
+        for (size_t i = 0; i < rc->n_buses; i++)
+                refs[n++] = (struct ref){"buses", "bus", i, rc->buses[i].name};
+        if ((r = check_names(yc, refs, n, "bus")) < 0)
+                return r;
+        n = 0;
+        for (size_t i = 1; i < rc->n_profiles; i++) /* [0] is the built-in default */
+                refs[n++] = (struct ref){"profiles", "profile", i - 1, rc->profiles[i].name};
+        for (size_t i = 0; i < n; i++)
+                if (strcmp(refs[i].name, rc->profiles[0].name) == 0)
+                        return yconf_error(yc, entry_key(yc, "profiles", i, "name"), "name",
+                                           "profile '%s' is built in; choose another name",
+                                           refs[i].name);
+        if ((r = check_names(yc, refs, n, "profile")) < 0 || (r = check_ports(yc, rc)) < 0)
+                return r;
+        return check_roles(yc, rc);
 }
 
 /* The device's bus must exist and be of a fitting kind (sim bus only for cameras). */
 static int check_bus(struct yconf *yc, struct rig_config *rc, const char *section, int index,
                      const char *dev, const char *bus, bool camera)
 {
-        struct fy_node *seq = yconf_get(yconf_root(yc), section);
-        struct fy_node *node = seq && fy_node_get_type(seq) == FYNT_SEQUENCE
-                                       ? yconf_get(yconf_seq_item(seq, index), "bus")
-                                       : yconf_get(seq, "bus");
+        struct fy_node *node = entry_key(yc, section, index, "bus");
         const struct rig_bus_conf *b = rigconf_bus(rc, bus);
 
         if (!b)
@@ -429,11 +564,8 @@ static int check_references(struct yconf *yc, struct rig_config *rc)
         for (size_t i = 0; r >= 0 && i < rc->n_axes; i++) {
                 r = check_bus(yc, rc, "axes", i, rc->axes[i].name, rc->axes[i].bus, false);
                 if (r >= 0 && !rigconf_profile(rc, rc->axes[i].profile))
-                        r = yconf_error(
-                                yc,
-                                yconf_get(yconf_seq_item(yconf_get(yconf_root(yc), "axes"), i),
-                                          "profile"),
-                                "profile", "no register profile named '%s'", rc->axes[i].profile);
+                        r = yconf_error(yc, entry_key(yc, "axes", i, "profile"), "profile",
+                                        "no register profile named '%s'", rc->axes[i].profile);
         }
         for (size_t i = 0; r >= 0 && i < rc->n_lamps; i++)
                 r = check_bus(yc, rc, "lamps", i, rc->lamps[i].name, rc->lamps[i].bus, false);

@@ -20,10 +20,20 @@
 #define RIG_MAX_LAMPS   16
 #define RIG_MAX_CAMERAS 8
 
+/* Ranges of a camera's default exposure and gain in the rig file: those of the sim camera's
+ * option table (drivers/camera/sim/api.c), so that a rig file that loads never asks a camera
+ * for a control its driver refuses. goniod's capture params (daemon/methods.c) still check
+ * their own range; the camera option tables are to become the one source of these limits. */
+#define RIG_EXPOSURE_US_MIN 1
+#define RIG_EXPOSURE_US_MAX 10000000 /* 10 s */
+#define RIG_GAIN_MIN        0.1
+#define RIG_GAIN_MAX        64.0
+
 enum rig_bus_type {
         RIG_BUS_MODBUS_RTU,
         RIG_BUS_MODBUS_TCP,
-        RIG_BUS_SIM, /* gonio-sim frame socket (Unix stream socket path in port) */
+        RIG_BUS_SIM,    /* gonio-sim frame socket (Unix stream socket path in port) */
+        RIG_BUS_SERIAL, /* a plain serial line (G-code controllers), port and line settings */
 };
 
 struct rig_bus_conf {

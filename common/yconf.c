@@ -197,51 +197,87 @@ static int scalar(struct yconf *ctx, struct fy_node *map, const char *key, struc
         return *text ? 1 : yconf_error(ctx, n, key, "cannot read value");
 }
 
-int yconf_expand(const char *src, char *out, size_t outlen)
+/* Appends the bytes of s to out at *o. Returns 0 or -ENAMETOOLONG. */
+static int append(const char *s, size_t n, char *out, size_t outlen, size_t *o)
+{
+        if (*o + n >= outlen)
+                return -ENAMETOOLONG;
+        memcpy(out + *o, s, n);
+        *o += n;
+        return 0;
+}
+
+/* Expands one reference: text is what stands between "${" and "}". */
+static int expand_var(const char *text, size_t len, char *out, size_t outlen, size_t *o, char *var,
+                      size_t varlen)
+{
+        const char *def = memmem(text, len, ":-", 2);
+        size_t namelen = def ? (size_t)(def - text) : len;
+        char name[YCONF_VAR_MAX];
+        const char *val;
+
+        snprintf(var, varlen, "%.*s", (int)namelen, text);
+        if (namelen == 0 || namelen >= sizeof(name))
+                return -EINVAL;
+        memcpy(name, text, namelen);
+        name[namelen] = 0;
+        val = getenv(name);
+        if (val && *val)
+                return append(val, strlen(val), out, outlen, o);
+        if (def) /* unset or empty: the default, which may be written empty on purpose */
+                return append(def + 2, len - namelen - 2, out, outlen, o);
+        return val ? -ENODATA : -ENOENT;
+}
+
+int yconf_expand(const char *src, char *out, size_t outlen, char *var, size_t varlen)
 {
         size_t o = 0;
+        int r;
 
+        if (varlen)
+                var[0] = 0;
         while (*src) {
-                if (src[0] == '$' && src[1] == '{' && strchr(src, '}')) {
-                        const char *end = strchr(src, '}');
-                        char name[128] = "", *def;
-                        size_t n = MIN((size_t)(end - src - 2), sizeof(name) - 1);
-                        const char *val;
+                const char *end = src[0] == '$' && src[1] == '{' ? strchr(src, '}') : NULL;
 
-                        memcpy(name, src + 2, n);
-                        name[n] = 0;
-                        def = strstr(name, ":-");
-                        if (def)
-                                *def = 0, def += 2;
-                        val = getenv(name);
-                        if (!val || (!*val && def))
-                                val = def ? def : "";
-                        for (; *val; val++) {
-                                if (o + 1 >= outlen)
-                                        return -ENAMETOOLONG;
-                                out[o++] = *val;
-                        }
+                if (end) {
+                        r = expand_var(src + 2, end - src - 2, out, outlen, &o, var, varlen);
                         src = end + 1;
-                        continue;
-                }
-                if (o + 1 >= outlen)
-                        return -ENAMETOOLONG;
-                out[o++] = *src++;
+                } else
+                        r = append(src++, 1, out, outlen, &o);
+                if (r < 0)
+                        return r;
         }
+        if (outlen == 0)
+                return -ENAMETOOLONG;
         out[o] = 0;
         return 0;
 }
 
 int yconf_str(struct yconf *ctx, struct fy_node *map, const char *key, char *out, size_t outlen)
 {
+        char var[YCONF_VAR_MAX];
         struct fy_node *n;
         const char *text;
         int r = scalar(ctx, map, key, &n, &text);
 
         if (r <= 0)
                 return r;
-        if (yconf_expand(text, out, outlen) < 0)
-                return yconf_error(ctx, n, key, "value too long (at most %zu bytes)", outlen - 1);
+        r = yconf_expand(text, out, outlen, var, sizeof(var));
+        if (r == -ENOENT)
+                return yconf_error(ctx, n, key,
+                                   "environment variable %s is not set (write ${%s:-default} for "
+                                   "a default)",
+                                   var, var);
+        if (r == -ENODATA)
+                return yconf_error(ctx, n, key,
+                                   "environment variable %s is empty (write ${%s:-default} for a "
+                                   "default, or ${%s:-} for an empty value)",
+                                   var, var, var);
+        if (r == -EINVAL)
+                return yconf_error(ctx, n, key, "'${%s}': bad variable reference", var);
+        if (r < 0)
+                return yconf_error(ctx, n, key, "value too long (at most %zu bytes)",
+                                   outlen ? outlen - 1 : 0);
         return 1;
 }
 

@@ -4,7 +4,8 @@
  * A thin layer over libfyaml. Every getter returns 0 when the key is absent
  * (the output keeps its default), 1 when it was read, or -EINVAL after
  * writing "FILE:LINE: key 'a.b': reason" into the context's error buffer.
- * String values have ${VAR} and ${VAR:-default} expanded from the environment. */
+ * String values have ${VAR} and ${VAR:-default} expanded from the environment; an
+ * unset or empty ${VAR} without a default is an error that names the variable. */
 #pragma once
 
 #include <stdbool.h>
@@ -65,5 +66,12 @@ int yconf_seq_len(struct yconf *ctx, struct fy_node *seq, const char *key);
 /* Item i of a sequence node. */
 struct fy_node *yconf_seq_item(struct fy_node *seq, int i);
 
-/* Expands ${VAR} and ${VAR:-def} in src into out. Returns 0, or -ENAMETOOLONG. */
-int yconf_expand(const char *src, char *out, size_t outlen);
+/* Longest variable name in ${VAR}, with its terminating NUL. */
+#define YCONF_VAR_MAX 128
+
+/* Expands ${VAR} and ${VAR:-def} in src into out. ${VAR} needs VAR set and not empty;
+ * ${VAR:-def} gives def when VAR is unset or empty (${VAR:-} an empty string). Returns 0;
+ * -ENOENT when VAR is unset, -ENODATA when it is empty (no default either way), -EINVAL for
+ * an empty or over-long name (the variable's name goes into var, which may have varlen 0);
+ * -ENAMETOOLONG when out is too small. */
+int yconf_expand(const char *src, char *out, size_t outlen, char *var, size_t varlen);

@@ -9,15 +9,50 @@
 
 #include "common/log.h"
 #include "manager.h"
+#include "protocol/proto.h"
 
-void manager_notify(void *userdata, const char *method, json_t *params)
+void manager_notify_json(struct manager *m, const char *method, json_t *params)
 {
-        struct manager *m = userdata;
-
         if (m->server)
                 server_broadcast(m->server, method, params);
         else
                 json_decref(params);
+}
+
+/* The protocol edge of rig events: the notifications of docs/protocol.md. */
+void manager_on_rig_event(void *userdata, const struct rig_event *ev)
+{
+        struct manager *m = userdata;
+
+        switch (ev->type) {
+        case RIG_EVENT_STATE:
+                return manager_notify_json(m, "state.changed",
+                                           json_pack("{ss}", "state", ev->state));
+        case RIG_EVENT_AXIS_MOVED:
+                return manager_notify_json(m, "axis.moved",
+                                           json_pack("{sssfsb}", "axis", ev->device, "position",
+                                                     ev->position, "moving", ev->moving));
+        case RIG_EVENT_MOVE_DONE:
+                return manager_notify_json(m, "move.done",
+                                           json_pack("{sssfsb}", "axis", ev->device, "position",
+                                                     ev->position, "moving", false));
+        case RIG_EVENT_SWITCH:
+                return manager_notify_json(m, "switch.changed",
+                                           json_pack("{sssb}", "name", ev->device, "on", ev->on));
+        case RIG_EVENT_FAULT:
+                return manager_notify_json(m, "fault",
+                                           json_pack("{sssiss}", "device", ev->device, "code",
+                                                     proto_errno_to_code(ev->error), "message",
+                                                     ev->message));
+        }
+}
+
+/* The protocol edge of stored rows: capture.stored. */
+static void on_stored_row(void *userdata, const struct ds_capture *c)
+{
+        manager_notify_json(userdata, "capture.stored",
+                            json_pack("{sIssssss}", "id", (json_int_t)c->id, "camera", c->camera,
+                                      "file", c->file, "sha256", c->sha256));
 }
 
 static int make_dir(const char *path)
@@ -92,7 +127,10 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
         r = server_new(m->event, socket_path, manager_methods, m, &m->server);
         if (r < 0)
                 goto fail;
-        r = rig_new(m->event, m->rc, manager_notify, m, &m->rig);
+        r = rig_new(m->event, m->rc, manager_on_rig_event, m, &m->rig);
+        if (r < 0)
+                goto fail;
+        r = capture_new(m->event, m->rig, on_stored_row, m, &m->capture);
         if (r < 0)
                 goto fail;
         if (strcmp(rig_state(m->rig), "fault") == 0)
@@ -119,9 +157,8 @@ struct manager *manager_free(struct manager *m)
         if (!m)
                 return NULL;
         m->server = server_free(m->server);
-        m->pool = ds_pool_free(m->pool); /* completes pending stores */
-        m->ds = ds_close(m->ds);
-        m->rig = rig_free(m->rig); /* safe state */
+        m->capture = capture_free(m->capture); /* completes pending stores */
+        m->rig = rig_free(m->rig);             /* safe state */
         rigconf_free(m->rc);
         sd_event_unref(m->event);
         free(m);

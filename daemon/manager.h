@@ -5,8 +5,7 @@
 #include <limits.h>
 
 #include "common/rigconf.h"
-#include "ds.h"
-#include "ds_pool.h"
+#include "capture.h"
 #include "rig.h"
 #include "server.h"
 
@@ -18,10 +17,7 @@ struct manager {
         struct rig *rig;
         struct server *server;
         char data_dir[PATH_MAX];
-        struct ds *ds;        /* the open dataset, or NULL */
-        struct ds_pool *pool; /* its storage pool */
-        char ds_name[DS_NAME_MAX];
-        int64_t ds_count;           /* rows in the open dataset */
+        struct capture *capture;    /* the capture pipeline and its open dataset */
         uint64_t shutdown_deadline; /* set once SIGTERM/SIGINT arrived */
 };
 
@@ -40,4 +36,7 @@ struct manager *manager_free(struct manager *m);
 extern const struct srv_method manager_methods[];
 
 /* Sends a notification to every client (params stolen). */
-void manager_notify(void *userdata, const char *method, json_t *params);
+void manager_notify_json(struct manager *m, const char *method, json_t *params);
+
+/* Turns a rig event into its protocol notification (rig_event_fn). */
+void manager_on_rig_event(void *userdata, const struct rig_event *ev);

@@ -8,6 +8,7 @@
 #include <sys/stat.h>
 #include <time.h>
 
+#include "common/clock.h"
 #include "common/log.h"
 #include "manager.h"
 #include "protocol/proto.h"
@@ -68,7 +69,7 @@ static void on_rig_done(struct rig *rig, int result, const char *msg, void *user
 }
 
 /* Why the rig refused an operation at once. */
-static const char *refusal(int r)
+static const char *refusal(const struct manager *m, int r)
 {
         switch (r) {
         case -ESTALE:
@@ -76,11 +77,9 @@ static const char *refusal(int r)
         case -EPERM:
                 return "the axis is not homed (home first)";
         case -EBUSY:
-                return "busy: an axis is moving";
+                return rig_busy_reason(m->rig);
         case -ENODEV:
-                return "the device is not available (it failed to open)";
-        case -ERANGE:
-                return "target outside the soft limits";
+                return "the device is not available (it failed to open; see status)";
         default:
                 return strerror(-r);
         }
@@ -91,7 +90,7 @@ static void op_refused(struct op *o, int r, const char *device)
 {
         char msg[256];
 
-        snprintf(msg, sizeof(msg), "%s: %s", device, refusal(r));
+        snprintf(msg, sizeof(msg), "%s: %s", device, refusal(o->m, r));
         op_part_done(o, r, msg);
 }
 
@@ -133,10 +132,16 @@ static int m_status(struct srv_req *req, json_t *params, void *userdata)
         struct manager *m = userdata;
         json_t *st = rig_status(m->rig);
 
+        struct ds *d = capture_dataset(m->capture);
+
+        if (strcmp(json_string_value(json_object_get(st, "state")), "idle") == 0 &&
+            capture_in_flight(m->capture) > 0)
+                json_object_set_new(st, "state", json_string("storing"));
         json_object_set_new(st, "dataset",
-                            m->ds ? json_pack("{sssssI}", "path", ds_path(m->ds), "name",
-                                              m->ds_name, "count", (json_int_t)m->ds_count)
-                                  : json_null());
+                            d ? json_pack("{sssssI}", "path", ds_path(d), "name",
+                                          capture_dataset_name(m->capture), "count",
+                                          (json_int_t)capture_dataset_count(m->capture))
+                              : json_null());
         srv_reply(req, st);
         return 0;
 }
@@ -197,12 +202,25 @@ static json_t *move_result(struct op *o)
         return out;
 }
 
+/* Why a move of axis i was refused, with the limits where they are the reason. */
+static const char *move_refusal(struct manager *m, int i, int r, char *buf, size_t len)
+{
+        const struct rig_axis_conf *c = &m->rc->axes[i];
+
+        if (r != -ERANGE)
+                return refusal(m, r);
+        snprintf(buf, len, "outside the soft limits [%g, %g] deg of '%s'", c->min_deg, c->max_deg,
+                 c->name);
+        return buf;
+}
+
 static int m_move(struct srv_req *req, json_t *params, void *userdata)
 {
         struct manager *m = userdata;
         const char *axis = NULL;
         double pos = NAN;
         bool relative = false, wait = true;
+        char why[160];
         struct op *o;
         int i, r;
 
@@ -226,7 +244,8 @@ static int m_move(struct srv_req *req, json_t *params, void *userdata)
         r = rig_move(m->rig, i, &pos, relative, wait ? on_rig_done : NULL, o);
         if (r < 0) {
                 free(o);
-                return srv_req_errmsg(req, r, "move %s to %g: %s", axis, pos, refusal(r));
+                return srv_req_errmsg(req, r, "move %s to %g: %s", axis, pos,
+                                      move_refusal(m, i, r, why, sizeof(why)));
         }
         if (!wait) {
                 free(o);
@@ -259,7 +278,7 @@ static int switch_and_reply(struct srv_req *req, struct manager *m, int i, bool 
         if (r < 0) {
                 json_decref(o->result);
                 free(o);
-                return srv_req_errmsg(req, r, "%s: %s", name, refusal(r));
+                return srv_req_errmsg(req, r, "%s: %s", name, refusal(m, r));
         }
         return 0;
 }
@@ -331,92 +350,69 @@ static json_t *capture_json(const struct ds_capture *c)
 {
         return json_pack("{sIsssssssisisssosososssb}", "id", (json_int_t)c->id, "camera", c->camera,
                          "file", c->file, "sha256", c->sha256, "width", c->width, "height",
-                         c->height, "pixfmt", c->pixfmt, "turntable", num_or_null(c->turntable_deg),
-                         "light_arm", num_or_null(c->light_arm_deg), "camera_arm",
-                         num_or_null(c->camera_arm_deg), "lamps", c->lamps, "laser", c->laser);
+                         c->height, "pixfmt", c->pixfmt, "turntable",
+                         num_or_null(c->pose.deg[GN_ROLE_TURNTABLE]), "light_arm",
+                         num_or_null(c->pose.deg[GN_ROLE_LIGHT_ARM]), "camera_arm",
+                         num_or_null(c->pose.deg[GN_ROLE_CAMERA_ARM]), "lamps", c->lamps, "laser",
+                         c->pose.laser);
 }
 
-/* One camera's part of a capture request. */
-struct shot {
-        struct op *o;
-        struct manager *m;
-        int cam;
-        uint64_t t_request_ns;
-};
-
-static void on_stored(int result, const struct ds_capture *c, void *userdata)
+/* Answers a capture: every row stored, or an error whose data lists what was stored and
+ * what failed, so that a client retries only the cameras that failed. */
+static void on_captured(struct capture *cp, const struct capture_result *res, void *userdata)
 {
-        struct shot *s = userdata;
-        char msg[300] = "the store was canceled";
+        struct srv_req *req = userdata;
+        json_t *stored = json_array(), *failed = json_array();
+        const struct capture_shot *first = NULL;
 
-        if (result >= 0) {
-                s->m->ds_count++;
-                json_array_append_new(json_object_get(s->o->result, "captures"), capture_json(c));
-                manager_notify(s->m, "capture.stored",
-                               json_pack("{sIssssss}", "id", (json_int_t)c->id, "camera", c->camera,
-                                         "file", c->file, "sha256", c->sha256));
-        } else if (result != -ECANCELED) {
-                snprintf(msg, sizeof(msg), "storing the frame of '%s' failed: %s", c->camera,
-                         strerror(-result));
-                rig_fault(s->m->rig, "dataset", result, "%s", msg);
+        for (size_t i = 0; i < res->n_shots; i++) {
+                const struct capture_shot *s = &res->shots[i];
+                if (s->result >= 0) {
+                        json_array_append_new(stored, capture_json(&s->row));
+                        continue;
+                }
+                first = first ? first : s;
+                json_array_append_new(failed,
+                                      json_pack("{sssiss}", "camera", s->row.camera, "code",
+                                                proto_errno_to_code(s->result), "message", s->msg));
         }
-        op_part_done(s->o, result, result < 0 ? msg : NULL);
-        free(s);
-}
-
-static void on_frame(struct rig *rig, int result, const char *msg, struct gn_frame *frame,
-                     void *userdata)
-{
-        struct shot *s = userdata;
-        struct rig_snapshot snap;
-        struct ds_capture c = {.t_request_ns = s->t_request_ns};
-        int r = result;
-
-        if (r >= 0 && !s->m->pool)
-                r = -ESTALE, msg = "the dataset was closed during the capture";
-        if (r >= 0) {
-                rig_snapshot(rig, &snap);
-                c.turntable_deg = snap.turntable_deg;
-                c.light_arm_deg = snap.light_arm_deg;
-                c.camera_arm_deg = snap.camera_arm_deg;
-                snprintf(c.lamps, sizeof(c.lamps), "%s", snap.lamps);
-                c.laser = snap.laser;
-                snprintf(c.camera, sizeof(c.camera), "%s", s->m->rc->cameras[s->cam].name);
-                c.exposure_us = frame->exposure_us;
-                c.gain = frame->gain;
-                c.t_exposure_ns = frame->timestamp_ns;
-                r = ds_pool_store(s->m->pool, frame, &c, on_stored, s);
-                if (r >= 0)
-                        return;
-                msg = r == -EAGAIN ? "the storage queue is full" : strerror(-r);
+        if (!first) {
+                json_decref(failed);
+                return srv_reply(req, json_pack("{so}", "captures", stored));
         }
-        op_part_done(s->o, r, msg);
-        free(s);
+        srv_fail_data(req, first->result, json_pack("{soso}", "stored", stored, "failed", failed),
+                      "%s (%zu of %zu cameras stored)", first->msg, json_array_size(stored),
+                      res->n_shots);
 }
 
-static uint64_t realtime_ns(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_REALTIME, &ts);
-        return ts.tv_sec * 1000000000ULL + ts.tv_nsec;
-}
-
+/* Reads exposure, gain and bits; their ranges are each camera's (rig_check_camera_request). */
 static int read_cam_request(struct srv_req *req, json_t *params, struct cam_request *cr)
 {
         long exposure = 0, bits = 0;
         double gain = 0;
         int r;
 
-        if ((r = srv_param_int(req, params, "exposure_us", 1, 60000000, &exposure)) < 0 ||
+        if ((r = srv_param_int(req, params, "exposure_us", 1, INT32_MAX, &exposure)) < 0 ||
             (r = srv_param_double(req, params, "gain", &gain)) < 0 ||
             (r = srv_param_int(req, params, "bits", 8, 16, &bits)) < 0)
                 return r;
-        if (bits && bits != 8 && bits != 16)
-                return srv_req_errmsg(req, -EINVAL, "param 'bits': must be 8 or 16");
-        if (gain < 0 || gain > 1000)
-                return srv_req_errmsg(req, -EINVAL, "param 'gain': must be in [0, 1000]");
+        if (!isfinite(gain) || gain < 0)
+                return srv_req_errmsg(req, -EINVAL, "param 'gain': must be a positive number");
         *cr = (struct cam_request){.exposure_us = exposure, .gain = gain, .bits = bits};
+        return 0;
+}
+
+/* Checks cr against every camera of cams; answers with the first camera's objection. */
+static int check_cameras(struct srv_req *req, struct manager *m, const int *cams, size_t n,
+                         const struct cam_request *cr)
+{
+        char msg[256];
+        int r;
+
+        for (size_t i = 0; i < n; i++)
+                if ((r = rig_check_camera_request(m->rig, cams[i], cr, msg, sizeof(msg))) < 0)
+                        return srv_req_errmsg(req, r, "camera '%s': %s", m->rc->cameras[cams[i]].name,
+                                              msg);
         return 0;
 }
 
@@ -425,37 +421,26 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
         struct manager *m = userdata;
         const char *camera = NULL;
         struct cam_request cr;
-        int first = 0, last = m->rc->n_cameras, r;
-        struct op *o;
+        int cams[RIG_MAX_CAMERAS];
+        size_t n = 0;
+        int r;
 
         if ((r = srv_params_check(req, params, KEYS("camera", "exposure_us", "gain", "bits"))) <
                     0 ||
             (r = srv_param_str(req, params, "camera", &camera)) < 0 ||
             (r = read_cam_request(req, params, &cr)) < 0)
                 return r;
-        if (!m->pool)
-                return srv_req_errmsg(req, -ESTALE, "no dataset is open (dataset.open first)");
-        if (camera && (first = rig_camera_index(m->rig, camera)) < 0)
+        if (camera && (cams[n++] = rig_camera_index(m->rig, camera)) < 0)
                 return srv_req_errmsg(req, -ENOENT, "no camera named '%s'", camera);
-        if (camera)
-                last = first + 1;
-        if (!(o = op_new(req, json_pack("{s[]}", "captures"))))
-                return -ENOMEM;
-        o->pending = last - first + 1;
-        for (int i = first; i < last; i++) {
-                struct shot *s = calloc(1, sizeof(*s));
-                if (!s) {
-                        op_part_done(o, -ENOMEM, NULL);
-                        continue;
-                }
-                *s = (struct shot){.o = o, .m = m, .cam = i, .t_request_ns = realtime_ns()};
-                r = rig_capture(m->rig, i, &cr, on_frame, s);
-                if (r < 0) {
-                        free(s);
-                        op_refused(o, r, m->rc->cameras[i].name);
-                }
-        }
-        op_part_done(o, 0, NULL);
+        for (size_t i = 0; !camera && i < m->rc->n_cameras; i++)
+                cams[n++] = i;
+        if ((r = check_cameras(req, m, cams, n, &cr)) < 0)
+                return r;
+        if (!capture_dataset(m->capture))
+                return srv_req_errmsg(req, -ESTALE, "no dataset is open (dataset.open first)");
+        r = capture_take(m->capture, cams, n, &cr, NULL, on_captured, req);
+        if (r < 0)
+                return srv_req_errmsg(req, r, "capture refused: %s", refusal(m, r));
         return 0;
 }
 
@@ -475,21 +460,6 @@ static int dataset_path(struct srv_req *req, struct manager *m, const char *name
         return 0;
 }
 
-/* True while a capture is being taken or stored: the dataset must not change under it. */
-static bool storing(const struct manager *m)
-{
-        return strcmp(rig_state(m->rig), "capturing") == 0 ||
-               (m->pool && ds_pool_in_flight(m->pool) > 0);
-}
-
-static void dataset_close(struct manager *m)
-{
-        m->pool = ds_pool_free(m->pool);
-        m->ds = ds_close(m->ds);
-        m->ds_name[0] = 0;
-        m->ds_count = 0;
-}
-
 static int m_dataset_open(struct srv_req *req, json_t *params, void *userdata)
 {
         struct manager *m = userdata;
@@ -504,7 +474,7 @@ static int m_dataset_open(struct srv_req *req, json_t *params, void *userdata)
             (r = srv_param_bool(req, params, "create", &create)) < 0 ||
             (r = dataset_path(req, m, name, path, sizeof(path))) < 0)
                 return r;
-        if (storing(m))
+        if (capture_in_flight(m->capture) > 0)
                 return srv_req_errmsg(req, -EBUSY, "captures are still in progress");
         r = create ? ds_create(path, name, m->rc->text, &d) : ds_open(path, &d);
         if (r < 0)
@@ -513,17 +483,13 @@ static int m_dataset_open(struct srv_req *req, json_t *params, void *userdata)
                                       r == -EEXIST   ? "it exists already"
                                       : r == -ENOENT ? "no such dataset"
                                                      : strerror(-r));
-        dataset_close(m);
-        r = ds_pool_new(m->event, d, 2, 16, &m->pool);
+        r = capture_open_dataset(m->capture, d, name);
         if (r < 0) {
                 ds_close(d);
-                return srv_req_errmsg(req, r, "cannot start the storage pool: %s", strerror(-r));
+                return srv_req_errmsg(req, r, "cannot use dataset '%s': %s", name, strerror(-r));
         }
-        m->ds = d;
-        m->ds_count = ds_count(d);
-        snprintf(m->ds_name, sizeof(m->ds_name), "%s", name);
         srv_reply(req, json_pack("{sssssI}", "path", ds_path(d), "name", name, "count",
-                                 (json_int_t)m->ds_count));
+                                 (json_int_t)capture_dataset_count(m->capture)));
         return 0;
 }
 
@@ -531,9 +497,8 @@ static int m_dataset_close(struct srv_req *req, json_t *params, void *userdata)
 {
         struct manager *m = userdata;
 
-        if (storing(m))
+        if (capture_close_dataset(m->capture) < 0)
                 return srv_req_errmsg(req, -EBUSY, "captures are still in progress");
-        dataset_close(m);
         srv_reply(req, json_object());
         return 0;
 }
@@ -645,10 +610,10 @@ static int m_dataset_info(struct srv_req *req, json_t *params, void *userdata)
         if ((r = srv_params_check(req, params, KEYS("name"))) < 0 ||
             (r = srv_param_str(req, params, "name", &name)) < 0)
                 return r;
-        if (!name && !m->ds)
+        if (!name && !capture_dataset(m->capture))
                 return srv_req_errmsg(req, -ENOENT, "no dataset is open and no name given");
         if (!name)
-                name = m->ds_name;
+                name = capture_dataset_name(m->capture);
         if ((r = dataset_path(req, m, name, path, sizeof(path))) < 0)
                 return r;
         info = dataset_summary(path, name, true);

@@ -6,128 +6,60 @@
  * jobs on a per-axis one-shot timer until the drive reports in position, then a
  * settle timer. A stop bumps the axis's generation counter first, so a move job
  * still queued behind it is dropped on the worker instead of moving the axis
- * after the stop. Any device error latches a fault and sends the rig to its safe
- * state (every axis stopped, lamps and laser off). */
+ * after the stop; the stopped axis is then followed until it stands still. Idle
+ * drives are read back once a second, so motion nobody commanded (a drive still
+ * moving when goniod restarted, a jog on the drive's panel) is seen and stopped.
+ * Any device error latches a fault and sends the rig to its safe state (every
+ * axis stopped, lamps and laser off). Exposures live in rig_expose.c, status and
+ * describe in rig_json.c. */
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
-#include <stdatomic.h>
 #include <stdio.h>
 #include <string.h>
-#include <systemd/sd-event.h>
 
 #include "common/log.h"
-#include "drivers/bus/bus.h"
 #include "drivers/registry.h"
-#include "protocol/proto.h"
-#include "rig.h"
+#include "rig_internal.h"
 
-#define POLL_USEC      (20 * 1000)
-#define NOTIFY_USEC    (200 * 1000)
-#define OPEN_WAIT_USEC (15 * 1000 * 1000ULL)
-
-enum axis_op { AX_IDLE, AX_MOVING, AX_HOMING };
-
-struct rig_axis {
-        struct rig *rig;
-        int idx;
-        struct axis *ax;
-        struct axis_state st; /* last state seen by the loop */
-        bool open;
-        enum axis_op op;
-        atomic_uint gen; /* bumped by stop; queued moves of older generations are dropped */
-        rig_done_fn done;
-        void *ud;
-        sd_event_source *timer;
-        uint64_t deadline, last_notify;
-        bool settling;
-};
-
-struct rig_switch {
-        struct sw *sw;
-        bool open;
-};
-
-struct rig {
-        sd_event *event;
-        struct rig_config *rc;
-        struct bus *buses[RIG_MAX_BUSES];
-        struct rig_axis axes[RIG_MAX_AXES];
-        struct rig_switch lamps[RIG_MAX_LAMPS], laser;
-        struct cam *cams[RIG_MAX_CAMERAS];
-        bool cam_open[RIG_MAX_CAMERAS];
-        unsigned pending;  /* jobs in flight */
-        unsigned captures; /* captures in flight */
-        rig_notify_fn notify;
-        void *notify_ud;
-        bool fault;
-        char fault_device[RIG_NAME_MAX];
-        char fault_msg[256];
-        const char *last_state;
-        /* fault.clear in progress: its jobs are counted, done runs when the last ends */
-        bool clear_collect;
-        unsigned clear_pending;
-        rig_done_fn clear_done;
-        void *clear_ud;
-};
-
-/* Axis jobs come first: is_axis_job() relies on the order. */
-enum job_kind {
-        J_OPEN_AXIS,
-        J_HOME,
-        J_MOVE,
-        J_POLL,
-        J_STOP,
-        J_RESET,
-        J_OPEN_SW,
-        J_CHECK_SW,
-        J_SWITCH,
-        J_OPEN_CAM,
-        J_CAPTURE
-};
-
-struct job {
-        struct rig *rig;
-        enum job_kind kind;
-        int idx; /* device index; -1 = the laser for switch jobs */
-        unsigned gen;
-        double arg;
-        bool on;
-        struct axis_state st;
-        struct cam_request creq;
-        struct gn_frame frame;
-        rig_done_fn done;
-        rig_frame_fn frame_done;
-        void *ud;
-        bool clear; /* part of a fault.clear */
-};
+#define POLL_USEC          (20 * 1000)
+#define NOTIFY_USEC        (100 * 1000)
+#define IDLE_POLL_USEC     (1000 * 1000)
+#define TIMER_ACCURACY     1000 /* usec: sd-event's default (250 ms) would delay every move */
+#define OPEN_WAIT_USEC     (15 * 1000 * 1000ULL)
+#define STOP_WAIT_USEC     (30 * 1000 * 1000ULL)
+#define SHORT_GRACE_USEC   (200 * 1000) /* a drive may take this long to start moving */
+#define SHORT_DEADBAND_DEG 0.05         /* farther than this from the target at rest: short */
 
 static bool is_axis_job(enum job_kind kind)
 {
         return kind <= J_RESET;
 }
 
-static void emit(struct rig *rig, const char *method, json_t *params)
+void rig_emit(struct rig *rig, const struct rig_event *ev)
 {
         if (rig->notify)
-                rig->notify(rig->notify_ud, method, params);
-        else
-                json_decref(params);
+                rig->notify(rig->notify_ud, ev);
 }
 
-static void update_state(struct rig *rig)
+void rig_update_state(struct rig *rig)
 {
         const char *s = rig_state(rig);
 
         if (s != rig->last_state) {
                 rig->last_state = s;
-                emit(rig, "state.changed", json_pack("{ss}", "state", s));
+                rig_emit(rig, &(struct rig_event){.type = RIG_EVENT_STATE, .state = s});
         }
 }
 
 static struct rig_switch *switch_slot(struct rig *rig, int i)
 {
         return i < 0 ? &rig->laser : &rig->lamps[i];
+}
+
+static const char *switch_name(const struct rig *rig, int i)
+{
+        return i < 0 ? rig->rc->laser.name : rig->rc->lamps[i].name;
 }
 
 static const char *job_device(const struct job *j)
@@ -138,13 +70,24 @@ static const char *job_device(const struct job *j)
         case J_OPEN_SW:
         case J_CHECK_SW:
         case J_SWITCH:
-                return j->idx < 0 ? rc->laser.name : rc->lamps[j->idx].name;
+                return switch_name(j->rig, j->idx);
         case J_OPEN_CAM:
         case J_CAPTURE:
                 return rc->cameras[j->idx].name;
         default:
                 return rc->axes[j->idx].name;
         }
+}
+
+static const char *job_operation(const struct job *j)
+{
+        static const char *const names[] = {
+                [J_OPEN_AXIS] = "open",  [J_HOME] = "home",           [J_MOVE] = "move",
+                [J_POLL] = "read state", [J_STOP] = "stop",           [J_RESET] = "reset",
+                [J_OPEN_SW] = "open",    [J_CHECK_SW] = "read state", [J_SWITCH] = "switch",
+                [J_OPEN_CAM] = "open",   [J_CAPTURE] = "capture",
+        };
+        return names[j->kind];
 }
 
 static struct bus *job_bus(const struct job *j)
@@ -175,9 +118,8 @@ static int poll_after(struct job *j, struct rig_axis *a, int r)
 }
 
 /* Runs on the bus worker: the blocking driver call for one job. */
-static int job_run(struct bus *b, void *userdata)
+static int job_call(struct bus *b, struct job *j)
 {
-        struct job *j = userdata;
         struct rig *rig = j->rig;
         struct rig_axis *a = is_axis_job(j->kind) ? &rig->axes[j->idx] : NULL;
         int r;
@@ -213,9 +155,32 @@ static int job_run(struct bus *b, void *userdata)
         return -EINVAL;
 }
 
+/* The device's own account of its last failure (device, operation, register, cause). */
+static const char *device_error(const struct job *j)
+{
+        struct rig *rig = j->rig;
+
+        if (is_axis_job(j->kind))
+                return rig->axes[j->idx].ax->last_error;
+        if (j->kind == J_OPEN_CAM || j->kind == J_CAPTURE)
+                return rig->cams[j->idx]->last_error;
+        return switch_slot(rig, j->idx)->sw->last_error;
+}
+
+/* Runs on the bus worker: the job, and the driver's message if it failed. */
+static int job_run(struct bus *b, void *userdata)
+{
+        struct job *j = userdata;
+        int r = job_call(b, j);
+
+        if (r < 0 && r != -ECANCELED)
+                snprintf(j->why, sizeof(j->why), "%s", device_error(j));
+        return r;
+}
+
 static void job_done(struct bus *b, int result, void *userdata);
 
-static int submit(struct job *j, bool urgent)
+int rig_submit(struct job *j, bool urgent)
 {
         int r;
 
@@ -231,8 +196,7 @@ static int submit(struct job *j, bool urgent)
         return 0;
 }
 
-static int submit_new(struct rig *rig, enum job_kind kind, int idx, double arg, bool on,
-                      bool urgent)
+int rig_submit_new(struct rig *rig, enum job_kind kind, int idx, double arg, bool on, bool urgent)
 {
         struct job *j = calloc(1, sizeof(*j));
 
@@ -241,7 +205,16 @@ static int submit_new(struct rig *rig, enum job_kind kind, int idx, double arg, 
         *j = (struct job){.rig = rig, .kind = kind, .idx = idx, .arg = arg, .on = on};
         if (is_axis_job(kind))
                 j->gen = atomic_load(&rig->axes[idx].gen);
-        return submit(j, urgent);
+        return rig_submit(j, urgent);
+}
+
+static void switch_submit(struct rig *rig, struct job *j, bool urgent)
+{
+        struct rig_switch *s = switch_slot(rig, j->idx);
+
+        s->changing++;
+        if (rig_submit(j, urgent) < 0)
+                s->changing--;
 }
 
 void rig_safe_state(struct rig *rig)
@@ -249,20 +222,23 @@ void rig_safe_state(struct rig *rig)
         for (size_t i = 0; i < rig->rc->n_axes; i++) {
                 atomic_fetch_add(&rig->axes[i].gen, 1);
                 if (rig->axes[i].open)
-                        (void)submit_new(rig, J_STOP, i, 0, false, true);
+                        (void)rig_submit_new(rig, J_STOP, i, 0, false, true);
         }
-        if (rig->rc->has_laser && rig->laser.open)
-                (void)submit_new(rig, J_SWITCH, -1, 0, false, true);
-        for (size_t i = 0; i < rig->rc->n_lamps; i++)
-                if (rig->lamps[i].open)
-                        (void)submit_new(rig, J_SWITCH, i, 0, false, true);
+        for (int i = rig->rc->has_laser ? -1 : 0; i < (int)rig->rc->n_lamps; i++) {
+                struct job *j;
+                if (!switch_slot(rig, i)->open || !(j = calloc(1, sizeof(*j))))
+                        continue;
+                *j = (struct job){.rig = rig, .kind = J_SWITCH, .idx = i, .on = false};
+                switch_submit(rig, j, true);
+        }
 }
 
 static void axis_finish(struct rig_axis *a, int result, const char *msg);
 
 /* Latches the first fault, tells clients, and goes to the safe state. A device that
  * fails while the rig is already faulted (e.g. during the safe state) is only logged,
- * so a dead bus cannot make the safe state loop. */
+ * so a dead bus cannot make the safe state loop. The fault is latched before the moves
+ * it ends are answered, so clients see the fault, never an idle rig in between. */
 void rig_fault(struct rig *rig, const char *device, int err, const char *fmt, ...)
 {
         char msg[256];
@@ -279,24 +255,43 @@ void rig_fault(struct rig *rig, const char *device, int err, const char *fmt, ..
         rig->fault = true;
         snprintf(rig->fault_device, sizeof(rig->fault_device), "%s", device);
         snprintf(rig->fault_msg, sizeof(rig->fault_msg), "%s", msg);
-        emit(rig, "fault",
-             json_pack("{sssiss}", "device", device, "code", proto_errno_to_code(err), "message",
-                       msg));
+        rig_emit(rig,
+                 &(struct rig_event){
+                         .type = RIG_EVENT_FAULT, .device = device, .error = err, .message = msg});
+        rig_update_state(rig);
         for (size_t i = 0; i < rig->rc->n_axes; i++)
                 if (rig->axes[i].op != AX_IDLE)
                         axis_finish(&rig->axes[i], -EIO, msg);
         rig_safe_state(rig);
-        update_state(rig);
 }
 
-static void notify_axis(struct rig_axis *a, const char *method)
+/* Records the message of a failed device operation for replies and faults: the
+ * driver's own when it gave one, else device, operation and errno. */
+static const char *job_error(struct job *j, int result)
 {
-        emit(a->rig, method,
-             json_pack("{sssfsb}", "axis", a->ax->conf->name, "position", a->st.position_deg,
-                       "moving", a->st.moving));
+        struct rig *rig = j->rig;
+
+        if (j->why[0])
+                return snprintf(rig->last_error, sizeof(rig->last_error), "%s", j->why),
+                       rig->last_error;
+        snprintf(rig->last_error, sizeof(rig->last_error), "%s '%s': %s failed: %s",
+                 is_axis_job(j->kind)                            ? "axis"
+                 : j->kind == J_OPEN_CAM || j->kind == J_CAPTURE ? "camera"
+                 : j->idx < 0                                    ? "laser"
+                                                                 : "lamp",
+                 job_device(j), job_operation(j), strerror(-result));
+        return rig->last_error;
 }
 
-/* Ends the running move/home of a, calling its completion once. */
+static void notify_axis(struct rig_axis *a, enum rig_event_type type)
+{
+        rig_emit(a->rig, &(struct rig_event){.type = type,
+                                             .device = a->ax->conf->name,
+                                             .position = a->st.position_deg,
+                                             .moving = a->st.moving});
+}
+
+/* Ends the running move/home/stop of a, calling its completion once. */
 static void axis_finish(struct rig_axis *a, int result, const char *msg)
 {
         rig_done_fn done = a->done;
@@ -306,11 +301,11 @@ static void axis_finish(struct rig_axis *a, int result, const char *msg)
         a->done = NULL;
         a->settling = false;
         sd_event_source_set_enabled(a->timer, SD_EVENT_OFF);
-        if (result >= 0 && op != AX_IDLE)
-                notify_axis(a, "move.done");
+        if (result >= 0 && (op == AX_MOVING || op == AX_HOMING))
+                notify_axis(a, RIG_EVENT_MOVE_DONE);
         if (done)
                 done(a->rig, result, result < 0 ? msg : NULL, a->ud);
-        update_state(a->rig);
+        rig_update_state(a->rig);
 }
 
 static void arm(struct rig_axis *a, uint64_t usec)
@@ -327,105 +322,158 @@ static uint64_t now_usec(struct rig *rig)
         return t;
 }
 
+void rig_axis_stop_and_follow(struct rig_axis *a, const char *why)
+{
+        struct rig *rig = a->rig;
+
+        log_warning("axis '%s' %s at %.3f deg: stopping it", a->ax->conf->name, why,
+                    a->st.position_deg);
+        atomic_fetch_add(&a->gen, 1);
+        if (rig_submit_new(rig, J_STOP, a->idx, 0, false, true) < 0)
+                return;
+        a->op = AX_STOPPING;
+        a->started = now_usec(rig);
+        a->deadline = a->started + STOP_WAIT_USEC;
+        rig_update_state(rig);
+}
+
 /* Decides, from a fresh poll, whether the move of a is done, failed or goes on. */
 static void axis_progress(struct rig_axis *a)
 {
         struct rig *rig = a->rig;
         bool arrived = !a->st.moving && a->st.in_position && (a->op != AX_HOMING || a->st.homed);
+        const char *name = a->ax->conf->name;
         uint64_t now = now_usec(rig);
 
         if (a->st.fault)
-                return rig_fault(rig, a->ax->conf->name, -EIO, "drive reports fault code %d",
-                                 a->st.fault_code);
+                return rig_fault(rig, name, -EIO,
+                                 "axis '%s': drive reports fault code %d at %.3f deg", name,
+                                 a->st.fault_code, a->st.position_deg);
         if (now - a->last_notify >= NOTIFY_USEC) {
                 a->last_notify = now;
-                notify_axis(a, "axis.moved");
+                notify_axis(a, RIG_EVENT_AXIS_MOVED);
         }
-        if (arrived) {
+        if (a->op == AX_STOPPING && !a->st.moving)
+                return axis_finish(a, 0, NULL);
+        if (a->op != AX_STOPPING && arrived) {
                 a->settling = true;
                 return arm(a, a->ax->conf->settle_ms * 1000ULL);
         }
-        if (now > a->deadline) {
-                axis_finish(a, -ETIMEDOUT, "the axis did not reach its target in time");
-                return rig_fault(rig, a->ax->conf->name, -ETIMEDOUT,
-                                 "move did not complete in time");
-        }
+        if (a->op == AX_MOVING && !a->st.moving && !a->st.in_position &&
+            now - a->started > SHORT_GRACE_USEC &&
+            gn_angle_distance(a->st.position_deg, a->target) > SHORT_DEADBAND_DEG)
+                return rig_fault(rig, name, -EIO,
+                                 "axis '%s': the drive stopped at %.3f deg, short of its target "
+                                 "%.3f deg (not in position)",
+                                 name, a->st.position_deg, a->target);
+        if (now > a->deadline)
+                return rig_fault(rig, name, -ETIMEDOUT,
+                                 "axis '%s': %s did not complete within %.1f s (at %.3f deg)", name,
+                                 a->op == AX_STOPPING ? "stop" : "move", (now - a->started) / 1e6,
+                                 a->st.position_deg);
         arm(a, POLL_USEC);
 }
 
 static int on_axis_timer(sd_event_source *s, uint64_t usec, void *userdata)
 {
         struct rig_axis *a = userdata;
-        int r;
 
         if (a->op == AX_IDLE)
                 return 0;
         if (a->settling)
                 return axis_finish(a, 0, NULL), 0;
-        r = submit_new(a->rig, J_POLL, a->idx, 0, false, false);
-        if (r < 0)
+        if (rig_submit_new(a->rig, J_POLL, a->idx, 0, false, false) < 0)
                 arm(a, POLL_USEC); /* queue full: try again */
         return 0;
+}
+
+/* A poll of an axis nobody is moving: record it, and stop motion nobody commanded. */
+static void idle_poll_done(struct rig_axis *a)
+{
+        if (a->st.fault && !a->rig->fault)
+                return rig_fault(a->rig, a->ax->conf->name, -EIO,
+                                 "axis '%s': drive reports fault code %d at %.3f deg",
+                                 a->ax->conf->name, a->st.fault_code, a->st.position_deg);
+        if (a->st.moving && !a->rig->exposure)
+                rig_axis_stop_and_follow(a, "moves although goniod did not command it");
+}
+
+static void axis_job_failed(struct job *j, struct rig_axis *a, int result)
+{
+        const char *msg = job_error(j, result);
+
+        if (result == -EIO || result == -ETIMEDOUT || result == -ENOENT || result == -ENODEV)
+                a->open = false; /* fault.clear reopens it */
+        rig_fault(j->rig, a->ax->conf->name, result, "%s", msg);
+        if (a->op != AX_IDLE)
+                axis_finish(a, result, msg);
 }
 
 static void axis_job_done(struct job *j, int result)
 {
         struct rig_axis *a = &j->rig->axes[j->idx];
-        const char *name = a->ax->conf->name;
 
         if (result >= 0 && (j->kind == J_POLL || j->kind == J_OPEN_AXIS || j->kind == J_RESET))
                 a->st = j->st;
         if (j->kind == J_OPEN_AXIS)
                 a->open = result >= 0;
-        if (result == -ECANCELED || (j->kind == J_POLL && a->op == AX_IDLE && result >= 0))
+        if (j->kind == J_POLL && !j->exp && a->op == AX_IDLE)
+                a->polling = false;
+        if (result == -ECANCELED)
                 return;
-        if (result < 0) {
-                if (a->op != AX_IDLE && j->kind != J_STOP)
-                        axis_finish(a, result, strerror(-result));
-                return rig_fault(j->rig, name, result, "%s failed: %s",
-                                 j->kind == J_OPEN_AXIS ? "open" : "drive command",
-                                 strerror(-result));
-        }
-        if (j->kind == J_HOME || j->kind == J_MOVE)
+        if (result < 0)
+                return axis_job_failed(j, a, result);
+        if (j->kind == J_HOME || j->kind == J_MOVE || j->kind == J_STOP)
                 arm(a, POLL_USEC);
-        else if (j->kind == J_STOP)
-                (void)submit_new(j->rig, J_POLL, j->idx, 0, false, false);
-        else if (j->kind == J_POLL)
+        else if (j->kind == J_POLL && a->op != AX_IDLE)
                 axis_progress(a);
+        else if (a->op == AX_IDLE)
+                idle_poll_done(a); /* also after open and reset */
 }
 
 struct later {
         struct rig *rig;
+        struct rig_switch *s;
         rig_done_fn done;
         void *ud;
 };
 
+static void later_finish(struct later *l)
+{
+        l->s->changing--;
+        rig_update_state(l->rig);
+        if (l->done)
+                l->done(l->rig, 0, NULL, l->ud);
+        free(l);
+}
+
 static int on_later(sd_event_source *s, uint64_t usec, void *userdata)
 {
-        struct later *l = userdata;
-
-        l->done(l->rig, 0, NULL, l->ud);
-        free(l);
+        later_finish(userdata);
         sd_event_source_unref(s);
         return 0;
 }
 
-/* Calls done after ms milliseconds (a lamp's warm-up), or now. */
-static void done_later(struct rig *rig, int ms, rig_done_fn done, void *ud)
+/* Ends the change of switch s after ms milliseconds (a lamp's warm-up), or now. */
+static void finish_switch_later(struct rig *rig, struct rig_switch *s, int ms, rig_done_fn done,
+                                void *ud)
 {
-        struct later *l = ms > 0 ? malloc(sizeof(*l)) : NULL;
-        sd_event_source *s = NULL;
+        struct later *l = malloc(sizeof(*l));
+        sd_event_source *src = NULL;
 
-        if (l) {
-                *l = (struct later){rig, done, ud};
-                if (sd_event_add_time_relative(rig->event, &s, CLOCK_MONOTONIC, ms * 1000ULL, 1000,
-                                               on_later, l) >= 0) {
-                        sd_event_source_set_description(s, "lamp-warmup");
-                        return;
-                }
-                free(l);
+        if (!l) {
+                s->changing--;
+                if (done)
+                        done(rig, 0, NULL, ud);
+                return;
         }
-        done(rig, 0, NULL, ud);
+        *l = (struct later){rig, s, done, ud};
+        if (ms > 0 && sd_event_add_time_relative(rig->event, &src, CLOCK_MONOTONIC, ms * 1000ULL,
+                                                 TIMER_ACCURACY, on_later, l) >= 0) {
+                sd_event_source_set_description(src, "lamp-warmup");
+                return;
+        }
+        later_finish(l);
 }
 
 static void switch_job_done(struct job *j, int result)
@@ -436,43 +484,24 @@ static void switch_job_done(struct job *j, int result)
 
         if (j->kind == J_OPEN_SW)
                 s->open = result >= 0;
+        if (j->kind == J_SWITCH && result < 0)
+                s->changing--;
         if (result == -ECANCELED) { /* dropped at shutdown, not a device fault */
                 if (j->done)
                         j->done(rig, result, "canceled", j->ud);
                 return;
         }
         if (result < 0) {
-                char msg[256];
-                snprintf(msg, sizeof(msg), "%s: %s failed: %s", name,
-                         j->kind == J_SWITCH ? "switching" : "reading the state",
-                         strerror(-result));
+                const char *msg = job_error(j, result);
                 rig_fault(rig, name, result, "%s", msg);
                 if (j->done)
                         j->done(rig, result, msg, j->ud);
                 return;
         }
-        if (j->kind == J_CHECK_SW)
+        if (j->kind != J_SWITCH)
                 return;
-        emit(rig, "switch.changed", json_pack("{sssb}", "name", name, "on", s->sw->on));
-        if (j->done)
-                done_later(rig, j->on ? s->sw->conf->warmup_ms : 0, j->done, j->ud);
-}
-
-static void camera_job_done(struct job *j, int result)
-{
-        struct rig *rig = j->rig;
-        char msg[256];
-
-        if (j->kind == J_OPEN_CAM) {
-                rig->cam_open[j->idx] = result >= 0;
-                if (result < 0)
-                        rig_fault(rig, job_device(j), result, "open failed: %s", strerror(-result));
-                return;
-        }
-        rig->captures--;
-        snprintf(msg, sizeof(msg), "camera '%s': %s", job_device(j), strerror(-result));
-        j->frame_done(rig, result, result < 0 ? msg : NULL, &j->frame, j->ud);
-        update_state(rig);
+        rig_emit(rig, &(struct rig_event){.type = RIG_EVENT_SWITCH, .device = name, .on = j->on});
+        finish_switch_later(rig, s, j->on ? s->sw->conf->warmup_ms : 0, j->done, j->ud);
 }
 
 static void clear_finished(struct rig *rig)
@@ -480,7 +509,7 @@ static void clear_finished(struct rig *rig)
         rig_done_fn done = rig->clear_done;
 
         rig->clear_done = NULL;
-        update_state(rig);
+        rig_update_state(rig);
         if (done)
                 done(rig, rig->fault ? -EIO : 0, rig->fault ? rig->fault_msg : NULL, rig->clear_ud);
 }
@@ -488,23 +517,21 @@ static void clear_finished(struct rig *rig)
 static void job_done(struct bus *b, int result, void *userdata)
 {
         struct job *j = userdata;
+        struct rig *rig = j->rig;
 
-        j->rig->pending--;
-        switch (j->kind) {
-        case J_OPEN_SW:
-        case J_CHECK_SW:
-        case J_SWITCH:
+        rig->pending--;
+        if (j->exp)
+                rig_expose_job_done(j, result);
+        else if (j->kind == J_OPEN_CAM) {
+                rig->cam_open[j->idx] = result >= 0;
+                if (result < 0 && result != -ECANCELED)
+                        rig_fault(rig, job_device(j), result, "%s", job_error(j, result));
+        } else if (j->kind >= J_OPEN_SW)
                 switch_job_done(j, result);
-                break;
-        case J_OPEN_CAM:
-        case J_CAPTURE:
-                camera_job_done(j, result);
-                break;
-        default:
+        else
                 axis_job_done(j, result);
-        }
-        if (j->clear && --j->rig->clear_pending == 0)
-                clear_finished(j->rig);
+        if (j->clear && --rig->clear_pending == 0)
+                clear_finished(rig);
         gn_frame_free_data(&j->frame);
         free(j);
 }
@@ -520,19 +547,25 @@ static int start_motion(struct rig *rig, int i, enum axis_op op, double target, 
 
         if (rig->fault)
                 return -ESTALE;
+        if (rig->exposure)
+                return snprintf(rig->busy, sizeof(rig->busy), "a capture is being exposed"), -EBUSY;
         if (a->op != AX_IDLE)
-                return -EBUSY;
+                return snprintf(rig->busy, sizeof(rig->busy), "axis '%s' is %s", c->name,
+                                a->op == AX_STOPPING ? "stopping" : "moving"),
+                       -EBUSY;
         if (!a->open)
                 return -ENODEV;
-        r = submit_new(rig, op == AX_HOMING ? J_HOME : J_MOVE, i, target, false, false);
+        r = rig_submit_new(rig, op == AX_HOMING ? J_HOME : J_MOVE, i, target, false, false);
         if (r < 0)
                 return r;
         a->op = op;
+        a->target = target;
         a->done = done;
         a->ud = ud;
-        a->deadline = now_usec(rig) + (c->move_timeout_ms ? c->move_timeout_ms * 1000ULL
-                                                          : (uint64_t)(3 * t * 1e6) + 10000000);
-        update_state(rig);
+        a->started = now_usec(rig);
+        a->deadline = a->started + (c->move_timeout_ms ? c->move_timeout_ms * 1000ULL
+                                                       : (uint64_t)(3 * t * 1e6) + 10000000);
+        rig_update_state(rig);
         return 0;
 }
 
@@ -570,92 +603,86 @@ void rig_stop(struct rig *rig, json_t *names)
                 atomic_fetch_add(&a->gen, 1);
                 if (!a->open)
                         continue;
-                (void)submit_new(rig, J_STOP, i, 0, false, true);
-                if (a->op == AX_IDLE && !a->st.moving)
+                if (a->op == AX_IDLE && !a->st.moving) {
+                        (void)rig_submit_new(rig, J_STOP, i, 0, false, true);
                         continue;
+                }
                 if (names)
                         json_array_append_new(names, json_string(a->ax->conf->name));
                 snprintf(msg, sizeof(msg), "%s of '%s' canceled by stop",
                          a->op == AX_HOMING ? "homing" : "move", a->ax->conf->name);
                 if (a->op != AX_IDLE)
                         axis_finish(a, -ECANCELED, msg);
+                rig_axis_stop_and_follow(a, "stop requested");
         }
 }
 
 int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata)
 {
-        struct rig_switch *s = switch_slot(rig, i);
         struct job *j;
 
         if (i < 0 && !rig->rc->has_laser)
                 return -ENOENT;
         if (on && rig->fault)
                 return -ESTALE;
-        if (!s->open)
+        if (rig->exposure)
+                return snprintf(rig->busy, sizeof(rig->busy), "a capture is being exposed"), -EBUSY;
+        if (!switch_slot(rig, i)->open)
                 return -ENODEV;
         j = calloc(1, sizeof(*j));
         if (!j)
                 return -ENOMEM;
         *j = (struct job){
                 .rig = rig, .kind = J_SWITCH, .idx = i, .on = on, .done = done, .ud = userdata};
-        return submit(j, false);
+        switch_submit(rig, j, false);
+        return 0;
 }
 
-int rig_capture(struct rig *rig, int i, const struct cam_request *req, rig_frame_fn done,
-                void *userdata)
+int rig_check_camera_request(const struct rig *rig, int i, const struct cam_request *req,
+                             char *msg, size_t len)
 {
-        struct job *j;
-        int r;
-
-        if (rig->fault)
-                return -ESTALE;
-        if (!rig->cam_open[i])
-                return -ENODEV;
-        for (size_t k = 0; k < rig->rc->n_axes; k++)
-                if (rig->axes[k].op != AX_IDLE)
-                        return -EBUSY;
-        j = calloc(1, sizeof(*j));
-        if (!j)
-                return -ENOMEM;
-        *j = (struct job){.rig = rig,
-                          .kind = J_CAPTURE,
-                          .idx = i,
-                          .creq = *req,
-                          .frame_done = done,
-                          .ud = userdata};
-        r = submit(j, false);
-        if (r >= 0) {
-                rig->captures++;
-                update_state(rig);
-        }
-        return r;
+        return cam_check_request(rig->cams[i], req, msg, len);
 }
 
-void rig_snapshot(const struct rig *rig, struct rig_snapshot *snap)
+const char *rig_busy_reason(const struct rig *rig)
 {
-        double *pose[] = {&snap->turntable_deg, &snap->light_arm_deg, &snap->camera_arm_deg};
-        static const char *const names[] = {"turntable", "light_arm", "camera_arm"};
+        return rig->busy[0] ? rig->busy : "busy";
+}
 
-        memset(snap, 0, sizeof(*snap));
-        for (size_t k = 0; k < ELEMENTSOF(names); k++) {
-                int i = rig_axis_index(rig, names[k]);
-                *pose[k] = i >= 0 ? rig->axes[i].st.position_deg : NAN;
-        }
-        for (size_t i = 0; i < rig->rc->n_lamps; i++) {
-                size_t len = strlen(snap->lamps);
+const char *rig_last_error(const struct rig *rig)
+{
+        return rig->fault ? rig->fault_msg : rig->last_error;
+}
+
+struct gn_pose rig_pose(const struct rig *rig)
+{
+        struct gn_pose p = gn_pose_none();
+
+        for (size_t i = 0; i < rig->rc->n_axes; i++)
+                if (rig->rc->axes[i].role >= 0 && rig->axes[i].st.homed)
+                        p.deg[rig->rc->axes[i].role] = rig->axes[i].st.position_deg;
+        for (size_t i = 0; i < rig->rc->n_lamps && i < GN_POSE_MAX_LAMPS; i++)
                 if (rig->lamps[i].sw->on)
-                        snprintf(snap->lamps + len, sizeof(snap->lamps) - len, "%s%s",
-                                 len ? "," : "", rig->rc->lamps[i].name);
-        }
-        snap->laser = rig->rc->has_laser && rig->laser.sw->on;
+                        p.lamps |= UINT32_C(1) << i;
+        p.laser = rig->rc->has_laser && rig->laser.sw->on;
+        return p;
 }
 
-/* Runs the loop until no job is in flight, or until timeout. */
+static bool axes_idle(const struct rig *rig)
+{
+        for (size_t i = 0; i < rig->rc->n_axes; i++)
+                if (rig->axes[i].op != AX_IDLE)
+                        return false;
+        return true;
+}
+
+/* Runs the loop until no job is in flight and no axis is being followed, or until
+ * timeout. */
 static void wait_idle(struct rig *rig, uint64_t timeout_usec)
 {
         uint64_t end = now_usec(rig) + timeout_usec;
 
-        while (rig->pending > 0 && now_usec(rig) < end)
+        while ((rig->pending > 0 || !axes_idle(rig)) && now_usec(rig) < end)
                 if (sd_event_run(rig->event, 100 * 1000) < 0)
                         break;
 }
@@ -665,15 +692,15 @@ static void open_devices(struct rig *rig)
 {
         for (size_t i = 0; i < rig->rc->n_axes; i++)
                 if (!rig->axes[i].open)
-                        (void)submit_new(rig, J_OPEN_AXIS, i, 0, false, false);
+                        (void)rig_submit_new(rig, J_OPEN_AXIS, i, 0, false, false);
         for (size_t i = 0; i < rig->rc->n_lamps; i++)
                 if (!rig->lamps[i].open)
-                        (void)submit_new(rig, J_OPEN_SW, i, 0, false, false);
+                        (void)rig_submit_new(rig, J_OPEN_SW, i, 0, false, false);
         if (rig->rc->has_laser && !rig->laser.open)
-                (void)submit_new(rig, J_OPEN_SW, -1, 0, false, false);
+                (void)rig_submit_new(rig, J_OPEN_SW, -1, 0, false, false);
         for (size_t i = 0; i < rig->rc->n_cameras; i++)
                 if (!rig->cam_open[i])
-                        (void)submit_new(rig, J_OPEN_CAM, i, 0, false, false);
+                        (void)rig_submit_new(rig, J_OPEN_CAM, i, 0, false, false);
 }
 
 int rig_clear_fault(struct rig *rig, rig_done_fn done, void *userdata)
@@ -681,22 +708,35 @@ int rig_clear_fault(struct rig *rig, rig_done_fn done, void *userdata)
         if (rig->clear_done)
                 return -EBUSY;
         rig->fault = false;
-        rig->fault_msg[0] = rig->fault_device[0] = 0;
+        rig->fault_msg[0] = rig->fault_device[0] = rig->last_error[0] = 0;
         rig->clear_done = done;
         rig->clear_ud = userdata;
         rig->clear_collect = true;
         for (size_t i = 0; i < rig->rc->n_axes; i++)
                 if (rig->axes[i].open)
-                        (void)submit_new(rig, J_RESET, i, 0, false, false);
-        for (size_t i = 0; i < rig->rc->n_lamps + rig->rc->has_laser; i++) {
-                int k = i < rig->rc->n_lamps ? (int)i : -1;
-                if (switch_slot(rig, k)->open)
-                        (void)submit_new(rig, J_CHECK_SW, k, 0, false, false);
-        }
+                        (void)rig_submit_new(rig, J_RESET, i, 0, false, false);
+        for (int i = rig->rc->has_laser ? -1 : 0; i < (int)rig->rc->n_lamps; i++)
+                if (switch_slot(rig, i)->open)
+                        (void)rig_submit_new(rig, J_CHECK_SW, i, 0, false, false);
         open_devices(rig);
         rig->clear_collect = false;
         if (rig->clear_pending == 0)
                 clear_finished(rig);
+        return 0;
+}
+
+/* Reads idle drives back, so status is true and uncommanded motion is seen. */
+static int on_idle_poll(sd_event_source *s, uint64_t usec, void *userdata)
+{
+        struct rig *rig = userdata;
+
+        for (size_t i = 0; i < rig->rc->n_axes; i++) {
+                struct rig_axis *a = &rig->axes[i];
+                if (a->open && a->op == AX_IDLE && !a->polling && !rig->exposure &&
+                    rig_submit_new(rig, J_POLL, i, 0, false, false) >= 0)
+                        a->polling = true;
+        }
+        sd_event_source_set_time_relative(s, IDLE_POLL_USEC);
         return 0;
 }
 
@@ -708,6 +748,23 @@ static struct bus *bus_of(struct rig *rig, const char *name)
         return NULL;
 }
 
+static int build_axis(struct rig *rig, size_t i)
+{
+        struct rig_axis *a = &rig->axes[i];
+        const struct rig_axis_conf *c = &rig->rc->axes[i];
+        int r;
+
+        *a = (struct rig_axis){.rig = rig, .idx = i};
+        if ((r = axis_new(c, bus_of(rig, c->bus), &a->ax)) < 0 ||
+            (r = sd_event_add_time_relative(rig->event, &a->timer, CLOCK_MONOTONIC, 0,
+                                            TIMER_ACCURACY, on_axis_timer, a)) < 0)
+                return log_error_errno(r, "axis '%s': %m", c->name);
+        a->ax->rig = rig->rc; /* register profiles defined in the rig file */
+        sd_event_source_set_enabled(a->timer, SD_EVENT_OFF);
+        sd_event_source_set_description(a->timer, "axis-poll");
+        return 0;
+}
+
 static int build_devices(struct rig *rig)
 {
         struct rig_config *rc = rig->rc;
@@ -716,17 +773,9 @@ static int build_devices(struct rig *rig)
         for (size_t i = 0; i < rc->n_buses; i++)
                 if ((r = bus_new(rig->event, &rc->buses[i], &rig->buses[i])) < 0)
                         return log_error_errno(r, "bus '%s': %m", rc->buses[i].name);
-        for (size_t i = 0; i < rc->n_axes; i++) {
-                struct rig_axis *a = &rig->axes[i];
-                *a = (struct rig_axis){.rig = rig, .idx = i};
-                if ((r = axis_new(&rc->axes[i], bus_of(rig, rc->axes[i].bus), &a->ax)) < 0 ||
-                    (r = sd_event_add_time_relative(rig->event, &a->timer, CLOCK_MONOTONIC, 0, 0,
-                                                    on_axis_timer, a)) < 0)
-                        return log_error_errno(r, "axis '%s': %m", rc->axes[i].name);
-                a->ax->rig = rc; /* register profiles defined in the rig file */
-                sd_event_source_set_enabled(a->timer, SD_EVENT_OFF);
-                sd_event_source_set_description(a->timer, "axis-poll");
-        }
+        for (size_t i = 0; i < rc->n_axes; i++)
+                if ((r = build_axis(rig, i)) < 0)
+                        return r;
         for (size_t i = 0; i < rc->n_lamps; i++)
                 if ((r = sw_new(&rc->lamps[i], bus_of(rig, rc->lamps[i].bus), &rig->lamps[i].sw)) <
                     0)
@@ -738,10 +787,15 @@ static int build_devices(struct rig *rig)
                 if ((r = cam_new(&rc->cameras[i], bus_of(rig, rc->cameras[i].bus), &rig->cams[i])) <
                     0)
                         return log_error_errno(r, "camera '%s': %m", rc->cameras[i].name);
-        return 0;
+        r = sd_event_add_time_relative(rig->event, &rig->idle_poll, CLOCK_MONOTONIC, IDLE_POLL_USEC,
+                                       10 * TIMER_ACCURACY, on_idle_poll, rig);
+        if (r < 0)
+                return r;
+        sd_event_source_set_enabled(rig->idle_poll, SD_EVENT_ON);
+        return sd_event_source_set_description(rig->idle_poll, "axis-idle-poll");
 }
 
-int rig_new(sd_event *event, struct rig_config *rc, rig_notify_fn notify, void *userdata,
+int rig_new(sd_event *event, struct rig_config *rc, rig_event_fn notify, void *userdata,
             struct rig **ret)
 {
         struct rig *rig = calloc(1, sizeof(*rig));
@@ -770,6 +824,8 @@ struct rig *rig_free(struct rig *rig)
         if (!rig)
                 return NULL;
         rig->notify = NULL;
+        rig->freeing = true;
+        rig_expose_abandon(rig);
         for (size_t i = 0; i < rig->rc->n_axes; i++)
                 if (rig->axes[i].op != AX_IDLE)
                         axis_finish(&rig->axes[i], -ECANCELED, "daemon is shutting down");
@@ -781,6 +837,7 @@ struct rig *rig_free(struct rig *rig)
         }
         for (size_t i = 0; i < rig->rc->n_buses; i++)
                 rig->buses[i] = bus_free(rig->buses[i]); /* drops what is still queued */
+        sd_event_source_disable_unref(rig->idle_poll);
         for (size_t i = 0; i < rig->rc->n_axes; i++) {
                 sd_event_source_disable_unref(rig->axes[i].timer);
                 axis_free(rig->axes[i].ax);
@@ -801,100 +858,20 @@ unsigned rig_pending(const struct rig *rig)
 
 const char *rig_state(const struct rig *rig)
 {
-        bool homing = false, moving = false;
+        bool homing = false, moving = false, stopping = false;
 
         if (rig->fault)
                 return "fault";
         for (size_t i = 0; i < rig->rc->n_axes; i++) {
                 homing = homing || rig->axes[i].op == AX_HOMING;
                 moving = moving || rig->axes[i].op == AX_MOVING;
+                stopping = stopping || rig->axes[i].op == AX_STOPPING;
         }
-        return homing ? "homing" : moving ? "moving" : rig->captures ? "capturing" : "idle";
-}
-
-static json_t *axis_status(const struct rig_axis *a)
-{
-        const struct rig_axis_conf *c = a->ax->conf;
-
-        return json_pack("{sssfsbsbsbsbsisfsfsb}", "name", c->name, "position", a->st.position_deg,
-                         "moving", a->op != AX_IDLE || a->st.moving, "homed", a->st.homed, "fault",
-                         a->st.fault, "open", a->open, "fault_code", a->st.fault_code, "min",
-                         c->min_deg, "max", c->max_deg, "continuous", c->continuous);
-}
-
-json_t *rig_status(const struct rig *rig)
-{
-        const struct rig_config *rc = rig->rc;
-        json_t *axes = json_array(), *lamps = json_array(), *cams = json_array();
-        bool homed = rc->n_axes > 0;
-
-        for (size_t i = 0; i < rc->n_axes; i++) {
-                json_array_append_new(axes, axis_status(&rig->axes[i]));
-                homed = homed && rig->axes[i].st.homed;
-        }
-        for (size_t i = 0; i < rc->n_lamps; i++)
-                json_array_append_new(lamps, json_pack("{sssb}", "name", rc->lamps[i].name, "on",
-                                                       rig->lamps[i].sw->on));
-        for (size_t i = 0; i < rc->n_cameras; i++)
-                json_array_append_new(cams, json_pack("{sssisisi}", "name", rc->cameras[i].name,
-                                                      "width", rc->cameras[i].width, "height",
-                                                      rc->cameras[i].height, "bits",
-                                                      rc->cameras[i].bits));
-        return json_pack(
-                "{sssbsososososo}", "state", rig_state(rig), "homed", homed, "axes", axes, "lamps",
-                lamps, "laser",
-                rc->has_laser ? json_pack("{sssb}", "name", rc->laser.name, "on", rig->laser.sw->on)
-                              : json_null(),
-                "cameras", cams, "fault",
-                rig->fault ? json_pack("{ssss}", "device", rig->fault_device, "message",
-                                       rig->fault_msg)
-                           : json_null());
-}
-
-static json_t *opts_json(const struct opt_desc *opts, int n)
-{
-        json_t *a = json_array();
-
-        for (int i = 0; i < n; i++)
-                json_array_append_new(
-                        a, json_pack("{sssbsbss?sfsf}", "name", opt_key_name(opts[i].key), "get",
-                                     (opts[i].flags & OPT_GET) != 0, "set",
-                                     (opts[i].flags & OPT_SET) != 0, "unit", opts[i].unit, "min",
-                                     opts[i].min, "max", opts[i].max));
-        return a;
-}
-
-static json_t *device_json(const char *cls, const char *name, const char *backend, const char *bus,
-                           const struct opt_desc *opts, int n)
-{
-        return json_pack("{ssssssssso}", "class", cls, "name", name, "backend", backend, "bus", bus,
-                         "options", opts_json(opts, n));
-}
-
-json_t *rig_describe(const struct rig *rig)
-{
-        const struct rig_config *rc = rig->rc;
-        json_t *devs = json_array();
-
-        for (size_t i = 0; i < rc->n_axes; i++) {
-                const struct axis *ax = rig->axes[i].ax;
-                json_array_append_new(devs,
-                                      device_json("axis", rc->axes[i].name, ax->ops->name,
-                                                  rc->axes[i].bus, ax->ops->opts, ax->ops->n_opts));
-        }
-        for (size_t i = 0; i < rc->n_lamps + rc->has_laser; i++) {
-                const struct sw *s = i < rc->n_lamps ? rig->lamps[i].sw : rig->laser.sw;
-                json_array_append_new(devs, device_json(i < rc->n_lamps ? "lamp" : "laser",
-                                                        s->conf->name, s->ops->name, s->conf->bus,
-                                                        s->ops->opts, s->ops->n_opts));
-        }
-        for (size_t i = 0; i < rc->n_cameras; i++) {
-                const struct cam *c = rig->cams[i];
-                json_array_append_new(devs,
-                                      device_json("camera", c->conf->name, c->ops->name,
-                                                  c->conf->bus, c->ops->opts, c->ops->n_opts));
-        }
-        return json_pack("{ssso}", "rig", rc->name, "devices", devs);
+        return homing          ? "homing"
+               : moving        ? "moving"
+               : stopping      ? "stopping"
+               : rig->exposure ? "capturing"
+                               : "idle";
 }
 
 int rig_axis_index(const struct rig *rig, const char *name)

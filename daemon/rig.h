@@ -11,6 +11,7 @@
 #include <stdbool.h>
 
 #include "common/frame.h"
+#include "common/pose.h"
 #include "common/rigconf.h"
 #include "drivers/camera/camera.h"
 
@@ -22,25 +23,56 @@ struct rig;
  * a failure (NULL on success). */
 typedef void (*rig_done_fn)(struct rig *rig, int result, const char *msg, void *userdata);
 
-/* Completion of a capture: frame is owned by the callee on success. */
-typedef void (*rig_frame_fn)(struct rig *rig, int result, const char *msg, struct gn_frame *frame,
-                             void *userdata);
-
-/* Receives the rig's notifications (params stolen): axis.moved, move.done,
- * switch.changed, fault, state.changed. */
-typedef void (*rig_notify_fn)(void *userdata, const char *method, json_t *params);
-
-/* The rig's state of one moment, recorded with each capture. */
-struct rig_snapshot {
-        double turntable_deg, light_arm_deg, camera_arm_deg;
-        char lamps[256]; /* names of lit lamps, comma-separated */
-        bool laser;
+/* What happened on the rig; turned into protocol notifications by the caller. */
+enum rig_event_type {
+        RIG_EVENT_STATE,      /* state changed: state */
+        RIG_EVENT_AXIS_MOVED, /* progress of a moving axis: device, position, moving */
+        RIG_EVENT_MOVE_DONE,  /* a move or homing ended in position: device, position */
+        RIG_EVENT_SWITCH,     /* a lamp or the laser was switched: device, on */
+        RIG_EVENT_FAULT,      /* a fault was latched: device, error, message */
 };
+
+struct rig_event {
+        enum rig_event_type type;
+        const char *device;  /* axis, lamp, laser or camera name; "dataset" for a store fault */
+        const char *state;   /* RIG_EVENT_STATE: the new rig_state() */
+        double position;     /* axis events, degrees */
+        bool moving;         /* RIG_EVENT_AXIS_MOVED */
+        bool on;             /* RIG_EVENT_SWITCH */
+        int error;           /* RIG_EVENT_FAULT: -errno */
+        const char *message; /* RIG_EVENT_FAULT: device, operation, cause and values */
+};
+
+/* Receives the rig's events on the loop thread; ev and its strings are valid during the
+ * call only. */
+typedef void (*rig_event_fn)(void *userdata, const struct rig_event *ev);
+
+/* One camera's frame of an exposure (rig_expose). */
+struct rig_shot {
+        int cam;               /* camera index */
+        int result;            /* 0, or -errno: no frame */
+        char msg[256];         /* why it failed: device, operation, cause */
+        struct gn_frame frame; /* owned by the rig; the callee may take frame.data (set it NULL) */
+};
+
+/* Result of an exposure: the pose held during every frame's exposure, confirmed by the
+ * devices before and after, and one shot per camera asked for. */
+struct rig_exposure {
+        struct gn_pose pose;
+        uint64_t t_request_ns; /* CLOCK_REALTIME when the exposure was asked for */
+        size_t n_shots;
+        struct rig_shot shots[RIG_MAX_CAMERAS];
+};
+
+/* Completion of rig_expose on the loop thread. e is valid during the call only. */
+typedef void (*rig_expose_fn)(struct rig *rig, struct rig_exposure *e, void *userdata);
 
 /* Builds the devices of rc (which must outlive the rig) and opens them, running the
  * loop until every device answered (a device that does not puts the rig in fault state
- * rather than failing). Returns 0 or -errno (bad backend names, no memory). */
-int rig_new(sd_event *event, struct rig_config *rc, rig_notify_fn notify, void *userdata,
+ * rather than failing). A drive found moving (goniod restarted during a move) is stopped
+ * and followed until it stands still, so the rig starts with true positions. Returns 0 or -errno
+ * (bad backend names, no memory). */
+int rig_new(sd_event *event, struct rig_config *rc, rig_event_fn notify, void *userdata,
             struct rig **ret);
 
 /* Puts the rig in its safe state (waiting for it), stops workers, frees. NULL is a no-op. */
@@ -67,9 +99,25 @@ void rig_stop(struct rig *rig, json_t *names);
 /* Switches lamp i (or the laser when i < 0) and waits for its warm-up. */
 int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata);
 
-/* Captures one frame with camera i. -EBUSY while an axis moves. */
-int rig_capture(struct rig *rig, int i, const struct cam_request *req, rig_frame_fn done,
-                void *userdata);
+/* Exposes cams[0..n) (camera indices) with req: reads every axis back from its drive,
+ * takes the frames, reads the axes again, and calls done with the pose confirmed before
+ * and after (an axis that moved meanwhile faults the rig and fails every shot). Until
+ * done, moves and switching are refused (-EBUSY), so the pose is that of the exposure.
+ * Returns 0, -EBUSY (an axis moves, a lamp warms up, another exposure runs), -ESTALE
+ * (fault), -ENODEV (a camera failed to open), -ENOMEM. */
+int rig_expose(struct rig *rig, const int *cams, size_t n, const struct cam_request *req,
+               rig_expose_fn done, void *userdata);
+
+/* Checks req against camera i's own control ranges (the driver's option table, see
+ * cam_check_request): 0, or -ERANGE/-EOPNOTSUPP/-EINVAL with "gain 100 outside [0.1, 64]"
+ * in msg. */
+int rig_check_camera_request(const struct rig *rig, int i, const struct cam_request *req,
+                             char *msg, size_t len);
+
+/* Why the rig refuses a move, a switch or an exposure now with -EBUSY: "axis 'x' is
+ * moving", "a capture is being exposed", "lamp 'x' is warming up". Valid until the next
+ * call into the rig. */
+const char *rig_busy_reason(const struct rig *rig);
 
 /* Latches a fault of device (the first one is kept), notifies clients and goes to the safe
  * state. Used by the rig itself and for faults outside it (a full disk). */
@@ -82,15 +130,20 @@ void rig_safe_state(struct rig *rig);
 /* Device jobs in flight; 0 once the safe state has been reached. */
 unsigned rig_pending(const struct rig *rig);
 
-/* Records the current pose, lamps and laser. */
-void rig_snapshot(const struct rig *rig, struct rig_snapshot *snap);
+/* The last confirmed pose: angles by role (NAN where the rig has no such axis, or where
+ * it is not homed, so its angle means nothing in the world frame), lit lamps, laser. */
+struct gn_pose rig_pose(const struct rig *rig);
+
+/* The last error message a device of the rig reported (device, operation, cause), or ""
+ * when none: for replies that explain a refusal or failure. */
+const char *rig_last_error(const struct rig *rig);
 
 /* Clears a latched fault: resets drives, reads back every switch and reopens devices that
  * failed; done gets -EIO (with the new fault's message) if a device still fails. -EBUSY while
  * a clear is running. */
 int rig_clear_fault(struct rig *rig, rig_done_fn done, void *userdata);
 
-/* "idle", "homing", "moving", "capturing" or "fault". */
+/* "idle", "homing", "moving", "stopping", "capturing" or "fault". */
 const char *rig_state(const struct rig *rig);
 
 /* Builds the status object (axes, lamps, laser, cameras, fault, homed). New reference. */

@@ -202,21 +202,40 @@ static void send_error(struct client *c, json_t *id, int code, const char *messa
         json_decref(msg);
 }
 
-void srv_fail(struct srv_req *req, int err, const char *fmt, ...)
+static void fail_v(struct srv_req *req, int err, json_t *data, const char *fmt, va_list ap)
 {
         char msg[512];
-        va_list ap;
 
-        va_start(ap, fmt);
         vsnprintf(msg, sizeof(msg), fmt, ap);
-        va_end(ap);
         if (req->id) {
                 json_t *reply = proto_error_errno(req->id, err, msg);
+                if (reply && data)
+                        json_object_update(json_object_get(json_object_get(reply, "error"), "data"),
+                                           data);
                 if (reply)
                         client_send(req->client, reply);
                 json_decref(reply);
         }
+        json_decref(data);
         req_free(req);
+}
+
+void srv_fail(struct srv_req *req, int err, const char *fmt, ...)
+{
+        va_list ap;
+
+        va_start(ap, fmt);
+        fail_v(req, err, NULL, fmt, ap);
+        va_end(ap);
+}
+
+void srv_fail_data(struct srv_req *req, int err, json_t *data, const char *fmt, ...)
+{
+        va_list ap;
+
+        va_start(ap, fmt);
+        fail_v(req, err, data, fmt, ap);
+        va_end(ap);
 }
 
 int srv_req_errmsg(struct srv_req *req, int err, const char *fmt, ...)

@@ -71,6 +71,10 @@ void srv_reply(struct srv_req *req, json_t *result);
 void srv_fail(struct srv_req *req, int err, const char *fmt, ...)
         __attribute__((format(printf, 3, 4)));
 
+/* Like srv_fail, with the keys of data (stolen) added to the error's data object. */
+void srv_fail_data(struct srv_req *req, int err, json_t *data, const char *fmt, ...)
+        __attribute__((format(printf, 4, 5)));
+
 /* Sets the message used when the handler returns -errno. Returns err. */
 int srv_req_errmsg(struct srv_req *req, int err, const char *fmt, ...)
         __attribute__((format(printf, 3, 4)));

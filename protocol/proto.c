@@ -193,6 +193,21 @@ int proto_parse(const char *line, size_t len, struct proto_msg *msg, json_t **id
         return r;
 }
 
+bool proto_answers(const struct proto_msg *m, json_int_t id)
+{
+        int code;
+
+        if (m->kind != PROTO_RESPONSE)
+                return false;
+        if (json_is_integer(m->id))
+                return json_integer_value(m->id) == id;
+        if (!json_is_null(m->id) || !m->error)
+                return false;
+        code = (int)json_integer_value(json_object_get(m->error, "code"));
+        return code == PROTO_PARSE_ERROR || code == PROTO_INVALID_REQUEST ||
+               code == PROTO_E_LINE_TOO_LONG;
+}
+
 /* {"jsonrpc":"2.0", "id": id} (id borrowed, NULL meaning JSON null), or NULL. */
 static json_t *envelope(json_t *id)
 {

@@ -77,6 +77,14 @@ struct proto_msg {
 int proto_parse(const char *line, size_t len, struct proto_msg *msg, json_t **id_out, char *err,
                 size_t errlen);
 
+/* Whether the response m answers the request sent with integer id: its id is that
+ * integer, or it is an error with "id": null and a code the server sends when it could not
+ * read a request's id (-32700 parse error, -32600 invalid request, -32009 line too long;
+ * docs/protocol.md section 3), which a client with one request outstanding takes as that
+ * request's answer. A response with any other id (a string, null with a result or with
+ * another code, another integer) does not answer it. */
+bool proto_answers(const struct proto_msg *m, json_int_t id);
+
 /* Builders; each returns a new reference (NULL on ENOMEM). params/result/data are stolen
  * (NULL params are omitted, a NULL result becomes {}); id is borrowed (NULL means null). */
 json_t *proto_request(json_int_t id, const char *method, json_t *params);

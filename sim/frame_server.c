@@ -2,16 +2,21 @@
  *
  * DESIGN: one thread polls the listening sockets and up to FS_MAX_CLIENTS clients
  * and serves one request at a time: a render request takes a snapshot of the
- * emulated rig (sim_emu_snapshot), renders (sim_render) and sends the header line
- * and the bytes before the next request is read. Clients' sends are bounded by
- * SO_SNDTIMEO so a stuck client cannot hold the server. Camera faults (dropped
- * frames, disconnects) and frame counters belong to this thread alone. */
+ * emulated rig (sim_emu_snapshot) at the start of the exposure, sleeps for the
+ * exposure (scaled by the time scale), takes a second snapshot at its end, renders
+ * (sim_render) in the start state, appends the exposure to the render log and sends
+ * the header line and the bytes before the next request is read. Every other request
+ * goes to the control module (control.c). Clients' sends are bounded by SO_SNDTIMEO
+ * so a stuck client cannot hold the server. The control module (camera faults), the
+ * frame counters and the render log belong to this thread alone. */
 #include <errno.h>
+#include <inttypes.h>
 #include <poll.h>
 #include <pthread.h>
-#include <stdarg.h>
 #include <stdatomic.h>
 #include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -21,7 +26,9 @@
 
 #include <jansson.h>
 
+#include "common/clock.h"
 #include "common/log.h"
+#include "sim/control.h"
 #include "sim/frame_server.h"
 
 /* Samples go out in host byte order; the protocol says little-endian. */
@@ -38,10 +45,6 @@ struct fs_client {
         bool overlong; /* discarding the rest of a too long line */
 };
 
-struct cam_faults {
-        long drop, disconnect; /* render requests still to fail that way */
-};
-
 struct sim_frame_server {
         struct rig_config *rc;
         struct sim_scene *scene;
@@ -50,7 +53,9 @@ struct sim_frame_server {
         const char *paths[RIG_MAX_BUSES];
         size_t n_listen;
         struct fs_client clients[FS_MAX_CLIENTS];
-        struct cam_faults faults[RIG_MAX_CAMERAS];
+        struct sim_control *ctl;
+        double time_scale;
+        FILE *render_log; /* NULL: none */
         uint64_t seq[RIG_MAX_CAMERAS];
         atomic_bool stop;
         pthread_t thread;
@@ -59,11 +64,10 @@ struct sim_frame_server {
 
 /* One request being served. */
 struct fs_req {
+        struct sim_req base; /* the request object and the message of an error reply */
         struct sim_frame_server *fs;
         struct fs_client *cl;
-        json_t *req;
-        char msg[256]; /* message of an error reply */
-        bool hangup;   /* close the connection instead of replying */
+        bool hangup; /* close the connection instead of replying */
 };
 
 /* Ground-truth arrays, in the order they follow the pixels. */
@@ -102,18 +106,6 @@ static void client_close(struct fs_client *cl)
         *cl = (struct fs_client){.fd = -1};
 }
 
-/* Records an error reply; returns -err. */
-static int fail(struct fs_req *rq, int err, const char *fmt, ...) _printf_(3, 4);
-static int fail(struct fs_req *rq, int err, const char *fmt, ...)
-{
-        va_list ap;
-
-        va_start(ap, fmt);
-        vsnprintf(rq->msg, sizeof rq->msg, fmt, ap);
-        va_end(ap);
-        return -err;
-}
-
 static int send_bytes(struct fs_req *rq, const void *p, size_t n)
 {
         const char *c = p;
@@ -139,7 +131,7 @@ static int send_json(struct fs_req *rq, json_t *o)
 
         json_decref(o);
         if (!s)
-                return fail(rq, ENOMEM, "out of memory");
+                return sim_req_fail(&rq->base, ENOMEM, "out of memory");
         size_t n = strlen(s);
         int r = send_bytes(rq, s, n);
         if (r >= 0)
@@ -148,81 +140,20 @@ static int send_json(struct fs_req *rq, json_t *o)
         return r;
 }
 
-static int send_ok(struct fs_req *rq)
-{
-        return send_json(rq, json_pack("{s:b}", "ok", 1));
-}
-
 static void send_error(struct fs_req *rq, int r)
 {
-        const char *name = strerrorname_np(-r);
-
-        (void)send_json(rq, json_pack("{s:b, s:s, s:s}", "ok", 0, "error", name ? name : "EIO",
-                                      "message", rq->msg[0] ? rq->msg : strerror(-r)));
+        (void)send_json(rq, sim_req_error_json(&rq->base, r));
 }
 
 /* ---- request fields ---- */
 
-/* Reads optional integer key into *out (kept when absent). */
-static int opt_int(struct fs_req *rq, const char *key, long min, long max, long *out)
-{
-        json_t *v = json_object_get(rq->req, key);
-
-        if (!v)
-                return 0;
-        if (!json_is_integer(v) || json_integer_value(v) < min || json_integer_value(v) > max)
-                return fail(rq, EINVAL, "'%s' must be an integer in [%ld, %ld]", key, min, max);
-        *out = (long)json_integer_value(v);
-        return 1;
-}
-
-static int opt_num(struct fs_req *rq, const char *key, double min, double max, double *out)
-{
-        json_t *v = json_object_get(rq->req, key);
-
-        if (!v)
-                return 0;
-        if (!json_is_number(v) || json_number_value(v) < min || json_number_value(v) > max)
-                return fail(rq, EINVAL, "'%s' must be a number in [%g, %g]", key, min, max);
-        *out = json_number_value(v);
-        return 1;
-}
-
-static int opt_bool(struct fs_req *rq, const char *key, bool *out)
-{
-        json_t *v = json_object_get(rq->req, key);
-
-        if (!v)
-                return 0;
-        if (!json_is_boolean(v))
-                return fail(rq, EINVAL, "'%s' must be true or false", key);
-        *out = json_is_true(v);
-        return 1;
-}
-
-/* The index of the camera named by the request's "camera" field. */
-static int camera_arg(struct fs_req *rq, int *ci)
-{
-        const struct rig_config *rc = rq->fs->rc;
-        const char *name = json_string_value(json_object_get(rq->req, "camera"));
-
-        if (!name)
-                return fail(rq, EINVAL, "'camera' must be a camera name");
-        for (size_t i = 0; i < rc->n_cameras; i++)
-                if (strcmp(rc->cameras[i].name, name) == 0) {
-                        *ci = (int)i;
-                        return 0;
-                }
-        return fail(rq, ENOENT, "no camera '%s' in the rig", name);
-}
-
 static int truth_arg(struct fs_req *rq, unsigned *flags)
 {
-        json_t *list = json_object_get(rq->req, "truth"), *v;
+        json_t *list = json_object_get(rq->base.req, "truth"), *v;
         size_t i, k;
 
         if (list && !json_is_array(list))
-                return fail(rq, EINVAL, "'truth' must be a list of names");
+                return sim_req_fail(&rq->base, EINVAL, "'truth' must be a list of names");
         json_array_foreach(list, i, v)
         {
                 const char *name = json_string_value(v);
@@ -230,7 +161,8 @@ static int truth_arg(struct fs_req *rq, unsigned *flags)
                         if (strcmp(name, truths[k].name) == 0)
                                 break;
                 if (!name || k == ELEMENTSOF(truths))
-                        return fail(rq, EINVAL, "'truth' names are depth, normal, point, lamp");
+                        return sim_req_fail(&rq->base, EINVAL,
+                                            "'truth' names are depth, normal, point, lamp");
                 *flags |= truths[k].flag;
         }
         return 0;
@@ -243,107 +175,18 @@ static int expose_args(struct fs_req *rq, int ci, struct sim_expose *ex)
         long exp = 0, bits = 0;
         int r;
 
-        if ((r = opt_int(rq, "exposure_us", 0, 100000000, &exp)) < 0 ||
-            (r = opt_num(rq, "gain", 0.0, 1000.0, &ex->gain)) < 0 ||
-            (r = opt_int(rq, "bits", 0, 16, &bits)) < 0 ||
-            (r = opt_bool(rq, "no_noise", &ex->no_noise)) < 0)
+        struct sim_req *q = &rq->base;
+        if ((r = sim_req_int(q, "exposure_us", 0, SIM_FS_EXPOSURE_MAX_US, &exp)) < 0 ||
+            (r = sim_req_num(q, "gain", 0.0, 1000.0, &ex->gain)) < 0 ||
+            (r = sim_req_int(q, "bits", 0, 16, &bits)) < 0 ||
+            (r = sim_req_bool(q, "no_noise", &ex->no_noise)) < 0)
                 return r;
         if (bits != 0 && bits != 8 && bits != 16)
-                return fail(rq, EINVAL, "'bits' must be 8 or 16");
+                return sim_req_fail(q, EINVAL, "'bits' must be 8 or 16");
         ex->exposure_us = exp ? (int)exp : c->exposure_us;
         ex->gain = ex->gain > 0.0 ? ex->gain : c->gain;
         ex->bits = bits ? (int)bits : c->bits;
         return 0;
-}
-
-/* ---- JSON of the rig ---- */
-
-static json_t *reals(const double *v, size_t n)
-{
-        json_t *a = json_array();
-
-        for (size_t i = 0; a && i < n; i++)
-                if (json_array_append_new(a, json_real(v[i])) < 0) {
-                        json_decref(a);
-                        return NULL;
-                }
-        return a;
-}
-
-static json_t *state_json(const struct rig_config *rc, const struct sim_rig_state *st)
-{
-        json_t *lamps = json_array();
-
-        for (size_t i = 0; lamps && i < rc->n_lamps; i++)
-                if (json_array_append_new(lamps, json_boolean(st->lamp_on[i])) < 0)
-                        json_decref(TAKE_PTR(lamps));
-        return json_pack("{s:f, s:f, s:f, s:o, s:b}", "turntable", st->turntable_deg, "light_arm",
-                         st->light_arm_deg, "camera_arm", st->camera_arm_deg, "lamps", lamps,
-                         "laser", st->laser_on);
-}
-
-static json_t *camera_json(struct sim_frame_server *fs, const struct sim_rig_state *st, int ci)
-{
-        struct sim_cam_geom g;
-
-        if (sim_camera_geom(fs->scene, st, ci, &g) < 0)
-                return NULL;
-        return json_pack("{s:s, s:i, s:i, s:f, s:f, s:f, s:f, s:o, s:o, s:o}", "name",
-                         fs->rc->cameras[ci].name, "width", g.width, "height", g.height, "fx", g.fx,
-                         "fy", g.fy, "cx", g.cx, "cy", g.cy, "dist", reals(g.dist, 5), "R",
-                         reals(g.R, 9), "t", reals(g.t, 3));
-}
-
-static json_t *lamp_json(struct sim_frame_server *fs, const struct sim_rig_state *st, int i)
-{
-        double p[3];
-
-        if (sim_lamp_position(fs->scene, st, i, p) < 0)
-                return NULL;
-        return json_pack("{s:s, s:o, s:b}", "name", fs->rc->lamps[i].name, "position", reals(p, 3),
-                         "on", st->lamp_on[i]);
-}
-
-static json_t *laser_json(struct sim_frame_server *fs, const struct sim_rig_state *st)
-{
-        double n[3], d;
-
-        if (!fs->rc->has_laser || sim_laser_plane(fs->scene, n, &d) < 0)
-                return json_null();
-        return json_pack("{s:o, s:f, s:b}", "n", reals(n, 3), "d", d, "on", st->laser_on);
-}
-
-/* ---- commands ---- */
-
-static int do_state(struct fs_req *rq)
-{
-        struct sim_rig_state st;
-
-        sim_emu_snapshot(rq->fs->emu, &st);
-        return send_json(rq,
-                         json_pack("{s:b, s:o}", "ok", 1, "state", state_json(rq->fs->rc, &st)));
-}
-
-static int do_geometry(struct fs_req *rq)
-{
-        struct sim_frame_server *fs = rq->fs;
-        struct sim_rig_state st;
-        json_t *cams = json_array(), *lamps = json_array();
-        int r = 0;
-
-        sim_emu_snapshot(fs->emu, &st);
-        for (size_t i = 0; r >= 0 && i < fs->rc->n_cameras; i++)
-                r = json_array_append_new(cams, camera_json(fs, &st, (int)i));
-        for (size_t i = 0; r >= 0 && i < fs->rc->n_lamps; i++)
-                r = json_array_append_new(lamps, lamp_json(fs, &st, (int)i));
-        if (r < 0) {
-                json_decref(cams);
-                json_decref(lamps);
-                return fail(rq, EIO, "geometry of the scene unavailable");
-        }
-        return send_json(rq, json_pack("{s:b, s:o, s:o, s:o, s:o}", "ok", 1, "state",
-                                       state_json(fs->rc, &st), "cameras", cams, "lamps", lamps,
-                                       "laser", laser_json(fs, &st)));
 }
 
 static json_t *truth_list(const struct sim_truth *t, unsigned flags, size_t pixels)
@@ -363,27 +206,48 @@ static json_t *truth_list(const struct sim_truth *t, unsigned flags, size_t pixe
         return a;
 }
 
-static uint64_t realtime_ns(void)
-{
-        struct timespec ts;
+/* What a frame was exposed with: the part of its header that the render log repeats. */
+struct exposure {
+        int cam;
+        uint64_t seq, timestamp_ns;
+        struct sim_expose ex;
+        struct gn_pose start, end; /* the rig's state at the start and end of the exposure */
+};
 
-        clock_gettime(CLOCK_REALTIME, &ts);
-        return (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec;
+static json_t *exposure_json(const struct sim_frame_server *fs, const struct exposure *x)
+{
+        return json_pack("{s:I, s:s, s:I, s:i, s:f, s:o, s:o}", "seq", (json_int_t)x->seq, "camera",
+                         fs->rc->cameras[x->cam].name, "timestamp_ns", (json_int_t)x->timestamp_ns,
+                         "exposure_us", x->ex.exposure_us, "gain", x->ex.gain, "state",
+                         sim_pose_json(fs->rc, &x->start), "state_end",
+                         sim_pose_json(fs->rc, &x->end));
 }
 
-static int send_frame(struct fs_req *rq, int ci, const struct sim_rig_state *st,
-                      const struct sim_expose *ex, const struct gn_frame *f,
+/* Appends x to the render log as one line, flushed; a failed write is logged. */
+static void log_exposure(struct sim_frame_server *fs, const struct exposure *x)
+{
+        json_t *o = fs->render_log ? exposure_json(fs, x) : NULL;
+
+        if (o && (json_dumpf(o, fs->render_log, JSON_COMPACT) < 0 ||
+                  fputc('\n', fs->render_log) == EOF || fflush(fs->render_log) == EOF))
+                log_warning("render log: cannot write frame %s#%" PRIu64 ", ignoring",
+                            fs->rc->cameras[x->cam].name, x->seq);
+        json_decref(o);
+}
+
+static int send_frame(struct fs_req *rq, const struct exposure *x, const struct gn_frame *f,
                       const struct sim_truth *t, unsigned flags)
 {
         size_t pixels = (size_t)f->width * (size_t)f->height;
-        json_t *h = json_pack(
-                "{s:b, s:s, s:I, s:I, s:i, s:i, s:i, s:i, s:I, s:I, s:i, s:f, s:o, s:o}", "ok", 1,
-                "camera", rq->fs->rc->cameras[ci].name, "seq", (json_int_t)f->seq, "timestamp_ns",
-                (json_int_t)f->timestamp_ns, "width", f->width, "height", f->height, "channels",
-                f->channels, "bits", f->bits, "stride", (json_int_t)f->stride, "bytes",
-                (json_int_t)gn_frame_bytes(f), "exposure_us", ex->exposure_us, "gain", ex->gain,
-                "state", state_json(rq->fs->rc, st), "truth", truth_list(t, flags, pixels));
+        json_t *h = exposure_json(rq->fs, x);
 
+        if (h && json_object_update_new(h, json_pack("{s:b, s:i, s:i, s:i, s:i, s:I, s:I, s:o}",
+                                                     "ok", 1, "width", f->width, "height",
+                                                     f->height, "channels", f->channels, "bits",
+                                                     f->bits, "stride", (json_int_t)f->stride,
+                                                     "bytes", (json_int_t)gn_frame_bytes(f),
+                                                     "truth", truth_list(t, flags, pixels))) < 0)
+                json_decref(TAKE_PTR(h));
         int r = send_json(rq, h);
         if (r >= 0)
                 r = send_bytes(rq, f->data, gn_frame_bytes(f));
@@ -395,115 +259,64 @@ static int send_frame(struct fs_req *rq, int ci, const struct sim_rig_state *st,
         return r;
 }
 
-/* Applies a pending camera fault to this render request. */
-static int camera_fault(struct fs_req *rq, int ci)
+/* Sleeps on the server thread for the exposure's wall time (exposure_us of emulated
+ * time), in slices so that sim_frame_server_free() is not held up. */
+static void expose_wait(struct sim_frame_server *fs, int exposure_us)
 {
-        struct cam_faults *cf = &rq->fs->faults[ci];
+        uint64_t end = gn_monotonic_ns() + (uint64_t)(exposure_us * 1e3 / fs->time_scale);
 
-        if (cf->disconnect > 0) {
-                cf->disconnect--;
+        for (uint64_t now; !atomic_load(&fs->stop) && (now = gn_monotonic_ns()) < end;) {
+                uint64_t ns = MIN(end - now, FS_POLL_MS * UINT64_C(1000000));
+                struct timespec ts = {.tv_sec = (time_t)(ns / 1000000000u),
+                                      .tv_nsec = (long)(ns % 1000000000u)};
+                (void)nanosleep(&ts, NULL);
+        }
+}
+
+/* The request's camera, exposure and truth flags, and its pending camera fault. */
+static int render_args(struct fs_req *rq, struct exposure *x, unsigned *flags)
+{
+        int r = sim_req_camera(&rq->base, rq->fs->rc, &x->cam);
+        if (r >= 0)
+                r = expose_args(rq, x->cam, &x->ex);
+        if (r >= 0)
+                r = truth_arg(rq, flags);
+        if (r < 0)
+                return r;
+        r = sim_control_camera_fault(rq->fs->ctl, x->cam);
+        if (r == -ECONNABORTED)
                 rq->hangup = true;
-                return -ECONNABORTED;
-        }
-        if (cf->drop > 0) {
-                cf->drop--;
-                return fail(rq, ETIMEDOUT, "frame dropped (injected fault)");
-        }
-        return 0;
+        else if (r < 0)
+                return sim_req_fail(&rq->base, -r, "frame dropped (injected fault)");
+        return r;
 }
 
 static int do_render(struct fs_req *rq)
 {
         struct sim_frame_server *fs = rq->fs;
-        struct sim_expose ex = {0};
-        struct sim_rig_state st;
+        struct exposure x = {0};
         struct gn_frame f = {0};
         struct sim_truth t = {0};
         unsigned flags = 0;
-        int ci = 0;
 
-        int r = camera_arg(rq, &ci);
-        if (r >= 0)
-                r = expose_args(rq, ci, &ex);
-        if (r >= 0)
-                r = truth_arg(rq, &flags);
-        if (r >= 0)
-                r = camera_fault(rq, ci);
+        int r = render_args(rq, &x, &flags);
         if (r < 0)
                 return r;
-
-        sim_emu_snapshot(fs->emu, &st);
-        uint64_t seq = fs->seq[ci]++, ts = realtime_ns();
-        r = sim_render(fs->scene, &st, ci, &ex, seq, &f, flags, &t);
+        sim_emu_snapshot(fs->emu, &x.start);
+        x.timestamp_ns = gn_realtime_ns();
+        x.seq = fs->seq[x.cam]++;
+        expose_wait(fs, x.ex.exposure_us);
+        sim_emu_snapshot(fs->emu, &x.end);
+        r = sim_render(fs->scene, &x.start, x.cam, &x.ex, x.seq, &f, flags, &t);
         if (r < 0)
-                return fail(rq, -r, "rendering failed: %s", strerror(-r));
-        f.seq = seq;
-        f.timestamp_ns = ts;
-        r = send_frame(rq, ci, &st, &ex, &f, &t, flags);
+                return sim_req_fail(&rq->base, -r, "rendering failed: %s", strerror(-r));
+        f.seq = x.seq;
+        f.timestamp_ns = x.timestamp_ns;
+        log_exposure(fs, &x);
+        r = send_frame(rq, &x, &f, &t, flags);
         gn_frame_free_data(&f);
         sim_truth_free(&t);
         return r;
-}
-
-static int inject_camera(struct fs_req *rq, const char *fault)
-{
-        long count = 1;
-        int ci = 0;
-
-        int r = camera_arg(rq, &ci);
-        if (r >= 0)
-                r = opt_int(rq, "count", 0, 1000000, &count);
-        if (r < 0)
-                return r;
-        struct cam_faults *cf = &rq->fs->faults[ci];
-        if (strcmp(fault, "drop") == 0)
-                cf->drop = count;
-        else if (strcmp(fault, "disconnect") == 0)
-                cf->disconnect = count;
-        else if (strcmp(fault, "none") == 0)
-                *cf = (struct cam_faults){0};
-        else
-                return fail(rq, EINVAL, "camera faults are drop, disconnect, none");
-        return 0;
-}
-
-static int inject_modbus(struct fs_req *rq, const char *fault)
-{
-        static const char *const names[] = {
-                [SIM_FAULT_NONE] = "none",   [SIM_FAULT_TIMEOUT] = "timeout",
-                [SIM_FAULT_CRC] = "crc",     [SIM_FAULT_EXCEPTION] = "exception",
-                [SIM_FAULT_STALL] = "stall",
-        };
-        const char *bus = json_string_value(json_object_get(rq->req, "bus"));
-        long unit = -1;
-        size_t f;
-
-        int r = opt_int(rq, "unit", 0, 255, &unit);
-        if (r < 0)
-                return r;
-        if (!bus || unit < 0)
-                return fail(rq, EINVAL, "inject needs 'camera', or 'bus' and 'unit'");
-        for (f = 0; f < ELEMENTSOF(names) && strcmp(names[f], fault) != 0; f++)
-                ;
-        if (f == ELEMENTSOF(names))
-                return fail(rq, EINVAL, "Modbus faults are none, timeout, crc, exception, stall");
-        r = sim_emu_inject(rq->fs->emu, bus, (int)unit, (enum sim_fault)f);
-        if (r == -ENOENT)
-                return fail(rq, ENOENT, "no emulated device at bus '%s' unit %ld", bus, unit);
-        if (r < 0)
-                return fail(rq, -r, "bus '%s' unit %ld is no axis drive", bus, unit);
-        return 0;
-}
-
-static int do_inject(struct fs_req *rq)
-{
-        const char *fault = json_string_value(json_object_get(rq->req, "fault"));
-
-        if (!fault)
-                return fail(rq, EINVAL, "'fault' must be a string");
-        int r = json_object_get(rq->req, "camera") ? inject_camera(rq, fault)
-                                                   : inject_modbus(rq, fault);
-        return r < 0 ? r : send_ok(rq);
 }
 
 /* ---- connections ---- */
@@ -511,35 +324,24 @@ static int do_inject(struct fs_req *rq)
 static void handle_line(struct sim_frame_server *fs, struct fs_client *cl, const char *line,
                         size_t len)
 {
-        static const struct {
-                const char *name;
-                int (*fn)(struct fs_req *rq);
-        } cmds[] = {
-                {"render", do_render},
-                {"state", do_state},
-                {"geometry", do_geometry},
-                {"inject", do_inject},
-        };
         struct fs_req rq = {.fs = fs, .cl = cl};
         json_error_t jerr;
+        json_t *reply = NULL;
         int r;
 
-        rq.req = json_loadb(line, len, 0, &jerr);
-        const char *cmd = json_string_value(json_object_get(rq.req, "cmd"));
-        if (!rq.req)
-                r = fail(&rq, EINVAL, "malformed JSON: %s", jerr.text);
+        rq.base.req = json_loadb(line, len, 0, &jerr);
+        const char *cmd = json_string_value(json_object_get(rq.base.req, "cmd"));
+        if (!rq.base.req)
+                r = sim_req_fail(&rq.base, EINVAL, "malformed JSON: %s", jerr.text);
         else if (!cmd)
-                r = fail(&rq, EINVAL, "a request is an object with a string 'cmd'");
-        else {
-                size_t i;
-                for (i = 0; i < ELEMENTSOF(cmds) && strcmp(cmds[i].name, cmd) != 0; i++)
-                        ;
-                r = i < ELEMENTSOF(cmds) ? cmds[i].fn(&rq)
-                                         : fail(&rq, EINVAL, "unknown cmd '%s'", cmd);
-        }
+                r = sim_req_fail(&rq.base, EINVAL, "a request is an object with a string 'cmd'");
+        else if (strcmp(cmd, "render") == 0)
+                r = do_render(&rq);
+        else if ((r = sim_control_handle(fs->ctl, &rq.base, cmd, &reply)) >= 0)
+                r = send_json(&rq, reply);
         if (r < 0 && !rq.hangup)
                 send_error(&rq, r);
-        json_decref(rq.req);
+        json_decref(rq.base.req);
         if (rq.hangup)
                 client_close(cl);
 }
@@ -551,8 +353,9 @@ static void overlong_line(struct sim_frame_server *fs, struct fs_client *cl)
         struct fs_req rq = {.fs = fs, .cl = cl};
 
         if (!cl->overlong) {
-                send_error(&rq, fail(&rq, EMSGSIZE, "request line longer than %d bytes",
-                                     SIM_FS_LINE_MAX - 1));
+                send_error(&rq,
+                           sim_req_fail(&rq.base, EMSGSIZE, "request line longer than %d bytes",
+                                        SIM_FS_LINE_MAX - 1));
                 if (rq.hangup) {
                         client_close(cl);
                         return;
@@ -605,7 +408,7 @@ static void accept_client(struct sim_frame_server *fs, int lfd)
                 }
         struct fs_client tmp = {.fd = fd};
         struct fs_req rq = {.fs = fs, .cl = &tmp};
-        send_error(&rq, fail(&rq, EBUSY, "more than %d clients", FS_MAX_CLIENTS));
+        send_error(&rq, sim_req_fail(&rq.base, EBUSY, "more than %d clients", FS_MAX_CLIENTS));
         close(fd);
 }
 
@@ -675,8 +478,35 @@ static int listen_on(struct sim_frame_server *fs, const char *path)
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct sim_frame_server *, sim_frame_server_free);
 
+static int listen_all(struct sim_frame_server *fs)
+{
+        const struct rig_config *rc = fs->rc;
+
+        for (size_t i = 0; i < rc->n_buses; i++) {
+                if (rc->buses[i].type != RIG_BUS_SIM)
+                        continue;
+                int r = listen_on(fs, rc->buses[i].port);
+                if (r < 0)
+                        return r;
+        }
+        if (fs->n_listen == 0)
+                return log_error_errno(SYNTHETIC_ERRNO(ENOENT), "the rig has no bus of type sim");
+        return 0;
+}
+
+static int apply_options(struct sim_frame_server *fs, const struct sim_fs_options *opt)
+{
+        fs->time_scale = opt && opt->time_scale > 0.0 ? opt->time_scale : 1.0;
+        if (!opt || !opt->render_log)
+                return 0;
+        fs->render_log = fopen(opt->render_log, "ae");
+        if (!fs->render_log)
+                return log_error_errno(errno, "render log %s: %m", opt->render_log);
+        return 0;
+}
+
 int sim_frame_server_new(struct rig_config *rc, struct sim_scene *scene, struct sim_emu *emu,
-                         struct sim_frame_server **ret)
+                         const struct sim_fs_options *opt, struct sim_frame_server **ret)
 {
         if (!rc || !scene || !emu || !ret)
                 return -EINVAL;
@@ -687,16 +517,14 @@ int sim_frame_server_new(struct rig_config *rc, struct sim_scene *scene, struct 
         *fs = (struct sim_frame_server){.rc = rc, .scene = scene, .emu = emu};
         for (size_t i = 0; i < FS_MAX_CLIENTS; i++)
                 fs->clients[i].fd = -1;
-        for (size_t i = 0; i < rc->n_buses; i++) {
-                if (rc->buses[i].type != RIG_BUS_SIM)
-                        continue;
-                int r = listen_on(fs, rc->buses[i].port);
-                if (r < 0)
-                        return r;
-        }
-        if (fs->n_listen == 0)
-                return log_error_errno(SYNTHETIC_ERRNO(ENOENT), "the rig has no bus of type sim");
-        int r = -pthread_create(&fs->thread, NULL, server_thread, fs);
+        int r = sim_control_new(rc, scene, emu, &fs->ctl);
+        if (r >= 0)
+                r = apply_options(fs, opt);
+        if (r >= 0)
+                r = listen_all(fs);
+        if (r < 0)
+                return r;
+        r = -pthread_create(&fs->thread, NULL, server_thread, fs);
         if (r < 0)
                 return log_error_errno(r, "frame server: cannot start thread: %m");
         fs->started = true;
@@ -717,6 +545,9 @@ struct sim_frame_server *sim_frame_server_free(struct sim_frame_server *fs)
                 close(fs->listen[i]);
                 (void)unlink(fs->paths[i]);
         }
+        if (fs->render_log)
+                fclose(fs->render_log);
+        sim_control_free(fs->ctl);
         free(fs);
         return NULL;
 }

@@ -3,6 +3,7 @@
  * socket, writes where everything listens (the ports file, JSON) and prints it, then
  * "ready", and runs until SIGTERM or SIGINT. See docs/sim.md. */
 #include <errno.h>
+#include <fcntl.h>
 #include <getopt.h>
 #include <signal.h>
 #include <stdio.h>
@@ -12,6 +13,7 @@
 
 #include <jansson.h>
 
+#include "common/fileio.h"
 #include "common/log.h"
 #include "common/rigconf.h"
 #include "sim/frame_server.h"
@@ -19,7 +21,7 @@
 #include "sim/render/render.h"
 
 struct args {
-        const char *rig, *dir, *ports_file;
+        const char *rig, *dir, *ports_file, *render_log;
         double time_scale;
 };
 
@@ -31,10 +33,12 @@ DEFINE_TRIVIAL_CLEANUP_FUNC(struct sim_frame_server *, sim_frame_server_free);
 static void usage(FILE *f)
 {
         fputs("Usage: gonio-sim --rig FILE [--dir DIR] [--time-scale X] [--ports-file FILE]\n"
+              "                 [--render-log FILE]\n"
               "  --rig FILE         rig file (YAML) to simulate\n"
               "  --dir DIR          directory of the ports (sets GONIO_SIM_DIR; created)\n"
               "  --time-scale X     emulated seconds per real second (default 1)\n"
-              "  --ports-file FILE  write the ports (JSON) to FILE as well\n",
+              "  --ports-file FILE  write the ports (JSON) to FILE as well\n"
+              "  --render-log FILE  append one JSON line per rendered frame to FILE\n",
               f);
 }
 
@@ -46,6 +50,7 @@ static int parse_args(int argc, char **argv, struct args *a)
                 {"dir", required_argument, NULL, 'd'},
                 {"time-scale", required_argument, NULL, 't'},
                 {"ports-file", required_argument, NULL, 'p'},
+                {"render-log", required_argument, NULL, 'l'},
                 {"help", no_argument, NULL, 'h'},
                 {},
         };
@@ -53,7 +58,7 @@ static int parse_args(int argc, char **argv, struct args *a)
         int c;
 
         *a = (struct args){.time_scale = 1.0};
-        while ((c = getopt_long(argc, argv, "r:d:t:p:h", opts, NULL)) >= 0) {
+        while ((c = getopt_long(argc, argv, "r:d:t:p:l:h", opts, NULL)) >= 0) {
                 switch (c) {
                 case 'r':
                         a->rig = optarg;
@@ -70,6 +75,9 @@ static int parse_args(int argc, char **argv, struct args *a)
                         break;
                 case 'p':
                         a->ports_file = optarg;
+                        break;
+                case 'l':
+                        a->render_log = optarg;
                         break;
                 case 'h':
                         usage(stdout);
@@ -134,19 +142,17 @@ static json_t *ports_json(const struct rig_config *rc, struct sim_emu *emu)
         return json_pack("{s:s, s:o}", "rig", rc->name, "buses", buses);
 }
 
-/* Writes the ports to path (via a temporary file and rename) and to stdout. */
+/* Writes the ports to path (atomically) and to stdout. */
 static int publish_ports(const struct rig_config *rc, struct sim_emu *emu, const char *path)
 {
         json_auto_t *o = ports_json(rc, emu);
-        char tmp[RIG_PATH_MAX + 8];
+        _cleanup_free_ char *text = o ? json_dumps(o, JSON_INDENT(2)) : NULL;
+        int r;
 
-        if (!o)
+        if (!text)
                 return log_error_errno(SYNTHETIC_ERRNO(ENOMEM), "Out of memory");
-        if (path) {
-                snprintf(tmp, sizeof tmp, "%s.tmp", path);
-                if (json_dump_file(o, tmp, JSON_INDENT(2)) < 0 || rename(tmp, path) < 0)
-                        return log_error_errno(SYNTHETIC_ERRNO(EIO), "Cannot write %s", path);
-        }
+        if (path && (r = gn_write_atomic(AT_FDCWD, path, text, strlen(text), NULL)) < 0)
+                return log_error_errno(r, "Cannot write %s: %m", path);
         if (json_dumpf(o, stdout, JSON_COMPACT) < 0)
                 return -EIO;
         printf("\nready\n");
@@ -192,7 +198,10 @@ static int run(const struct args *a)
         if (r >= 0)
                 r = sim_emu_new(rc, a->time_scale, &emu);
         if (r >= 0)
-                r = sim_frame_server_new(rc, scene, emu, &fs);
+                r = sim_frame_server_new(rc, scene, emu,
+                                         &(struct sim_fs_options){.time_scale = a->time_scale,
+                                                                  .render_log = a->render_log},
+                                         &fs);
         if (r >= 0)
                 r = publish_ports(rc, emu, a->ports_file);
         if (r < 0)

@@ -1,6 +1,8 @@
 /* modbus_emu.c - emulated Modbus controllers of gonio-sim: axis drives of the
  * gonio-default register profile (docs/modbus-profile.md) and relay modules,
- * served by the real libmodbus on pseudo-terminals (RTU) or loopback TCP.
+ * served by the real libmodbus on pseudo-terminals (RTU) or loopback TCP. The drive
+ * physics live in drive.c and the pty setup in pty.c; this file maps registers and coils
+ * onto them and frames the requests.
  *
  * DESIGN
  * - One thread per Modbus bus serves every unit on it. A libmodbus RTU server
@@ -10,15 +12,14 @@
  *   answer from that unit's mapping. Unknown units get no answer, as on a real bus.
  * - libmodbus writes its replies into one end of a socketpair; the thread moves
  *   them to the pty or TCP client, which is where a CRC fault corrupts them.
- * - Device state (motion profiles, registers, coils) is guarded by one mutex,
- *   shared with sim_emu_snapshot() on the frame server's thread. Axis registers
- *   are refreshed from the motion model right before each reply; commands take
+ * - Device state (drives, registers, coils) is guarded by one mutex, shared with
+ *   sim_emu_snapshot() on the frame server's thread. Axis registers are refreshed
+ *   from the drive model right before each reply; commands take
  *   effect right after the reply that accepted them.
  * - Emulated time is CLOCK_MONOTONIC since creation times time_scale.
  * - The threads poll with a short timeout and check the stop flag, so
  *   sim_emu_free() returns promptly. */
 #include <errno.h>
-#include <fcntl.h>
 #include <math.h>
 #include <poll.h>
 #include <pthread.h>
@@ -28,17 +29,17 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
-#include <sys/stat.h>
-#include <termios.h>
 #include <time.h>
 #include <unistd.h>
 
 #include <modbus/modbus.h>
 #include <netinet/in.h>
 
+#include "common/clock.h"
 #include "common/log.h"
+#include "sim/drive.h"
 #include "sim/modbus_emu.h"
-#include "sim/motion.h"
+#include "sim/pty.h"
 
 #define EMU_MAX_UNITS     (RIG_MAX_AXES + RIG_MAX_LAMPS + 1)
 #define EMU_MAX_CONNS     4
@@ -46,19 +47,10 @@
 #define EMU_BYTE_TIMEOUT  100 /* ms between bytes of one request before it is dropped */
 #define EMU_WRITE_TIMEOUT 1000
 #define EMU_ADU_MAX       MODBUS_TCP_MAX_ADU_LENGTH
-#define EMU_HOME_SWITCH   0.5 /* deg: half width of the home switch's cam */
-#define EMU_FAULT_STALL   1
 
 struct emu_axis {
-        const struct rig_axis_conf *conf;
+        struct sim_drive drive;
         struct rig_modbus_profile prof;
-        struct motion mo; /* physical position (deg) over emulated time */
-        double offset;    /* physical position at drive count 0 */
-        double settle_s;
-        bool homed, homing, aborted;
-        uint16_t fault_code;
-        bool stall_armed; /* the next move stalls half-way */
-        double stall_at;  /* emulated time of a scheduled stall, NAN if none */
 };
 
 struct emu_unit {
@@ -76,12 +68,9 @@ struct emu_bus {
         int index;
         const struct rig_bus_conf *conf;
         modbus_t *ctx;
-        int reply[2]; /* socketpair: libmodbus writes into [0], we read [1] */
-        int master;   /* RTU: pty master */
-        int slave;    /* RTU: kept open so the master never sees a hangup */
-        char pty[RIG_PATH_MAX];
-        bool linked;   /* symlink made at conf->port */
-        int listen_fd; /* TCP */
+        int reply[2];       /* socketpair: libmodbus writes into [0], we read [1] */
+        struct sim_pty pty; /* RTU */
+        int listen_fd;      /* TCP */
         int tcp_port;
         int conns[EMU_MAX_CONNS];
         pthread_t thread;
@@ -91,7 +80,7 @@ struct emu_bus {
 struct sim_emu {
         const struct rig_config *rc;
         double time_scale;
-        struct timespec epoch;
+        uint64_t epoch_ns; /* CLOCK_MONOTONIC at start */
         atomic_bool stop;
         pthread_mutex_t lock; /* guards units[] and their mappings */
         struct emu_unit units[EMU_MAX_UNITS];
@@ -104,11 +93,7 @@ struct sim_emu {
 
 static double emu_now(const struct sim_emu *e)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        double s = (double)(ts.tv_sec - e->epoch.tv_sec) + (ts.tv_nsec - e->epoch.tv_nsec) * 1e-9;
-        return s * e->time_scale;
+        return (double)(gn_monotonic_ns() - e->epoch_ns) * 1e-9 * e->time_scale;
 }
 
 static uint16_t crc16(const uint8_t *p, size_t n)
@@ -128,12 +113,6 @@ static uint16_t be16(const uint8_t *p)
         return (uint16_t)(p[0] << 8 | p[1]);
 }
 
-static double wrap360(double deg)
-{
-        double w = fmod(deg, 360.0);
-        return w < 0.0 ? w + 360.0 : w;
-}
-
 static void put_u32(uint16_t *regs, uint16_t addr, bool swap, uint32_t u)
 {
         regs[addr + (swap ? 1 : 0)] = (uint16_t)(u >> 16);
@@ -146,123 +125,65 @@ static int32_t get_i32(const uint16_t *regs, uint16_t addr, bool swap)
         return (int32_t)(hi << 16 | lo);
 }
 
-/* ---- axis drive model ---- */
-
-/* A deterministic, arbitrary power-on position: the drive does not know it until homed. */
-static double start_position(const struct rig_axis_conf *c)
-{
-        uint32_t h = 2166136261u;
-        for (const char *p = c->name; *p; p++)
-                h = (h ^ (uint8_t)*p) * 16777619u;
-        double f = (h % 10007) / 10007.0;
-        if (c->continuous)
-                return 360.0 * f - 180.0;
-        return 0.5 * (c->min_deg + f * (c->max_deg - c->min_deg));
-}
-
-static double axis_phys(const struct emu_axis *a, double now)
-{
-        return motion_position(&a->mo, now);
-}
-
-/* Applies what happened since the last look: a scheduled stall, the end of homing. */
-static void axis_update(struct emu_axis *a, double now)
-{
-        if (!isnan(a->stall_at) && now >= a->stall_at) {
-                motion_halt(&a->mo, a->stall_at);
-                a->fault_code = EMU_FAULT_STALL;
-                a->aborted = true;
-                a->homing = false;
-                a->stall_at = NAN;
-        }
-        if (a->homing && !motion_moving(&a->mo, now)) {
-                a->offset = motion_target(&a->mo);
-                a->homed = true;
-                a->homing = false;
-        }
-}
-
-static uint16_t axis_status(const struct emu_axis *a, double now)
-{
-        bool moving = motion_moving(&a->mo, now);
-        bool in_pos = !moving && !a->aborted && !a->fault_code &&
-                      now >= motion_end_time(&a->mo) + a->settle_s;
-        double w = wrap360(axis_phys(a, now) + EMU_HOME_SWITCH);
-
-        return (uint16_t)(1u << 0 | (unsigned)a->homed << 1 | (unsigned)moving << 2 |
-                          (unsigned)in_pos << 3 | (unsigned)(a->fault_code != 0) << 4 |
-                          (unsigned)(w < 2 * EMU_HOME_SWITCH) << 5);
-}
+/* ---- axis drive registers ---- */
 
 static void axis_refresh(struct emu_axis *a, modbus_mapping_t *map, double now)
 {
         const struct rig_modbus_profile *p = &a->prof;
+        struct sim_drive_status st = sim_drive_status(&a->drive, now);
 
-        axis_update(a, now);
-        map->tab_registers[p->reg_status] = axis_status(a, now);
-        map->tab_registers[p->reg_fault] = a->fault_code;
-        long long counts = llround((axis_phys(a, now) - a->offset) * p->scale);
+        map->tab_registers[p->reg_status] =
+                (uint16_t)(1u << 0 | (unsigned)st.homed << 1 | (unsigned)st.moving << 2 |
+                           (unsigned)st.in_position << 3 | (unsigned)st.fault << 4 |
+                           (unsigned)st.home_switch << 5);
+        map->tab_registers[p->reg_fault] = (uint16_t)a->drive.fault_code;
+        long long counts = llround(sim_drive_position(&a->drive, now) * p->scale);
         put_u32(map->tab_registers, p->reg_position, p->word_swap, (uint32_t)counts);
 }
 
-/* Schedules an armed stall half-way through the profile just planned. */
-static void axis_arm_stall(struct emu_axis *a)
+static double reg_speed(const struct emu_axis *a, const modbus_mapping_t *map)
 {
-        if (a->stall_armed && a->mo.t_total > 0.0) {
-                a->stall_at = a->mo.t0 + 0.5 * a->mo.t_total;
-                a->stall_armed = false;
-        }
+        return map->tab_registers[a->prof.reg_speed] / 10.0;
+}
+
+static double reg_accel(const struct emu_axis *a, const modbus_mapping_t *map)
+{
+        return map->tab_registers[a->prof.reg_accel] / 10.0;
 }
 
 /* Modbus exception for command cmd, or 0 when the drive accepts it. */
-static int axis_check(const struct emu_axis *a, const modbus_mapping_t *map, int cmd)
+static int axis_check(struct emu_axis *a, const modbus_mapping_t *map, int cmd, double now)
 {
         const struct rig_modbus_profile *p = &a->prof;
 
         if (cmd == p->cmd_move || cmd == p->cmd_home) {
-                if (a->fault_code)
-                        return MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE;
-                if (!map->tab_registers[p->reg_speed] || !map->tab_registers[p->reg_accel])
-                        return MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE;
-                return 0;
+                int r = sim_drive_check_move(&a->drive, now, reg_speed(a, map), reg_accel(a, map));
+                return r == -EIO      ? MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE
+                       : r == -EINVAL ? MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE
+                                      : 0;
         }
         if (cmd == p->cmd_stop || cmd == p->cmd_reset)
                 return 0;
         return MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE;
 }
 
-/* Where homing ends: the home switch at physical 0 (the nearest turn for continuous axes). */
-static double home_target(const struct emu_axis *a, double pos)
-{
-        return a->conf->continuous ? pos - remainder(pos, 360.0) : 0.0;
-}
-
 static void axis_execute(struct emu_axis *a, modbus_mapping_t *map, int cmd, double now)
 {
         const struct rig_modbus_profile *p = &a->prof;
-        double pos = axis_phys(a, now);
-        double v = map->tab_registers[p->reg_speed] / 10.0;
-        double acc = map->tab_registers[p->reg_accel] / 10.0;
+        double v = reg_speed(a, map), acc = reg_accel(a, map);
 
-        if (cmd == p->cmd_move || cmd == p->cmd_home) {
-                bool home = cmd == p->cmd_home;
-                double to =
-                        home ? home_target(a, pos)
-                             : get_i32(map->tab_registers, p->reg_target, p->word_swap) / p->scale +
-                                        a->offset;
-                (void)motion_plan(&a->mo, now, pos, to, v, acc); /* checked by axis_check */
-                a->homing = home;
-                a->aborted = false;
-                a->stall_at = NAN;
-                axis_arm_stall(a);
-        } else if (cmd == p->cmd_stop) {
-                motion_halt(&a->mo, now);
-                a->aborted = true;
-                a->homing = false;
-                a->stall_at = NAN;
-        } else if (cmd == p->cmd_reset) {
-                a->fault_code = 0;
-        }
+        /* Checked by axis_check before the reply. */
+        if (cmd == p->cmd_move)
+                (void)sim_drive_move(&a->drive, now,
+                                     get_i32(map->tab_registers, p->reg_target, p->word_swap) /
+                                             p->scale,
+                                     v, acc);
+        else if (cmd == p->cmd_home)
+                (void)sim_drive_home(&a->drive, now, v, acc);
+        else if (cmd == p->cmd_stop)
+                sim_drive_stop(&a->drive, now);
+        else if (cmd == p->cmd_reset)
+                sim_drive_reset(&a->drive);
         map->tab_registers[p->reg_command] = 0;
 }
 
@@ -290,7 +211,7 @@ static int axis_reply(struct emu_unit *u, modbus_t *ctx, const uint8_t *req, int
         axis_refresh(a, u->map, now);
         int cmd = command_in_request(a, req, len, off);
         if (cmd >= 0) {
-                int exc = axis_check(a, u->map, cmd);
+                int exc = axis_check(a, u->map, cmd, now);
                 if (exc)
                         return modbus_reply_exception(ctx, req, (unsigned)exc);
         }
@@ -503,19 +424,19 @@ static void rtu_serve(struct emu_bus *b)
 {
         uint8_t req[EMU_ADU_MAX];
 
-        int n = rtu_read_frame(b->master, req);
+        int n = rtu_read_frame(b->pty.master, req);
         if (n == -ETIMEDOUT)
                 return;
         if (n < 0) {
                 log_debug_errno(n, "bus '%s': unframeable request dropped: %m", b->conf->name);
-                drain(b->master);
+                drain(b->pty.master);
                 return;
         }
         if (crc16(req, (size_t)n - 2) != (req[n - 2] | req[n - 1] << 8)) {
                 log_debug("bus '%s': request with bad CRC dropped", b->conf->name);
                 return;
         }
-        serve_request(b, b->master, req, n, req[0]);
+        serve_request(b, b->pty.master, req, n, req[0]);
 }
 
 static void tcp_accept(struct emu_bus *b)
@@ -571,72 +492,18 @@ static void *bus_thread(void *userdata)
 
 /* ---- setup ---- */
 
-static int bus_open_pty(struct emu_bus *b)
-{
-        struct termios t;
-
-        b->master = posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
-        if (b->master < 0 || grantpt(b->master) < 0 || unlockpt(b->master) < 0)
-                return log_error_errno(errno, "bus '%s': cannot open a pty: %m", b->conf->name);
-        int r = ptsname_r(b->master, b->pty, sizeof b->pty);
-        if (r != 0)
-                return log_error_errno(r, "bus '%s': ptsname: %m", b->conf->name);
-        b->slave = open(b->pty, O_RDWR | O_NOCTTY | O_CLOEXEC);
-        if (b->slave < 0 || tcgetattr(b->slave, &t) < 0)
-                return log_error_errno(errno, "bus '%s': cannot open %s: %m", b->conf->name,
-                                       b->pty);
-        cfmakeraw(&t);
-        if (tcsetattr(b->slave, TCSANOW, &t) < 0 ||
-            fcntl(b->master, F_SETFL, fcntl(b->master, F_GETFL) | O_NONBLOCK) < 0)
-                return log_error_errno(errno, "bus '%s': cannot set up %s: %m", b->conf->name,
-                                       b->pty);
-        return 0;
-}
-
-/* Points the bus's port path at the pty, replacing a stale symlink. */
-static int bus_link(struct emu_bus *b)
-{
-        const char *port = b->conf->port;
-        struct stat st;
-
-        if (lstat(port, &st) == 0) {
-                if (!S_ISLNK(st.st_mode))
-                        return log_error_errno(SYNTHETIC_ERRNO(EEXIST),
-                                               "bus '%s': %s exists and is not a symlink",
-                                               b->conf->name, port);
-                (void)unlink(port);
-        }
-        if (symlink(b->pty, port) < 0)
-                return log_error_errno(errno, "bus '%s': cannot link %s to %s: %m", b->conf->name,
-                                       port, b->pty);
-        b->linked = true;
-        return 0;
-}
-
-/* Removes the symlink if it still points at our pty. */
-static void bus_unlink(struct emu_bus *b)
-{
-        char target[RIG_PATH_MAX];
-
-        ssize_t n = readlink(b->conf->port, target, sizeof target - 1);
-        if (n < 0)
-                return;
-        target[n] = '\0';
-        if (strcmp(target, b->pty) == 0)
-                (void)unlink(b->conf->port);
-}
-
 static int bus_open_rtu(struct emu_bus *b)
 {
         const struct rig_bus_conf *c = b->conf;
 
-        int r = bus_open_pty(b);
-        if (r >= 0)
-                r = bus_link(b);
+        char who[RIG_NAME_MAX + 8];
+
+        snprintf(who, sizeof who, "bus '%s'", c->name);
+        int r = sim_pty_open(&b->pty, c->port, who);
         if (r < 0)
                 return r;
-        b->ctx = modbus_new_rtu(b->pty, c->baud > 0 ? c->baud : 115200, c->parity ? c->parity : 'N',
-                                c->data_bits > 0 ? c->data_bits : 8,
+        b->ctx = modbus_new_rtu(b->pty.path, c->baud > 0 ? c->baud : 115200,
+                                c->parity ? c->parity : 'N', c->data_bits > 0 ? c->data_bits : 8,
                                 c->stop_bits > 0 ? c->stop_bits : 1);
         if (!b->ctx)
                 return log_error_errno(errno, "bus '%s': modbus_new_rtu: %m", c->name);
@@ -667,8 +534,7 @@ static int bus_start(struct sim_emu *e, int index)
                               .index = index,
                               .conf = &e->rc->buses[index],
                               .reply = {-1, -1},
-                              .master = -1,
-                              .slave = -1,
+                              .pty = SIM_PTY_NULL,
                               .listen_fd = -1};
         for (int i = 0; i < EMU_MAX_CONNS; i++)
                 b->conns[i] = -1;
@@ -695,8 +561,6 @@ static void bus_stop(struct emu_bus *b)
 {
         if (b->started)
                 pthread_join(b->thread, NULL);
-        if (b->linked)
-                bus_unlink(b);
         if (b->ctx)
                 modbus_free(b->ctx);
         for (int i = 0; i < EMU_MAX_CONNS; i++)
@@ -704,8 +568,7 @@ static void bus_stop(struct emu_bus *b)
         close_fd(b->listen_fd);
         close_fd(b->reply[0]);
         close_fd(b->reply[1]);
-        close_fd(b->slave);
-        close_fd(b->master);
+        sim_pty_close(&b->pty);
 }
 
 /* The unit id on bus for device dev, created on first use. Two devices may share a unit
@@ -761,11 +624,7 @@ static int add_axis(struct sim_emu *e, const struct rig_axis_conf *c)
         else
                 return log_error_errno(SYNTHETIC_ERRNO(EINVAL), "axis '%s': unknown profile '%s'",
                                        c->name, c->profile);
-        a->conf = c;
-        a->settle_s = c->settle_ms / 1000.0;
-        a->stall_at = NAN;
-        motion_rest(&a->mo, 0.0, start_position(c));
-        a->offset = start_position(c);
+        sim_drive_init(&a->drive, c);
 
         u->map = modbus_mapping_new(0, 0, profile_span(&a->prof), 0);
         if (!u->map)
@@ -818,7 +677,7 @@ int sim_emu_new(const struct rig_config *rc, double time_scale, struct sim_emu *
                 return -ENOMEM;
         e->rc = rc;
         e->time_scale = time_scale;
-        clock_gettime(CLOCK_MONOTONIC, &e->epoch);
+        e->epoch_ns = gn_monotonic_ns();
         pthread_mutex_init(&e->lock, NULL);
 
         int r = add_devices(e);
@@ -847,17 +706,6 @@ struct sim_emu *sim_emu_free(struct sim_emu *e)
 
 /* ---- queries and faults ---- */
 
-static double *axis_slot(struct sim_rig_state *st, const char *name)
-{
-        if (strcmp(name, "turntable") == 0)
-                return &st->turntable_deg;
-        if (strcmp(name, "light_arm") == 0)
-                return &st->light_arm_deg;
-        if (strcmp(name, "camera_arm") == 0)
-                return &st->camera_arm_deg;
-        return NULL;
-}
-
 static bool coil_state(struct sim_emu *e, const struct rig_switch_conf *c)
 {
         int bi = bus_index(e, c->bus);
@@ -867,32 +715,31 @@ static bool coil_state(struct sim_emu *e, const struct rig_switch_conf *c)
                u->map->tab_bits[c->coil];
 }
 
-void sim_emu_snapshot(struct sim_emu *e, struct sim_rig_state *st)
+void sim_emu_snapshot(struct sim_emu *e, struct gn_pose *st)
 {
         const struct rig_config *rc = e->rc;
 
-        *st = (struct sim_rig_state){0};
+        *st = gn_pose_none();
         pthread_mutex_lock(&e->lock);
         double now = emu_now(e);
         for (size_t i = 0; i < e->n_units; i++) {
                 struct emu_axis *a = &e->units[i].axis;
                 if (!e->units[i].is_axis)
                         continue;
-                axis_update(a, now);
-                double *slot = axis_slot(st, a->conf->name), pos = axis_phys(a, now);
-                if (slot)
-                        *slot = a->conf->continuous ? wrap360(pos) : pos;
+                int role = a->drive.conf->role;
+                if (role >= 0 && role < GN_ROLE_COUNT)
+                        st->deg[role] = sim_drive_angle(&a->drive, now);
         }
-        for (size_t i = 0; i < rc->n_lamps; i++)
-                st->lamp_on[i] = coil_state(e, &rc->lamps[i]);
-        st->laser_on = rc->has_laser && coil_state(e, &rc->laser);
+        for (size_t i = 0; i < rc->n_lamps && i < GN_POSE_MAX_LAMPS; i++)
+                st->lamps |= (uint32_t)coil_state(e, &rc->lamps[i]) << i;
+        st->laser = rc->has_laser && coil_state(e, &rc->laser);
         pthread_mutex_unlock(&e->lock);
 }
 
 const char *sim_emu_pty(struct sim_emu *e, const char *bus)
 {
         const struct emu_bus *b = find_bus(e, bus);
-        return b && b->conf->type == RIG_BUS_MODBUS_RTU ? b->pty : NULL;
+        return b && b->conf->type == RIG_BUS_MODBUS_RTU ? b->pty.path : NULL;
 }
 
 int sim_emu_tcp_port(struct sim_emu *e, const char *bus)
@@ -901,33 +748,23 @@ int sim_emu_tcp_port(struct sim_emu *e, const char *bus)
         return b && b->conf->type == RIG_BUS_MODBUS_TCP ? b->tcp_port : -ENOENT;
 }
 
-static void inject_stall(struct sim_emu *e, struct emu_axis *a)
-{
-        double now = emu_now(e);
-
-        axis_update(a, now);
-        if (motion_moving(&a->mo, now))
-                a->stall_at = MAX(now, a->mo.t0 + 0.5 * a->mo.t_total);
-        else
-                a->stall_armed = true;
-}
-
 int sim_emu_inject(struct sim_emu *e, const char *bus, int unit, enum sim_fault fault)
 {
         int bi = bus_index(e, bus), r = -ENOENT;
 
         pthread_mutex_lock(&e->lock);
         struct emu_unit *u = bi >= 0 ? find_unit(e, bi, unit) : NULL;
-        if (u && fault == SIM_FAULT_STALL) {
+        bool drive_fault = fault == SIM_FAULT_STALL || fault == SIM_FAULT_SHORT;
+        if (u && drive_fault) {
                 r = u->is_axis ? 0 : -EINVAL;
                 if (u->is_axis)
-                        inject_stall(e, &u->axis);
+                        sim_drive_inject(&u->axis.drive, emu_now(e),
+                                         fault == SIM_FAULT_STALL ? SIM_DRIVE_STALL
+                                                                  : SIM_DRIVE_SHORT);
         } else if (u) {
                 u->fault = fault;
-                if (fault == SIM_FAULT_NONE) {
-                        u->axis.stall_armed = false;
-                        u->axis.stall_at = NAN;
-                }
+                if (fault == SIM_FAULT_NONE && u->is_axis)
+                        sim_drive_inject(&u->axis.drive, emu_now(e), SIM_DRIVE_OK);
                 r = 0;
         }
         pthread_mutex_unlock(&e->lock);

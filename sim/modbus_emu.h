@@ -21,6 +21,8 @@ enum sim_fault {
         SIM_FAULT_CRC,       /* replies with a corrupt CRC */
         SIM_FAULT_EXCEPTION, /* replies with exception 0x04 (slave device failure) */
         SIM_FAULT_STALL,     /* the axis stalls mid-move and reports fault code 1 */
+        SIM_FAULT_SHORT,     /* the axis stops a few degrees short of its target: not moving,
+                              * not in position, no fault code (sim/drive.h) */
 };
 
 /* Creates the servers for every Modbus bus of rc. For modbus-rtu buses a pty is
@@ -33,8 +35,10 @@ int sim_emu_new(const struct rig_config *rc, double time_scale, struct sim_emu *
 /* Stops the threads, removes the symlinks. NULL is a no-op. Returns NULL. */
 struct sim_emu *sim_emu_free(struct sim_emu *e);
 
-/* The emulated rig's state now (axis positions along their motion profiles). */
-void sim_emu_snapshot(struct sim_emu *e, struct sim_rig_state *st);
+/* The emulated rig's state now: each Modbus axis with a role at its physical angle along
+ * its motion profile (wrapped to [0, 360) when continuous), NAN for roles no axis has;
+ * lamps and laser from their coils. Any thread. */
+void sim_emu_snapshot(struct sim_emu *e, struct gn_pose *st);
 
 /* The pty slave path of bus name (RTU), or NULL. Valid for the emulator's lifetime. */
 const char *sim_emu_pty(struct sim_emu *e, const char *bus);
@@ -43,6 +47,7 @@ const char *sim_emu_pty(struct sim_emu *e, const char *bus);
 int sim_emu_tcp_port(struct sim_emu *e, const char *bus);
 
 /* Injects a fault into the device at (bus, unit); SIM_FAULT_NONE clears it (a latched
- * stall stays until the drive's reset command). Returns 0, -ENOENT for an unknown
- * device, -EINVAL for a stall of a device that is no axis. Any thread. */
+ * stall stays until the drive's reset command). Stall and short apply to the current move,
+ * or the next one when the axis is at rest. Returns 0, -ENOENT for an unknown device,
+ * -EINVAL for a stall or short of a device that is no axis. Any thread. */
 int sim_emu_inject(struct sim_emu *e, const char *bus, int unit, enum sim_fault fault);

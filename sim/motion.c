@@ -74,6 +74,23 @@ double motion_end_time(const struct motion *m)
         return m->t0 + m->t_total;
 }
 
+double motion_time_at(const struct motion *m, double dist)
+{
+        double d_acc = 0.5 * m->accel * m->t_acc * m->t_acc, tau;
+
+        if (dist <= 0.0)
+                return m->t0;
+        if (dist >= m->dist)
+                return m->t0 + m->t_total;
+        if (dist < d_acc)
+                tau = sqrt(2.0 * dist / m->accel);
+        else if (dist <= m->dist - d_acc)
+                tau = m->t_acc + (dist - d_acc) / m->v_peak;
+        else
+                tau = m->t_total - sqrt(2.0 * (m->dist - dist) / m->accel);
+        return m->t0 + tau;
+}
+
 double motion_target(const struct motion *m)
 {
         return m->from + m->dir * m->dist;

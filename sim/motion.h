@@ -34,6 +34,9 @@ double motion_velocity(const struct motion *m, double t);
 /* Time when the profile ends. */
 double motion_end_time(const struct motion *m);
 
+/* The time at which the profile has covered dist degrees (clamped to [0, its distance]). */
+double motion_time_at(const struct motion *m, double dist);
+
 /* Target of the profile. */
 double motion_target(const struct motion *m);
 

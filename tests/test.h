@@ -56,3 +56,34 @@
                         exit(1);                                                                   \
                 }                                                                                  \
         } while (0)
+
+/* A case of a test program that runs its cases by name (TEST_RUN_CASES). */
+struct test_case {
+        const char *name;
+        void (*fn)(void);
+};
+
+/* Runs the case named argv[1], or every case when there is no argument. An unknown name
+ * or a second argument fails the program (exit 1) with a message naming the known cases,
+ * so a misspelt case in meson.build cannot pass without testing. Returns 0. */
+static inline int test_run_cases(const struct test_case *cases, size_t n, int argc, char **argv)
+{
+        int ran = 0;
+
+        for (size_t i = 0; i < n && argc <= 2; i++)
+                if (argc < 2 || strcmp(argv[1], cases[i].name) == 0) {
+                        cases[i].fn();
+                        ran++;
+                }
+        if (argc < 2 || ran > 0)
+                return 0;
+        fprintf(stderr, "%s: unknown case '%s'%s; cases:", argv[0], argv[1],
+                argc > 2 ? " or extra arguments" : "");
+        for (size_t i = 0; i < n; i++)
+                fprintf(stderr, " %s", cases[i].name);
+        fputc('\n', stderr);
+        exit(1);
+}
+
+#define TEST_RUN_CASES(cases, argc, argv)                                                          \
+        test_run_cases((cases), sizeof(cases) / sizeof((cases)[0]), (argc), (argv))

@@ -2,6 +2,7 @@
  * trapezoidal move-time model. Backends live in drivers/axis/<backend>/. */
 #include <math.h>
 #include <stdarg.h>
+#include <stdio.h>
 #include <stdlib.h>
 
 #include "common/log.h"
@@ -9,16 +10,36 @@
 #include "drivers/bus/bus.h"
 #include "drivers/registry.h"
 
-int axis_log_full(const struct axis *ax, int level, int err, const char *fmt, ...)
+int axis_log_full(struct axis *ax, int level, int err, const char *fmt, ...)
+{
+        const struct bus_dev_ref ref = {"axis",         ax->conf->name, ax->ops->name,
+                                        ax->conf->unit, ax->last_error, sizeof(ax->last_error)};
+        va_list ap;
+        int r;
+
+        va_start(ap, fmt);
+        r = bus_log_dev(ax->bus, &ref, level, err, fmt, ap);
+        va_end(ap);
+        return r;
+}
+
+int axis_set_cause(struct axis *ax, int err, const char *fmt, ...)
 {
         va_list ap;
         int r;
 
         va_start(ap, fmt);
-        r = bus_log_dev(ax->bus, level, err, "axis", ax->conf->name, ax->ops->name, ax->conf->unit,
-                        fmt, ap);
+        r = bus_dev_cause(ax->cause, sizeof(ax->cause), err, fmt, ap);
         va_end(ap);
         return r;
+}
+
+/* Logs the failure of the op WHAT with the backend's cause, or strerror(r). */
+static int fail(struct axis *ax, int r, const char *what)
+{
+        if (ax->cause[0])
+                return axis_log_full(ax, GN_LOG_ERR, r, "Failed to %s: %s", what, ax->cause);
+        return axis_log_full(ax, GN_LOG_ERR, r, "Failed to %s: %m", what);
 }
 
 int axis_new(const struct rig_axis_conf *conf, struct bus *bus, struct axis **ret)
@@ -75,9 +96,10 @@ static int call(struct axis *ax, int (*op)(struct axis *ax), const char *what)
         if (!op)
                 return axis_log_full(ax, GN_LOG_ERR, SYNTHETIC_ERRNO(EOPNOTSUPP),
                                      "Cannot %s: not supported by the backend", what);
+        ax->cause[0] = '\0';
         r = op(ax);
         if (r < 0)
-                return axis_log_full(ax, GN_LOG_ERR, r, "Failed to %s: %m", what);
+                return fail(ax, r, what);
         log_debug("axis '%s': %s", ax->conf->name, what);
         return 0;
 }
@@ -116,10 +138,13 @@ int axis_move_abs(struct axis *ax, double deg)
                 return axis_log_full(ax, GN_LOG_ERR, SYNTHETIC_ERRNO(ERANGE),
                                      "Target %.3f deg outside the soft limits [%.3f, %.3f]", deg,
                                      ax->conf->min_deg, ax->conf->max_deg);
+        ax->cause[0] = '\0';
         r = ax->ops->move_abs(ax, target);
-        if (r < 0)
-                return axis_log_full(ax, GN_LOG_ERR, r, "Failed to start move to %.3f deg: %m",
-                                     target);
+        if (r < 0) {
+                char what[64];
+                snprintf(what, sizeof(what), "start a move to %.3f deg", target);
+                return fail(ax, r, what);
+        }
         log_debug("axis '%s': moving to %.3f deg", ax->conf->name, target);
         return 0;
 }
@@ -129,9 +154,10 @@ int axis_poll(struct axis *ax)
         struct axis_state st = {};
         int r;
 
+        ax->cause[0] = '\0';
         r = ax->ops->poll(ax, &st);
         if (r < 0)
-                return axis_log_full(ax, GN_LOG_ERR, r, "Failed to read the drive state: %m");
+                return fail(ax, r, "read the drive state");
         ax->state = st;
         return 0;
 }

@@ -9,11 +9,15 @@
 #include <stdint.h>
 
 #include "common/rigconf.h"
+#include "drivers/bus/bus.h"
 #include "drivers/opt.h"
 
 struct bus;
 struct axis;
 
+/* What the drive itself reports. in_position is the drive's own flag, never derived from
+ * the position: a move is done only when moving is clear and in_position set. A drive
+ * may stop short (moving clear, in_position clear, no fault): that move failed. */
 struct axis_state {
         double position_deg;
         bool enabled, homed, moving, in_position, fault;
@@ -42,6 +46,12 @@ struct axis {
         /* borrowed, optional, set by the caller before axis_open(): rig-wide tables such as
          * Modbus register profiles; without it only built-in profiles are known */
         const struct rig_config *rig;
+        /* The last message the class logged at warning level or worse, whole ("axis
+         * 'turntable' [modbus@drives#1]: Failed to read the drive state: read position (reg
+         * 0x0102): Connection timed out after 200 ms"), for operators; "" when none. Written
+         * by the ops' thread: read it in the job's done callback or on the sync owner. */
+        char last_error[DEV_ERROR_MAX];
+        char cause[DEV_ERROR_MAX]; /* detail of the op in progress, see axis_set_cause() */
 };
 
 /* Creates the axis for conf with the backend named there (drivers/registry.c).
@@ -55,8 +65,10 @@ struct axis *axis_free(struct axis *ax);
  * Returns 0 or -ERANGE. Pure. */
 int axis_check_target(const struct axis *ax, double *deg);
 
-/* Wrappers that call the op (on the worker) and log failures as
- * "axis 'NAME' [backend@port#unit]: ...". Each returns 0 or -errno. */
+/* Wrappers that call the op (on the worker) and log failures once, as "axis 'NAME'
+ * [backend@port#unit]: Failed to OPERATION: CAUSE" (CAUSE: what the backend gave with
+ * axis_set_cause(), else strerror), also kept in ax->last_error. Each returns 0 or
+ * -errno. */
 int axis_open(struct axis *ax);
 int axis_home(struct axis *ax);
 int axis_move_abs(struct axis *ax, double deg); /* checks limits first: -ERANGE */
@@ -65,9 +77,15 @@ int axis_reset(struct axis *ax);
 int axis_poll(struct axis *ax); /* refreshes ax->state */
 
 /* Logs "axis 'NAME' [BACKEND@PORT#UNIT]: message" at level (GN_LOG_*); %m prints err.
- * Returns -abs(err). Any thread. */
-int axis_log_full(const struct axis *ax, int level, int err, const char *fmt, ...)
+ * Returns -abs(err). At warning level or worse also fills last_error: the ops' thread. */
+int axis_log_full(struct axis *ax, int level, int err, const char *fmt, ...)
         __attribute__((format(printf, 4, 5)));
+
+/* For backends: records the detail of the current op's failure ("read position (reg
+ * 0x0102): Connection timed out after 200 ms") for the wrapper's message, without
+ * logging. %m prints err. Returns -abs(err). */
+int axis_set_cause(struct axis *ax, int err, const char *fmt, ...)
+        __attribute__((format(printf, 3, 4)));
 
 /* Estimated duration of a move of delta degrees with a trapezoidal profile, in seconds. */
 double axis_move_time(double delta_deg, double max_speed, double accel);

@@ -1,6 +1,7 @@
 /* bus.h - one worker thread per physical bus (a serial line, a TCP link, a
- * socket): it owns the bus connection and runs blocking device I/O, so the
- * daemon's event loop never blocks.
+ * socket): it owns the bus's transport and runs blocking device I/O, so the
+ * daemon's event loop never blocks. The bus knows nothing of protocols: Modbus,
+ * the gonio-sim frame socket and plain serial lines are transports.
  *
  * Jobs go into a fixed-size queue; an urgent job (stop) jumps the queue. Each
  * job's result comes back on the event-loop thread through an eventfd. Drivers
@@ -11,12 +12,10 @@
 #include <stdarg.h>
 #include <stdbool.h>
 #include <stddef.h>
-#include <stdint.h>
 
 #include "common/rigconf.h"
 
 typedef struct sd_event sd_event;
-typedef struct _modbus modbus_t;
 
 #define BUS_QUEUE_MAX 64
 
@@ -46,41 +45,29 @@ int bus_submit(struct bus *b, bus_job_fn job, bus_done_fn done, void *userdata, 
 /* The bus configuration; valid for the bus's lifetime. */
 const struct rig_bus_conf *bus_conf(const struct bus *b);
 
-/* Opens the connection if needed and returns the libmodbus context of a Modbus bus,
- * with unit selected; worker thread (or sync owner) only. Returns 0, -EOPNOTSUPP for a
- * sim bus, or -errno. */
-int bus_modbus(struct bus *b, int unit, modbus_t **ret);
+/* The bus's transport (drivers/transport/transport.h), opened lazily by its helpers;
+ * valid for the bus's lifetime, used on the worker (or by the sync owner) only. */
+struct transport *bus_transport(const struct bus *b);
 
-/* Closes the connection after an I/O error so that the next job reconnects. */
-void bus_reset(struct bus *b);
+/* Size of a device's last_error and cause buffers (struct axis, sw, cam). */
+#define DEV_ERROR_MAX 256
 
-/* Maps the errno left by a failed libmodbus call to -ETIMEDOUT, -EPROTO (exception,
- * bad CRC or frame) or -EIO, for logging with modbus_strerror(). */
-int bus_modbus_errno(int err);
-
-/* Counters of a bus's Modbus traffic; updated on the worker, readable from any thread. */
-struct bus_stats {
-        uint64_t requests;   /* transactions attempted (retries not included) */
-        uint64_t retries;    /* extra attempts after a timeout, a bad frame or an I/O error */
-        uint64_t failures;   /* transactions that failed after their last attempt */
-        uint64_t reconnects; /* connections opened after the first */
+/* Where a device message comes from and where it is kept, for bus_log_dev(). */
+struct bus_dev_ref {
+        const char *kind, *name, *backend; /* "axis", "turntable", "modbus" */
+        int unit;                          /* -1: none */
+        char *last_error;                  /* NULL or a buffer of last_error_len bytes */
+        size_t last_error_len;
 };
-
-/* Copies the counters of b into *ret. Any thread. */
-void bus_get_stats(const struct bus *b, struct bus_stats *ret);
-
-/* Modbus transactions with the bus's retry policy: up to conf->retries extra attempts
- * after a timeout or a corrupt reply (flushed first) or an I/O error (reconnected first),
- * each counted and logged (rate-limited); exceptions are not retried. Return >= 0, or
- * -ETIMEDOUT/-EPROTO/-EIO logged with modbus_strerror(). Worker (or sync owner) only. */
-int bus_read_regs(struct bus *b, int unit, int addr, int n, uint16_t *dest);       /* FC03 */
-int bus_write_reg(struct bus *b, int unit, int addr, uint16_t value);              /* FC06 */
-int bus_write_regs(struct bus *b, int unit, int addr, int n, const uint16_t *src); /* FC16 */
-int bus_read_coils(struct bus *b, int unit, int addr, int n, uint8_t *dest);       /* FC01 */
-int bus_write_coil(struct bus *b, int unit, int addr, bool on);                    /* FC05 */
 
 /* Logs "KIND 'NAME' [BACKEND@PORT#UNIT]: message" (PORT: last component of the bus's
  * port, or host:port for TCP; "#UNIT" left out when unit < 0) for the device class
- * wrappers. errno is err while formatting, for %m. Returns -abs(err). Any thread. */
-int bus_log_dev(const struct bus *b, int level, int err, const char *kind, const char *name,
-                const char *backend, int unit, const char *fmt, va_list ap);
+ * wrappers; a message at warning level or worse is also copied, whole, into
+ * dev->last_error. errno is err while formatting, for %m. Returns -abs(err). Thread of
+ * the device's ops. */
+int bus_log_dev(const struct bus *b, const struct bus_dev_ref *dev, int level, int err,
+                const char *fmt, va_list ap);
+
+/* Formats a backend's cause of failure into buf (len bytes) without logging; %m prints
+ * err. Returns -abs(err). For axis_set_cause() and its siblings. */
+int bus_dev_cause(char *buf, size_t len, int err, const char *fmt, va_list ap);

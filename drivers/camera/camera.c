@@ -1,6 +1,8 @@
 /* camera.c - the camera class: backend lookup, request checks against the backend's
- * option table, logging wrappers. Backends live in drivers/camera/<backend>/. */
+ * option table (the one source of control ranges), logging wrappers with the backend's
+ * cause, and the optional streaming ops. Backends live in drivers/camera/<backend>/. */
 #include <stdarg.h>
+#include <stdio.h>
 #include <stdlib.h>
 
 #include "common/log.h"
@@ -8,18 +10,38 @@
 #include "drivers/camera/camera.h"
 #include "drivers/registry.h"
 
-static int cam_log_full(const struct cam *c, int level, int err, const char *fmt, ...)
-        _printf_(4, 5);
+static int cam_log_full(struct cam *c, int level, int err, const char *fmt, ...) _printf_(4, 5);
 
-static int cam_log_full(const struct cam *c, int level, int err, const char *fmt, ...)
+static int cam_log_full(struct cam *c, int level, int err, const char *fmt, ...)
+{
+        const struct bus_dev_ref ref = {"camera", c->conf->name, c->ops->name,
+                                        -1,       c->last_error, sizeof(c->last_error)};
+        va_list ap;
+        int r;
+
+        va_start(ap, fmt);
+        r = bus_log_dev(c->bus, &ref, level, err, fmt, ap);
+        va_end(ap);
+        return r;
+}
+
+int cam_set_cause(struct cam *c, int err, const char *fmt, ...)
 {
         va_list ap;
         int r;
 
         va_start(ap, fmt);
-        r = bus_log_dev(c->bus, level, err, "camera", c->conf->name, c->ops->name, -1, fmt, ap);
+        r = bus_dev_cause(c->cause, sizeof(c->cause), err, fmt, ap);
         va_end(ap);
         return r;
+}
+
+/* Logs the failure of the op WHAT with the backend's cause, or strerror(r). */
+static int fail(struct cam *c, int r, const char *what)
+{
+        if (c->cause[0])
+                return cam_log_full(c, GN_LOG_ERR, r, "Failed to %s: %s", what, c->cause);
+        return cam_log_full(c, GN_LOG_ERR, r, "Failed to %s: %m", what);
 }
 
 int cam_new(const struct rig_camera_conf *conf, struct bus *bus, struct cam **ret)
@@ -45,6 +67,8 @@ struct cam *cam_free(struct cam *c)
 {
         if (!c)
                 return NULL;
+        if (c->ops->stream_stop)
+                c->ops->stream_stop(c);
         if (c->ops->close)
                 c->ops->close(c);
         free(c);
@@ -57,49 +81,112 @@ int cam_open(struct cam *c)
 
         if (!c->ops->open)
                 return 0;
+        c->cause[0] = '\0';
         r = c->ops->open(c);
         if (r < 0)
-                return cam_log_full(c, GN_LOG_ERR, r, "Failed to open: %m");
+                return fail(c, r, "open");
         return 0;
 }
 
 /* Checks a requested control (0 = default, always fine) against the option table:
  * -EOPNOTSUPP when not settable, -ERANGE outside [min, max] (when max > min). */
-static int check_control(const struct cam *c, enum opt_key key, double v)
+static int check_control(const struct cam *c, enum opt_key key, double v, char *msg, size_t len)
 {
         const struct opt_desc *o;
 
         if (v == 0)
                 return 0;
         o = opt_find(c->ops->opts, c->ops->n_opts, key);
-        if (!o || !(o->flags & OPT_SET))
-                return cam_log_full(c, GN_LOG_ERR, SYNTHETIC_ERRNO(EOPNOTSUPP), "Cannot set %s",
-                                    opt_key_name(key));
-        if (o->max > o->min && (v < o->min || v > o->max))
-                return cam_log_full(c, GN_LOG_ERR, SYNTHETIC_ERRNO(ERANGE),
-                                    "%s %g outside [%g, %g]", opt_key_name(key), v, o->min, o->max);
+        if (!o || !(o->flags & OPT_SET)) {
+                snprintf(msg, len, "cannot set %s", opt_key_name(key));
+                return -EOPNOTSUPP;
+        }
+        if (o->max > o->min && (v < o->min || v > o->max)) {
+                snprintf(msg, len, "%s %.10g outside [%.10g, %.10g]", opt_key_name(key), v, o->min,
+                         o->max);
+                return -ERANGE;
+        }
         return 0;
+}
+
+int cam_check_request(const struct cam *c, const struct cam_request *req, char *msg, size_t len)
+{
+        static const struct cam_request defaults = {};
+        char dummy[1];
+        int r;
+
+        if (!msg || len == 0) {
+                msg = dummy;
+                len = sizeof(dummy);
+        }
+        msg[0] = '\0';
+        if (!req)
+                req = &defaults;
+        if (req->bits != 0 && req->bits != 8 && req->bits != 16) {
+                snprintf(msg, len, "unsupported sample size %d bits", req->bits);
+                return -EINVAL;
+        }
+        r = check_control(c, OPT_EXPOSURE, req->exposure_us, msg, len);
+        if (r >= 0)
+                r = check_control(c, OPT_GAIN, req->gain, msg, len);
+        if (r >= 0)
+                r = check_control(c, OPT_BITS, req->bits, msg, len);
+        return r;
+}
+
+/* cam_check_request() with its message as the cause of WHAT's failure. */
+static int check_logged(struct cam *c, const struct cam_request *req, const char *what)
+{
+        int r;
+
+        c->cause[0] = '\0';
+        r = cam_check_request(c, req, c->cause, sizeof(c->cause));
+        return r < 0 ? fail(c, r, what) : 0;
 }
 
 int cam_capture(struct cam *c, const struct cam_request *req, struct gn_frame *out)
 {
         static const struct cam_request defaults = {};
-        int r;
+        int r = check_logged(c, req, "capture");
 
-        if (!req)
-                req = &defaults;
-        if (req->bits != 0 && req->bits != 8 && req->bits != 16)
-                return cam_log_full(c, GN_LOG_ERR, SYNTHETIC_ERRNO(EINVAL),
-                                    "Unsupported sample size %d bits", req->bits);
-        r = check_control(c, OPT_EXPOSURE, req->exposure_us);
-        if (r >= 0)
-                r = check_control(c, OPT_GAIN, req->gain);
-        if (r >= 0)
-                r = check_control(c, OPT_BITS, req->bits);
         if (r < 0)
                 return r;
-        r = c->ops->capture(c, req, out);
+        r = c->ops->capture(c, req ? req : &defaults, out);
+        return r < 0 ? fail(c, r, "capture") : 0;
+}
+
+int cam_stream_start(struct cam *c, const struct cam_request *req)
+{
+        static const struct cam_request defaults = {};
+        int r;
+
+        if (!c->ops->stream_start)
+                return -EOPNOTSUPP;
+        r = check_logged(c, req, "start streaming");
         if (r < 0)
-                return cam_log_full(c, GN_LOG_ERR, r, "Failed to capture: %m");
-        return 0;
+                return r;
+        r = c->ops->stream_start(c, req ? req : &defaults);
+        return r < 0 ? fail(c, r, "start streaming") : 0;
+}
+
+int cam_stream_fd(struct cam *c)
+{
+        return c->ops->stream_fd ? c->ops->stream_fd(c) : -EOPNOTSUPP;
+}
+
+int cam_stream_dequeue(struct cam *c, struct gn_frame *out)
+{
+        int r;
+
+        if (!c->ops->stream_dequeue)
+                return -EOPNOTSUPP;
+        c->cause[0] = '\0';
+        r = c->ops->stream_dequeue(c, out);
+        return r < 0 && r != -EAGAIN ? fail(c, r, "dequeue a frame") : r;
+}
+
+void cam_stream_stop(struct cam *c)
+{
+        if (c->ops->stream_stop)
+                c->ops->stream_stop(c);
 }

@@ -9,16 +9,36 @@
 #include "drivers/registry.h"
 #include "drivers/switch/switch.h"
 
-int sw_log_full(const struct sw *s, int level, int err, const char *fmt, ...)
+int sw_log_full(struct sw *s, int level, int err, const char *fmt, ...)
+{
+        const struct bus_dev_ref ref = {"switch",      s->conf->name, s->ops->name,
+                                        s->conf->unit, s->last_error, sizeof(s->last_error)};
+        va_list ap;
+        int r;
+
+        va_start(ap, fmt);
+        r = bus_log_dev(s->bus, &ref, level, err, fmt, ap);
+        va_end(ap);
+        return r;
+}
+
+int sw_set_cause(struct sw *s, int err, const char *fmt, ...)
 {
         va_list ap;
         int r;
 
         va_start(ap, fmt);
-        r = bus_log_dev(s->bus, level, err, "switch", s->conf->name, s->ops->name, s->conf->unit,
-                        fmt, ap);
+        r = bus_dev_cause(s->cause, sizeof(s->cause), err, fmt, ap);
         va_end(ap);
         return r;
+}
+
+/* Logs the failure of the op WHAT with the backend's cause, or strerror(r). */
+static int fail(struct sw *s, int r, const char *what)
+{
+        if (s->cause[0])
+                return sw_log_full(s, GN_LOG_ERR, r, "Failed to %s: %s", what, s->cause);
+        return sw_log_full(s, GN_LOG_ERR, r, "Failed to %s: %m", what);
 }
 
 int sw_new(const struct rig_switch_conf *conf, struct bus *bus, struct sw **ret)
@@ -55,9 +75,10 @@ int sw_get(struct sw *s, bool *on)
         bool v;
         int r;
 
+        s->cause[0] = '\0';
         r = s->ops->get(s, &v);
         if (r < 0)
-                return sw_log_full(s, GN_LOG_ERR, r, "Failed to read the state: %m");
+                return fail(s, r, "read the state");
         s->on = v;
         if (on)
                 *on = v;
@@ -68,10 +89,11 @@ int sw_open(struct sw *s)
 {
         int r;
 
+        s->cause[0] = '\0';
         if (s->ops->open) {
                 r = s->ops->open(s);
                 if (r < 0)
-                        return sw_log_full(s, GN_LOG_ERR, r, "Failed to open: %m");
+                        return fail(s, r, "open");
         }
         return sw_get(s, NULL);
 }
@@ -89,9 +111,10 @@ int sw_set(struct sw *s, bool on)
 {
         int r;
 
+        s->cause[0] = '\0';
         r = s->ops->set(s, on);
         if (r < 0)
-                return sw_log_full(s, GN_LOG_ERR, r, "Failed to switch %s: %m", on ? "on" : "off");
+                return fail(s, r, on ? "switch on" : "switch off");
         s->on = on;
         if (on && s->conf->warmup_ms > 0)
                 sleep_ms(s->conf->warmup_ms); /* lamp warm-up: part of the device */

@@ -75,6 +75,11 @@ void camera_free(struct camera *c)
         c->dirs = NULL;
 }
 
+double pose_deg(const struct gn_pose *p, enum gn_role role)
+{
+        return gn_pose_has(p, role) ? p->deg[role] : 0.0;
+}
+
 void camera_pose(const struct rig_camera_conf *cc, double camera_arm_deg, double R[9], double t[3])
 {
         double a = (camera_arm_deg + cc->azimuth_deg) * M_PI / 180;
@@ -119,7 +124,7 @@ int sim_cam_project(const struct sim_cam_geom *g, const double p[3], double uv[2
         return 0;
 }
 
-int sim_camera_geom(const struct sim_scene *s, const struct sim_rig_state *st, int cam,
+int sim_camera_geom(const struct sim_scene *s, const struct gn_pose *st, int cam,
                     struct sim_cam_geom *out)
 {
         const struct rig_camera_conf *cc;
@@ -135,6 +140,6 @@ int sim_camera_geom(const struct sim_scene *s, const struct sim_rig_state *st, i
         out->cy = cc->cy;
         for (int i = 0; i < 5; i++)
                 out->dist[i] = cc->dist[i];
-        camera_pose(cc, st->camera_arm_deg, out->R, out->t);
+        camera_pose(cc, pose_deg(st, GN_ROLE_CAMERA_ARM), out->R, out->t);
         return 0;
 }

@@ -167,6 +167,8 @@ float board_albedo(const struct board *b, float x, float y, const float fp[4]);
 int board_marker_bits(int id, uint16_t *bits);
 
 /* --- camera.c --- */
+/* Angle of the axis of role in p, 0 where the rig has none (NAN). */
+double pose_deg(const struct gn_pose *p, enum gn_role role);
 int camera_build(struct camera *c, const struct rig_camera_conf *cc);
 void camera_free(struct camera *c);
 void camera_pose(const struct rig_camera_conf *cc, double camera_arm_deg, double R[9], double t[3]);

@@ -51,12 +51,11 @@ void lamp_sample(const double p[3], double r, int k, int n, double out[3])
                 out[i] += rho * (cos(phi) * u[i] + sin(phi) * v[i]);
 }
 
-int sim_lamp_position(const struct sim_scene *s, const struct sim_rig_state *st, int lamp,
-                      double out[3])
+int sim_lamp_position(const struct sim_scene *s, const struct gn_pose *st, int lamp, double out[3])
 {
         if (!s || !st || !out || lamp < 0 || (size_t)lamp >= s->rc->n_lamps)
                 return -EINVAL;
-        lamp_position(&s->rc->lamps[lamp], st->light_arm_deg, out);
+        lamp_position(&s->rc->lamps[lamp], pose_deg(st, GN_ROLE_LIGHT_ARM), out);
         return 0;
 }
 

@@ -17,6 +17,7 @@
 #include <time.h>
 
 #include "common/cleanup.h"
+#include "common/clock.h"
 #include "common/log.h"
 #include "internal.h"
 
@@ -541,13 +542,13 @@ static void to_float9(const double d[9], float f[9])
 }
 
 /* Camera pose and the object-frame rotation of this frame. */
-static void setup_camera(struct fctx *c, const struct sim_rig_state *st)
+static void setup_camera(struct fctx *c, const struct gn_pose *st)
 {
         double R[9], t[3], Rz[9], Rzi[9], Rt[9], M[9], C[3], Co[3];
 
-        camera_pose(c->cc, st->camera_arm_deg, R, t);
-        m3d_rot_z(st->turntable_deg, Rz);
-        m3d_rot_z(-st->turntable_deg, Rzi);
+        camera_pose(c->cc, pose_deg(st, GN_ROLE_CAMERA_ARM), R, t);
+        m3d_rot_z(pose_deg(st, GN_ROLE_TURNTABLE), Rz);
+        m3d_rot_z(-pose_deg(st, GN_ROLE_TURNTABLE), Rzi);
         for (int i = 0; i < 3; i++)
                 for (int j = 0; j < 3; j++)
                         Rt[i * 3 + j] = R[j * 3 + i];
@@ -569,17 +570,17 @@ static struct v3 to_obj(const double Rzi[9], const double p[3])
         return v3((float)q[0], (float)q[1], (float)q[2]);
 }
 
-static void setup_lights(struct fctx *c, const struct sim_rig_state *st)
+static void setup_lights(struct fctx *c, const struct gn_pose *st)
 {
         const struct sim_scene *s = c->s;
         double Rzi[9], p[3], q[3];
         int ns = MAX(1, MIN(s->lamp_samples, SIM_MAX_LAMP_SAMPLES));
 
-        m3d_rot_z(-st->turntable_deg, Rzi);
+        m3d_rot_z(-pose_deg(st, GN_ROLE_TURNTABLE), Rzi);
         for (size_t l = 0; l < s->rc->n_lamps; l++) {
-                if (!st->lamp_on[l])
+                if (!(st->lamps & (UINT32_C(1) << l)))
                         continue;
-                lamp_position(&s->rc->lamps[l], st->light_arm_deg, p);
+                lamp_position(&s->rc->lamps[l], pose_deg(st, GN_ROLE_LIGHT_ARM), p);
                 for (int k = 0; k < ns; k++) {
                         struct light_pt *lp = &c->lights[c->n_lights++];
                         lamp_sample(p, s->lamp_radius, k, ns, q);
@@ -597,15 +598,15 @@ static void setup_lights(struct fctx *c, const struct sim_rig_state *st)
         }
 }
 
-static void setup_laser(struct fctx *c, const struct sim_rig_state *st)
+static void setup_laser(struct fctx *c, const struct gn_pose *st)
 {
         const struct rig_switch_conf *lz = &c->s->rc->laser;
         double n[3], d, Rzi[9];
 
-        c->laser = st->laser_on && sim_laser_plane(c->s, n, &d) == 0 && lz->laser_width_mm > 0;
+        c->laser = st->laser && sim_laser_plane(c->s, n, &d) == 0 && lz->laser_width_mm > 0;
         if (!c->laser)
                 return;
-        m3d_rot_z(-st->turntable_deg, Rzi);
+        m3d_rot_z(-pose_deg(st, GN_ROLE_TURNTABLE), Rzi);
         c->lz_n = to_obj(Rzi, n);
         c->lz_o = to_obj(Rzi, lz->laser_origin);
         c->lz_sigma = (float)lz->laser_width_mm;
@@ -613,7 +614,7 @@ static void setup_laser(struct fctx *c, const struct sim_rig_state *st)
         c->lz_ch = CLAMP(lz->laser_channel, 0, 2);
 }
 
-static int setup_dome(struct fctx *c, const struct sim_rig_state *st)
+static int setup_dome(struct fctx *c, const struct gn_pose *st)
 {
         double Rzi[9];
 
@@ -623,7 +624,7 @@ static int setup_dome(struct fctx *c, const struct sim_rig_state *st)
         c->dome_w = malloc(c->s->n_dome * sizeof(*c->dome_w));
         if (!c->dome_dir || !c->dome_w)
                 return -ENOMEM;
-        m3d_rot_z(-st->turntable_deg, Rzi);
+        m3d_rot_z(-pose_deg(st, GN_ROLE_TURNTABLE), Rzi);
         for (int k = 0; k < c->s->n_dome; k++) {
                 c->dome_dir[k] = to_obj(Rzi, c->s->dome_els[k].dir);
                 c->dome_w[k] = (float)c->s->dome_els[k].w;
@@ -676,9 +677,7 @@ static int setup_frame(struct fctx *c, const struct sim_expose *exp, uint64_t se
         r = gn_frame_alloc(out, c->w, c->h, c->s->sensor.format == FMT_RGB ? 3 : 1, bits);
         if (r < 0)
                 return r;
-        struct timespec ts;
-        clock_gettime(CLOCK_REALTIME, &ts);
-        out->timestamp_ns = (uint64_t)ts.tv_sec * 1000000000ULL + (uint64_t)ts.tv_nsec;
+        out->timestamp_ns = gn_realtime_ns();
         out->exposure_us = exposure;
         out->gain = gain;
         out->seq = seq;
@@ -690,9 +689,8 @@ static int setup_frame(struct fctx *c, const struct sim_expose *exp, uint64_t se
         return 0;
 }
 
-int sim_render(struct sim_scene *s, const struct sim_rig_state *st, int cam,
-               const struct sim_expose *exp, uint64_t seq, struct gn_frame *out,
-               unsigned truth_flags, struct sim_truth *truth)
+int sim_render(struct sim_scene *s, const struct gn_pose *st, int cam, const struct sim_expose *exp,
+               uint64_t seq, struct gn_frame *out, unsigned truth_flags, struct sim_truth *truth)
 {
         _cleanup_free_ struct fctx *c = NULL;
         int r;

@@ -11,16 +11,14 @@
 #include <stdint.h>
 
 #include "common/frame.h"
+#include "common/pose.h"
 #include "common/rigconf.h"
 
 struct sim_scene;
 
-/* State of the emulated rig when the frame is exposed. */
-struct sim_rig_state {
-        double turntable_deg, light_arm_deg, camera_arm_deg;
-        bool lamp_on[RIG_MAX_LAMPS];
-        bool laser_on;
-};
+/* The rig's state when a frame is exposed is a struct gn_pose (common/pose.h): angles by
+ * axis role, lamps as a bit set by rig-file index, the laser. An angle that is NAN (the rig
+ * has no axis of that role) renders as 0. */
 
 /* Exposure of one frame. 0 fields take the camera's defaults from the rig file. */
 struct sim_expose {
@@ -66,17 +64,15 @@ struct sim_scene *sim_scene_free(struct sim_scene *s);
 /* Renders camera cam (index into rc->cameras) in state st. out is allocated here
  * (caller frees with gn_frame_free_data). truth may be NULL; truth_flags selects arrays.
  * seq numbers the frame for noise. Returns 0 or -errno (-EINVAL for a bad camera). */
-int sim_render(struct sim_scene *s, const struct sim_rig_state *st, int cam,
-               const struct sim_expose *exp, uint64_t seq, struct gn_frame *out,
-               unsigned truth_flags, struct sim_truth *truth);
+int sim_render(struct sim_scene *s, const struct gn_pose *st, int cam, const struct sim_expose *exp,
+               uint64_t seq, struct gn_frame *out, unsigned truth_flags, struct sim_truth *truth);
 
 /* Exact geometry of camera cam in state st. Returns 0 or -EINVAL. */
-int sim_camera_geom(const struct sim_scene *s, const struct sim_rig_state *st, int cam,
+int sim_camera_geom(const struct sim_scene *s, const struct gn_pose *st, int cam,
                     struct sim_cam_geom *out);
 
 /* World position (mm) of lamp i in state st. Returns 0 or -EINVAL. */
-int sim_lamp_position(const struct sim_scene *s, const struct sim_rig_state *st, int lamp,
-                      double out[3]);
+int sim_lamp_position(const struct sim_scene *s, const struct gn_pose *st, int lamp, double out[3]);
 
 /* The laser plane in world coordinates as n.x + d = 0 with |n| = 1. Returns 0 or -ENOENT. */
 int sim_laser_plane(const struct sim_scene *s, double n[3], double *d);
@@ -91,5 +87,5 @@ int sim_cam_project(const struct sim_cam_geom *g, const double p[3], double uv[2
 /* Pose of calibration target i (order of scene.targets) in state st: world point =
  * R * board point + t, board frame as documented in docs/sim-render.md. Returns 0 or
  * -EINVAL. */
-int sim_target_pose(const struct sim_scene *s, const struct sim_rig_state *st, int target,
-                    double R[9], double t[3]);
+int sim_target_pose(const struct sim_scene *s, const struct gn_pose *st, int target, double R[9],
+                    double t[3]);

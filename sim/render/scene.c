@@ -332,14 +332,14 @@ static int parse_target(struct sim_scene *s, struct yconf *y, struct fy_node *ma
         return 0;
 }
 
-int sim_target_pose(const struct sim_scene *s, const struct sim_rig_state *st, int target,
-                    double R[9], double t[3])
+int sim_target_pose(const struct sim_scene *s, const struct gn_pose *st, int target, double R[9],
+                    double t[3])
 {
         double Rz[9];
 
         if (!s || !st || target < 0 || target >= s->n_targets)
                 return -EINVAL;
-        m3d_rot_z(st->turntable_deg, Rz);
+        m3d_rot_z(pose_deg(st, GN_ROLE_TURNTABLE), Rz);
         m3d_mul(Rz, s->target_R[target], R);
         m3d_apply(Rz, s->target_t[target], t);
         return 0;

@@ -2,7 +2,9 @@
  * stderr. Group "usage": command-line errors (exit 2) and connection failures (exit 3).
  * Group "peer": gonioctl against a scripted peer that speaks the wire protocol through
  * protocol/ (hello, request params, replies, notifications, error codes -> exit codes,
- * timeouts, over-long and malformed replies). Usage: test-gonioctl GONIOCTL usage|peer */
+ * timeouts, over-long and malformed replies, replies that do not carry the request's id;
+ * Ctrl-C, SIGTERM and --timeout during a waiting move or home send `stop`).
+ * Usage: test-gonioctl GONIOCTL usage|peer */
 #include <errno.h>
 #include <fcntl.h>
 #include <poll.h>
@@ -22,6 +24,7 @@
 struct srv {
         int fd;
         struct proto_lines lines;
+        json_int_t requests; /* requests received: gonioctl numbers them from 1 */
 };
 
 struct scenario;
@@ -31,13 +34,16 @@ struct scenario {
         const char *name;
         const char *argv[10];
         serve_fn serve; /* NULL: nobody listens */
-        int code;       /* error code the peer answers with, for serve_error */
+        int code;       /* error code for serve_error; signal for serve_*_interrupted */
         int want_exit;
         const char *want_out; /* exact stdout, or NULL */
         const char *want_err; /* substring of stderr, or NULL */
+        const char *reply_id; /* for serve_reply_id: the id (JSON text) the peer answers with */
 };
 
 static char tmpdir[64], sock_path[96];
+static const char *ctl_path; /* the gonioctl binary under test */
+static pid_t client_pid; /* the running gonioctl */
 
 static json_t *recv_msg(struct srv *s)
 {
@@ -60,7 +66,7 @@ static json_t *recv_msg(struct srv *s)
         }
 }
 
-/* Receives the next message and checks it is a request for method. */
+/* Receives the next message and checks it is a request for method with the next id. */
 static json_t *recv_request(struct srv *s, const char *method)
 {
         json_t *m = recv_msg(s);
@@ -68,6 +74,7 @@ static json_t *recv_request(struct srv *s, const char *method)
         CHECK(m);
         CHECK_STR(json_string_value(json_object_get(m, "method")), method);
         CHECK(json_is_integer(json_object_get(m, "id")));
+        CHECK_INT(json_integer_value(json_object_get(m, "id")), ++s->requests);
         return m;
 }
 
@@ -274,12 +281,20 @@ static void serve_garbage(struct srv *s, const struct scenario *sc)
         wait_eof(s);
 }
 
-/* The server could not read the request's id: an error with id null answers it. */
-static void serve_null_id_error(struct srv *s, const struct scenario *sc)
+/* Answers status with the scenario's reply_id instead of the request's: an error with
+ * the scenario's code, or a result when the code is 0. */
+static void serve_reply_id(struct srv *s, const struct scenario *sc)
 {
+        json_t *id = json_loads(sc->reply_id, JSON_DECODE_ANY, NULL);
+
+        CHECK(id);
         hello(s, PROTO_VERSION);
         json_decref(recv_request(s, "status"));
-        send_msg(s, proto_error(NULL, PROTO_E_LINE_TOO_LONG, "line too long", NULL));
+        if (sc->code)
+                send_msg(s, proto_error(id, sc->code, "line unreadable", NULL));
+        else
+                send_msg(s, proto_result(id, json_pack("{s:s}", "state", "idle")));
+        json_decref(id);
         wait_eof(s);
 }
 
@@ -293,10 +308,73 @@ static void serve_watch(struct srv *s, const struct scenario *sc)
         wait_eof(s);
 }
 
+/* A reply arrives while watch has no request outstanding (hello's id, answered twice). */
+static void serve_watch_stray_reply(struct srv *s, const struct scenario *sc)
+{
+        json_t *id = json_integer(1);
+
+        hello(s, PROTO_VERSION);
+        send_msg(s, proto_result(id, NULL));
+        json_decref(id);
+        wait_eof(s);
+}
+
+/* After the waiting request req was interrupted (by signal sc->code sent here, or by the
+ * client's --timeout when 0): expects `stop`, answers it and cancels req as goniod does
+ * (the cancel before or after stop's reply), then answers `status` with the positions. */
+static void expect_stop(struct srv *s, const struct scenario *sc, json_t *req, bool cancel_first)
+{
+        json_t *stop, *cancel;
+
+        if (sc->code)
+                CHECK_INT(kill(client_pid, sc->code), 0);
+        stop = recv_request(s, "stop");
+        expect_params(stop, "{}");
+        cancel =
+                proto_error(json_object_get(req, "id"), PROTO_E_CANCELED, "canceled by stop", NULL);
+        if (cancel_first)
+                send_msg(s, cancel);
+        reply(s, stop, json_pack("{s:[s]}", "stopped", "turntable"));
+        if (!cancel_first)
+                send_msg(s, cancel);
+        json_decref(req);
+        reply(s, recv_request(s, "status"),
+              json_pack("{s:s,s:[{s:s,s:f},{s:s,s:f}]}", "state", "idle", "axes", "name",
+                        "turntable", "position", 42.125, "name", "light_arm", "position", 2.5));
+        wait_eof(s);
+}
+
+static void serve_move_interrupted(struct srv *s, const struct scenario *sc)
+{
+        hello(s, PROTO_VERSION);
+        expect_stop(s, sc, recv_request(s, "move"), false);
+}
+
+static void serve_home_interrupted(struct srv *s, const struct scenario *sc)
+{
+        hello(s, PROTO_VERSION);
+        expect_stop(s, sc, recv_request(s, "home"), true);
+}
+
+/* The client's --timeout expires, and its stop is never answered either. */
+static void serve_stop_unanswered(struct srv *s, const struct scenario *sc)
+{
+        hello(s, PROTO_VERSION);
+        json_decref(recv_request(s, "move"));
+        json_decref(recv_request(s, "stop"));
+        wait_eof(s);
+}
+
 #define ERR(c, e)                                                                                  \
         {                                                                                          \
                 "error " #c, {"lamp", "lamp9", "on"}, serve_error, c, e, "",                       \
                         "gonioctl: lamp.set: boom\n"                                               \
+        }
+
+/* status answered with id (JSON text) and error code c (0: a result): exit 4, stderr e */
+#define REPLY_ID(what, c, id, e)                                                                   \
+        {                                                                                          \
+                "reply id " what, {"status"}, serve_reply_id, c, 4, "", e, id                      \
         }
 
 static const struct scenario usage_scenarios[] = {
@@ -404,13 +482,65 @@ static const struct scenario peer_scenarios[] = {
         {"hangup", {"status"}, serve_hangup, 0, 4, "", "gonioctl: status: connection closed"},
         {"over-long reply", {"status"}, serve_overlong, 0, 4, "", "longer than 65536"},
         {"malformed reply", {"status"}, serve_garbage, 0, 4, "", "bad message"},
-        {"null-id error",
-         {"status"},
-         serve_null_id_error,
+        /* documented: an error the server sends with id null when it cannot read a request */
+        REPLY_ID("null, line too long", PROTO_E_LINE_TOO_LONG, "null", "status: line unreadable"),
+        REPLY_ID("null, parse error", PROTO_PARSE_ERROR, "null", "status: line unreadable"),
+        REPLY_ID("null, invalid request", PROTO_INVALID_REQUEST, "null", "status: line unreadable"),
+        /* anything else that does not carry the request's id (2) is a protocol error */
+        REPLY_ID("null, result", 0, "null", "reply with id null to request 2"),
+        REPLY_ID("null, device error", PROTO_E_DEVICE, "null", "reply with id null to request 2"),
+        REPLY_ID("null, not found", PROTO_E_NOT_FOUND, "null", "reply with id null to request 2"),
+        REPLY_ID("1, result", 0, "1", "reply with id 1 to request 2"),
+        REPLY_ID("3, result", 0, "3", "reply with id 3 to request 2"),
+        REPLY_ID("3, range error", PROTO_E_RANGE, "3", "reply with id 3 to request 2"),
+        REPLY_ID("\"2\", result", 0, "\"2\"", "reply with id \"2\" to request 2"),
+        REPLY_ID("\"2\", busy error", PROTO_E_BUSY, "\"2\"", "reply with id \"2\" to request 2"),
+        {"watch: a reply with no request outstanding",
+         {"watch"},
+         serve_watch_stray_reply,
          0,
          4,
          "",
-         "gonioctl: status: line too long"},
+         "reply with id 1, no request outstanding"},
+        {"move Ctrl-C",
+         {"move", "turntable", "90"},
+         serve_move_interrupted,
+         SIGINT,
+         10,
+         "",
+         "gonioctl: move: interrupted: stopped turntable at 42.125 (Ctrl-C; stop halts every "
+         "axis of the rig)\n"},
+        {"move --timeout",
+         {"--timeout", "0.3", "move", "turntable", "90"},
+         serve_move_interrupted,
+         0,
+         10,
+         "",
+         "gonioctl: move: interrupted: stopped turntable at 42.125 (no reply within 0.3 s; "},
+        {"move Ctrl-C --json",
+         {"--json", "move", "turntable", "90"},
+         serve_move_interrupted,
+         SIGINT,
+         10,
+         "{\"error\":{\"code\":\"interrupted\",\"message\":\"interrupted: stopped turntable at "
+         "42.125 (Ctrl-C; stop halts every axis of the rig)\",\"cause\":\"SIGINT\",\"stopped\":"
+         "[{\"axis\":\"turntable\",\"position\":42.125}]}}\n",
+         "interrupted: stopped turntable"},
+        {"home SIGTERM",
+         {"home"},
+         serve_home_interrupted,
+         SIGTERM,
+         10,
+         "",
+         "gonioctl: home: interrupted: stopped turntable at 42.125, light_arm at 2.500 (SIGTERM; "},
+        {"stop unanswered",
+         {"--timeout", "0.3", "move", "turntable", "90"},
+         serve_stop_unanswered,
+         0,
+         4,
+         "",
+         "gonioctl: move: interrupted (no reply within 0.3 s), but stop failed: no reply; the "
+         "axes may still be moving"},
         {"watch --count",
          {"--json", "watch", "--count", "2"},
          serve_watch,
@@ -476,6 +606,7 @@ static void run(const char *gonioctl, const struct scenario *sc, int lfd)
         snprintf(out, sizeof(out), "%s/out", tmpdir);
         snprintf(err, sizeof(err), "%s/err", tmpdir);
         pid = spawn(gonioctl, sc, out, err);
+        client_pid = pid;
         if (sc->serve)
                 serve_one(lfd, sc);
         CHECK_INT(waitpid(pid, &status, 0), pid);
@@ -511,33 +642,61 @@ static int bound_socket(bool listening)
 static const struct scenario refused = {"connection refused", {"status"}, NULL, 0, 3, "",
                                         "Connection refused"};
 
-int main(int argc, char **argv)
+/* The scratch directory for the socket and gonioctl's captured output. */
+static void scratch_make(void)
 {
-        bool peer;
-        int lfd = -1;
-
-        CHECK(argc == 3);
-        peer = strcmp(argv[2], "peer") == 0;
         snprintf(tmpdir, sizeof(tmpdir), "/tmp/test-gonioctl-XXXXXX");
         CHECK(mkdtemp(tmpdir));
         snprintf(sock_path, sizeof(sock_path), "%s/goniod.sock", tmpdir);
-        signal(SIGPIPE, SIG_IGN);
-        if (peer) {
-                lfd = bound_socket(true);
-                for (size_t i = 0; i < sizeof(peer_scenarios) / sizeof(peer_scenarios[0]); i++)
-                        run(argv[1], &peer_scenarios[i], lfd);
-        } else {
-                for (size_t i = 0; i < sizeof(usage_scenarios) / sizeof(usage_scenarios[0]); i++)
-                        run(argv[1], &usage_scenarios[i], -1);
-                lfd = bound_socket(false); /* a stale socket file: nobody accepts */
-                run(argv[1], &refused, -1);
-        }
-        close(lfd);
+}
+
+static void scratch_remove(void)
+{
+        char path[128];
+
         unlink(sock_path);
-        snprintf(sock_path, sizeof(sock_path), "%s/out", tmpdir);
-        unlink(sock_path);
-        snprintf(sock_path, sizeof(sock_path), "%s/err", tmpdir);
-        unlink(sock_path);
+        snprintf(path, sizeof(path), "%s/out", tmpdir);
+        unlink(path);
+        snprintf(path, sizeof(path), "%s/err", tmpdir);
+        unlink(path);
         CHECK_INT(rmdir(tmpdir), 0);
-        return 0;
+}
+
+static void test_usage(void)
+{
+        int lfd;
+
+        scratch_make();
+        for (size_t i = 0; i < sizeof(usage_scenarios) / sizeof(usage_scenarios[0]); i++)
+                run(ctl_path, &usage_scenarios[i], -1);
+        lfd = bound_socket(false); /* a stale socket file: nobody accepts */
+        run(ctl_path, &refused, -1);
+        close(lfd);
+        scratch_remove();
+}
+
+static void test_peer(void)
+{
+        int lfd;
+
+        scratch_make();
+        lfd = bound_socket(true);
+        for (size_t i = 0; i < sizeof(peer_scenarios) / sizeof(peer_scenarios[0]); i++)
+                run(ctl_path, &peer_scenarios[i], lfd);
+        close(lfd);
+        scratch_remove();
+}
+
+int main(int argc, char **argv)
+{
+        static const struct test_case cases[] = {
+                {"usage", test_usage},
+                {"peer", test_peer},
+        };
+
+        CHECK(argc >= 2);
+        signal(SIGPIPE, SIG_IGN);
+        ctl_path = argv[1];
+        argv[1] = argv[0]; /* the group, if any, becomes the case name */
+        return TEST_RUN_CASES(cases, argc - 1, argv + 1);
 }

@@ -1,21 +1,82 @@
-/* test-rigconf.c - the rig file loader: the example rig loads with the values
- * written in it, and each kind of mistake is refused with file, line and key. */
+/* test-rigconf.c - the rig file loader: the example rig loads with the values written in
+ * it, and each kind of mistake is refused with file, line and key: unknown keys in every
+ * kind of entry, two devices on one Modbus address, two buses on one port, unset
+ * environment variables, duplicate names, axis roles, camera control ranges.
+ * Usage: test-rigconf EXAMPLE-RIG CASE; an unknown CASE fails. */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <unistd.h>
 
+#include "common/cleanup.h"
 #include "common/rigconf.h"
 #include "tests/test.h"
 
-static void test_example_rig(const char *path)
+static const char *example_path;
+
+/* Loads text from a temporary file; *path gets the file's name (already removed). */
+static int load_text(const char *text, struct rig_config **rc, char *err, size_t errlen,
+                     char path[static 32])
+{
+        int fd, r;
+
+        snprintf(path, 32, "/tmp/gonio-rigconf-XXXXXX");
+        fd = mkstemp(path);
+        CHECK(fd >= 0);
+        CHECK(write(fd, text, strlen(text)) == (ssize_t)strlen(text));
+        close(fd);
+        err[0] = 0;
+        r = rigconf_load(path, rc, err, errlen);
+        unlink(path);
+        return r;
+}
+
+/* Loads text and expects success. Free the result with rigconf_free. */
+static struct rig_config *expect_ok(const char *text)
+{
+        struct rig_config *rc = NULL;
+        char err[512], path[32];
+        int r = load_text(text, &rc, err, sizeof(err), path);
+
+        if (r < 0)
+                fprintf(stderr, "for:\n%s\ngot %d: %s\n", text, r, err);
+        CHECK_INT(r, 0);
+        return rc;
+}
+
+/* Expects the load to fail with "FILE:LINE: key 'KEY': " followed by text containing msg. */
+static void expect_at(const char *text, int line, const char *key, const char *msg)
+{
+        struct rig_config *rc = NULL;
+        char err[512], path[32], want[128];
+        int r = load_text(text, &rc, err, sizeof(err), path);
+
+        snprintf(want, sizeof(want), "%s:%d: key '%s': ", path, line, key);
+        if (r != -EINVAL || strncmp(err, want, strlen(want)) != 0 || !strstr(err, msg))
+                fprintf(stderr, "for:\n%s\nwant %s...%s\ngot %d: %s\n", text, want, msg, r, err);
+        CHECK_INT(r, -EINVAL);
+        CHECK(strncmp(err, want, strlen(want)) == 0);
+        CHECK_STR_CONTAINS(err, msg);
+        CHECK(rc == NULL);
+}
+
+/* Lines 1-3: a rig with one RTU bus 'b' and one sim bus 'f'. */
+#define BUS                                                                                        \
+        "rig: t\nbuses:\n  - { name: b, type: modbus-rtu, port: /dev/null }\n"                     \
+        "  - { name: f, type: sim, port: /tmp/f.sock }\n"
+#define AXIS(name, unit) "  - { name: " name ", backend: modbus, bus: b, unit: " unit " }\n"
+#define LAMP(name, unit, coil)                                                                     \
+        "  - { name: " name ", backend: modbus-coil, bus: b, unit: " unit ", coil: " coil          \
+        ", elevation: 1 }\n"
+
+static void case_example(void)
 {
         struct rig_config *rc = NULL;
         char err[512];
         int r;
 
         setenv("GONIO_SIM_DIR", "/tmp/simdir", 1);
-        r = rigconf_load(path, &rc, err, sizeof(err));
+        r = rigconf_load(example_path, &rc, err, sizeof(err));
         if (r < 0)
                 fprintf(stderr, "%s\n", err);
         CHECK_INT(r, 0);
@@ -27,62 +88,248 @@ static void test_example_rig(const char *path)
         CHECK_NEAR(rc->axes[2].min_deg, -170, 0);
         CHECK_NEAR(rc->lamps[3].elevation_deg, 75, 0);
         CHECK_INT(rc->laser.coil, 7);
-        CHECK(strcmp(rc->buses[0].port, "/tmp/simdir/drives") == 0);
+        CHECK_STR(rc->buses[0].port, "/tmp/simdir/drives");
         CHECK(rigconf_profile(rc, "gonio-default") != NULL);
         CHECK(rigconf_scene(rc) != NULL);
         CHECK_NEAR(rc->cameras[0].dist[0], -0.08, 1e-12);
+        for (int i = 0; i < GN_ROLE_COUNT; i++)
+                CHECK_INT(rigconf_axis_of_role(rc, i), i);
         rigconf_free(rc);
 }
 
-/* Writes text to a temp file and expects the loader to fail with msg in the error. */
-static void expect_error(const char *text, const char *msg)
+static void case_errors(void)
 {
-        char path[] = "/tmp/gonio-rigconf-XXXXXX";
         struct rig_config *rc = NULL;
-        char err[512] = "";
-        int fd = mkstemp(path);
-        int r;
+        char err[512], path[32];
 
-        CHECK(fd >= 0);
-        CHECK(write(fd, text, strlen(text)) == (ssize_t)strlen(text));
-        close(fd);
-        r = rigconf_load(path, &rc, err, sizeof(err));
-        unlink(path);
-        if (r != -EINVAL || !strstr(err, msg))
-                fprintf(stderr, "for:\n%s\ngot %d: %s\n", text, r, err);
-        CHECK_INT(r, -EINVAL);
-        CHECK_STR_CONTAINS(err, path);
-        CHECK_STR_CONTAINS(err, msg);
-        CHECK(rc == NULL);
+        CHECK_INT(load_text("rig: [unclosed\n", &rc, err, sizeof(err), path), -EINVAL);
+        CHECK_STR_CONTAINS(err, "YAML syntax error");
+        expect_at("buses: []\n", 1, "rig", "required key is missing");
+        expect_at(BUS "axes:\n  - name: a\n    backend: modbus\n    bus: nope\n", 8, "bus",
+                  "axes 'a': no bus named 'nope'");
+        expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b, max_speed: fast }\n", 6,
+                  "max_speed", "'fast' is not a number");
+        expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b, unit: 300 }\n", 6, "unit",
+                  "300 is out of range");
+        expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b, limits: [10, -10] }\n", 6,
+                  "limits", "need min < max");
+        expect_at("rig: t\nbuses:\n  - { name: b, type: can }\n", 3, "type",
+                  "'can' is not a bus type");
+        expect_at(BUS "cameras:\n  - { name: c, backend: sim, bus: b }\n", 6, "bus",
+                  "bus 'b' is of the wrong type");
+        expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b, profile: nope }\n", 6,
+                  "profile", "no register profile named 'nope'");
 }
 
-#define BUS "rig: t\nbuses:\n  - { name: b, type: modbus-rtu, port: /dev/null }\n"
+/* A misspelt key in each kind of entry, in block and flow style. */
+static const struct {
+        const char *kind, *text;
+        int line;
+        const char *key;
+} unknown_keys[] = {
+        {"root", "rig: t\nrig_name: x\n", 2, "rig_name"},
+        {"profiles", "rig: t\nprofiles:\n  - name: p\n    postion: 3\n", 4, "postion"},
+        {"buses", "rig: t\nbuses:\n  - name: b\n    type: modbus-rtu\n    baudrate: 9600\n", 5,
+         "baudrate"},
+        {"buses", "rig: t\nbuses:\n  - { name: b, type: modbus-tcp, tcp-port: 502 }\n", 3,
+         "tcp-port"},
+        {"axes", BUS "axes:\n  - name: a\n    backend: modbus\n    bus: b\n    limts: [-9, 9]\n", 9,
+         "limts"},
+        {"axes", BUS "axes:\n  - { name: a, backend: modbus, bus: b, max_sped: 5 }\n", 6,
+         "max_sped"},
+        {"lamps", BUS "lamps:\n  - name: l\n    elevaton: 10\n", 7, "elevaton"},
+        {"laser", BUS "laser:\n  name: x\n  orgin: [0, 0, 0]\n", 7, "orgin"},
+        {"cameras", BUS "cameras:\n  - name: c\n    bus: f\n    exposure: 100\n", 8, "exposure"},
+        {"cameras", BUS "cameras:\n  - { name: c, bus: f, distorsion: [0, 0] }\n", 6, "distorsion"},
+};
 
-static void test_errors(void)
+static void case_unknown_keys(void)
 {
-        expect_error("rig: [unclosed\n", "YAML syntax error");
-        expect_error("rig: t\nfoo: 1\n", ":2: key 'foo': unknown key");
-        expect_error("buses: []\n", "key 'rig': required key is missing");
-        expect_error(BUS "axes:\n  - name: a\n    backend: modbus\n    bus: nope\n",
-                     ":7: key 'bus': axes 'a': no bus named 'nope'");
-        expect_error(BUS "axes:\n  - { name: a, backend: modbus, bus: b, max_speed: fast }\n",
-                     ":5: key 'max_speed': 'fast' is not a number");
-        expect_error(BUS "axes:\n  - { name: a, backend: modbus, bus: b, unit: 300 }\n",
-                     "key 'unit': 300 is out of range");
-        expect_error(BUS "axes:\n  - { name: a, backend: modbus, bus: b, limits: [10, -10] }\n",
-                     "key 'limits': need min < max");
-        expect_error(BUS "lamps:\n  - { name: a, backend: modbus-coil, bus: b, elevation: 1 }\n"
-                         "  - { name: a, backend: modbus-coil, bus: b, elevation: 2 }\n",
-                     "device name 'a' is used twice");
-        expect_error("rig: t\nbuses:\n  - { name: b, type: can }\n", "'can' is not a bus type");
-        expect_error(BUS "cameras:\n  - { name: c, backend: sim, bus: b }\n",
-                     "bus 'b' is of the wrong type");
+        static const char *const kinds[] = {"root",  "profiles", "buses",  "axes",
+                                            "lamps", "laser",    "cameras"};
+
+        for (size_t k = 0; k < ELEMENTSOF(kinds); k++) {
+                bool covered = false;
+
+                for (size_t i = 0; i < ELEMENTSOF(unknown_keys); i++)
+                        covered = covered || strcmp(unknown_keys[i].kind, kinds[k]) == 0;
+                if (!covered)
+                        fprintf(stderr, "no unknown-key row for '%s'\n", kinds[k]);
+                CHECK(covered);
+        }
+        for (size_t i = 0; i < ELEMENTSOF(unknown_keys); i++)
+                expect_at(unknown_keys[i].text, unknown_keys[i].line, unknown_keys[i].key,
+                          "unknown key");
+        /* a list key given as a mapping is not silently ignored either */
+        expect_at(BUS "axes:\n  - name: a\n    backend: modbus\n    bus: b\n"
+                      "    limits: { min: -9, max: 9 }\n",
+                  9, "limits", "expected a list");
 }
+
+static void case_addresses(void)
+{
+        expect_at(BUS "axes:\n" AXIS("t", "1") AXIS("l", "2") AXIS("c", "1"), 8, "unit",
+                  "axis 't' and axis 'c' are both on unit 1 on bus 'b'");
+        expect_at(BUS "axes:\n  - { name: t, backend: modbus, bus: b }\n" AXIS("c", "1"), 7, "unit",
+                  "axis 't' and axis 'c' are both on unit 1"); /* unit 1 by default */
+        expect_at(BUS "lamps:\n" LAMP("l0", "10", "0") LAMP("l1", "10", "1") LAMP("l2", "10", "1"),
+                  8, "coil", "lamp 'l1' and lamp 'l2' are both on coil 1 of unit 10 on bus 'b'");
+        expect_at(BUS "lamps:\n" LAMP("l0", "10", "7") "laser:\n  name: x\n  backend: modbus-coil\n"
+                                                       "  bus: b\n  unit: 10\n  coil: 7\n",
+                  12, "coil", "lamp 'l0' and laser 'x' are both on coil 7 of unit 10");
+        expect_at(BUS "axes:\n" AXIS("t", "3") "lamps:\n" LAMP("l0", "3", "0"), 8, "unit",
+                  "axis 't' and lamp 'l0' are both on unit 3 on bus 'b'");
+        expect_at("rig: t\nbuses:\n  - { name: a, type: modbus-rtu, port: /dev/ttyS0 }\n"
+                  "  - { name: c, type: modbus-rtu, port: /dev/ttyS1 }\n"
+                  "  - { name: b, type: modbus-rtu, port: /dev/ttyS0 }\n",
+                  5, "port", "buses 'a' and 'b' both use port '/dev/ttyS0'");
+        expect_at("rig: t\nbuses:\n  - { name: a, type: modbus-tcp, host: h, tcp_port: 502 }\n"
+                  "  - { name: b, type: modbus-tcp, host: h, tcp_port: 502 }\n",
+                  4, "tcp_port", "buses 'a' and 'b' both use h:502");
+        /* distinct addresses: same unit and other coils, other units, other buses, other TCP
+         * ports, a sim bus and an RTU bus on different paths */
+        rigconf_free(expect_ok(
+                BUS "  - { name: b2, type: modbus-rtu, port: /dev/zero }\n"
+                    "  - { name: t1, type: modbus-tcp, host: h, tcp_port: 502 }\n"
+                    "  - { name: t2, type: modbus-tcp, host: h, tcp_port: 503 }\n"
+                    "axes:\n" AXIS("t", "1")
+                            AXIS("l", "2") "  - { name: c, backend: modbus, bus: b2, unit: 1 }\n"
+                                           "lamps:\n" LAMP("l0", "10", "0") LAMP(
+                                                   "l1", "10",
+                                                   "1") "laser: { name: x, backend: modbus-coil, "
+                                                        "bus: b, unit: 10, coil: 2 }\n"));
+}
+
+static void case_env(void)
+{
+        struct rig_config *rc;
+
+        unsetenv("GONIO_TEST_UNSET");
+        setenv("GONIO_TEST_EMPTY", "", 1);
+        setenv("GONIO_TEST_DIR", "/tmp/d", 1);
+        expect_at("rig: t\nbuses:\n  - name: b\n    type: modbus-rtu\n"
+                  "    port: ${GONIO_TEST_UNSET}/drives\n",
+                  5, "port",
+                  "environment variable GONIO_TEST_UNSET is not set (write "
+                  "${GONIO_TEST_UNSET:-default} for a default)");
+        expect_at("rig: \"a${GONIO_TEST_EMPTY}\"\n", 1, "rig",
+                  "environment variable GONIO_TEST_EMPTY is empty");
+        expect_at("rig: \"${}\"\n", 1, "rig", "bad variable reference");
+        rc = expect_ok("rig: \"${GONIO_TEST_UNSET:-x}${GONIO_TEST_EMPTY:-y}${GONIO_TEST_UNSET:-}"
+                       "-${GONIO_TEST_DIR}-${GONIO_TEST_DIR:-z}$HOME{}\"\nbuses:\n"
+                       "  - { name: b, type: sim, port: \"${GONIO_TEST_DIR:-/run}/f.sock\" }\n");
+        CHECK_STR(rc->name, "xy-/tmp/d-/tmp/d$HOME{}");
+        CHECK_STR(rc->buses[0].port, "/tmp/d/f.sock");
+        rigconf_free(rc);
+}
+
+static void case_duplicates(void)
+{
+        expect_at(BUS "lamps:\n" LAMP("a", "1", "0") LAMP("z", "1", "1") LAMP("a", "1", "2"), 8,
+                  "name", "device name 'a' is used twice (first at line 6)");
+        expect_at(BUS
+                  "axes:\n" AXIS("a", "1") "cameras:\n  - name: c\n    backend: sim\n    bus: f\n"
+                                           "  - backend: sim\n    bus: f\n    name: a\n",
+                  13, "name", "device name 'a' is used twice (first at line 6)");
+        expect_at(BUS "laser:\n  bus: b\n  name: a\n  backend: modbus-coil\nlamps:\n" LAMP("a", "1",
+                                                                                           "1"),
+                  10, "name", "device name 'a' is used twice (first at line 7)");
+        expect_at("rig: t\nbuses:\n  - { name: b, type: sim, port: /x }\n"
+                  "  - { name: b, type: sim, port: /y }\n",
+                  4, "name", "bus name 'b' is used twice (first at line 3)");
+        expect_at("rig: t\nprofiles:\n  - { name: p }\n  - { name: p, scale: 2 }\n", 4, "name",
+                  "profile name 'p' is used twice");
+        expect_at("rig: t\nprofiles:\n  - name: gonio-default\n", 3, "name",
+                  "profile 'gonio-default' is built in");
+}
+
+static void case_roles(void)
+{
+        struct rig_config *rc =
+                expect_ok(BUS "axes:\n" AXIS("turntable", "1") AXIS("light_arm", "2")
+                                  AXIS("spare", "3") "  - { name: arm2, backend: modbus, bus: b, "
+                                                     "unit: 4, role: camera_arm }\n"
+                                                     "  - { name: camera_arm, backend: modbus, "
+                                                     "bus: b, unit: 5, role: none }\n");
+
+        CHECK_INT(rc->axes[0].role, GN_ROLE_TURNTABLE);
+        CHECK_INT(rc->axes[1].role, GN_ROLE_LIGHT_ARM);
+        CHECK_INT(rc->axes[2].role, -1);
+        CHECK_INT(rc->axes[3].role, GN_ROLE_CAMERA_ARM);
+        CHECK_INT(rc->axes[4].role, -1);
+        CHECK_INT(rigconf_axis_of_role(rc, GN_ROLE_CAMERA_ARM), 3);
+        rigconf_free(rc);
+        rc = expect_ok(BUS "axes:\n  - { name: tt, backend: modbus, bus: b, role: turntable }\n");
+        CHECK_INT(rigconf_axis_of_role(rc, GN_ROLE_TURNTABLE), 0);
+        CHECK_INT(rigconf_axis_of_role(rc, GN_ROLE_LIGHT_ARM), -ENOENT);
+        CHECK_INT(rigconf_axis_of_role(rc, GN_ROLE_CAMERA_ARM), -ENOENT);
+        rigconf_free(rc);
+        rc = expect_ok("rig: bare\n");
+        CHECK_INT(rigconf_axis_of_role(rc, GN_ROLE_TURNTABLE), -ENOENT);
+        rigconf_free(rc);
+        expect_at(BUS "axes:\n  - name: a\n    backend: modbus\n    bus: b\n    role: turntabel\n",
+                  9, "role", "unknown role 'turntabel' (turntable, light_arm, camera_arm or none)");
+        expect_at(BUS "axes:\n" AXIS("turntable", "1") "  - { name: t2, backend: modbus, bus: b, "
+                                                       "unit: 2, role: turntable }\n",
+                  7, "role", "axes 'turntable' and 't2' both have role 'turntable'");
+        expect_at(BUS "axes:\n  - { name: x, backend: modbus, bus: b, unit: 2, role: light_arm }\n"
+                      "  - name: light_arm\n    backend: modbus\n    bus: b\n",
+                  7, "role", "axes 'x' and 'light_arm' both have role 'light_arm'");
+}
+
+/* The rig file's default exposure and gain ranges are the named constants. */
+static void case_camera_ranges(void)
+{
+        char text[512];
+        struct {
+                const char *key;
+                double v;
+                bool ok;
+        } rows[] = {
+                {"exposure_us", RIG_EXPOSURE_US_MIN, true},
+                {"exposure_us", RIG_EXPOSURE_US_MAX, true},
+                {"exposure_us", RIG_EXPOSURE_US_MIN - 1, false},
+                {"exposure_us", RIG_EXPOSURE_US_MAX + 1, false},
+                {"gain", RIG_GAIN_MIN, true},
+                {"gain", RIG_GAIN_MAX, true},
+                {"gain", RIG_GAIN_MIN * 0.99, false},
+                {"gain", RIG_GAIN_MAX * 1.01, false},
+        };
+
+        for (size_t i = 0; i < ELEMENTSOF(rows); i++) {
+                snprintf(text, sizeof(text),
+                         BUS "cameras:\n  - { name: c, backend: sim, bus: f, %s: %.17g }\n",
+                         rows[i].key, rows[i].v);
+                if (rows[i].ok)
+                        rigconf_free(expect_ok(text));
+                else
+                        expect_at(text, 6, rows[i].key, "is out of range");
+        }
+}
+
+static const struct {
+        const char *name;
+        void (*fn)(void);
+} cases[] = {
+        {"example", case_example},
+        {"errors", case_errors},
+        {"unknown-keys", case_unknown_keys},
+        {"addresses", case_addresses},
+        {"env", case_env},
+        {"duplicates", case_duplicates},
+        {"roles", case_roles},
+        {"camera-ranges", case_camera_ranges},
+};
 
 int main(int argc, char **argv)
 {
-        CHECK(argc == 2);
-        test_example_rig(argv[1]);
-        test_errors();
-        return 0;
+        CHECK(argc == 3);
+        example_path = argv[1];
+        for (size_t i = 0; i < ELEMENTSOF(cases); i++)
+                if (strcmp(cases[i].name, argv[2]) == 0) {
+                        cases[i].fn();
+                        return 0;
+                }
+        fprintf(stderr, "test-rigconf: unknown case '%s'\n", argv[2]);
+        return 1;
 }

@@ -5,7 +5,10 @@
 
 #include "drivers/axis/axis.h"
 #include "drivers/bus/bus.h"
+#include "drivers/camera/camera.h"
 #include "drivers/registry.h"
+#include "drivers/transport/modbus.h"
+#include "drivers/transport/transport.h"
 #include "tests/test.h"
 
 static void test_limits(void)
@@ -83,15 +86,47 @@ static void test_new_unknown(void)
         CHECK(bus_free(b) == NULL);
 }
 
+/* The camera's option table is the one source of its control ranges. */
+static void test_cam_check_request(void)
+{
+        struct rig_bus_conf bc = {.name = "frames", .type = RIG_BUS_SIM, .port = "/x/f.sock"};
+        struct rig_camera_conf cc = {.name = "cam1", .backend = "sim"};
+        struct bus *b = NULL;
+        struct cam *c = NULL;
+        char msg[128];
+
+        CHECK_INT(bus_new_sync(&bc, &b), 0);
+        CHECK_INT(cam_new(&cc, b, &c), 0);
+        CHECK_INT(cam_check_request(c, NULL, msg, sizeof(msg)), 0);
+        CHECK_STR(msg, "");
+        CHECK_INT(cam_check_request(c, &(struct cam_request){.gain = 100}, msg, sizeof(msg)),
+                  -ERANGE);
+        CHECK_STR(msg, "gain 100 outside [0.1, 64]");
+        CHECK_INT(cam_check_request(c, &(struct cam_request){.gain = 64, .exposure_us = 10000000},
+                                    msg, sizeof(msg)),
+                  0);
+        CHECK_INT(cam_check_request(c, &(struct cam_request){.exposure_us = 10000001}, msg,
+                                    sizeof(msg)),
+                  -ERANGE);
+        CHECK_STR(msg, "exposure 10000001 outside [1, 10000000]");
+        CHECK_INT(cam_check_request(c, &(struct cam_request){.bits = 12}, NULL, 0), -EINVAL);
+        CHECK_INT(cam_capture(c, &(struct cam_request){.gain = 0.05}, NULL), -ERANGE);
+        CHECK_STR(c->last_error,
+                  "camera 'cam1' [sim@f.sock]: Failed to capture: gain 0.05 outside [0.1, 64]");
+        CHECK_INT(cam_stream_start(c, &(struct cam_request){.gain = 65}), -ERANGE);
+        CHECK(cam_free(c) == NULL);
+        CHECK(bus_free(b) == NULL);
+}
+
 static void test_errno_map(void)
 {
-        CHECK_INT(bus_modbus_errno(ETIMEDOUT), -ETIMEDOUT);
-        CHECK_INT(bus_modbus_errno(EMBXSFAIL), -EPROTO);
-        CHECK_INT(bus_modbus_errno(EMBXILVAL), -EPROTO);
-        CHECK_INT(bus_modbus_errno(EMBBADCRC), -EPROTO);
-        CHECK_INT(bus_modbus_errno(EMBBADDATA), -EPROTO);
-        CHECK_INT(bus_modbus_errno(ECONNRESET), -EIO);
-        CHECK_INT(bus_modbus_errno(-EPIPE), -EIO);
+        CHECK_INT(mbus_errno(ETIMEDOUT), -ETIMEDOUT);
+        CHECK_INT(mbus_errno(EMBXSFAIL), -EPROTO);
+        CHECK_INT(mbus_errno(EMBXILVAL), -EPROTO);
+        CHECK_INT(mbus_errno(EMBBADCRC), -EPROTO);
+        CHECK_INT(mbus_errno(EMBBADDATA), -EPROTO);
+        CHECK_INT(mbus_errno(ECONNRESET), -EIO);
+        CHECK_INT(mbus_errno(-EPIPE), -EIO);
 }
 
 int main(void)
@@ -101,5 +136,6 @@ int main(void)
         test_registry();
         test_new_unknown();
         test_errno_map();
+        test_cam_check_request();
         return 0;
 }

@@ -1,7 +1,8 @@
 /* test-modbus-axis.c - the "modbus" axis driver against gonio-sim's emulated drives,
  * over a real pty (RTU) and loopback TCP through libmodbus: open, home, move timing,
  * soft limits, shortest way round, stop mid-move (also as an urgent job on a bus worker
- * with an sd-event loop), and injected faults: timeout, bad CRC, exception, stall. */
+ * with an sd-event loop), and injected faults: timeout, bad CRC, exception, stall, and a
+ * move that ends short of its target without a fault. */
 #include <errno.h>
 #include <math.h>
 #include <semaphore.h>
@@ -9,6 +10,8 @@
 
 #include "drivers/axis/axis.h"
 #include "drivers/axis/modbus/proto.h"
+#include "drivers/transport/modbus.h"
+#include "drivers/transport/transport.h"
 #include "tests/drivers/testrig.h"
 #include "tests/test.h"
 
@@ -82,7 +85,8 @@ static int32_t raw_position(struct axis *ax)
         uint16_t regs[2];
 
         rigconf_default_profile(&p);
-        CHECK_INT(bus_read_regs(ax->bus, ax->conf->unit, p.reg_position, 2, regs), 2);
+        CHECK_INT(mbus_read_regs(bus_transport(ax->bus), ax->conf->unit, p.reg_position, 2, regs),
+                  2);
         return mbax_get_i32(&p, regs);
 }
 
@@ -114,13 +118,13 @@ static void test_move_timing(struct fixture *f)
 
 static void test_soft_limits(struct fixture *f)
 {
-        struct bus_stats before, after;
+        struct transport_stats before, after;
 
-        bus_get_stats(f->drives, &before);
+        transport_get_stats(bus_transport(f->drives), &before);
         CHECK_INT(axis_move_abs(f->arm, 170.5), -ERANGE);
         CHECK_INT(axis_move_abs(f->arm, -171.0), -ERANGE);
         CHECK_INT(axis_move_abs(f->arm, NAN), -ERANGE);
-        bus_get_stats(f->drives, &after);
+        transport_get_stats(bus_transport(f->drives), &after);
         CHECK_INT(after.requests, before.requests); /* refused before any I/O */
         CHECK_INT(axis_poll(f->arm), 0);
         CHECK_NEAR(f->arm->state.position_deg, 150.0, POS_TOL);
@@ -169,15 +173,15 @@ static void test_stop_mid_move(struct fixture *f)
 static void test_timeout(struct fixture *f)
 {
         const struct rig_bus_conf *c = bus_conf(f->drives);
-        struct bus_stats before, after;
+        struct transport_stats before, after;
         double t0, took;
 
-        bus_get_stats(f->drives, &before);
+        transport_get_stats(bus_transport(f->drives), &before);
         CHECK_INT(sim_emu_inject(f->rig.emu, "drives", 1, SIM_FAULT_TIMEOUT), 0);
         t0 = testrig_now();
         CHECK_INT(axis_poll(f->tt), -ETIMEDOUT);
         took = testrig_now() - t0;
-        bus_get_stats(f->drives, &after);
+        transport_get_stats(bus_transport(f->drives), &after);
         CHECK_INT(after.retries - before.retries, c->retries);
         CHECK_INT(after.failures - before.failures, 1);
         CHECK(took >= 0.9 * (c->retries + 1) * c->timeout_ms / 1000.0);
@@ -193,18 +197,18 @@ static void test_timeout(struct fixture *f)
 static void test_crc_and_exception(struct fixture *f)
 {
         const struct rig_bus_conf *c = bus_conf(f->drives);
-        struct bus_stats s0, s1, s2;
+        struct transport_stats s0, s1, s2;
 
-        bus_get_stats(f->drives, &s0);
+        transport_get_stats(bus_transport(f->drives), &s0);
         CHECK_INT(sim_emu_inject(f->rig.emu, "drives", 1, SIM_FAULT_CRC), 0);
         CHECK_INT(axis_poll(f->tt), -EPROTO);
-        bus_get_stats(f->drives, &s1);
+        transport_get_stats(bus_transport(f->drives), &s1);
         CHECK_INT(s1.retries - s0.retries, c->retries);
 
         CHECK_INT(sim_emu_inject(f->rig.emu, "drives", 1, SIM_FAULT_EXCEPTION), 0);
         CHECK_INT(axis_poll(f->tt), -EPROTO);
         CHECK_INT(axis_move_abs(f->tt, 20.0), -EPROTO);
-        bus_get_stats(f->drives, &s2);
+        transport_get_stats(bus_transport(f->drives), &s2);
         CHECK_INT(s2.retries, s1.retries);
         CHECK_INT(s2.failures - s1.failures, 2);
 
@@ -236,6 +240,32 @@ static void test_stall(struct fixture *f)
         CHECK_NEAR(f->tt->state.position_deg, 100.0, POS_TOL);
 }
 
+/* A drive that ends a move short of its target without a fault: the state says so from
+ * the drive's own in-position flag (moving clear, in_position clear), never from the
+ * position being "close enough"; the next move is normal. */
+static void test_short(struct fixture *f)
+{
+        double t0;
+
+        CHECK_INT(sim_emu_inject(f->rig.emu, "drives", 1, SIM_FAULT_SHORT), 0); /* armed */
+        CHECK_INT(axis_move_abs(f->tt, 150.0), 0);
+        wait_stopped(f->tt, 10.0);
+        t0 = testrig_now();
+        do { /* longer than any settle time: the flag never comes */
+                CHECK_INT(axis_poll(f->tt), 0);
+                CHECK(!f->tt->state.moving);
+                CHECK(!f->tt->state.in_position);
+                CHECK(!f->tt->state.fault);
+                CHECK_INT(f->tt->state.fault_code, 0);
+                testrig_sleep(0.01);
+        } while (testrig_now() - t0 < 0.3);
+        CHECK_NEAR(f->tt->state.position_deg, 147.0, 0.01); /* 3 deg short */
+
+        CHECK_INT(axis_move_abs(f->tt, 150.0), 0);
+        wait_in_position(f->tt);
+        CHECK_NEAR(f->tt->state.position_deg, 150.0, POS_TOL);
+}
+
 static void test_tcp(struct fixture *f)
 {
         CHECK_INT(axis_move_abs(f->remote, -45.0), 0);
@@ -259,6 +289,7 @@ static void run_sync(struct fixture *f)
         test_timeout(f);
         test_crc_and_exception(f);
         test_stall(f);
+        test_short(f);
         test_tcp(f);
 
         f->tt = axis_free(f->tt);

@@ -6,6 +6,7 @@
 #include <systemd/sd-event.h>
 
 #include "drivers/switch/switch.h"
+#include "drivers/transport/transport.h"
 #include "tests/drivers/testrig.h"
 #include "tests/test.h"
 
@@ -41,10 +42,10 @@ static struct sw *open_switch(struct bus *b, const struct rig_switch_conf *c)
 /* The emulator's own view of the coils, as lamp0 lamp1 laser bits. */
 static int emu_coils(struct fixture *f)
 {
-        struct sim_rig_state st;
+        struct gn_pose st;
 
         sim_emu_snapshot(f->rig.emu, &st);
-        return st.lamp_on[0] | st.lamp_on[1] << 1 | st.laser_on << 2;
+        return (int)(st.lamps & 3) | st.laser << 2;
 }
 
 static void test_set_readback(struct fixture *f)
@@ -77,13 +78,13 @@ static void test_set_readback(struct fixture *f)
 /* A failed write leaves the cached state as the device last confirmed it. */
 static void test_faults(struct fixture *f)
 {
-        struct bus_stats before, after;
+        struct transport_stats before, after;
 
-        bus_get_stats(f->bus, &before);
+        transport_get_stats(bus_transport(f->bus), &before);
         CHECK_INT(sim_emu_inject(f->rig.emu, "relays", 10, SIM_FAULT_TIMEOUT), 0);
         CHECK_INT(sw_set(f->lamp1, true), -ETIMEDOUT);
         CHECK(!f->lamp1->on);
-        bus_get_stats(f->bus, &after);
+        transport_get_stats(bus_transport(f->bus), &after);
         CHECK_INT(after.retries - before.retries, 1);
 
         CHECK_INT(sim_emu_inject(f->rig.emu, "relays", 10, SIM_FAULT_EXCEPTION), 0);

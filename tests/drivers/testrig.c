@@ -6,6 +6,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "common/clock.h"
 #include "tests/drivers/testrig.h"
 #include "tests/test.h"
 
@@ -73,10 +74,7 @@ const struct rig_bus_conf *testrig_bus(const struct testrig *t, const char *name
 
 double testrig_now(void)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+        return (double)gn_monotonic_ns() * 1e-9;
 }
 
 void testrig_sleep(double s)

@@ -13,6 +13,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "common/clock.h"
 #include "harness.h"
 #include "tests/test.h"
 
@@ -64,10 +65,7 @@ static void write_file(const char *path, const char *text)
 
 static double now_s(void)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return ts.tv_sec + ts.tv_nsec * 1e-9;
+        return (double)gn_monotonic_ns() * 1e-9;
 }
 
 /* Starts argv with stdout on a pipe; returns the read end in *out_fd. */
@@ -136,6 +134,11 @@ int raw_connect(struct rigenv *e)
 
 void sim_request(struct rigenv *e, const char *json_line)
 {
+        json_decref(sim_query(e, json_line));
+}
+
+json_t *sim_query(struct rigenv *e, const char *json_line)
+{
         char path[400], reply[4096];
         json_t *r;
         int fd;
@@ -152,8 +155,8 @@ void sim_request(struct rigenv *e, const char *json_line)
         if (!json_is_true(json_object_get(r, "ok")))
                 fprintf(stderr, "gonio-sim answered %s to %s", reply, json_line);
         CHECK(json_is_true(json_object_get(r, "ok")));
-        json_decref(r);
         close(fd);
+        return r;
 }
 
 json_t *wait_state(struct rigenv *e, const char *want, double timeout)
@@ -200,20 +203,20 @@ static void kill_children(void)
                 kill(running->sim, SIGKILL);
 }
 
-void rigenv_start_daemon(struct rigenv *e)
+static void start_daemon(struct rigenv *e)
 {
-        char *d_argv[] = {(char *)e->goniod, "--rig",  e->rig,  "--socket",
-                          e->sock,           "--data", e->data, NULL};
+        char *argv[] = {(char *)e->goniod, "--rig",  e->rig,  "--socket",
+                        e->sock,           "--data", e->data, NULL};
         int fd;
 
-        e->daemon = spawn(d_argv, &fd);
+        e->daemon = spawn(argv, &fd);
         close(fd);
         wait_socket(e, 30);
 }
 
-void rigenv_start(struct rigenv *e, char **argv, double time_scale)
+void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
 {
-        char scale[32], *sim_argv[8];
+        char scale[32], log[320];
         int fd;
 
         memset(e, 0, sizeof(*e));
@@ -228,17 +231,28 @@ void rigenv_start(struct rigenv *e, char **argv, double time_scale)
         snprintf(e->rig, sizeof(e->rig), "%s/rig.yaml", e->dir);
         snprintf(e->sock, sizeof(e->sock), "%s/goniod.sock", e->dir);
         snprintf(e->data, sizeof(e->data), "%s/data", e->dir);
-        write_file(e->rig, test_rig);
+        write_file(e->rig, rig_text ? rig_text : test_rig);
         setenv("GONIO_SIM_DIR", e->simdir, 1);
         snprintf(scale, sizeof(scale), "%g", time_scale);
-        memcpy(sim_argv,
-               (char *[]){(char *)e->gonio_sim, "--rig", e->rig, "--dir", e->simdir, "--time-scale",
-                          scale, NULL},
-               sizeof(sim_argv));
-        e->sim = spawn(sim_argv, &fd);
+        snprintf(log, sizeof(log), "%s/render.log", e->dir);
+        e->sim = spawn((char *[]){(char *)e->gonio_sim, "--rig", e->rig, "--dir", e->simdir,
+                                  "--time-scale", scale, "--render-log", log, NULL},
+                       &fd);
         CHECK(wait_word(fd, "ready", 30));
         close(fd);
-        rigenv_start_daemon(e);
+        start_daemon(e);
+}
+
+void rigenv_start(struct rigenv *e, char **argv, double time_scale)
+{
+        rigenv_start_rig(e, argv, time_scale, NULL);
+}
+
+void rigenv_crash_daemon(struct rigenv *e)
+{
+        CHECK(kill(e->daemon, SIGKILL) == 0);
+        CHECK(waitpid(e->daemon, NULL, 0) == e->daemon);
+        start_daemon(e);
 }
 
 /* SIGTERMs pid and checks it exits cleanly (under ASan a leak makes the status non-zero). */
@@ -373,19 +387,17 @@ const char *raw_seen(void)
 json_t *raw_call(int fd, const char *text)
 {
         static char buf[1 << 20];
-        size_t len = 0;
+        static size_t len;
+        static int last_fd = -1; /* lines read past a reply stay for the next call on fd */
 
+        if (fd != last_fd)
+                len = 0, buf[0] = 0, last_fd = fd;
         CHECK(write(fd, text, strlen(text)) == (ssize_t)strlen(text));
         for (;;) {
                 char *nl;
                 ssize_t n;
                 struct pollfd pfd = {.fd = fd, .events = POLLIN};
 
-                CHECK(poll(&pfd, 1, 20000) == 1);
-                n = read(fd, buf + len, sizeof(buf) - 1 - len);
-                CHECK(n > 0);
-                len += n;
-                buf[len] = 0;
                 while ((nl = strchr(buf, '\n'))) {
                         json_t *msg;
                         *nl = 0;
@@ -398,5 +410,10 @@ json_t *raw_call(int fd, const char *text)
                         note_seen(json_string_value(json_object_get(msg, "method")));
                         json_decref(msg); /* a notification */
                 }
+                CHECK(poll(&pfd, 1, 20000) == 1);
+                n = read(fd, buf + len, sizeof(buf) - 1 - len);
+                CHECK(n > 0);
+                len += n;
+                buf[len] = 0;
         }
 }

@@ -17,12 +17,15 @@ struct rigenv {
 };
 
 /* Creates a temp dir, writes the test rig (small cameras) there and starts gonio-sim
- * with time_scale and goniod. Exits the test on failure. */
+ * with time_scale (its render log at DIR/render.log) and goniod. Exits the test on failure. */
 void rigenv_start(struct rigenv *e, char **argv, double time_scale);
 
-/* Starts goniod on e's rig, socket and data dir (again, e.g. after killing it) and waits
- * until its socket accepts. Exits the test on failure. */
-void rigenv_start_daemon(struct rigenv *e);
+/* Like rigenv_start with the rig file rig_text (YAML; NULL: the default test rig). */
+void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text);
+
+/* Kills goniod with SIGKILL (as a crash would) and starts it again on the same rig,
+ * socket and data. */
+void rigenv_crash_daemon(struct rigenv *e);
 
 /* SIGTERMs both processes, waits, and removes the temp dir. */
 void rigenv_stop(struct rigenv *e);
@@ -37,11 +40,15 @@ json_t *ctl_ok(struct rigenv *e, ...) __attribute__((sentinel));
 /* Connects a raw client to the daemon's socket. Returns the fd. */
 int raw_connect(struct rigenv *e);
 
-/* Sends text as is and reads one reply line (parsed), skipping notifications. */
+/* Sends text as is and reads one reply line (parsed), skipping notifications; lines read
+ * past it are kept for the next call on the same fd (pipelined requests). */
 json_t *raw_call(int fd, const char *text);
 
 /* Sends one request to gonio-sim's frame socket (e.g. a fault injection) and checks "ok". */
 void sim_request(struct rigenv *e, const char *json_line);
+
+/* Sends one request to gonio-sim's frame socket and returns its parsed reply ("ok" checked). */
+json_t *sim_query(struct rigenv *e, const char *json_line);
 
 /* Polls status until field state == want (or fails the test after timeout seconds). */
 json_t *wait_state(struct rigenv *e, const char *want, double timeout);

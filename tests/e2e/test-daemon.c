@@ -2,13 +2,15 @@
  * the rig, goniod reaches it through its real drivers, and every command goes
  * through gonioctl (or a raw socket client for malformed input). */
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 #include <unistd.h>
 
 #include "common/frame.h"
-#include "daemon/ds.h"
+#include "common/sha256.h"
+#include "dataset/ds.h"
 #include "harness.h"
 #include "tests/test.h"
 
@@ -71,7 +73,7 @@ static void capture_one(struct rigenv *e, const char *cam, struct ds *d, struct 
         CHECK_INT(json_array_size(json_object_get(r, "captures")), 1);
         snprintf(path, sizeof(path), "%s/%s", ds_path(d),
                  json_string_value(json_object_get(c, "file")));
-        CHECK_INT(ds_sha256_file(path, hex), 0);
+        CHECK_INT(gn_sha256_file_at(AT_FDCWD, path, hex), 0);
         CHECK(strcmp(hex, json_string_value(json_object_get(c, "sha256"))) == 0);
         CHECK_INT(ds_load_image(d, json_string_value(json_object_get(c, "file")), out), 0);
         json_decref(r);

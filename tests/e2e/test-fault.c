@@ -7,7 +7,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "daemon/ds.h"
+#include "dataset/ds.h"
 #include "harness.h"
 #include "tests/test.h"
 

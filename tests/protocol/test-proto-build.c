@@ -1,5 +1,6 @@
 /* test-proto-build.c - the builders and proto_dump round-trip through the framer and
- * proto_parse; dump refuses lines over PROTO_MAX_LINE. */
+ * proto_parse (results and errors carry the request's id); dump refuses lines over
+ * PROTO_MAX_LINE. */
 #include <errno.h>
 
 #include "tests/test.h"
@@ -72,12 +73,31 @@ static void test_result_error(void)
         CHECK(json_object_get(m.error, "data") == NULL);
         json_decref(m.root);
 
+        /* error replies carry the request's id, string or integer */
+        m = round_trip(proto_error(id, PROTO_E_BUSY, "busy", json_pack("{s:i}", "n", 1)));
+        CHECK_STR(json_string_value(m.id), "req-1");
+        CHECK(proto_answers(&m, 1) == false);
+        json_decref(m.root);
+
         m = round_trip(proto_error_errno(id, -ENOENT, "no axis 'foo'"));
+        CHECK_STR(json_string_value(m.id), "req-1");
         CHECK_INT(json_integer_value(json_object_get(m.error, "code")), PROTO_E_NOT_FOUND);
         CHECK_STR(json_string_value(json_object_get(json_object_get(m.error, "data"), "errno")),
                   "ENOENT");
         json_decref(m.root);
         CHECK_INT(id->refcount, 1); /* borrowed, never stolen */
+        json_decref(id);
+
+        id = json_integer(7);
+        m = round_trip(proto_result(id, NULL));
+        CHECK_INT(json_integer_value(m.id), 7);
+        CHECK(proto_answers(&m, 7));
+        json_decref(m.root);
+        m = round_trip(proto_error_errno(id, -ERANGE, "outside [-90, 90]"));
+        CHECK_INT(json_integer_value(m.id), 7);
+        CHECK(proto_answers(&m, 7));
+        json_decref(m.root);
+        CHECK_INT(id->refcount, 1);
         json_decref(id);
 }
 

@@ -1,6 +1,7 @@
 /* test-proto-parse.c - proto_parse: valid requests, notifications and responses, and
  * every rejection (bad JSON, not an object, batch, jsonrpc version, id types, method,
- * params, malformed responses) with the code and the id a server would echo. */
+ * params, malformed responses) with the code and the id a server would echo; which
+ * responses answer a request id (proto_answers). */
 #include "tests/test.h"
 #include "protocol/proto.h"
 
@@ -108,9 +109,62 @@ static void test_rejected(void)
         parse("{\"jsonrpc\":\"2.0\",\"id\":4,\"error\":{\"code\":1}}", PROTO_INVALID_REQUEST, "4");
 }
 
+/* Parses the response s and checks whether it answers request 2. */
+static void check_answers(const char *s, bool want)
+{
+        struct proto_msg m = parse(s, 0, "");
+
+        if (proto_answers(&m, 2) != want)
+                fprintf(stderr, "%s %s request 2\n", s, want ? "should answer" : "answers");
+        CHECK(proto_answers(&m, 2) == want);
+        json_decref(m.root);
+}
+
+static void test_answers(void)
+{
+        struct proto_msg m;
+
+        /* success and error replies carry the request's id */
+        check_answers("{\"jsonrpc\":\"2.0\",\"id\":2,\"result\":{}}", true);
+        check_answers(
+                "{\"jsonrpc\":\"2.0\",\"id\":2,\"error\":{\"code\":-32003,\"message\":\"m\"}}",
+                true);
+        /* the documented id-null errors: the server could not read the request */
+        check_answers(
+                "{\"jsonrpc\":\"2.0\",\"id\":null,\"error\":{\"code\":-32700,\"message\":\"m\"}}",
+                true);
+        check_answers(
+                "{\"jsonrpc\":\"2.0\",\"id\":null,\"error\":{\"code\":-32600,\"message\":\"m\"}}",
+                true);
+        check_answers(
+                "{\"jsonrpc\":\"2.0\",\"id\":null,\"error\":{\"code\":-32009,\"message\":\"m\"}}",
+                true);
+        /* any other id does not */
+        check_answers("{\"jsonrpc\":\"2.0\",\"id\":null,\"result\":{}}", false);
+        check_answers(
+                "{\"jsonrpc\":\"2.0\",\"id\":null,\"error\":{\"code\":-32003,\"message\":\"m\"}}",
+                false);
+        check_answers(
+                "{\"jsonrpc\":\"2.0\",\"id\":null,\"error\":{\"code\":-32603,\"message\":\"m\"}}",
+                false);
+        check_answers("{\"jsonrpc\":\"2.0\",\"id\":1,\"result\":{}}", false);
+        check_answers(
+                "{\"jsonrpc\":\"2.0\",\"id\":3,\"error\":{\"code\":-32700,\"message\":\"m\"}}",
+                false);
+        check_answers("{\"jsonrpc\":\"2.0\",\"id\":\"2\",\"result\":{}}", false);
+        check_answers(
+                "{\"jsonrpc\":\"2.0\",\"id\":\"2\",\"error\":{\"code\":-32001,\"message\":\"m\"}}",
+                false);
+        /* only responses answer */
+        m = parse("{\"jsonrpc\":\"2.0\",\"id\":2,\"method\":\"status\"}", 0, "");
+        CHECK(!proto_answers(&m, 2));
+        json_decref(m.root);
+}
+
 int main(void)
 {
         test_valid();
         test_rejected();
+        test_answers();
         return 0;
 }

@@ -49,8 +49,8 @@ void rt_close(struct rtest *t)
         memset(t, 0, sizeof(*t));
 }
 
-void rt_render(struct rtest *t, const struct sim_rig_state *st, const struct sim_expose *ex,
-               uint64_t seq, struct gn_frame *f, unsigned flags, struct sim_truth *truth)
+void rt_render(struct rtest *t, const struct gn_pose *st, const struct sim_expose *ex, uint64_t seq,
+               struct gn_frame *f, unsigned flags, struct sim_truth *truth)
 {
         CHECK_INT(sim_render(t->s, st, 0, ex, seq, f, flags, truth), 0);
 }

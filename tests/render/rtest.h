@@ -24,8 +24,8 @@ int rt_try_open(struct rtest *t, const char *lamps, const char *laser, const cha
 void rt_close(struct rtest *t);
 
 /* Renders camera 0; exits the test on failure. */
-void rt_render(struct rtest *t, const struct sim_rig_state *st, const struct sim_expose *ex,
-               uint64_t seq, struct gn_frame *f, unsigned flags, struct sim_truth *truth);
+void rt_render(struct rtest *t, const struct gn_pose *st, const struct sim_expose *ex, uint64_t seq,
+               struct gn_frame *f, unsigned flags, struct sim_truth *truth);
 
 /* Sample (x, y, ch) of a frame as a number. */
 double rt_px(const struct gn_frame *f, int x, int y, int ch);

@@ -26,8 +26,7 @@ static const char scene[] =
         "  sensor: { response: 2.0e6, full_well: 1.0e5 }\n";
 
 /* Pixel of board point (x, y). */
-static void board_px(struct rtest *t, const struct sim_rig_state *st, double x, double y,
-                     double uv[2])
+static void board_px(struct rtest *t, const struct gn_pose *st, double x, double y, double uv[2])
 {
         struct sim_cam_geom g;
         double R[9], tt[3], w[3];
@@ -40,8 +39,8 @@ static void board_px(struct rtest *t, const struct sim_rig_state *st, double x, 
 }
 
 /* Where the board line {axis = c} crosses image line {other image coordinate = at}. */
-static double crossing(struct rtest *t, const struct sim_rig_state *st, int vertical, double c,
-                       double lo, double hi, double at)
+static double crossing(struct rtest *t, const struct gn_pose *st, int vertical, double c, double lo,
+                       double hi, double at)
 {
         double uv[2], m = 0, flo;
 
@@ -75,8 +74,8 @@ static double measured_edge(const struct gn_frame *f, int vertical, double e, in
         return c + 3.5 - sum; /* the brighter side is at larger x */
 }
 
-static void scan(struct rtest *t, const struct sim_rig_state *st, const struct gn_frame *f,
-                 int vertical, double *worst, int *n)
+static void scan(struct rtest *t, const struct gn_pose *st, const struct gn_frame *f, int vertical,
+                 double *worst, int *n)
 {
         int nlines = vertical ? 5 : 4, nrun = vertical ? 5 : 6,
             len = vertical ? f->height : f->width;
@@ -112,7 +111,7 @@ static void scan(struct rtest *t, const struct sim_rig_state *st, const struct g
 int main(void)
 {
         struct rtest t;
-        struct sim_rig_state st = {.turntable_deg = 12, .lamp_on = {true}};
+        struct gn_pose st = {.deg[GN_ROLE_TURNTABLE] = 12, .lamps = 1};
         struct sim_expose ex = {.bits = 16, .no_noise = true};
         struct gn_frame f;
         double worst = 0;

@@ -25,7 +25,7 @@ static const char cams[] =
         "      cy: 178.9, distortion: [-0.12, 0.08, 0.0011, -0.0007, -0.02], exposure_us: 20000 "
         "}\n";
 
-static void geom(const struct rtest *t, const struct sim_rig_state *st, cv::Mat &K, cv::Mat &dist,
+static void geom(const struct rtest *t, const struct gn_pose *st, cv::Mat &K, cv::Mat &dist,
                  cv::Mat &rvec, cv::Mat &tvec, struct sim_cam_geom *g)
 {
         CHECK(sim_camera_geom(t->s, st, 0, g) == 0);
@@ -40,7 +40,7 @@ static void geom(const struct rtest *t, const struct sim_rig_state *st, cv::Mat 
 static void test_projection(void)
 {
         struct rtest t;
-        struct sim_rig_state st = {17, 0, -35, {true}, false};
+        struct gn_pose st = {{17, 0, -35}, 1, false};
         struct sim_expose ex = {0, 0, 8, true};
         struct sim_cam_geom g;
         struct gn_frame f;
@@ -68,7 +68,8 @@ static void test_projection(void)
         /* the renderer's rays: each hit point projects back onto its pixel centre */
         rt_render(&t, &st, &ex, 0, &f, SIM_TRUTH_POINT, &tr);
         pts.clear();
-        double c = cos(st.turntable_deg * M_PI / 180), s = sin(st.turntable_deg * M_PI / 180);
+        double c = cos(st.deg[GN_ROLE_TURNTABLE] * M_PI / 180),
+               s = sin(st.deg[GN_ROLE_TURNTABLE] * M_PI / 180);
         for (int v = 0; v < f.height; v += 3)
                 for (int u = 0; u < f.width; u += 3) {
                         const float *p = tr.point + 3 * (v * f.width + u);
@@ -92,8 +93,7 @@ static void test_projection(void)
 }
 
 /* Board point (board frame) to pixel via the target pose and the camera model. */
-static cv::Point2d board_px(const struct rtest *t, const struct sim_rig_state *st, double x,
-                            double y)
+static cv::Point2d board_px(const struct rtest *t, const struct gn_pose *st, double x, double y)
 {
         struct sim_cam_geom g;
         double R[9], tt[3], w[3], q[2];
@@ -123,7 +123,7 @@ static const char board_scene[] =
 static void test_charuco(void)
 {
         struct rtest t;
-        struct sim_rig_state st = {0, 0, 0, {true}, false};
+        struct gn_pose st = {{0, 0, 0}, 1, false};
         struct gn_frame f;
         char scene[512];
         std::vector<std::vector<cv::Point2f>> corners;
@@ -182,7 +182,7 @@ static void test_charuco(void)
 static void test_chessboard(void)
 {
         struct rtest t;
-        struct sim_rig_state st = {0, 0, 0, {true}, false};
+        struct gn_pose st = {{0, 0, 0}, 1, false};
         struct gn_frame f;
         char scene[512];
         std::vector<cv::Point2f> cc;
@@ -213,13 +213,11 @@ static void test_chessboard(void)
 
 int main(int argc, char **argv)
 {
-        const char *which = argc > 1 ? argv[1] : "all";
+        static const struct test_case cases[] = {
+                {"projection", test_projection},
+                {"charuco", test_charuco},
+                {"chessboard", test_chessboard},
+        };
 
-        if (!strcmp(which, "projection") || !strcmp(which, "all"))
-                test_projection();
-        if (!strcmp(which, "charuco") || !strcmp(which, "all"))
-                test_charuco();
-        if (!strcmp(which, "chessboard") || !strcmp(which, "all"))
-                test_chessboard();
-        return 0;
+        return TEST_RUN_CASES(cases, argc, argv);
 }

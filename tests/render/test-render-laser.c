@@ -85,7 +85,7 @@ static double centroid(const struct gn_frame *f, int v, int u0, double *peak)
 int main(void)
 {
         struct rtest t;
-        struct sim_rig_state st = {.laser_on = true};
+        struct gn_pose st = {.laser = true};
         struct sim_expose ex = {.bits = 16, .no_noise = true};
         struct sim_cam_geom g;
         struct gn_frame f;
@@ -123,7 +123,7 @@ int main(void)
                 for (int u = 0; u < f.width; u++)
                         CHECK(rt_px(&f, u, v, 1) == 0 && rt_px(&f, u, v, 2) == 0);
         gn_frame_free_data(&f);
-        st.laser_on = false;
+        st.laser = false;
         rt_render(&t, &st, &ex, 0, &f, 0, NULL);
         for (int v = 0; v < f.height; v++)
                 for (int u = 0; u < f.width; u++)

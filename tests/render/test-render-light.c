@@ -51,7 +51,7 @@ static double ray_sphere(const struct sim_cam_geom *g, double u, double v, const
 static void test_lambert_sphere(void)
 {
         struct rtest t;
-        struct sim_rig_state st = {.light_arm_deg = 25, .lamp_on = {true}};
+        struct gn_pose st = {.deg[GN_ROLE_LIGHT_ARM] = 25, .lamps = 1};
         struct sim_cam_geom g;
         struct gn_frame f;
         double lamp[3], c[3] = {0, 0, 30}, p[3], worst = 0;
@@ -107,7 +107,7 @@ static void test_lambert_sphere(void)
 static void test_inverse_square(void)
 {
         struct rtest t;
-        struct sim_rig_state s0 = {.lamp_on = {true, false}}, s1 = {.lamp_on = {false, true}};
+        struct gn_pose s0 = {.lamps = 1}, s1 = {.lamps = 2};
         struct gn_frame f0, f1;
         struct sim_truth tr;
         char cams[512];
@@ -149,7 +149,7 @@ static void test_inverse_square(void)
 static void test_shadow_edge(void)
 {
         struct rtest t;
-        struct sim_rig_state st = {.lamp_on = {true}};
+        struct gn_pose st = {.lamps = 1};
         struct gn_frame f;
         struct sim_truth tr;
         double rho_s = 400 * tan(asin(30.0 / 370));
@@ -187,7 +187,7 @@ static void test_shadow_edge(void)
 static void test_dome(void)
 {
         struct rtest t;
-        struct sim_rig_state st = {0};
+        struct gn_pose st = {0};
         struct gn_frame f;
         struct dome_el *els;
         struct dome d = {.radiance = 1, .zenith_ratio = 3, .threshold = 0.01, .max_elements = 512};
@@ -224,15 +224,12 @@ static void test_dome(void)
 
 int main(int argc, char **argv)
 {
-        const char *which = argc > 1 ? argv[1] : "all";
+        static const struct test_case cases[] = {
+                {"lambert", test_lambert_sphere},
+                {"inverse-square", test_inverse_square},
+                {"shadow", test_shadow_edge},
+                {"dome", test_dome},
+        };
 
-        if (!strcmp(which, "lambert") || !strcmp(which, "all"))
-                test_lambert_sphere();
-        if (!strcmp(which, "inverse-square") || !strcmp(which, "all"))
-                test_inverse_square();
-        if (!strcmp(which, "shadow") || !strcmp(which, "all"))
-                test_shadow_edge();
-        if (!strcmp(which, "dome") || !strcmp(which, "all"))
-                test_dome();
-        return 0;
+        return TEST_RUN_CASES(cases, argc, argv);
 }

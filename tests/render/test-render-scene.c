@@ -67,7 +67,7 @@ static void write_file(const char *path, const void *data, size_t n)
 static int plate_pixels(const char *scene, double h, struct gn_frame *keep)
 {
         struct rtest t;
-        struct sim_rig_state st = {.lamp_on = {true}};
+        struct gn_pose st = {.lamps = 1};
         struct sim_expose ex = {.bits = 8, .no_noise = true};
         struct gn_frame f;
         struct sim_truth tr;
@@ -176,7 +176,7 @@ static void test_texture(const char *dir)
         struct gn_frame f;
         struct sim_cam_geom g;
         struct rtest t;
-        struct sim_rig_state st = {.lamp_on = {true}};
+        struct gn_pose st = {.lamps = 1};
         /* uv (0,0) is the bottom-left of the image: the blue texel at x, y < 0; the points
          * are at texel centres, where bilinear filtering returns the texel itself */
         const double pts[4][3] = {{-20, 20, 12}, {20, 20, 12}, {-20, -20, 12}, {20, -20, 12}};
@@ -213,7 +213,7 @@ static void test_shapes(void)
                 "scene:\n  object: { shape: gem, size: 60 }\n  turntable: { radius: 0 }\n",
                 "scene:\n  object: { shape: relief, size: 100 }\n  turntable: { radius: 0 }\n",
         };
-        struct sim_rig_state st = {.turntable_deg = 40, .lamp_on = {true}};
+        struct gn_pose st = {.deg[GN_ROLE_TURNTABLE] = 40, .lamps = 1};
 
         for (size_t k = 0; k < ELEMENTSOF(scenes); k++) {
                 struct rtest t;
@@ -249,7 +249,7 @@ static void test_shapes(void)
 static void test_mirror_sphere(void)
 {
         struct rtest t;
-        struct sim_rig_state st = {.light_arm_deg = 30, .lamp_on = {true}};
+        struct gn_pose st = {.deg[GN_ROLE_LIGHT_ARM] = 30, .lamps = 1};
         struct sim_expose ex = {.bits = 16, .no_noise = true};
         struct sim_cam_geom g;
         struct gn_frame f;
@@ -308,7 +308,7 @@ static void test_soft_shadow(void)
                          "  turntable: { radius: 150, albedo: 0.5 }\n"
                          "  lamps: { radius: 30, samples: 32 }\n";
         struct rtest t;
-        struct sim_rig_state st = {.lamp_on = {true}};
+        struct gn_pose st = {.lamps = 1};
         struct sim_expose ex = {.bits = 16, .no_noise = true};
         struct gn_frame f;
         struct sim_truth tr;
@@ -340,25 +340,25 @@ static void test_soft_shadow(void)
         rt_close(&t);
 }
 
+/* Meshes and textures from files in a scratch directory. */
+static void test_mesh_files(void)
+{
+        char dir[] = "/tmp/gonio-rtest-mesh-XXXXXX", cmd[64];
+
+        CHECK(mkdtemp(dir));
+        test_meshes(dir);
+        test_texture(dir);
+        snprintf(cmd, sizeof(cmd), "rm -rf %s", dir);
+        CHECK(system(cmd) == 0);
+}
+
 int main(int argc, char **argv)
 {
-        const char *which = argc > 1 ? argv[1] : "all";
+        static const struct test_case cases[] = {
+                {"schema", test_schema_errors},    {"meshes", test_mesh_files},
+                {"shapes", test_shapes},           {"mirror", test_mirror_sphere},
+                {"soft-shadow", test_soft_shadow},
+        };
 
-        if (!strcmp(which, "schema") || !strcmp(which, "all"))
-                test_schema_errors();
-        if (!strcmp(which, "meshes") || !strcmp(which, "all")) {
-                char dir[] = "/tmp/gonio-rtest-mesh-XXXXXX", cmd[64];
-                CHECK(mkdtemp(dir));
-                test_meshes(dir);
-                test_texture(dir);
-                snprintf(cmd, sizeof(cmd), "rm -rf %s", dir);
-                CHECK(system(cmd) == 0);
-        }
-        if (!strcmp(which, "shapes") || !strcmp(which, "all"))
-                test_shapes();
-        if (!strcmp(which, "mirror") || !strcmp(which, "all"))
-                test_mirror_sphere();
-        if (!strcmp(which, "soft-shadow") || !strcmp(which, "all"))
-                test_soft_shadow();
-        return 0;
+        return TEST_RUN_CASES(cases, argc, argv);
 }

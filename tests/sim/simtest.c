@@ -7,6 +7,7 @@
 
 #include <math.h>
 
+#include "common/clock.h"
 #include "common/cleanup.h"
 #include "tests/sim/simtest.h"
 
@@ -44,7 +45,9 @@ static const char rig_body[] =
         "            material: { albedo: [0.7, 0.6, 0.5] } }\n"
         "  turntable: { radius: 150, albedo: [0.2, 0.2, 0.2] }\n";
 
-void simtest_write_rig(char *dir, bool drives_tcp)
+/* Makes the temporary directory and writes the concatenated parts (NULL-terminated) into
+ * dir/rig.yaml. */
+static void write_rig_parts(char *dir, const char *const *parts)
 {
         char path[256];
 
@@ -53,18 +56,38 @@ void simtest_write_rig(char *dir, bool drives_tcp)
         snprintf(path, sizeof path, "%s/rig.yaml", dir);
         FILE *f = fopen(path, "w");
         CHECK(f);
-        CHECK(fputs(rig_head, f) >= 0);
-        CHECK(fputs(drives_tcp ? rig_drives_tcp : rig_drives_rtu, f) >= 0);
-        CHECK(fputs(rig_body, f) >= 0);
+        for (; *parts; parts++)
+                CHECK(fputs(*parts, f) >= 0);
         CHECK(fclose(f) == 0);
+}
+
+void simtest_write_rig(char *dir, bool drives_tcp)
+{
+        const char *const parts[] = {rig_head, drives_tcp ? rig_drives_tcp : rig_drives_rtu,
+                                     rig_body, NULL};
+
+        write_rig_parts(dir, parts);
 }
 
 struct rig_config *simtest_rig(char *dir, bool drives_tcp)
 {
+        simtest_write_rig(dir, drives_tcp);
+        return simtest_load(dir);
+}
+
+struct rig_config *simtest_rig_text(char *dir, const char *text)
+{
+        const char *const parts[] = {text, NULL};
+
+        write_rig_parts(dir, parts);
+        return simtest_load(dir);
+}
+
+struct rig_config *simtest_load(const char *dir)
+{
         char path[256], err[512] = "";
         struct rig_config *rc = NULL;
 
-        simtest_write_rig(dir, drives_tcp);
         snprintf(path, sizeof path, "%s/rig.yaml", dir);
         CHECK(setenv("GONIO_SIM_DIR", dir, 1) == 0);
         int r = rigconf_load(path, &rc, err, sizeof err);
@@ -93,10 +116,7 @@ void simtest_rmdir(const char *dir)
 
 double simtest_now(void)
 {
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return (double)ts.tv_sec + ts.tv_nsec * 1e-9;
+        return (double)gn_monotonic_ns() * 1e-9;
 }
 
 modbus_t *simtest_modbus(const char *dir, const char *bus)

@@ -39,6 +39,13 @@ void simtest_write_rig(char *dir, bool drives_tcp);
 /* simtest_write_rig(), then sets GONIO_SIM_DIR to dir and loads the rig. */
 struct rig_config *simtest_rig(char *dir, bool drives_tcp);
 
+/* Makes a temporary directory as simtest_write_rig(), writes text into dir/rig.yaml, then
+ * loads it as simtest_load(). */
+struct rig_config *simtest_rig_text(char *dir, const char *text);
+
+/* Sets GONIO_SIM_DIR to dir and loads dir/rig.yaml; aborts on failure. */
+struct rig_config *simtest_load(const char *dir);
+
 /* Removes dir and the files in it. */
 void simtest_rmdir(const char *dir);
 

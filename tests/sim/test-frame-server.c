@@ -2,7 +2,8 @@
  * (cam_new/cam_capture on a bus_new_sync bus) and through a raw socket client: frames
  * follow the turntable and the lamps of the emulated rig, malformed requests get an
  * error line on a connection that keeps working, camera and Modbus faults injected
- * over the socket have their effect. */
+ * over the socket have their effect, a frame records the rig's state at the start and
+ * end of its exposure, and the render log repeats every frame's header. */
 #include <errno.h>
 #include <math.h>
 #include <string.h>
@@ -12,6 +13,7 @@
 
 #include <jansson.h>
 
+#include "common/cleanup.h"
 #include "drivers/bus/bus.h"
 #include "drivers/camera/camera.h"
 #include "sim/frame_server.h"
@@ -32,12 +34,14 @@ struct rig {
 
 static void rig_up(struct rig *t)
 {
-        char err[512] = "";
+        char err[512] = "", log[128];
 
         t->rc = simtest_rig(t->dir, false);
+        snprintf(log, sizeof log, "%s/render.log", t->dir);
         CHECK(sim_scene_new(t->rc, &t->scene, err, sizeof err) == 0);
         CHECK(sim_emu_new(t->rc, TIME_SCALE, &t->emu) == 0);
-        CHECK(sim_frame_server_new(t->rc, t->scene, t->emu, &t->fs) == 0);
+        CHECK(sim_frame_server_new(t->rc, t->scene, t->emu,
+                                   &(struct sim_fs_options){TIME_SCALE, log}, &t->fs) == 0);
         t->drives = simtest_modbus(t->dir, "drives");
         t->relays = simtest_modbus(t->dir, "relays");
         CHECK(modbus_set_slave(t->relays, 10) == 0);
@@ -232,7 +236,82 @@ static void test_malformed(const char *path)
         close(fd);
 }
 
-/* A Modbus fault injected over the frame socket reaches the emulated drive. */
+/* Reads and drops n bytes of fd. */
+static void raw_skip(int fd, size_t n)
+{
+        char buf[4096];
+
+        while (n > 0) {
+                ssize_t k = recv(fd, buf, MIN(n, sizeof buf), 0);
+                CHECK(k > 0);
+                n -= (size_t)k;
+        }
+}
+
+static double turntable(json_t *header, const char *key)
+{
+        json_t *v = json_object_get(json_object_get(header, key), "turntable");
+
+        CHECK(json_is_number(v));
+        return json_number_value(v);
+}
+
+/* The last line of the render log, parsed. */
+static json_t *last_logged(const char *dir, int *lines)
+{
+        char path[128], line[4096], last[4096] = "";
+        json_error_t err;
+
+        snprintf(path, sizeof path, "%s/render.log", dir);
+        FILE *f = fopen(path, "r");
+        CHECK(f);
+        for (*lines = 0; fgets(line, sizeof line, f); (*lines)++)
+                memcpy(last, line, sizeof last);
+        fclose(f);
+        json_t *o = json_loads(last, 0, &err);
+        CHECK(o);
+        return o;
+}
+
+/* A frame exposed while the turntable moves: the header's state is the start of the
+ * exposure and state_end its end, the exposure lasts exposure_us / time scale of wall
+ * time, and the render log holds one line per frame with the header's values. */
+static void test_exposure(struct rig *t, const char *path, int frames_before)
+{
+        int fd = raw_connect(path), lines;
+
+        /* From 90 to -180 deg: 3.5 s of emulated time, 175 ms of real time. */
+        CHECK(simtest_command(t->drives, 1, -180.0, SIMTEST_CMD_MOVE) == 1);
+        double t0 = simtest_now();
+        json_t *h = raw_request(fd, "{\"cmd\":\"render\",\"camera\":\"cam0\","
+                                    "\"exposure_us\":400000}\n");
+        double took = simtest_now() - t0;
+        CHECK(json_is_true(json_object_get(h, "ok")));
+        raw_skip(fd, (size_t)json_integer_value(json_object_get(h, "bytes")));
+        double a = turntable(h, "state"), b = turntable(h, "state_end");
+        double moved = remainder(a - b, 360.0); /* backwards, wrapped to [0, 360) */
+        fprintf(stderr, "exposure: turntable %.2f -> %.2f in %.3f s\n", a, b, took);
+        CHECK(took >= 0.4 / TIME_SCALE);
+        /* Moving all the exposure long (unless the machine is very slow), and never faster
+         * than max_speed over the request's time. */
+        CHECK(moved > 5.0);
+        CHECK(moved <= 90.0 * took * TIME_SCALE + 1e-6);
+
+        json_t *l = last_logged(t->dir, &lines);
+        CHECK(lines == frames_before + 1);
+        static const char *const keys[] = {"seq",  "camera", "timestamp_ns", "exposure_us",
+                                           "gain", "state",  "state_end"};
+        for (size_t i = 0; i < ELEMENTSOF(keys); i++)
+                CHECK(json_equal(json_object_get(l, keys[i]), json_object_get(h, keys[i])));
+        CHECK(json_integer_value(json_object_get(l, "exposure_us")) == 400000);
+        json_decref(l);
+        json_decref(h);
+        close(fd);
+        simtest_wait_status(t->drives, 1, SIMTEST_ST_MOVING | SIMTEST_ST_INPOS, SIMTEST_ST_INPOS,
+                            5.0);
+}
+
+/* Modbus faults injected over the frame socket reach the emulated drive. */
 static void test_modbus_fault(struct rig *t, const char *path)
 {
         uint16_t v;
@@ -244,6 +323,14 @@ static void test_modbus_fault(struct rig *t, const char *path)
               errno == EMBXSFAIL);
         inject(path, "{\"cmd\":\"inject\",\"bus\":\"drives\",\"unit\":2,\"fault\":\"none\"}\n");
         CHECK(simtest_reg(t->drives, 2, SIMTEST_R_STATUS) & 1);
+
+        /* A short stop: the move ends, not in position, no fault. */
+        inject(path, "{\"cmd\":\"inject\",\"bus\":\"drives\",\"unit\":2,\"fault\":\"short\"}\n");
+        CHECK(simtest_command(t->drives, 2, 30.0, SIMTEST_CMD_MOVE) == 1);
+        simtest_wait_status(t->drives, 2, SIMTEST_ST_MOVING, 0, 5.0);
+        usleep(20000); /* past settle_ms (80 ms emulated) */
+        CHECK(!(simtest_reg(t->drives, 2, SIMTEST_R_STATUS) &
+                (SIMTEST_ST_INPOS | SIMTEST_ST_FAULT)));
 }
 
 int main(void)
@@ -257,6 +344,7 @@ int main(void)
         test_camera_faults(&t, path);
         test_malformed(path);
         test_modbus_fault(&t, path);
+        test_exposure(&t, path, 7); /* frames rendered above; failed ones are not logged */
         rig_down(&t);
         CHECK(access(path, F_OK) < 0 && errno == ENOENT);
         return 0;

@@ -1,7 +1,7 @@
 /* test-gonio-sim.c - the gonio-sim program (path in argv[1]): started on the test rig
  * with a fresh --dir it prints its ports and "ready", writes the ports file and the
- * symlinks; SIGTERM makes it exit 0 and remove them. A bad rig file is refused with a
- * message naming the file. */
+ * symlinks and opens its render log; SIGTERM makes it exit 0 and remove them. A bad rig file is
+ * refused with a message naming the file. */
 #include <errno.h>
 #include <poll.h>
 #include <signal.h>
@@ -19,11 +19,15 @@ struct child {
         int out, err; /* read ends of its stdout and stderr */
 };
 
+/* Runs prog on rig with --dir dir and --ports-file ports; its render log goes to
+ * ports's directory, render.log. */
 static struct child spawn(const char *prog, const char *rig, const char *dir, const char *ports)
 {
+        char log[256];
         int out[2], err[2];
         struct child c;
 
+        snprintf(log, sizeof log, "%.*s/render.log", (int)(strrchr(ports, '/') - ports), ports);
         CHECK(pipe(out) == 0 && pipe(err) == 0);
         c.pid = fork();
         CHECK(c.pid >= 0);
@@ -31,7 +35,7 @@ static struct child spawn(const char *prog, const char *rig, const char *dir, co
                 dup2(out[1], STDOUT_FILENO);
                 dup2(err[1], STDERR_FILENO);
                 execl(prog, prog, "--rig", rig, "--dir", dir, "--time-scale", "10", "--ports-file",
-                      ports, (char *)NULL);
+                      ports, "--render-log", log, (char *)NULL);
                 _exit(127);
         }
         close(out[1]);
@@ -116,6 +120,8 @@ static void test_run(const char *prog)
         snprintf(path, sizeof path, "%s/frames.sock", run);
         CHECK(strcmp(sock, path) == 0);
         CHECK(stat(sock, &st) == 0 && S_ISSOCK(st.st_mode));
+        snprintf(path, sizeof path, "%s/render.log", dir);
+        CHECK(stat(path, &st) == 0 && st.st_size == 0); /* opened, no frame yet */
 
         /* The drives answer on the pty. */
         modbus_t *mb = simtest_modbus(run, "drives");

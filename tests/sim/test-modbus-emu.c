@@ -1,7 +1,8 @@
 /* test-modbus-emu.c - the Modbus emulators of gonio-sim, through a plain libmodbus
  * client on the pty (RTU) or on loopback (TCP): register reads and writes, several
  * units on one bus, the timing of a move against the motion model, homing, stop,
- * and the client-side error of every injected fault. */
+ * the client-side error of every injected fault, a stall and a move that ends short,
+ * and the pose of a rig whose only axis is found by its role. */
 #include <errno.h>
 #include <math.h>
 #include <string.h>
@@ -10,6 +11,7 @@
 #include <modbus/modbus.h>
 
 #include "common/cleanup.h"
+#include "sim/drive.h"
 #include "sim/modbus_emu.h"
 #include "sim/motion.h"
 #include "tests/sim/simtest.h"
@@ -33,7 +35,7 @@ static double wrapped_distance(double a, double b)
 static void test_reads_and_units(struct sim_emu *e, modbus_t *mb)
 {
         uint8_t coils[8];
-        struct sim_rig_state st;
+        struct gn_pose st;
 
         CHECK(simtest_reg(mb, 1, SIMTEST_R_STATUS) & 1); /* enabled */
         CHECK(!(simtest_reg(mb, 1, SIMTEST_R_STATUS) & SIMTEST_ST_HOMED));
@@ -51,7 +53,7 @@ static void test_reads_and_units(struct sim_emu *e, modbus_t *mb)
         CHECK(modbus_read_bits(rl, 0, 8, coils) == 8);
         CHECK(!coils[0] && coils[1] && coils[7]);
         sim_emu_snapshot(e, &st);
-        CHECK(!st.lamp_on[0] && st.lamp_on[1] && st.laser_on);
+        CHECK(st.lamps == 2 && st.laser);
         CHECK(modbus_read_bits(rl, 8, 1, coils) == -1 && errno == EMBXILADD);
         modbus_close(rl);
         modbus_free(rl);
@@ -68,7 +70,7 @@ static void test_reads_and_units(struct sim_emu *e, modbus_t *mb)
 
 static void test_home(struct sim_emu *e, modbus_t *mb)
 {
-        struct sim_rig_state st;
+        struct gn_pose st;
 
         CHECK(simtest_command(mb, 1, 0.0, SIMTEST_CMD_HOME) == 1);
         /* at most half a turn at 90 deg/s, 180 deg/s^2, plus settle */
@@ -77,7 +79,7 @@ static void test_home(struct sim_emu *e, modbus_t *mb)
         CHECK(fabs(position_deg(mb, 1)) < 1e-9);
         CHECK(simtest_reg(mb, 1, SIMTEST_R_STATUS) & (1 << 5)); /* on the home switch */
         sim_emu_snapshot(e, &st);
-        CHECK(wrapped_distance(st.turntable_deg, 0.0) < 1e-6);
+        CHECK(wrapped_distance(st.deg[GN_ROLE_TURNTABLE], 0.0) < 1e-6);
 }
 
 /* A 90 deg move: its duration and an intermediate position against the model, with the
@@ -85,7 +87,7 @@ static void test_home(struct sim_emu *e, modbus_t *mb)
 static void test_move_timing(struct sim_emu *e, modbus_t *mb)
 {
         struct motion m;
-        struct sim_rig_state st;
+        struct gn_pose st;
 
         CHECK(motion_plan(&m, 0.0, 0.0, 90.0, 90.0, 180.0) == 0);
         double c0 = simtest_now();
@@ -109,7 +111,7 @@ static void test_move_timing(struct sim_emu *e, modbus_t *mb)
         CHECK(took <= expect + 0.5);
         CHECK_NEAR(position_deg(mb, 1), 90.0, 1e-9);
         sim_emu_snapshot(e, &st);
-        CHECK_NEAR(st.turntable_deg, 90.0, 1e-6);
+        CHECK_NEAR(st.deg[GN_ROLE_TURNTABLE], 90.0, 1e-6);
 }
 
 static void test_stop(modbus_t *mb)
@@ -170,6 +172,39 @@ static void test_stall(struct sim_emu *e, modbus_t *mb)
         CHECK_NEAR(position_deg(mb, 3), from, 1e-9);
 }
 
+/* Waits until unit has stopped moving, then past its settle time; returns the status. */
+static uint16_t wait_stopped(modbus_t *mb, int unit)
+{
+        simtest_wait_status(mb, unit, SIMTEST_ST_MOVING, 0, 5.0);
+        usleep((useconds_t)(0.2 / TIME_SCALE * 1e6)); /* twice settle_ms */
+        return simtest_reg(mb, unit, SIMTEST_R_STATUS);
+}
+
+/* A short stop ends the move SIM_DRIVE_SHORT_DEG before its target: not moving, not in
+ * position, no fault; injected at rest (the next move) and into a running move. The next
+ * move completes. */
+static void test_short(struct sim_emu *e, modbus_t *mb)
+{
+        double from = position_deg(mb, 3);
+
+        CHECK(sim_emu_inject(e, "drives", 3, SIM_FAULT_SHORT) == 0);
+        CHECK(simtest_command(mb, 3, from + 20.0, SIMTEST_CMD_MOVE) == 1);
+        uint16_t st = wait_stopped(mb, 3);
+        CHECK(!(st & (SIMTEST_ST_MOVING | SIMTEST_ST_INPOS | SIMTEST_ST_FAULT)));
+        CHECK(simtest_reg(mb, 3, SIMTEST_R_FAULT) == 0);
+        CHECK_NEAR(position_deg(mb, 3), from + 20.0 - SIM_DRIVE_SHORT_DEG, 1e-3);
+
+        CHECK(simtest_command(mb, 3, from, SIMTEST_CMD_MOVE) == 1);
+        CHECK(sim_emu_inject(e, "drives", 3, SIM_FAULT_SHORT) == 0);
+        st = wait_stopped(mb, 3);
+        CHECK(!(st & (SIMTEST_ST_MOVING | SIMTEST_ST_INPOS | SIMTEST_ST_FAULT)));
+        CHECK_NEAR(position_deg(mb, 3), from + SIM_DRIVE_SHORT_DEG, 1e-3);
+
+        CHECK(simtest_command(mb, 3, from, SIMTEST_CMD_MOVE) == 1);
+        simtest_wait_status(mb, 3, SIMTEST_ST_MOVING | SIMTEST_ST_INPOS, SIMTEST_ST_INPOS, 5.0);
+        CHECK_NEAR(position_deg(mb, 3), from, 1e-9);
+}
+
 static void test_rtu(void)
 {
         char dir[64], link[300];
@@ -192,6 +227,7 @@ static void test_rtu(void)
         test_stop(mb);
         test_comm_faults(e, mb);
         test_stall(e, mb);
+        test_short(e, mb);
         modbus_close(mb);
         modbus_free(mb);
 
@@ -231,9 +267,58 @@ static void test_tcp(void)
         simtest_rmdir(dir);
 }
 
+/* A rig with only a turntable, named "tt" with role turntable: the pose maps the drive by
+ * its role, the missing arms are NAN, and the renderer takes such a pose. */
+static void test_roles(void)
+{
+        static const char rig[] =
+                "rig: tt-only\n"
+                "buses:\n"
+                "  - { name: drives, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/drives\" }\n"
+                "  - { name: frames, type: sim, port: \"${GONIO_SIM_DIR}/frames.sock\" }\n"
+                "axes:\n"
+                "  - { name: tt, role: turntable, backend: modbus, bus: drives, unit: 4,\n"
+                "      continuous: true, max_speed: 90, accel: 180 }\n"
+                "cameras:\n"
+                "  - { name: cam0, backend: sim, bus: frames, elevation: 20, distance: 500,\n"
+                "      target: [0, 0, 30], width: 64, height: 48, fx: 100, fy: 100,\n"
+                "      cx: 31.5, cy: 23.5 }\n";
+        char dir[64];
+        struct rig_config *rc = simtest_rig_text(dir, rig);
+        struct sim_emu *e = NULL;
+        struct sim_scene *scene = NULL;
+        struct gn_frame f = {0};
+        struct gn_pose st;
+
+        CHECK(sim_emu_new(rc, TIME_SCALE, &e) == 0);
+        modbus_t *mb = simtest_modbus(dir, "drives");
+        sim_emu_snapshot(e, &st);
+        double from = st.deg[GN_ROLE_TURNTABLE];
+        CHECK(simtest_command(mb, 4, 90.0, SIMTEST_CMD_MOVE) == 1);
+        simtest_wait_status(mb, 4, SIMTEST_ST_MOVING | SIMTEST_ST_INPOS, SIMTEST_ST_INPOS, 5.0);
+        sim_emu_snapshot(e, &st);
+        CHECK(gn_pose_has(&st, GN_ROLE_TURNTABLE));
+        CHECK(!gn_pose_has(&st, GN_ROLE_LIGHT_ARM) && !gn_pose_has(&st, GN_ROLE_CAMERA_ARM));
+        CHECK(wrapped_distance(st.deg[GN_ROLE_TURNTABLE], from + 90.0) < 1e-6);
+        CHECK(st.lamps == 0 && !st.laser);
+
+        char err[256] = "";
+        CHECK(sim_scene_new(rc, &scene, err, sizeof err) == 0);
+        CHECK(sim_render(scene, &st, 0, &(struct sim_expose){0}, 0, &f, 0, NULL) == 0);
+        CHECK(f.width == 64 && f.height == 48);
+        gn_frame_free_data(&f);
+        sim_scene_free(scene);
+        modbus_close(mb);
+        modbus_free(mb);
+        sim_emu_free(e);
+        rigconf_free(rc);
+        simtest_rmdir(dir);
+}
+
 int main(void)
 {
         test_rtu();
         test_tcp();
+        test_roles();
         return 0;
 }

@@ -24,6 +24,9 @@ static void test_trapezoid(void)
         CHECK(!motion_moving(&m, 11.5));
         CHECK_NEAR(motion_duration(90.0, 90.0, 180.0), 1.5, 1e-12);
         CHECK_NEAR(motion_duration(-90.0, 90.0, 180.0), 1.5, 1e-12);
+        for (double d = 0.0; d <= 90.0; d += 7.5) /* through all three phases */
+                CHECK_NEAR(motion_position(&m, motion_time_at(&m, d)), 5.0 + d, 1e-9);
+        CHECK_NEAR(motion_time_at(&m, 200.0), 11.5, 1e-12);
 }
 
 /* 10 deg at 90 deg/s, 180 deg/s^2 never reaches 90 deg/s: peak sqrt(10*180). */
@@ -37,6 +40,8 @@ static void test_triangle(void)
         CHECK_NEAR(motion_position(&m, m.t_total / 2), -5.0, 1e-9);
         CHECK(motion_velocity(&m, m.t_total / 2 - 1e-6) < 0.0);
         CHECK_NEAR(motion_target(&m), -10.0, 1e-12);
+        CHECK_NEAR(motion_time_at(&m, 5.0), m.t_total / 2, 1e-9);
+        CHECK_NEAR(motion_position(&m, motion_time_at(&m, 7.0)), -7.0, 1e-9);
 }
 
 /* Position is continuous and monotonic, speed never above the limit. */

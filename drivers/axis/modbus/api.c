@@ -1,5 +1,5 @@
 /* api.c - the "modbus" axis backend: a servo/stepper drive behind a register profile
- * (docs/modbus-profile.md), over libmodbus through the bus's retrying transactions.
+ * (docs/modbus-profile.md), through the Modbus transport's retrying transactions.
  * Runs on the bus worker; caches nothing but the profile: every state comes from the
  * drive. */
 #include <errno.h>
@@ -9,6 +9,8 @@
 #include "common/log.h"
 #include "drivers/axis/modbus/proto.h"
 #include "drivers/bus/bus.h"
+#include "drivers/transport/modbus.h"
+#include "drivers/transport/transport.h"
 
 /* Registers read in one request when status, fault and position lie this close. */
 #define STATE_BLOCK_MAX 32
@@ -31,6 +33,38 @@ static const struct rig_modbus_profile *prof(const struct axis *ax)
         return m ? &m->prof : NULL;
 }
 
+/* Register accesses that name what failed: "read position (reg 0x0102): cause", or the
+ * port alone when it could not be opened. */
+static int reg_result(struct axis *ax, int r, const char *what, int reg)
+{
+        const struct transport *t = bus_transport(ax->bus);
+
+        if (r >= 0)
+                return r;
+        if (t->open_failed)
+                return axis_set_cause(ax, r, "%s", transport_cause(t));
+        return axis_set_cause(ax, r, "%s (reg 0x%04x): %s", what, (unsigned)reg,
+                              transport_cause(t));
+}
+
+static int read_regs(struct axis *ax, const char *what, int reg, int n, uint16_t *dest)
+{
+        return reg_result(ax, mbus_read_regs(bus_transport(ax->bus), ax->conf->unit, reg, n, dest),
+                          what, reg);
+}
+
+static int write_reg(struct axis *ax, const char *what, int reg, uint16_t v)
+{
+        return reg_result(ax, mbus_write_reg(bus_transport(ax->bus), ax->conf->unit, reg, v), what,
+                          reg);
+}
+
+static int write_regs(struct axis *ax, const char *what, int reg, int n, const uint16_t *src)
+{
+        return reg_result(ax, mbus_write_regs(bus_transport(ax->bus), ax->conf->unit, reg, n, src),
+                          what, reg);
+}
+
 static int find_profile(struct axis *ax, struct rig_modbus_profile *ret)
 {
         const char *name = ax->conf->profile;
@@ -44,23 +78,22 @@ static int find_profile(struct axis *ax, struct rig_modbus_profile *ret)
                 rigconf_default_profile(ret);
                 return 0;
         }
-        return axis_log_full(ax, GN_LOG_ERR, SYNTHETIC_ERRNO(ENOENT),
-                             "Unknown register profile '%s'", name);
+        return axis_set_cause(ax, SYNTHETIC_ERRNO(ENOENT), "unknown register profile '%s'", name);
 }
 
 static int command(struct axis *ax, uint16_t cmd)
 {
         if (!ax->priv)
                 return -ENOTCONN;
-        return bus_write_reg(ax->bus, ax->conf->unit, prof(ax)->reg_command, cmd);
+        return write_reg(ax, "write command", prof(ax)->reg_command, cmd);
 }
 
 /* Writes a rate register unless the rig file leaves it to the drive (value 0). */
-static int write_rate(struct axis *ax, uint16_t reg, double value)
+static int write_rate(struct axis *ax, const char *what, uint16_t reg, double value)
 {
         if (!(value > 0))
                 return 0;
-        return bus_write_reg(ax->bus, ax->conf->unit, reg, mbax_rate_reg(value));
+        return write_reg(ax, what, reg, mbax_rate_reg(value));
 }
 
 static int mbax_open(struct axis *ax)
@@ -78,10 +111,10 @@ static int mbax_open(struct axis *ax)
         r = find_profile(ax, &m->prof);
         if (r < 0)
                 return r;
-        r = write_rate(ax, m->prof.reg_speed, ax->conf->max_speed);
+        r = write_rate(ax, "write max speed", m->prof.reg_speed, ax->conf->max_speed);
         if (r < 0)
                 return r;
-        return write_rate(ax, m->prof.reg_accel, ax->conf->accel);
+        return write_rate(ax, "write acceleration", m->prof.reg_accel, ax->conf->accel);
 }
 
 static void mbax_close(struct axis *ax)
@@ -110,7 +143,7 @@ static int read_position(struct axis *ax, int32_t *ret)
         uint16_t regs[2];
         int r;
 
-        r = bus_read_regs(ax->bus, ax->conf->unit, prof(ax)->reg_position, 2, regs);
+        r = read_regs(ax, "read position", prof(ax)->reg_position, 2, regs);
         if (r < 0)
                 return r;
         *ret = mbax_get_i32(prof(ax), regs);
@@ -136,7 +169,7 @@ static int mbax_move_abs(struct axis *ax, double deg)
         if (r < 0)
                 return r;
         mbax_put_i32(p, target, regs);
-        r = bus_write_regs(ax->bus, ax->conf->unit, p->reg_target, 2, regs);
+        r = write_regs(ax, "write target", p->reg_target, 2, regs);
         if (r < 0)
                 return r;
         return command(ax, p->cmd_move);
@@ -149,15 +182,15 @@ static int read_state_regs(struct axis *ax, uint16_t *status, uint16_t *fault, u
         int lo = MIN(MIN(p->reg_status, p->reg_fault), p->reg_position);
         int hi = MAX(MAX(p->reg_status, p->reg_fault), p->reg_position + 1);
         uint16_t block[STATE_BLOCK_MAX];
-        int unit = ax->conf->unit, r;
+        int r;
 
         if (hi - lo >= STATE_BLOCK_MAX) {
-                r = bus_read_regs(ax->bus, unit, p->reg_status, 1, status);
+                r = read_regs(ax, "read status", p->reg_status, 1, status);
                 if (r >= 0)
-                        r = bus_read_regs(ax->bus, unit, p->reg_fault, 1, fault);
-                return r < 0 ? r : bus_read_regs(ax->bus, unit, p->reg_position, 2, pos);
+                        r = read_regs(ax, "read fault code", p->reg_fault, 1, fault);
+                return r < 0 ? r : read_regs(ax, "read position", p->reg_position, 2, pos);
         }
-        r = bus_read_regs(ax->bus, unit, lo, hi - lo + 1, block);
+        r = read_regs(ax, "read status and position", lo, hi - lo + 1, block);
         if (r < 0)
                 return r;
         *status = block[p->reg_status - lo];

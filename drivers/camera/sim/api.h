@@ -8,7 +8,10 @@
 /* The backend's ops, registered as "sim" in drivers/registry.c. capture() blocks at most
  * CAM_SIM_TIMEOUT_MS, reconnects once after a broken connection and returns 0,
  * -ETIMEDOUT (also for a frame gonio-sim dropped), -ECONNREFUSED/-ENOENT (no gonio-sim),
- * -ECONNRESET/-EPIPE, -EBADMSG (malformed reply) or the error gonio-sim names. */
+ * -ECONNRESET/-EPIPE, -EBADMSG (malformed reply) or the error gonio-sim names; -EBUSY
+ * while streaming. Streaming keeps one render request in flight: stream_fd() is the
+ * socket (readable when the frame's header arrives), stream_dequeue() reads that frame
+ * (blocking at most CAM_SIM_TIMEOUT_MS) and asks for the next with the same request. */
 extern const struct cam_ops cam_sim_ops;
 
 /* Bound on one capture: request, render and transfer. */

@@ -4,24 +4,36 @@
 
 #include "common/log.h"
 #include "drivers/bus/bus.h"
+#include "drivers/transport/modbus.h"
+#include "drivers/transport/transport.h"
 #include "drivers/switch/modbus/proto.h"
 
 static const struct opt_desc mbsw_opts[] = {
         {OPT_STATE, OPT_GET | OPT_SET},
 };
 
+/* A failed coil access: "write coil 3: cause", or the port alone when it could not be
+ * opened. Returns r. */
+static int coil_error(struct sw *s, int r, const char *what)
+{
+        const struct transport *t = bus_transport(s->bus);
+
+        if (t->open_failed)
+                return sw_set_cause(s, r, "%s", transport_cause(t));
+        return sw_set_cause(s, r, "%s coil %d: %s", what, s->conf->coil, transport_cause(t));
+}
+
 static int mbsw_get(struct sw *s, bool *on)
 {
         uint8_t v;
         int r;
 
-        r = bus_read_coils(s->bus, s->conf->unit, s->conf->coil, 1, &v);
+        r = mbus_read_coils(bus_transport(s->bus), s->conf->unit, s->conf->coil, 1, &v);
         if (r < 0)
-                return r;
+                return coil_error(s, r, "read");
         r = mbsw_decode_coil(v, on);
         if (r < 0)
-                return sw_log_full(s, GN_LOG_ERR, r, "Coil %d read back as 0x%02x", s->conf->coil,
-                                   v);
+                return sw_set_cause(s, r, "coil %d read back as 0x%02x", s->conf->coil, v);
         return 0;
 }
 
@@ -30,8 +42,8 @@ static int mbsw_open(struct sw *s)
         bool on;
 
         if (mbsw_check_conf(s->conf) < 0)
-                return sw_log_full(s, GN_LOG_ERR, SYNTHETIC_ERRNO(EINVAL),
-                                   "Invalid unit %d or coil %d", s->conf->unit, s->conf->coil);
+                return sw_set_cause(s, SYNTHETIC_ERRNO(EINVAL), "invalid unit %d or coil %d",
+                                    s->conf->unit, s->conf->coil);
         return mbsw_get(s, &on);
 }
 
@@ -40,16 +52,15 @@ static int mbsw_set(struct sw *s, bool on)
         bool now;
         int r;
 
-        r = bus_write_coil(s->bus, s->conf->unit, s->conf->coil, on);
+        r = mbus_write_coil(bus_transport(s->bus), s->conf->unit, s->conf->coil, on);
         if (r < 0)
-                return r;
+                return coil_error(s, r, "write");
         r = mbsw_get(s, &now);
         if (r < 0)
                 return r;
         if (now != on)
-                return sw_log_full(s, GN_LOG_ERR, SYNTHETIC_ERRNO(EIO),
-                                   "Coil %d reads %s after writing %s", s->conf->coil,
-                                   now ? "on" : "off", on ? "on" : "off");
+                return sw_set_cause(s, SYNTHETIC_ERRNO(EIO), "coil %d reads %s after writing %s",
+                                    s->conf->coil, now ? "on" : "off", on ? "on" : "off");
         return 0;
 }
 

@@ -19,47 +19,77 @@
 #include <jansson.h>
 #include <libgen.h>
 #include <limits.h>
-#include <openssl/evp.h>
+#include <math.h>
 #include <sqlite3.h>
+#include <stdarg.h>
 #include <string.h>
 #include <sys/file.h>
 #include <sys/stat.h>
 #include <time.h>
 
+#include "common/clock.h"
+#include "common/fileio.h"
 #include "common/log.h"
+#include "common/sha256.h"
 #include "common/yconf.h"
 #include "ds.h"
 #include "ds_png.h"
 
-#define DS_SCHEMA_VERSION "1"
-#define DS_INDEX          "index.sqlite"
-#define DS_JSON           "dataset.json"
-#define DS_RIG            "rig.yaml"
-#define DS_IMAGES         "images"
-#define DS_BUSY_MS        5000
-#define DS_IO_CHUNK       (1u << 20)
-#define DS_FILE_MAX       (1ll << 31)
+#define DS_SCHEMA_VERSION     2 /* PRAGMA user_version; schema 1 had user_version 0 */
+#define DS_SCHEMA_VERSION_STR "2"
+#define DS_INDEX              "index.sqlite"
+#define DS_JSON               "dataset.json"
+#define DS_RIG                "rig.yaml"
+#define DS_IMAGES             "images"
+#define DS_BUSY_MS            5000
+#define DS_FILE_MAX           (1u << 31)
 
 /* Columns of captures in the order of struct ds_capture; shared by INSERT and SELECT. */
 #define CAPTURE_COLUMNS                                                                            \
-        "id, session, turntable_deg, light_arm_deg, camera_arm_deg, camera, lamps, laser, "        \
-        "exposure_us, gain, t_request_ns, t_exposure_ns, t_stored_ns, file, sha256, width, "       \
-        "height, pixfmt"
+        "id, session, turntable_deg, light_arm_deg, camera_arm_deg, camera, lamps, lamp_bits, "    \
+        "laser, exposure_us, gain, t_request_ns, t_exposure_ns, t_stored_ns, file, sha256, "       \
+        "width, height, pixfmt"
+
+/* The captures table; the angle of an axis the rig does not have is NULL. */
+#define CAPTURES_TABLE(name)                                                                       \
+        "CREATE TABLE " name " ("                                                                  \
+        " id INTEGER PRIMARY KEY,"                                                                 \
+        " session TEXT NOT NULL DEFAULT '',"                                                       \
+        " turntable_deg REAL, light_arm_deg REAL, camera_arm_deg REAL,"                            \
+        " camera TEXT NOT NULL, lamps TEXT NOT NULL, lamp_bits INTEGER NOT NULL DEFAULT 0,"        \
+        " laser INTEGER NOT NULL,"                                                                 \
+        " exposure_us INTEGER NOT NULL, gain REAL NOT NULL,"                                       \
+        " t_request_ns INTEGER NOT NULL, t_exposure_ns INTEGER NOT NULL,"                          \
+        " t_stored_ns INTEGER NOT NULL,"                                                           \
+        " file TEXT NOT NULL UNIQUE, sha256 TEXT NOT NULL,"                                        \
+        " width INTEGER NOT NULL, height INTEGER NOT NULL, pixfmt TEXT NOT NULL);"
+
+#define CAPTURES_POSE_INDEX                                                                        \
+        "CREATE INDEX captures_pose ON captures"                                                   \
+        " (session, turntable_deg, light_arm_deg, camera_arm_deg);"
 
 static const char schema_sql[] =
-        "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);"
-        "CREATE TABLE captures ("
-        " id INTEGER PRIMARY KEY,"
-        " session TEXT NOT NULL DEFAULT '',"
-        " turntable_deg REAL NOT NULL, light_arm_deg REAL NOT NULL, camera_arm_deg REAL NOT NULL,"
-        " camera TEXT NOT NULL, lamps TEXT NOT NULL, laser INTEGER NOT NULL,"
-        " exposure_us INTEGER NOT NULL, gain REAL NOT NULL,"
-        " t_request_ns INTEGER NOT NULL, t_exposure_ns INTEGER NOT NULL,"
-        " t_stored_ns INTEGER NOT NULL,"
-        " file TEXT NOT NULL UNIQUE, sha256 TEXT NOT NULL,"
-        " width INTEGER NOT NULL, height INTEGER NOT NULL, pixfmt TEXT NOT NULL);"
-        "CREATE INDEX captures_pose ON captures"
-        " (session, turntable_deg, light_arm_deg, camera_arm_deg);";
+        "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);" CAPTURES_TABLE("captures")
+                CAPTURES_POSE_INDEX "PRAGMA user_version = 2;";
+
+/* Schema 1 -> 2: the angles become nullable and lamp_bits is added (0: unknown for
+ * rows taken before; their lamp names stay in lamps). SQLite cannot drop NOT NULL in
+ * place, so the table is copied. */
+static const char migrate_v1_sql[] = CAPTURES_TABLE(
+        "captures_v2") "INSERT INTO captures_v2 (id, session, turntable_deg, light_arm_deg, "
+                       "camera_arm_deg,"
+                       " camera, lamps, laser, exposure_us, gain, t_request_ns, t_exposure_ns, "
+                       "t_stored_ns,"
+                       " file, sha256, width, height, pixfmt)"
+                       " SELECT id, session, turntable_deg, light_arm_deg, camera_arm_deg, camera, "
+                       "lamps, laser,"
+                       " exposure_us, gain, t_request_ns, t_exposure_ns, t_stored_ns, file, "
+                       "sha256, width,"
+                       " height, pixfmt FROM captures;"
+                       "DROP TABLE captures;"
+                       "ALTER TABLE captures_v2 RENAME TO captures;" CAPTURES_POSE_INDEX
+                       "UPDATE meta SET value = '2' WHERE key = 'schema_version';"
+                       "PRAGMA user_version = 2;";
 
 struct ds {
         char *path; /* absolute */
@@ -72,10 +102,10 @@ struct ds {
         int png_level;
         sqlite3 *db;
         sqlite3_stmt *insert;
+        char error[256]; /* ds_last_error() */
 };
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(sqlite3_stmt *, sqlite3_finalize);
-DEFINE_TRIVIAL_CLEANUP_FUNC(EVP_MD_CTX *, EVP_MD_CTX_free);
 DEFINE_TRIVIAL_CLEANUP_FUNC(DIR *, closedir);
 
 static struct ds *ds_free(struct ds *d);
@@ -100,20 +130,18 @@ static int sqlite_sys_errno(sqlite3 *db)
         return e;
 }
 
-/* Maps an SQLite result code to -errno; I/O failures keep the errno of the syscall. */
+/* Maps an SQLite result code to -errno, the one place that does. I/O failures keep
+ * the errno of the failing syscall when SQLite recorded one (EFBIG, EDQUOT...). */
 static int sqlite_errno(sqlite3 *db, int rc)
 {
-        int e = db && ((rc & 0xff) == SQLITE_FULL || (rc & 0xff) == SQLITE_IOERR ||
-                       (rc & 0xff) == SQLITE_CANTOPEN)
-                        ? sqlite_sys_errno(db)
-                        : 0;
+        int e = 0;
 
         switch (rc & 0xff) {
         case SQLITE_FULL:
-                return e > 0 ? -e : -ENOSPC;
         case SQLITE_IOERR:
         case SQLITE_CANTOPEN:
-                return e > 0 ? -e : -EIO;
+                e = db ? sqlite_sys_errno(db) : 0;
+                return e > 0 ? -e : (rc & 0xff) == SQLITE_FULL ? -ENOSPC : -EIO;
         case SQLITE_NOMEM:
                 return -ENOMEM;
         case SQLITE_BUSY:
@@ -122,7 +150,9 @@ static int sqlite_errno(sqlite3 *db, int rc)
         case SQLITE_READONLY:
                 return -EROFS;
         case SQLITE_CONSTRAINT:
-                return -EEXIST;
+        case SQLITE_MISMATCH:
+        case SQLITE_RANGE:
+                return -EINVAL;
         case SQLITE_CORRUPT:
         case SQLITE_NOTADB:
                 return -EBADMSG;
@@ -130,14 +160,25 @@ static int sqlite_errno(sqlite3 *db, int rc)
         case SQLITE_AUTH:
                 return -EACCES;
         default:
-                return -EIO;
+                return -EPROTO;
         }
+}
+
+/* Records what failed for ds_last_error() and logs it; returns r. */
+static int ds_fail(struct ds *d, int r, const char *fmt, ...) _printf_(3, 4);
+static int ds_fail(struct ds *d, int r, const char *fmt, ...)
+{
+        va_list ap;
+
+        va_start(ap, fmt);
+        vsnprintf(d->error, sizeof(d->error), fmt, ap);
+        va_end(ap);
+        return log_error_errno(r, "dataset '%s': %s (%m)", d->path, d->error);
 }
 
 static int db_fail(struct ds *d, int rc, const char *what)
 {
-        return log_error_errno(sqlite_errno(d->db, rc), "dataset '%s': %s: %s: %m", d->path, what,
-                               sqlite3_errmsg(d->db));
+        return ds_fail(d, sqlite_errno(d->db, rc), "%s: %s", what, sqlite3_errmsg(d->db));
 }
 
 static int db_prepare(struct ds *d, const char *sql, sqlite3_stmt **ret)
@@ -225,163 +266,6 @@ static int db_open(struct ds *d, bool create)
         return db_exec(d, "PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;");
 }
 
-/* ---- files: hashing and atomic writes ---- */
-
-static int sha_new(EVP_MD_CTX **ret)
-{
-        EVP_MD_CTX *md = EVP_MD_CTX_new();
-
-        if (!md)
-                return -ENOMEM;
-        if (!EVP_DigestInit_ex(md, EVP_sha256(), NULL)) {
-                EVP_MD_CTX_free(md);
-                return -EIO;
-        }
-        *ret = md;
-        return 0;
-}
-
-static int sha_hex(EVP_MD_CTX *md, char hex[65])
-{
-        unsigned char h[EVP_MAX_MD_SIZE];
-        unsigned n = 0;
-
-        if (!EVP_DigestFinal_ex(md, h, &n))
-                return -EIO;
-        for (unsigned i = 0; i < n; i++)
-                sprintf(hex + 2 * i, "%02x", h[i]);
-        return 0;
-}
-
-/* Writes all of buf to fd, feeding md (if any) with the bytes as they are written. */
-static int write_all(int fd, const uint8_t *p, size_t len, EVP_MD_CTX *md)
-{
-        while (len > 0) {
-                ssize_t k = write(fd, p, MIN(len, DS_IO_CHUNK));
-
-                if (k < 0 && errno == EINTR)
-                        continue;
-                if (k < 0)
-                        return -errno;
-                if (md && !EVP_DigestUpdate(md, p, (size_t)k))
-                        return -EIO;
-                p += k;
-                len -= (size_t)k;
-        }
-        return 0;
-}
-
-static int write_synced(int fd, const void *buf, size_t len, EVP_MD_CTX *md)
-{
-        int r = write_all(fd, buf, len, md);
-
-        if (r == 0 && fsync(fd) < 0)
-                r = -errno;
-        return r;
-}
-
-/* Writes buf to dir_fd/name atomically: name.tmp, fsync, rename, fsync(dir). With
- * hex, also returns the SHA-256 of the bytes written. On failure nothing is left
- * behind and the errno of the failing syscall is returned. */
-static int write_atomic(int dir_fd, const char *name, const void *buf, size_t len, char hex[65])
-{
-        _cleanup_(EVP_MD_CTX_freep) EVP_MD_CTX *md = NULL;
-        char tmp[NAME_MAX + 1];
-        int fd, r;
-
-        if (snprintf(tmp, sizeof(tmp), "%s.tmp", name) >= (int)sizeof(tmp))
-                return -ENAMETOOLONG;
-        if (hex && (r = sha_new(&md)) < 0)
-                return r;
-        fd = openat(dir_fd, tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-        if (fd < 0)
-                return -errno;
-        r = write_synced(fd, buf, len, md);
-        if (close(fd) < 0 && r == 0)
-                r = -errno;
-        if (r == 0 && md)
-                r = sha_hex(md, hex);
-        if (r == 0 && renameat(dir_fd, tmp, dir_fd, name) < 0)
-                r = -errno;
-        if (r < 0) {
-                (void)unlinkat(dir_fd, tmp, 0);
-                return r;
-        }
-        if (fsync(dir_fd) < 0) {
-                r = -errno;
-                (void)unlinkat(dir_fd, name, 0);
-                return r;
-        }
-        return 0;
-}
-
-static int sha256_fd(int fd, char hex[65])
-{
-        _cleanup_(EVP_MD_CTX_freep) EVP_MD_CTX *md = NULL;
-        _cleanup_free_ uint8_t *buf = malloc(DS_IO_CHUNK);
-        ssize_t k;
-        int r;
-
-        if (!buf)
-                return -ENOMEM;
-        r = sha_new(&md);
-        if (r < 0)
-                return r;
-        while ((k = read(fd, buf, DS_IO_CHUNK)) != 0) {
-                if (k < 0 && errno == EINTR)
-                        continue;
-                if (k < 0)
-                        return -errno;
-                if (!EVP_DigestUpdate(md, buf, (size_t)k))
-                        return -EIO;
-        }
-        return sha_hex(md, hex);
-}
-
-/* SHA-256 of the file name below dir_fd (or AT_FDCWD). */
-static int sha256_at(int dir_fd, const char *name, char hex[65])
-{
-        _cleanup_close_ int fd = openat(dir_fd, name, O_RDONLY | O_CLOEXEC);
-
-        return fd < 0 ? -errno : sha256_fd(fd, hex);
-}
-
-int ds_sha256_file(const char *path, char hex[65])
-{
-        if (!path || !hex)
-                return -EINVAL;
-        return sha256_at(AT_FDCWD, path, hex);
-}
-
-/* Reads a whole file below dir_fd into a malloc'ed buffer. */
-static int read_file_at(int dir_fd, const char *name, void **ret, size_t *ret_len)
-{
-        _cleanup_close_ int fd = openat(dir_fd, name, O_RDONLY | O_CLOEXEC);
-        _cleanup_free_ uint8_t *buf = NULL;
-        struct stat st;
-        size_t n = 0;
-
-        if (fd < 0 || fstat(fd, &st) < 0)
-                return -errno;
-        if (!S_ISREG(st.st_mode) || st.st_size > DS_FILE_MAX)
-                return -EBADMSG;
-        buf = malloc(st.st_size > 0 ? (size_t)st.st_size : 1);
-        if (!buf)
-                return -ENOMEM;
-        while (n < (size_t)st.st_size) {
-                ssize_t k = read(fd, buf + n, (size_t)st.st_size - n);
-
-                if (k < 0 && errno == EINTR)
-                        continue;
-                if (k <= 0)
-                        return k < 0 ? -errno : -EIO;
-                n += (size_t)k;
-        }
-        *ret = TAKE_PTR(buf);
-        *ret_len = n;
-        return 0;
-}
-
 /* ---- dataset.json ---- */
 
 static int json_add_unique(json_t *arr, const char *s)
@@ -443,11 +327,11 @@ static int write_json(struct ds *d)
         j = json_pack("{s:s, s:s, s:s, s:I, s:O, s:O, s:s, s:s, s:i}", "name", d->name, "created",
                       d->created, "rig", d->rig, "captures", (json_int_t)n, "cameras", cameras,
                       "lamps", lamps, "format", "png", "index", DS_INDEX, "schema_version",
-                      atoi(DS_SCHEMA_VERSION));
+                      DS_SCHEMA_VERSION);
         text = j ? json_dumps(j, JSON_INDENT(2)) : NULL;
         if (!text)
                 return -ENOMEM;
-        r = write_atomic(d->dir_fd, DS_JSON, text, strlen(text), NULL);
+        r = gn_write_atomic(d->dir_fd, DS_JSON, text, strlen(text), NULL);
         if (r < 0)
                 return log_error_errno(r, "dataset '%s': Failed to write %s: %m", d->path, DS_JSON);
         return 0;
@@ -520,7 +404,7 @@ static int create_index(struct ds *d)
         if (r == 0)
                 r = db_exec(d, schema_sql);
         if (r == 0)
-                r = meta_set(d, "schema_version", DS_SCHEMA_VERSION);
+                r = meta_set(d, "schema_version", DS_SCHEMA_VERSION_STR);
         if (r == 0)
                 r = meta_set(d, "name", d->name);
         if (r == 0)
@@ -530,19 +414,6 @@ static int create_index(struct ds *d)
         if (r == 0)
                 r = db_exec(d, "COMMIT");
         return r;
-}
-
-static int fsync_parent(const char *path)
-{
-        _cleanup_free_ char *copy = strdup(path);
-        _cleanup_close_ int fd = -EBADF;
-
-        if (!copy)
-                return -ENOMEM;
-        fd = open(dirname(copy), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-        if (fd < 0 || fsync(fd) < 0)
-                return -errno;
-        return 0;
 }
 
 /* Fills the new, empty directory path with a dataset. */
@@ -564,7 +435,8 @@ static int create_contents(const char *path, const char *name, const char *rig_t
         d->img_fd = openat(d->dir_fd, DS_IMAGES, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
         if (d->img_fd < 0)
                 return -errno;
-        if (rig_text && (r = write_atomic(d->dir_fd, DS_RIG, rig_text, strlen(rig_text), NULL)) < 0)
+        if (rig_text &&
+            (r = gn_write_atomic(d->dir_fd, DS_RIG, rig_text, strlen(rig_text), NULL)) < 0)
                 return r;
         r = create_index(d);
         if (r == 0)
@@ -572,7 +444,7 @@ static int create_contents(const char *path, const char *name, const char *rig_t
         if (r == 0 && fsync(d->dir_fd) < 0)
                 r = -errno;
         if (r == 0)
-                r = fsync_parent(d->path);
+                r = gn_fsync_parent(d->path);
         if (r == 0)
                 *ret = TAKE_PTR(d);
         return r;
@@ -613,15 +485,45 @@ int ds_create(const char *path, const char *name, const char *rig_text, struct d
         return 0;
 }
 
-static int read_meta(struct ds *d)
+/* Brings an index of an older schema to DS_SCHEMA_VERSION, in one transaction that
+ * holds SQLite's write lock, so two openers cannot both migrate. */
+static int migrate(struct ds *d)
 {
         char version[16];
+        int64_t v = 0;
         int r;
 
-        r = meta_get(d, "schema_version", version, sizeof(version));
-        if (r == 0 && strcmp(version, DS_SCHEMA_VERSION) != 0)
-                r = log_error_errno(SYNTHETIC_ERRNO(EBADMSG),
-                                    "dataset '%s': unknown schema version %s", d->path, version);
+        r = db_exec(d, "BEGIN IMMEDIATE");
+        if (r == 0)
+                r = db_int64(d, "PRAGMA user_version", &v);
+        if (r == 0 && v == 0)
+                r = meta_get(d, "schema_version", version, sizeof(version));
+        if (r == 0 && v == 0 && strcmp(version, "1") != 0)
+                r = ds_fail(d, -EBADMSG, "unknown schema version %s", version);
+        if (r == 0 && v == 0) {
+                log_notice("dataset '%s': migrating its index from schema 1 to %d", d->path,
+                           DS_SCHEMA_VERSION);
+                r = db_exec(d, migrate_v1_sql);
+        }
+        if (r == 0)
+                return db_exec(d, "COMMIT");
+        (void)sqlite3_exec(d->db, "ROLLBACK", NULL, NULL, NULL);
+        return r;
+}
+
+static int read_meta(struct ds *d)
+{
+        int64_t v = 0;
+        int r;
+
+        r = db_int64(d, "PRAGMA user_version", &v);
+        if (r == 0 && v < DS_SCHEMA_VERSION) {
+                r = migrate(d);
+                v = DS_SCHEMA_VERSION;
+        }
+        if (r == 0 && v != DS_SCHEMA_VERSION)
+                r = ds_fail(d, -EBADMSG, "unknown schema version %lld (newer software?)",
+                            (long long)v);
         if (r == 0)
                 r = meta_get(d, "name", d->name, sizeof(d->name));
         if (r == 0)
@@ -682,6 +584,11 @@ const char *ds_path(const struct ds *d)
 const char *ds_name(const struct ds *d)
 {
         return d->name;
+}
+
+const char *ds_last_error(const struct ds *d)
+{
+        return d->error;
 }
 
 int64_t ds_count(struct ds *d)
@@ -747,16 +654,15 @@ static int become_writer(struct ds *d)
         if (d->writer)
                 return 0;
         if (flock(d->dir_fd, LOCK_EX | LOCK_NB) < 0)
-                return log_error_errno(errno == EWOULDBLOCK ? EBUSY : errno,
-                                       "dataset '%s' is being written by another process: %m",
-                                       d->path);
+                return ds_fail(d, errno == EWOULDBLOCK ? -EBUSY : -errno,
+                               "being written by another process");
         r = db_int64(d, "SELECT coalesce(max(id), 0) + 1 FROM captures", &d->next_id);
         if (r == 0)
                 r = remove_orphans(d);
         if (r == 0 && !d->insert)
                 r = db_prepare(d,
                                "INSERT INTO captures (" CAPTURE_COLUMNS ") VALUES "
-                               "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+                               "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
                                &d->insert);
         if (r < 0) {
                 (void)flock(d->dir_fd, LOCK_UN);
@@ -793,26 +699,19 @@ static const char *image_name(struct ds_capture *c)
         return c->file + strlen(DS_IMAGES "/");
 }
 
-static uint64_t now_ns(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_REALTIME, &ts);
-        return (uint64_t)ts.tv_sec * 1000000000u + (uint64_t)ts.tv_nsec;
-}
-
 static int bind_capture(sqlite3_stmt *s, const struct ds_capture *c)
 {
         int i = 1, rc = 0;
 
         rc |= sqlite3_bind_int64(s, i++, c->id);
         rc |= sqlite3_bind_text(s, i++, c->session, -1, SQLITE_STATIC);
-        rc |= sqlite3_bind_double(s, i++, c->turntable_deg);
-        rc |= sqlite3_bind_double(s, i++, c->light_arm_deg);
-        rc |= sqlite3_bind_double(s, i++, c->camera_arm_deg);
+        for (int k = 0; k < GN_ROLE_COUNT; k++, i++)
+                rc |= gn_pose_has(&c->pose, k) ? sqlite3_bind_double(s, i, c->pose.deg[k])
+                                               : sqlite3_bind_null(s, i);
         rc |= sqlite3_bind_text(s, i++, c->camera, -1, SQLITE_STATIC);
         rc |= sqlite3_bind_text(s, i++, c->lamps, -1, SQLITE_STATIC);
-        rc |= sqlite3_bind_int(s, i++, c->laser);
+        rc |= sqlite3_bind_int64(s, i++, c->pose.lamps);
+        rc |= sqlite3_bind_int(s, i++, c->pose.laser);
         rc |= sqlite3_bind_int(s, i++, c->exposure_us);
         rc |= sqlite3_bind_double(s, i++, c->gain);
         rc |= sqlite3_bind_int64(s, i++, (sqlite3_int64)c->t_request_ns);
@@ -839,18 +738,31 @@ static int insert_row(struct ds *d, const struct ds_capture *c)
         return r;
 }
 
-/* Writes the encoded image of row (named after row->id) and commits the row. */
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct gn_sha256 *, gn_sha256_free);
+
+/* Writes an image atomically, hashing its bytes on the way into hex. */
+static int write_image(int dir_fd, const char *name, const void *png, size_t len,
+                       char hex[GN_SHA256_HEX])
+{
+        _cleanup_(gn_sha256_freep) struct gn_sha256 *sha = NULL;
+        int r;
+
+        r = gn_sha256_new(&sha);
+        if (r == 0)
+                r = gn_write_atomic(dir_fd, name, png, len, sha);
+        return r < 0 ? r : gn_sha256_final(sha, hex);
+}
+
 /* Writes the encoded image of row (named after row->id) and commits the row. */
 static int store_encoded(struct ds *d, const void *png, size_t len, struct ds_capture *row)
 {
         const char *name = image_name(row);
         int r;
 
-        r = write_atomic(d->img_fd, name, png, len, row->sha256);
+        r = write_image(d->img_fd, name, png, len, row->sha256);
         if (r < 0)
-                return log_error_errno(r, "dataset '%s': Failed to write %s: %m", d->path,
-                                       row->file);
-        row->t_stored_ns = now_ns();
+                return ds_fail(d, r, "Failed to write %s: %s", row->file, strerror(-r));
+        row->t_stored_ns = gn_realtime_ns();
         r = insert_row(d, row);
         if (r < 0 && unlinkat(d->img_fd, name, 0) == 0)
                 (void)fsync(d->img_fd);
@@ -865,6 +777,7 @@ int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_fram
 
         if (!d || !png || !shape || !c)
                 return -EINVAL;
+        d->error[0] = 0;
         r = become_writer(d);
         if (r < 0)
                 return r;
@@ -891,9 +804,8 @@ int ds_store(struct ds *d, const struct gn_frame *frame, struct ds_capture *c)
                 return -EINVAL;
         r = ds_png_encode(frame, d->png_level, &png, &len);
         if (r < 0)
-                return log_error_errno(r, "dataset '%s': Failed to encode %dx%d %s frame: %m",
-                                       d->path, frame->width, frame->height,
-                                       gn_frame_format(frame));
+                return ds_fail(d, r, "Failed to encode %dx%d %s frame: %s", frame->width,
+                               frame->height, gn_frame_format(frame), strerror(-r));
         return ds_store_png(d, png, len, frame, c);
 }
 
@@ -913,12 +825,14 @@ static void row_to_capture(sqlite3_stmt *s, struct ds_capture *c)
         memset(c, 0, sizeof(*c));
         c->id = sqlite3_column_int64(s, i++);
         column_text(s, i++, c->session, sizeof(c->session));
-        c->turntable_deg = sqlite3_column_double(s, i++);
-        c->light_arm_deg = sqlite3_column_double(s, i++);
-        c->camera_arm_deg = sqlite3_column_double(s, i++);
+        for (int k = 0; k < GN_ROLE_COUNT; k++, i++)
+                c->pose.deg[k] = sqlite3_column_type(s, i) == SQLITE_NULL
+                                         ? NAN
+                                         : sqlite3_column_double(s, i);
         column_text(s, i++, c->camera, sizeof(c->camera));
         column_text(s, i++, c->lamps, sizeof(c->lamps));
-        c->laser = sqlite3_column_int(s, i++) != 0;
+        c->pose.lamps = (uint32_t)sqlite3_column_int64(s, i++);
+        c->pose.laser = sqlite3_column_int(s, i++) != 0;
         c->exposure_us = sqlite3_column_int(s, i++);
         c->gain = sqlite3_column_double(s, i++);
         c->t_request_ns = (uint64_t)sqlite3_column_int64(s, i++);
@@ -965,7 +879,7 @@ int ds_load_image(struct ds *d, const char *file, struct gn_frame *out)
 
         if (!d || !file_name_ok(file) || !out)
                 return -EINVAL;
-        r = read_file_at(d->dir_fd, file, &buf, &len);
+        r = gn_read_file_at(d->dir_fd, file, DS_FILE_MAX, &buf, &len);
         if (r == 0)
                 r = ds_png_decode(buf, len, out);
         if (r < 0)
@@ -984,7 +898,7 @@ static int verify_one(const struct ds_capture *c, void *ud)
         char hex[65];
         int r;
 
-        r = file_name_ok(c->file) ? sha256_at(v->d->dir_fd, c->file, hex) : -ENOENT;
+        r = file_name_ok(c->file) ? gn_sha256_file_at(v->d->dir_fd, c->file, hex) : -ENOENT;
         if (r < 0 && r != -ENOENT)
                 return log_error_errno(r, "dataset '%s': Failed to hash %s: %m", v->d->path,
                                        c->file);

@@ -5,7 +5,7 @@
 #include <stdbool.h>
 
 #include "common/frame.h"
-#include "daemon/ds.h"
+#include "dataset/ds.h"
 
 /* A new empty directory under $TMPDIR or /tmp; exits on failure. Free the string. */
 char *tu_tmpdir(void);

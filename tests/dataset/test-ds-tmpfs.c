@@ -8,7 +8,7 @@
 #include <sys/mount.h>
 #include <unistd.h>
 
-#include "daemon/ds.h"
+#include "dataset/ds.h"
 #include "ds-util.h"
 #include "tests/test.h"
 

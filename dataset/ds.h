@@ -18,6 +18,7 @@
 #include <stdint.h>
 
 #include "common/frame.h"
+#include "common/pose.h"
 
 struct ds;
 
@@ -27,10 +28,11 @@ struct ds;
 struct ds_capture {
         int64_t id;                /* row id, set by ds_store */
         char session[DS_NAME_MAX]; /* may be empty */
-        double turntable_deg, light_arm_deg, camera_arm_deg;
+        struct gn_pose pose;       /* angles NAN (NULL in the index) where the rig has no axis
+                                    * of that role; lamp bit set by rig-file index; laser */
         char camera[DS_NAME_MAX];
-        char lamps[256]; /* comma-separated names of the lit lamps, "" for none */
-        bool laser;
+        char lamps[256]; /* names of the lamps lit in pose, comma-separated, "" for none;
+                          * written by the caller (gn_pose_lamp_list) */
         int exposure_us;
         double gain;
         uint64_t t_request_ns;  /* CLOCK_REALTIME when the capture was requested */
@@ -47,8 +49,10 @@ struct ds_capture {
  * create removes what it made. */
 int ds_create(const char *path, const char *name, const char *rig_text, struct ds **ret);
 
-/* Opens an existing dataset for appending or reading. Returns 0, -ENOENT, -EBADMSG
- * (not a dataset / corrupt index) or -errno. */
+/* Opens an existing dataset for appending or reading. An index of schema 1 (angles
+ * NOT NULL, no lamp bits) is migrated to the current schema in one transaction.
+ * Returns 0, -ENOENT, -EBADMSG (not a dataset / corrupt index / unknown schema) or
+ * -errno. */
 int ds_open(const char *path, struct ds **ret);
 
 /* Rewrites dataset.json (when this handle stored captures), closes the index. NULL is a
@@ -65,15 +69,20 @@ int ds_get_compression(const struct ds *d);
 /* Encodes frame as PNG, writes it atomically, computes its SHA-256 and commits the
  * row. Fills c->id, c->file, c->sha256, c->width, c->height, c->pixfmt, c->t_stored_ns.
  * Returns 0, -ENOSPC (nothing recorded, no file left behind), -EBUSY (another handle
- * is the dataset's writer), or the -errno of the failing call (-EFBIG, -EDQUOT...). */
+ * is the dataset's writer), -EINVAL (the index refused the row: a constraint), or the
+ * -errno of the failing call (-EFBIG, -EDQUOT...); ds_last_error() tells why. */
 int ds_store(struct ds *d, const struct gn_frame *frame, struct ds_capture *c);
 
-/* Like ds_store for an image already encoded with ds_png_encode (daemon/ds_png.h):
+/* Like ds_store for an image already encoded with ds_png_encode (dataset/ds_png.h):
  * png holds len bytes encoding a frame of shape's width, height, channels and bits
  * (shape->data is not read). Lets ds_pool encode on several threads and write on one.
  * Same returns and effects as ds_store. */
 int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_frame *shape,
                  struct ds_capture *c);
+
+/* What the last failing call on d reported (SQLite's message, or the failing file
+ * operation), "" if none yet. Valid until the next call on d; same thread as the call. */
+const char *ds_last_error(const struct ds *d);
 
 /* Number of rows. */
 int64_t ds_count(struct ds *d);
@@ -91,6 +100,3 @@ int ds_verify(struct ds *d);
 /* The dataset's absolute directory and name; valid until ds_close. */
 const char *ds_path(const struct ds *d);
 const char *ds_name(const struct ds *d);
-
-/* Computes the SHA-256 of a file as 64 hex chars + NUL. Returns 0 or -errno. */
-int ds_sha256_file(const char *path, char hex[65]);

@@ -4,7 +4,9 @@
  *
  * Usage: test-ds CASE (one meson test per case). */
 #include <errno.h>
+#include <fcntl.h>
 #include <jansson.h>
+#include <math.h>
 #include <signal.h>
 #include <sqlite3.h>
 #include <stdint.h>
@@ -13,7 +15,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "daemon/ds.h"
+#include "common/sha256.h"
+#include "dataset/ds.h"
 #include "ds-util.h"
 #include "tests/test.h"
 
@@ -217,13 +220,13 @@ static void test_verify(void)
         CHECK_INT(rows.n, 5);
         for (int i = 0; i < 5; i++) {
                 path_of(&fx, rows.c[i].file, p, sizeof(p));
-                CHECK_INT(ds_sha256_file(p, hex), 0);
+                CHECK_INT(gn_sha256_file_at(AT_FDCWD, p, hex), 0);
                 CHECK(strcmp(hex, rows.c[i].sha256) == 0);
         }
         path_of(&fx, "abc.txt", p, sizeof(p));
         fp = fopen(p, "w");
         CHECK(fp && fputs("abc", fp) >= 0 && fclose(fp) == 0);
-        CHECK_INT(ds_sha256_file(p, hex), 0);
+        CHECK_INT(gn_sha256_file_at(AT_FDCWD, p, hex), 0);
         CHECK(strcmp(hex, "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad") == 0);
 
         /* flip one byte in the middle of an image: detected by verify and by the decoder */
@@ -287,9 +290,10 @@ static void check_rows_equal(const struct ds_capture *a, const struct ds_capture
         CHECK(strcmp(a->session, b->session) == 0 && strcmp(a->camera, b->camera) == 0);
         CHECK(strcmp(a->lamps, b->lamps) == 0 && strcmp(a->file, b->file) == 0);
         CHECK(strcmp(a->sha256, b->sha256) == 0 && strcmp(a->pixfmt, b->pixfmt) == 0);
-        CHECK(a->turntable_deg == b->turntable_deg && a->light_arm_deg == b->light_arm_deg);
-        CHECK(a->camera_arm_deg == b->camera_arm_deg && a->gain == b->gain);
-        CHECK_INT(a->laser, b->laser);
+        CHECK(gn_pose_equal(&a->pose, &b->pose, 0) && a->gain == b->gain);
+        for (int k = 0; k < GN_ROLE_COUNT; k++)
+                CHECK(isnan(a->pose.deg[k]) ? isnan(b->pose.deg[k])
+                                            : a->pose.deg[k] == b->pose.deg[k]);
         CHECK_INT(a->exposure_us, b->exposure_us);
         CHECK(a->t_request_ns == b->t_request_ns && a->t_exposure_ns == b->t_exposure_ns);
         CHECK(a->t_stored_ns == b->t_stored_ns);
@@ -325,6 +329,138 @@ static void test_reopen(void)
         j = load_json(&fx);
         CHECK_INT(json_integer_value(json_object_get(j, "captures")), 5);
         json_decref(j);
+        teardown(&fx);
+}
+
+/* Runs sql on the dataset's index with a second connection. */
+static void raw_sql(const struct fixture *fx, const char *sql)
+{
+        char p[4200];
+        sqlite3 *db;
+
+        path_of(fx, "index.sqlite", p, sizeof(p));
+        CHECK_INT(sqlite3_open_v2(p, &db, SQLITE_OPEN_READWRITE, NULL), SQLITE_OK);
+        CHECK_INT(sqlite3_exec(db, sql, NULL, NULL, NULL), SQLITE_OK);
+        CHECK_INT(sqlite3_close(db), SQLITE_OK);
+}
+
+/* Runs a query of one integer on the dataset's index with a second connection. */
+static int64_t raw_int(const struct fixture *fx, const char *sql)
+{
+        char p[4200];
+        sqlite3 *db;
+        sqlite3_stmt *s;
+        int64_t v;
+
+        path_of(fx, "index.sqlite", p, sizeof(p));
+        CHECK_INT(sqlite3_open_v2(p, &db, SQLITE_OPEN_READONLY, NULL), SQLITE_OK);
+        CHECK_INT(sqlite3_prepare_v2(db, sql, -1, &s, NULL), SQLITE_OK);
+        CHECK_INT(sqlite3_step(s), SQLITE_ROW);
+        v = sqlite3_column_int64(s, 0);
+        sqlite3_finalize(s);
+        CHECK_INT(sqlite3_close(db), SQLITE_OK);
+        return v;
+}
+
+/* Bug 3: a rig with a turntable only stores NULL angles and reads them back as NAN. */
+static void test_nullpose(void)
+{
+        struct fixture fx = {};
+        struct ds_capture c;
+        struct rows rows = {};
+
+        setup(&fx);
+        tu_capture(&c, "cam0", "l1", 3);
+        c.pose = gn_pose_none();
+        c.pose.deg[GN_ROLE_TURNTABLE] = 33.5;
+        c.pose.lamps = 0x5;
+        struct gn_frame f;
+        tu_frame(&f, 8, 8, 1, 8, 1, false);
+        CHECK_INT(ds_store(fx.d, &f, &c), 0);
+        gn_frame_free_data(&f);
+        fx.d = ds_close(fx.d);
+        CHECK_INT(ds_open(fx.path, &fx.d), 0);
+        CHECK_INT(ds_foreach(fx.d, collect, &rows), 0);
+        CHECK_INT(rows.n, 1);
+        check_rows_equal(&rows.c[0], &c);
+        CHECK(rows.c[0].pose.deg[GN_ROLE_TURNTABLE] == 33.5);
+        CHECK(isnan(rows.c[0].pose.deg[GN_ROLE_LIGHT_ARM]));
+        CHECK(isnan(rows.c[0].pose.deg[GN_ROLE_CAMERA_ARM]));
+        CHECK_INT(rows.c[0].pose.lamps, 0x5);
+        /* NULL in the index, not NaN or 0 */
+        CHECK_INT(raw_int(&fx, "SELECT count(*) FROM captures WHERE camera_arm_deg IS NULL "
+                               "AND light_arm_deg IS NULL AND turntable_deg = 33.5 "
+                               "AND lamp_bits = 5"),
+                  1);
+        teardown(&fx);
+}
+
+/* The index refusing a row is -EINVAL with SQLite's message, not a stale errno, and
+ * nothing is left behind. */
+static void test_refused(void)
+{
+        struct fixture fx = {};
+        struct ds_capture c;
+        char images[4200];
+
+        setup(&fx);
+        CHECK_INT(store(fx.d, 8, 8, 1, 8, "cam0", "l1", 0, &c), 0);
+        raw_sql(&fx, "CREATE TRIGGER no_more BEFORE INSERT ON captures "
+                     "BEGIN SELECT RAISE(ABORT, 'rows refused by test'); END");
+        errno = EEXIST; /* a stale errno must not leak into the result */
+        CHECK_INT(store(fx.d, 8, 8, 1, 8, "cam0", "l1", 1, &c), -EINVAL);
+        CHECK_STR_CONTAINS(ds_last_error(fx.d), "rows refused by test");
+        path_of(&fx, "images", images, sizeof(images));
+        CHECK_INT(tu_count(images, ""), 1);
+        CHECK_INT(tu_count_tmp(fx.path), 0);
+        CHECK_INT(ds_count(fx.d), 1);
+        teardown(&fx);
+}
+
+/* A schema-1 index (angles NOT NULL, no lamp_bits, user_version 0) opens, is migrated
+ * and then takes rows without a camera arm. */
+static void test_migrate(void)
+{
+        struct fixture fx = {};
+        struct ds_capture c;
+        struct rows rows = {};
+
+        setup(&fx);
+        fx.d = ds_close(fx.d);
+        raw_sql(&fx, "DROP TABLE captures;"
+                     "CREATE TABLE captures (id INTEGER PRIMARY KEY,"
+                     " session TEXT NOT NULL DEFAULT '',"
+                     " turntable_deg REAL NOT NULL, light_arm_deg REAL NOT NULL,"
+                     " camera_arm_deg REAL NOT NULL, camera TEXT NOT NULL, lamps TEXT NOT NULL,"
+                     " laser INTEGER NOT NULL, exposure_us INTEGER NOT NULL, gain REAL NOT NULL,"
+                     " t_request_ns INTEGER NOT NULL, t_exposure_ns INTEGER NOT NULL,"
+                     " t_stored_ns INTEGER NOT NULL, file TEXT NOT NULL UNIQUE,"
+                     " sha256 TEXT NOT NULL, width INTEGER NOT NULL, height INTEGER NOT NULL,"
+                     " pixfmt TEXT NOT NULL);"
+                     "INSERT INTO captures VALUES (1, 's', 10, 20, 30, 'cam0', 'l1', 1, 1000, 1.5,"
+                     " 5, 6, 7, 'images/000001_cam0_l1.png', 'ab', 4, 4, 'mono8');"
+                     "UPDATE meta SET value = '1' WHERE key = 'schema_version';"
+                     "PRAGMA user_version = 0;");
+        CHECK_INT(ds_open(fx.path, &fx.d), 0);
+        CHECK_INT(ds_foreach(fx.d, collect, &rows), 0);
+        CHECK_INT(rows.n, 1);
+        CHECK(rows.c[0].pose.deg[GN_ROLE_TURNTABLE] == 10);
+        CHECK(rows.c[0].pose.deg[GN_ROLE_CAMERA_ARM] == 30);
+        CHECK(rows.c[0].pose.laser);
+        CHECK_STR(rows.c[0].lamps, "l1");
+        fx.d = ds_close(fx.d);
+        raw_sql(&fx, "DELETE FROM captures"); /* its image does not exist */
+        CHECK_INT(ds_open(fx.path, &fx.d), 0);
+        tu_capture(&c, "cam0", "", 1);
+        c.pose.deg[GN_ROLE_CAMERA_ARM] = NAN;
+        struct gn_frame f;
+        tu_frame(&f, 8, 8, 1, 8, 1, false);
+        CHECK_INT(ds_store(fx.d, &f, &c), 0);
+        gn_frame_free_data(&f);
+        /* a schema from the future is refused */
+        fx.d = ds_close(fx.d);
+        raw_sql(&fx, "PRAGMA user_version = 3");
+        CHECK_INT(ds_open(fx.path, &fx.d), -EBADMSG);
         teardown(&fx);
 }
 
@@ -444,17 +580,14 @@ static void test_fsize(void)
 
 int main(int argc, char **argv)
 {
-        static const struct {
-                const char *name;
-                void (*fn)(void);
-        } cases[] = {
-                {"create", test_create}, {"roundtrip", test_roundtrip}, {"verify", test_verify},
-                {"wal", test_wal},       {"reopen", test_reopen},       {"tmpfiles", test_tmpfiles},
-                {"lock", test_lock},     {"fsize", test_fsize},
+        static const struct test_case cases[] = {
+                {"create", test_create},     {"roundtrip", test_roundtrip},
+                {"verify", test_verify},     {"wal", test_wal},
+                {"reopen", test_reopen},     {"tmpfiles", test_tmpfiles},
+                {"lock", test_lock},         {"fsize", test_fsize},
+                {"nullpose", test_nullpose}, {"refused", test_refused},
+                {"migrate", test_migrate},
         };
 
-        for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++)
-                if (argc < 2 || strcmp(argv[1], cases[i].name) == 0)
-                        cases[i].fn();
-        return 0;
+        return TEST_RUN_CASES(cases, argc, argv);
 }

@@ -69,12 +69,13 @@ void tu_capture(struct ds_capture *c, const char *camera, const char *lamps, int
 {
         memset(c, 0, sizeof(*c));
         snprintf(c->session, sizeof(c->session), "sess-%d", i / 10);
-        c->turntable_deg = 12.5 * i;
-        c->light_arm_deg = -30.25 + i;
-        c->camera_arm_deg = 45.0 / (i + 1);
+        c->pose.deg[GN_ROLE_TURNTABLE] = 12.5 * i;
+        c->pose.deg[GN_ROLE_LIGHT_ARM] = -30.25 + i;
+        c->pose.deg[GN_ROLE_CAMERA_ARM] = 45.0 / (i + 1);
+        c->pose.lamps = *lamps ? 1u << (i % 3) : 0;
+        c->pose.laser = i % 2;
         snprintf(c->camera, sizeof(c->camera), "%s", camera);
         snprintf(c->lamps, sizeof(c->lamps), "%s", lamps);
-        c->laser = i % 2;
         c->exposure_us = 1000 + i;
         c->gain = 1.5 + i * 0.125;
         c->t_request_ns = 1700000000000000000ull + (uint64_t)i * 1000;

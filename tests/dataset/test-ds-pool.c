@@ -6,8 +6,8 @@
 #include <string.h>
 #include <systemd/sd-event.h>
 
-#include "daemon/ds.h"
-#include "daemon/ds_pool.h"
+#include "dataset/ds.h"
+#include "dataset/ds_pool.h"
 #include "ds-util.h"
 #include "tests/test.h"
 

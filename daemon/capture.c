@@ -1,0 +1,257 @@
+/* capture.c - goniod's capture pipeline (see capture.h).
+ *
+ * DESIGN: a request owns one struct take. Its exposure comes back from the rig
+ * with every frame and the pose the devices confirmed around it; each good frame
+ * becomes a row and goes to the storage pool, and the request completes when the
+ * last store has answered. A store that fails (a full disk) faults the rig, so it
+ * goes to its safe state before anything else is tried; the rows committed before
+ * stay and are reported as stored, so a retry never duplicates them. */
+#include <errno.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "common/log.h"
+#include "capture.h"
+
+#define POOL_ENCODERS 2
+#define POOL_CAPACITY 16
+
+struct take {
+        struct capture *cp;
+        struct capture_result res;
+        unsigned pending; /* stores not answered yet */
+        char session[DS_NAME_MAX];
+        capture_done_fn done;
+        void *ud;
+        struct take *next;
+};
+
+struct capture {
+        sd_event *event;
+        struct rig *rig;
+        struct ds *ds;
+        struct ds_pool *pool;
+        char ds_name[DS_NAME_MAX];
+        int64_t ds_count;
+        struct take *exposing; /* takes whose exposure has not come back */
+        unsigned storing;      /* takes waiting for stores */
+        capture_stored_fn stored;
+        void *stored_ud;
+};
+
+int capture_new(sd_event *event, struct rig *rig, capture_stored_fn stored, void *userdata,
+                struct capture **ret)
+{
+        struct capture *cp = calloc(1, sizeof(*cp));
+
+        if (!cp)
+                return -ENOMEM;
+        *cp = (struct capture){.event = event, .rig = rig, .stored = stored, .stored_ud = userdata};
+        *ret = cp;
+        return 0;
+}
+
+static void unlink_exposing(struct capture *cp, struct take *t)
+{
+        for (struct take **p = &cp->exposing; *p; p = &(*p)->next)
+                if (*p == t) {
+                        *p = t->next;
+                        return;
+                }
+}
+
+struct capture *capture_free(struct capture *cp)
+{
+        if (!cp)
+                return NULL;
+        while (cp->exposing) {
+                struct take *t = cp->exposing;
+                cp->exposing = t->next;
+                free(t); /* the rig drops the completion at rig_free */
+        }
+        cp->pool = ds_pool_free(cp->pool); /* answers the stores */
+        cp->ds = ds_close(cp->ds);
+        free(cp);
+        return NULL;
+}
+
+unsigned capture_in_flight(const struct capture *cp)
+{
+        return cp->storing + (cp->exposing != NULL) + (cp->pool ? ds_pool_in_flight(cp->pool) : 0);
+}
+
+int capture_close_dataset(struct capture *cp)
+{
+        if (capture_in_flight(cp) > 0)
+                return -EBUSY;
+        cp->pool = ds_pool_free(cp->pool);
+        cp->ds = ds_close(cp->ds);
+        cp->ds_name[0] = 0;
+        cp->ds_count = 0;
+        return 0;
+}
+
+int capture_open_dataset(struct capture *cp, struct ds *d, const char *name)
+{
+        struct ds_pool *pool = NULL;
+        int r;
+
+        if (capture_in_flight(cp) > 0)
+                return -EBUSY;
+        r = ds_pool_new(cp->event, d, POOL_ENCODERS, POOL_CAPACITY, &pool);
+        if (r < 0)
+                return r;
+        (void)capture_close_dataset(cp);
+        cp->ds = d;
+        cp->pool = pool;
+        cp->ds_count = ds_count(d);
+        snprintf(cp->ds_name, sizeof(cp->ds_name), "%s", name);
+        return 0;
+}
+
+struct ds *capture_dataset(const struct capture *cp)
+{
+        return cp->ds;
+}
+
+const char *capture_dataset_name(const struct capture *cp)
+{
+        return cp->ds ? cp->ds_name : NULL;
+}
+
+int64_t capture_dataset_count(const struct capture *cp)
+{
+        return cp->ds_count;
+}
+
+static void take_part_done(struct take *t)
+{
+        struct capture *cp = t->cp;
+
+        if (--t->pending > 0)
+                return;
+        cp->storing--;
+        t->done(cp, &t->res, t->ud);
+        free(t);
+}
+
+/* One shot's store job: which take and which shot. */
+struct store_ref {
+        struct take *t;
+        size_t shot;
+};
+
+static void on_stored(int result, const struct ds_capture *c, void *userdata)
+{
+        struct store_ref *ref = userdata;
+        struct take *t = ref->t;
+        struct capture_shot *s = &t->res.shots[ref->shot];
+        struct capture *cp = t->cp;
+
+        free(ref);
+        s->result = result;
+        if (result >= 0) {
+                s->row = *c;
+                cp->ds_count++;
+                if (cp->stored)
+                        cp->stored(cp->stored_ud, c);
+        } else {
+                snprintf(s->msg, sizeof(s->msg),
+                         "camera '%s': storing the frame in dataset '%s' failed: %s", c->camera,
+                         cp->ds_name,
+                         result == -ECANCELED ? "canceled at shutdown" : strerror(-result));
+                if (result != -ECANCELED)
+                        rig_fault(cp->rig, "dataset", result, "%s", s->msg);
+        }
+        take_part_done(t);
+}
+
+/* The row describing shot s of exposure e. */
+static void fill_row(struct capture *cp, const struct take *t, const struct rig_exposure *e,
+                     const struct rig_shot *s, struct ds_capture *row)
+{
+        const struct rig_config *rc = rig_config(cp->rig);
+        const char *names[RIG_MAX_LAMPS];
+
+        for (size_t i = 0; i < rc->n_lamps; i++)
+                names[i] = rc->lamps[i].name;
+        row->pose = e->pose;
+        (void)gn_pose_lamp_list(&e->pose, names, rc->n_lamps, row->lamps, sizeof(row->lamps));
+        snprintf(row->session, sizeof(row->session), "%s", t->session);
+        row->exposure_us = s->frame.exposure_us;
+        row->gain = s->frame.gain;
+        row->t_request_ns = e->t_request_ns;
+        row->t_exposure_ns = s->frame.timestamp_ns;
+}
+
+/* Hands shot i's frame to the storage pool, or records why it cannot be stored. */
+static void store_shot(struct take *t, struct rig_exposure *e, size_t i)
+{
+        struct capture *cp = t->cp;
+        struct rig_shot *s = &e->shots[i];
+        struct capture_shot *out = &t->res.shots[i];
+        struct store_ref *ref;
+        int r;
+
+        out->result = s->result;
+        if (s->result < 0)
+                return (void)snprintf(out->msg, sizeof(out->msg), "%s", s->msg);
+        if (!cp->pool)
+                r = -ESTALE;
+        else if (!(ref = malloc(sizeof(*ref))))
+                r = -ENOMEM;
+        else {
+                *ref = (struct store_ref){t, i};
+                fill_row(cp, t, e, s, &out->row);
+                r = ds_pool_store(cp->pool, &s->frame, &out->row, on_stored, ref);
+                if (r >= 0)
+                        return (void)t->pending++;
+                free(ref);
+        }
+        out->result = r;
+        snprintf(out->msg, sizeof(out->msg), "camera '%s': %s", out->row.camera,
+                 r == -EAGAIN   ? "the storage queue is full"
+                 : r == -ESTALE ? "the dataset was closed during the capture"
+                                : strerror(-r));
+}
+
+static void on_exposed(struct rig *rig, struct rig_exposure *e, void *userdata)
+{
+        struct take *t = userdata;
+        struct capture *cp = t->cp;
+
+        unlink_exposing(cp, t);
+        t->pending = 1; /* held until every shot is handed over */
+        cp->storing++;
+        for (size_t i = 0; i < e->n_shots; i++)
+                store_shot(t, e, i);
+        take_part_done(t);
+}
+
+int capture_take(struct capture *cp, const int *cams, size_t n, const struct cam_request *req,
+                 const char *session, capture_done_fn done, void *userdata)
+{
+        const struct rig_config *rc = rig_config(cp->rig);
+        struct take *t;
+        int r;
+
+        if (!cp->pool)
+                return -ESTALE;
+        if (n == 0 || n > RIG_MAX_CAMERAS)
+                return -EINVAL;
+        if (!(t = calloc(1, sizeof(*t))))
+                return -ENOMEM;
+        *t = (struct take){.cp = cp, .done = done, .ud = userdata, .next = cp->exposing};
+        snprintf(t->session, sizeof(t->session), "%s", session ? session : "");
+        t->res.n_shots = n;
+        for (size_t i = 0; i < n; i++)
+                snprintf(t->res.shots[i].row.camera, sizeof(t->res.shots[i].row.camera), "%s",
+                         rc->cameras[cams[i]].name);
+        cp->exposing = t;
+        r = rig_expose(cp->rig, cams, n, req, on_exposed, t);
+        if (r < 0) {
+                unlink_exposing(cp, t);
+                free(t);
+        }
+        return r;
+}

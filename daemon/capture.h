@@ -1,0 +1,66 @@
+/* capture.h - goniod's capture pipeline: one request becomes an exposure of one or
+ * more cameras in one confirmed pose (rig_expose), each frame is stored in the open
+ * dataset off the loop (ds_pool), and each stored row is announced. No JSON here:
+ * the protocol methods and, later, the session runner drive it alike. */
+#pragma once
+
+#include <systemd/sd-event.h>
+
+#include "dataset/ds.h"
+#include "dataset/ds_pool.h"
+#include "rig.h"
+
+struct capture;
+
+/* One camera's outcome: stored (row filled, result 0) or not (result -errno, msg). */
+struct capture_shot {
+        int result;
+        char msg[300];
+        struct ds_capture row; /* camera always set; the rest when stored */
+};
+
+/* The outcome of one request: every camera asked for, stored or not. */
+struct capture_result {
+        size_t n_shots;
+        struct capture_shot shots[RIG_MAX_CAMERAS];
+};
+
+/* Completion of capture_take on the loop thread; res is valid during the call only. */
+typedef void (*capture_done_fn)(struct capture *cp, const struct capture_result *res,
+                                void *userdata);
+
+/* Called on the loop thread for every row committed (capture.stored). */
+typedef void (*capture_stored_fn)(void *userdata, const struct ds_capture *row);
+
+/* Creates the pipeline over rig (borrowed; must outlive it). stored (may be NULL) is told
+ * of every committed row. Returns 0 or -ENOMEM. */
+int capture_new(sd_event *event, struct rig *rig, capture_stored_fn stored, void *userdata,
+                struct capture **ret);
+
+/* Finishes pending stores (their requests complete), forgets exposures still running
+ * (their requests get no completion), closes the dataset. NULL is a no-op; returns NULL. */
+struct capture *capture_free(struct capture *cp);
+
+/* Makes d (taken over; closed by the pipeline) the dataset captures go to, with a
+ * storage pool of its own. -EBUSY while captures are in flight, or -errno. */
+int capture_open_dataset(struct capture *cp, struct ds *d, const char *name);
+
+/* Closes the open dataset (rewriting its summary). -EBUSY while captures are in flight. */
+int capture_close_dataset(struct capture *cp);
+
+/* The open dataset and its name, or NULL. Valid until it is closed. */
+struct ds *capture_dataset(const struct capture *cp);
+const char *capture_dataset_name(const struct capture *cp);
+
+/* Rows in the open dataset (counted at open, plus those stored since). */
+int64_t capture_dataset_count(const struct capture *cp);
+
+/* Exposes cams[0..n) (camera indices) with req and stores the frames in the open dataset,
+ * with session (may be NULL) on every row; done gets each camera's outcome. Returns 0,
+ * -ESTALE (no dataset open, or the rig is faulted), or rig_expose's refusal (-EBUSY:
+ * rig_busy_reason() says why). */
+int capture_take(struct capture *cp, const int *cams, size_t n, const struct cam_request *req,
+                 const char *session, capture_done_fn done, void *userdata);
+
+/* Exposures and stores in flight (0: the dataset may change). */
+unsigned capture_in_flight(const struct capture *cp);

@@ -1,0 +1,119 @@
+/* rig_internal.h - the parts of the rig shared by rig.c (devices, jobs, motion,
+ * switches, faults), rig_expose.c (exposures) and rig_json.c (status, describe).
+ * Everything here runs on the loop thread except job_run's driver calls. */
+#pragma once
+
+#include <stdatomic.h>
+#include <systemd/sd-event.h>
+
+#include "drivers/axis/axis.h"
+#include "drivers/bus/bus.h"
+#include "drivers/switch/switch.h"
+#include "rig.h"
+
+enum axis_op { AX_IDLE, AX_MOVING, AX_HOMING, AX_STOPPING };
+
+struct rig_axis {
+        struct rig *rig;
+        int idx;
+        struct axis *ax;
+        struct axis_state st; /* last state the drive reported */
+        bool open;
+        enum axis_op op;
+        atomic_uint gen; /* bumped by stop; queued moves of older generations are dropped */
+        rig_done_fn done;
+        void *ud;
+        sd_event_source *timer;
+        double target; /* of the running move, degrees */
+        uint64_t started, deadline, last_notify;
+        bool settling;
+        bool polling; /* an idle poll is queued */
+};
+
+struct rig_switch {
+        struct sw *sw;
+        bool open;
+        unsigned changing; /* switch jobs in flight and warm-ups running */
+};
+
+struct exposure;
+
+struct rig {
+        sd_event *event;
+        struct rig_config *rc;
+        struct bus *buses[RIG_MAX_BUSES];
+        struct rig_axis axes[RIG_MAX_AXES];
+        struct rig_switch lamps[RIG_MAX_LAMPS], laser;
+        struct cam *cams[RIG_MAX_CAMERAS];
+        bool cam_open[RIG_MAX_CAMERAS];
+        unsigned pending;           /* jobs in flight */
+        struct exposure *exposure;  /* the exposure running, or NULL */
+        sd_event_source *idle_poll; /* reads idle drives back periodically */
+        rig_event_fn notify;
+        void *notify_ud;
+        bool fault, freeing;
+        char fault_device[RIG_NAME_MAX];
+        char fault_msg[256];
+        char last_error[256];
+        char busy[160];
+        const char *last_state;
+        /* fault.clear in progress: its jobs are counted, done runs when the last ends */
+        bool clear_collect;
+        unsigned clear_pending;
+        rig_done_fn clear_done;
+        void *clear_ud;
+};
+
+/* Axis jobs come first: is_axis_job() relies on the order. */
+enum job_kind {
+        J_OPEN_AXIS,
+        J_HOME,
+        J_MOVE,
+        J_POLL,
+        J_STOP,
+        J_RESET,
+        J_OPEN_SW,
+        J_CHECK_SW,
+        J_SWITCH,
+        J_OPEN_CAM,
+        J_CAPTURE
+};
+
+struct job {
+        struct rig *rig;
+        enum job_kind kind;
+        int idx; /* device index; -1 = the laser for switch jobs */
+        unsigned gen;
+        double arg;
+        bool on;
+        struct axis_state st;
+        struct cam_request creq;
+        struct gn_frame frame;
+        rig_done_fn done;
+        void *ud;
+        struct exposure *exp;    /* the exposure this poll or capture belongs to */
+        int shot;                /* index into the exposure's shots */
+        bool clear;              /* part of a fault.clear */
+        char why[DEV_ERROR_MAX]; /* the driver's message when the job failed (worker) */
+};
+
+/* Queues j on its device's bus (urgent jobs first); frees j on failure. 0 or -errno. */
+int rig_submit(struct job *j, bool urgent);
+
+/* Allocates and queues a job. 0 or -errno. */
+int rig_submit_new(struct rig *rig, enum job_kind kind, int idx, double arg, bool on, bool urgent);
+
+/* Sends ev to the rig's listener. */
+void rig_emit(struct rig *rig, const struct rig_event *ev);
+
+/* Emits RIG_EVENT_STATE if rig_state() changed. */
+void rig_update_state(struct rig *rig);
+
+/* Starts stopping axis a and following it until it stands still (uncommanded motion). */
+void rig_axis_stop_and_follow(struct rig_axis *a, const char *why);
+
+/* Completion of an exposure's poll or capture job (rig_expose.c). */
+void rig_expose_job_done(struct job *j, int result);
+
+/* Fails the exposure in flight at rig_free: its completion is dropped (rig_expose.c). */
+void rig_expose_abandon(struct rig *rig);

@@ -1,0 +1,92 @@
+/* rig_json.c - the rig's status and describe objects of the control protocol. */
+#include "drivers/registry.h"
+#include "rig_internal.h"
+
+static json_t *axis_status(const struct rig_axis *a)
+{
+        const struct rig_axis_conf *c = a->ax->conf;
+
+        return json_pack("{sssfsbsbsbsbsisfsfsbss?}", "name", c->name, "position",
+                         a->st.position_deg, "moving",
+                         a->op != AX_IDLE || (a->open && a->st.moving), "homed", a->st.homed,
+                         "fault", a->st.fault, "open", a->open, "fault_code", a->st.fault_code,
+                         "min", c->min_deg, "max", c->max_deg, "continuous", c->continuous, "role",
+                         gn_role_name(c->role));
+}
+
+static json_t *switch_status(const struct rig_switch *s)
+{
+        return json_pack("{sssbsb}", "name", s->sw->conf->name, "on", s->sw->on, "open", s->open);
+}
+
+json_t *rig_status(const struct rig *rig)
+{
+        const struct rig_config *rc = rig->rc;
+        json_t *axes = json_array(), *lamps = json_array(), *cams = json_array();
+        bool homed = rc->n_axes > 0;
+
+        for (size_t i = 0; i < rc->n_axes; i++) {
+                json_array_append_new(axes, axis_status(&rig->axes[i]));
+                homed = homed && rig->axes[i].st.homed;
+        }
+        for (size_t i = 0; i < rc->n_lamps; i++)
+                json_array_append_new(lamps, switch_status(&rig->lamps[i]));
+        for (size_t i = 0; i < rc->n_cameras; i++)
+                json_array_append_new(
+                        cams, json_pack("{sssisisisb}", "name", rc->cameras[i].name, "width",
+                                        rc->cameras[i].width, "height", rc->cameras[i].height,
+                                        "bits", rc->cameras[i].bits, "open", rig->cam_open[i]));
+        return json_pack("{sssbsososososo}", "state", rig_state(rig), "homed", homed, "axes", axes,
+                         "lamps", lamps, "laser",
+                         rc->has_laser ? switch_status(&rig->laser) : json_null(), "cameras", cams,
+                         "fault",
+                         rig->fault ? json_pack("{ssss}", "device", rig->fault_device, "message",
+                                                rig->fault_msg)
+                                    : json_null());
+}
+
+static json_t *opts_json(const struct opt_desc *opts, int n)
+{
+        json_t *a = json_array();
+
+        for (int i = 0; i < n; i++)
+                json_array_append_new(
+                        a, json_pack("{sssbsbss?sfsf}", "name", opt_key_name(opts[i].key), "get",
+                                     (opts[i].flags & OPT_GET) != 0, "set",
+                                     (opts[i].flags & OPT_SET) != 0, "unit", opts[i].unit, "min",
+                                     opts[i].min, "max", opts[i].max));
+        return a;
+}
+
+static json_t *device_json(const char *cls, const char *name, const char *backend, const char *bus,
+                           const struct opt_desc *opts, int n)
+{
+        return json_pack("{ssssssssso}", "class", cls, "name", name, "backend", backend, "bus", bus,
+                         "options", opts_json(opts, n));
+}
+
+json_t *rig_describe(const struct rig *rig)
+{
+        const struct rig_config *rc = rig->rc;
+        json_t *devs = json_array();
+
+        for (size_t i = 0; i < rc->n_axes; i++) {
+                const struct axis *ax = rig->axes[i].ax;
+                json_array_append_new(devs,
+                                      device_json("axis", rc->axes[i].name, ax->ops->name,
+                                                  rc->axes[i].bus, ax->ops->opts, ax->ops->n_opts));
+        }
+        for (size_t i = 0; i < rc->n_lamps + rc->has_laser; i++) {
+                const struct sw *s = i < rc->n_lamps ? rig->lamps[i].sw : rig->laser.sw;
+                json_array_append_new(devs, device_json(i < rc->n_lamps ? "lamp" : "laser",
+                                                        s->conf->name, s->ops->name, s->conf->bus,
+                                                        s->ops->opts, s->ops->n_opts));
+        }
+        for (size_t i = 0; i < rc->n_cameras; i++) {
+                const struct cam *c = rig->cams[i];
+                json_array_append_new(devs,
+                                      device_json("camera", c->conf->name, c->ops->name,
+                                                  c->conf->bus, c->ops->opts, c->ops->n_opts));
+        }
+        return json_pack("{ssso}", "rig", rc->name, "devices", devs);
+}
