@@ -209,7 +209,8 @@ static void store_shot(struct take *t, struct rig_exposure *e, size_t i)
                 free(ref);
         }
         out->result = r;
-        snprintf(out->msg, sizeof(out->msg), "camera '%s': %s", out->row.camera,
+        snprintf(out->msg, sizeof(out->msg), "camera '%s': %s",
+                 rig_config(cp->rig)->cameras[s->cam].name,
                  r == -EAGAIN   ? "the storage queue is full"
                  : r == -ESTALE ? "the dataset was closed during the capture"
                                 : strerror(-r));
