@@ -124,6 +124,10 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
                                      m)) < 0 ||
             (r = sd_event_set_watchdog(m->event, true)) < 0)
                 goto fail;
+        /* Claim the socket first: a second goniod must not touch the rig. */
+        r = server_new(m->event, socket_path, manager_methods, m, &m->server);
+        if (r < 0)
+                goto fail;
         r = rig_new(m->event, m->rc, manager_on_rig_event, m, &m->rig);
         if (r < 0)
                 goto fail;
@@ -132,7 +136,7 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
                 goto fail;
         if (strcmp(rig_state(m->rig), "fault") == 0)
                 log_warning("rig starts in fault state; fix it and call fault.clear");
-        r = server_new(m->event, socket_path, manager_methods, m, &m->server);
+        r = server_start(m->server);
         if (r < 0)
                 goto fail;
         *ret = m;

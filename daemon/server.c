@@ -5,12 +5,26 @@
  * EPOLLOUT. A client whose unsent output passes SRV_MAX_OUTPUT is disconnected,
  * so a stalled client cannot grow the daemon's memory. Requests hold a
  * reference on their client, so a deferred answer to a client that has gone is
- * dropped safely. Nothing here blocks. */
+ * dropped safely. Nothing here blocks.
+ *
+ * One daemon per socket: "<path>.lock" is flock'ed for the server's lifetime and
+ * a connect() probe refuses a path something still serves; only a stale socket
+ * is removed, and on exit the path is unlinked only if it is still our socket.
+ *
+ * Connections: accepted in a loop (SOMAXCONN backlog) up to max_clients. When
+ * the table is full a new connection evicts the oldest client that never said
+ * hello, else the hello'd client idle longest past idle_usec with no request
+ * pending; each evicted client is told why. When nobody can be evicted the new
+ * connection gets one error line and is closed, so an operator is never locked
+ * out by connections that do nothing. A spare descriptor lets the server
+ * refuse a connection even when the process is out of descriptors. */
 #include <errno.h>
 #include <fcntl.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/file.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -22,8 +36,9 @@
 #include "protocol/proto.h"
 #include "server.h"
 
-#define SRV_MAX_OUTPUT  (8u << 20)
-#define SRV_MAX_CLIENTS 64
+#define SRV_MAX_OUTPUT   (8u << 20)
+#define SRV_FD_RESERVE   64   /* descriptors left for devices, datasets and the loop */
+#define SRV_ACCEPT_BATCH 1024 /* per wake-up, so a connection flood cannot starve clients */
 
 struct client {
         struct server *server;
@@ -33,18 +48,26 @@ struct client {
         struct proto_lines in;
         char *out;
         size_t out_len, out_cap;
-        struct client *next;
+        bool hello;           /* answered a successful hello */
+        uint64_t last_active; /* CLOCK_MONOTONIC usec of its last request, or of accept */
+        struct client *next;  /* the list is newest first */
 };
 
 struct server {
         sd_event *event;
-        int fd;
+        int fd, lock_fd, spare_fd;
         char *path;
+        bool bound; /* path is the socket we bound, identified by dev/ino */
+        dev_t dev;
+        ino_t ino;
         sd_event_source *listen;
         const struct srv_method *methods;
         void *userdata;
         struct client *clients;
-        unsigned n_clients;
+        unsigned n_clients, max_clients, budget; /* budget: what RLIMIT_NOFILE allows */
+        uint64_t idle_usec;
+        uint64_t log_quiet_until; /* log_drop */
+        unsigned log_skipped;
 };
 
 struct srv_req {
@@ -53,6 +76,21 @@ struct srv_req {
         const char *method;
         char errmsg[512];
 };
+
+static int safe_close(int fd)
+{
+        if (fd >= 0)
+                close(fd);
+        return -EBADF;
+}
+
+static uint64_t loop_now(struct server *s)
+{
+        uint64_t t = 0;
+
+        (void)sd_event_now(s->event, CLOCK_MONOTONIC, &t);
+        return t;
+}
 
 static struct client *client_unref(struct client *c)
 {
@@ -140,7 +178,9 @@ void srv_reply(struct srv_req *req, json_t *result)
 {
         json_t *msg;
 
-        if (!req->id) { /* a notification: no answer */
+        if (strcmp(req->method, "hello") == 0)
+                req->client->hello = true; /* see pick_victim */
+        if (!req->id) {                    /* a notification: no answer */
                 json_decref(result);
                 req_free(req);
                 return;
@@ -262,6 +302,7 @@ static void handle_line(struct client *c, const char *line, size_t len)
         char err[256] = "";
         int r = proto_parse(line, len, &msg, &id, err, sizeof(err));
 
+        c->last_active = loop_now(c->server);
         if (r != 0) {
                 send_error(c, id, r, err);
                 json_decref(id);
@@ -288,7 +329,6 @@ static int client_read(struct client *c)
                 return -ECONNRESET;
         if (proto_lines_feed(&c->in, buf, n) < 0)
                 return -ENOMEM;
-        c->ref++; /* keep c while handlers run */
         while (c->fd >= 0 && (r = proto_lines_next(&c->in, &line, &len)) != 0) {
                 if (r == -EMSGSIZE)
                         send_error(c, NULL, PROTO_E_LINE_TOO_LONG,
@@ -296,9 +336,7 @@ static int client_read(struct client *c)
                 else if (r > 0)
                         handle_line(c, line, len);
         }
-        r = c->fd < 0 ? -ECONNRESET : 0;
-        client_unref(c);
-        return r;
+        return c->fd < 0 ? -ECONNRESET : 0;
 }
 
 static int on_client_io(sd_event_source *es, int fd, uint32_t revents, void *userdata)
@@ -306,56 +344,281 @@ static int on_client_io(sd_event_source *es, int fd, uint32_t revents, void *use
         struct client *c = userdata;
         int r = 0;
 
+        c->ref++; /* keep c while handlers run: they may close it */
         if (revents & EPOLLOUT)
                 r = client_flush(c);
         if (r >= 0 && (revents & (EPOLLIN | EPOLLHUP | EPOLLERR)))
                 r = client_read(c);
         if (r < 0 && c->fd >= 0)
                 client_close(c);
+        client_unref(c);
         return 0;
+}
+
+/* Logs an eviction or refusal, at most one a second with a count of those skipped, so
+ * that a flood of connections does not flood the journal. */
+static void log_drop(struct server *s, const char *what, const char *text)
+{
+        uint64_t now = loop_now(s);
+
+        if (now < s->log_quiet_until) {
+                s->log_skipped++;
+                return;
+        }
+        log_notice("%s: %s (%u more not logged)", what, text, s->log_skipped);
+        s->log_skipped = 0;
+        s->log_quiet_until = now + 1000000;
+}
+
+/* Writes one error line for -EUSERS straight to a connection we will not serve. */
+static void refuse(struct server *s, int fd, const char *why)
+{
+        _cleanup_free_ char *line = NULL;
+        char text[256];
+        json_t *msg;
+        size_t len;
+
+        snprintf(text, sizeof(text),
+                 "too many clients (%u)%s; close idle connections or retry later", s->max_clients,
+                 why);
+        msg = proto_error_errno(NULL, -EUSERS, text);
+        if (msg && (line = proto_dump(msg, &len)))
+                (void)send(fd, line, len, MSG_NOSIGNAL | MSG_DONTWAIT);
+        json_decref(msg);
+        log_drop(s, "refused a connection", text);
+}
+
+/* The client to drop for a new one: the oldest that never said hello, else the one idle
+ * longest past idle_usec with no request pending (ref 1); NULL when there is none. */
+static struct client *pick_victim(struct server *s, uint64_t now)
+{
+        struct client *anon = NULL, *idle = NULL;
+
+        for (struct client *c = s->clients; c; c = c->next) {
+                if (!c->hello)
+                        anon = c; /* newest first: the last one seen is the oldest */
+                else if (c->ref == 1 && now - c->last_active >= s->idle_usec &&
+                         (!idle || c->last_active < idle->last_active))
+                        idle = c;
+        }
+        return anon ? anon : idle;
+}
+
+/* Disconnects a client to make room, telling it why. Returns false if nobody qualifies. */
+static bool evict(struct server *s, uint64_t now)
+{
+        struct client *v = pick_victim(s, now);
+        char text[256];
+        json_t *msg;
+
+        if (!v)
+                return false;
+        if (v->hello)
+                snprintf(text, sizeof(text),
+                         "too many clients (%u); this connection was idle for %llu s and is closed",
+                         s->max_clients, (unsigned long long)((now - v->last_active) / 1000000));
+        else
+                snprintf(text, sizeof(text),
+                         "too many clients (%u); this connection never said hello and is closed",
+                         s->max_clients);
+        log_drop(s, "evicted a client", text);
+        msg = proto_error_errno(NULL, -EUSERS, text);
+        v->ref++; /* client_send may close v already */
+        if (msg)
+                client_send(v, msg);
+        json_decref(msg);
+        client_close(v);
+        client_unref(v);
+        return true;
+}
+
+/* Serves a new connection (cfd is taken). */
+static void client_add(struct server *s, int cfd, uint64_t now)
+{
+        _cleanup_close_ int fd = cfd;
+        struct client *c = calloc(1, sizeof(*c));
+        int r;
+
+        if (!c)
+                return;
+        c->server = s;
+        c->ref = 1;
+        c->last_active = now;
+        r = sd_event_add_io(s->event, &c->io, fd, EPOLLIN, on_client_io, c);
+        if (r < 0) {
+                free(c);
+                log_warning_errno(r, "cannot watch client, ignoring: %m");
+                return;
+        }
+        sd_event_source_set_description(c->io, "client");
+        c->fd = TAKE_FD(fd);
+        c->next = s->clients;
+        s->clients = c;
+        s->n_clients++;
+        log_debug("client %p connected", (void *)c);
+}
+
+/* Takes a new connection, evicting a client when the table is full, or refuses it. */
+static void admit(struct server *s, int cfd)
+{
+        _cleanup_close_ int fd = cfd;
+        uint64_t now = loop_now(s);
+
+        if (s->n_clients >= s->max_clients && !evict(s, now)) {
+                refuse(s, fd, "");
+                return;
+        }
+        client_add(s, TAKE_FD(fd), now);
+}
+
+/* Out of descriptors: frees the spare one to accept and refuse one pending connection, so
+ * the listening socket does not stay readable forever. Returns 0, or -errno of accept. */
+static int refuse_without_fd(struct server *s)
+{
+        int cfd, r = 0;
+
+        s->spare_fd = safe_close(s->spare_fd);
+        cfd = accept4(s->fd, NULL, NULL, SOCK_CLOEXEC | SOCK_NONBLOCK);
+        if (cfd >= 0) {
+                refuse(s, cfd, " and out of file descriptors");
+                close(cfd);
+        } else
+                r = -errno;
+        s->spare_fd = open("/dev/null", O_RDONLY | O_CLOEXEC);
+        return r;
 }
 
 static int on_accept(sd_event_source *es, int fd, uint32_t revents, void *userdata)
 {
         struct server *s = userdata;
-        _cleanup_close_ int cfd = accept4(fd, NULL, NULL, SOCK_CLOEXEC | SOCK_NONBLOCK);
-        struct client *c;
-        int r;
 
-        if (cfd < 0)
-                return log_warning_errno(errno, "accept() failed, ignoring: %m"), 0;
-        if (s->n_clients >= SRV_MAX_CLIENTS)
-                return log_warning("too many clients, refusing a connection"), 0;
-        c = calloc(1, sizeof(*c));
-        if (!c)
-                return 0;
-        c->server = s;
-        c->ref = 1;
-        r = sd_event_add_io(s->event, &c->io, cfd, EPOLLIN, on_client_io, c);
-        if (r < 0) {
-                free(c);
-                return log_warning_errno(r, "cannot watch client, ignoring: %m"), 0;
+        for (unsigned i = 0; i < SRV_ACCEPT_BATCH; i++) {
+                int cfd = accept4(fd, NULL, NULL, SOCK_CLOEXEC | SOCK_NONBLOCK);
+                int err = cfd < 0 ? errno : 0;
+
+                if (err == EMFILE || err == ENFILE)
+                        err = -refuse_without_fd(s);
+                if (cfd >= 0)
+                        admit(s, cfd);
+                else if (err == EAGAIN)
+                        break;
+                else if (err != 0 && err != EINTR && err != ECONNABORTED)
+                        return log_warning_errno(err, "accept() failed, ignoring: %m"), 0;
         }
-        sd_event_source_set_description(c->io, "client");
-        c->fd = TAKE_FD(cfd);
-        c->next = s->clients;
-        s->clients = c;
-        s->n_clients++;
-        log_debug("client %p connected", (void *)c);
         return 0;
 }
 
-static int listen_unix(const char *path)
+/* Raises the soft RLIMIT_NOFILE to fit SRV_MAX_CLIENTS plus SRV_FD_RESERVE when it is
+ * lower, but never past that: libmodbus uses select(), which cannot watch a descriptor
+ * past FD_SETSIZE (1024). Returns how many clients the limit allows. */
+static unsigned client_budget(void)
+{
+        rlim_t need = SRV_MAX_CLIENTS + SRV_FD_RESERVE;
+        struct rlimit rl;
+
+        if (getrlimit(RLIMIT_NOFILE, &rl) < 0 || rl.rlim_cur >= need)
+                return SRV_MAX_CLIENTS;
+        rl.rlim_cur = MIN(need, rl.rlim_max);
+        if (setrlimit(RLIMIT_NOFILE, &rl) < 0)
+                (void)getrlimit(RLIMIT_NOFILE, &rl);
+        if (rl.rlim_cur >= need)
+                return SRV_MAX_CLIENTS;
+        log_warning("RLIMIT_NOFILE is %llu and cannot be raised to %llu: serving at most %llu "
+                    "clients",
+                    (unsigned long long)rl.rlim_cur, (unsigned long long)need,
+                    (unsigned long long)rl.rlim_cur / 2);
+        return MAX(rl.rlim_cur / 2, 1);
+}
+
+/* Takes an exclusive flock on "<path>.lock", held while the returned fd is open.
+ * Returns the fd, -EADDRINUSE when another process holds it, or -errno (logged). */
+static int lock_path(const char *path)
+{
+        _cleanup_close_ int fd = -EBADF;
+        char lock[PATH_MAX];
+
+        if (snprintf(lock, sizeof(lock), "%s.lock", path) >= (int)sizeof(lock))
+                return log_error_errno(ENAMETOOLONG, "Socket path too long: %s", path);
+        fd = open(lock, O_RDWR | O_CREAT | O_CLOEXEC | O_NOCTTY, 0660);
+        if (fd < 0)
+                return log_error_errno(errno, "Cannot open lock file %s: %m", lock);
+        if (flock(fd, LOCK_EX | LOCK_NB) < 0)
+                return errno == EWOULDBLOCK ? -EADDRINUSE
+                                            : log_error_errno(errno, "Cannot lock %s: %m", lock);
+        return TAKE_FD(fd);
+}
+
+/* What is at path: 1 when a connect() succeeds (a server), 0 when nothing is there,
+ * -ECONNREFUSED for a stale socket, -ENOTSOCK for anything but a socket, or -errno. */
+static int probe_path(const char *path)
+{
+        _cleanup_close_ int fd = -EBADF;
+        struct sockaddr_un sa;
+        struct stat st;
+
+        if (lstat(path, &st) < 0)
+                return errno == ENOENT ? 0 : -errno;
+        if (!S_ISSOCK(st.st_mode))
+                return -ENOTSOCK;
+        fd = proto_unix_socket(path, &sa);
+        if (fd < 0)
+                return fd;
+        if (connect(fd, (struct sockaddr *)&sa, sizeof(sa)) == 0 || errno == EAGAIN)
+                return 1; /* EAGAIN: a server whose backlog is full */
+        return -errno;
+}
+
+/* Frees path for bind: refuses a live server, a lock held elsewhere or a file that is not
+ * a socket; removes a stale socket. Returns 0, -EADDRINUSE, -EEXIST or -errno (logged). */
+static int clear_path(const char *path, bool locked)
+{
+        int r = probe_path(path);
+
+        if (r > 0)
+                return log_error_errno(EADDRINUSE,
+                                       "another goniod is serving %s (connect succeeded); "
+                                       "stop it first",
+                                       path);
+        if (!locked)
+                return log_error_errno(EADDRINUSE,
+                                       "another goniod holds %s.lock (starting or stopping); "
+                                       "stop it first",
+                                       path);
+        if (r == -ENOTSOCK)
+                return log_error_errno(EEXIST, "%s exists and is not a socket; not removing it",
+                                       path);
+        if (r == -ECONNREFUSED) {
+                log_info("removing stale socket %s (nothing listens there)", path);
+                if (unlink(path) < 0 && errno != ENOENT)
+                        return log_error_errno(errno, "Cannot remove stale socket %s: %m", path);
+                return 0;
+        }
+        return r < 0 ? log_error_errno(r, "Cannot probe %s: %m", path) : 0;
+}
+
+/* Locks, clears, binds (mode 0660) and listens on path. Returns the fd or -errno (logged). */
+static int listen_unix(struct server *s, const char *path)
 {
         struct sockaddr_un sa;
         _cleanup_close_ int fd = proto_unix_socket(path, &sa);
+        struct stat st;
+        int r;
 
         if (fd < 0)
-                return fd;
-        (void)unlink(path);
-        if (bind(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0 || chmod(path, 0660) < 0 ||
-            listen(fd, 16) < 0)
-                return -errno;
+                return log_error_errno(fd, "Cannot listen on %s: %m", path);
+        s->lock_fd = lock_path(path);
+        if (s->lock_fd < 0 && s->lock_fd != -EADDRINUSE)
+                return s->lock_fd;
+        r = clear_path(path, s->lock_fd >= 0);
+        if (r < 0)
+                return r;
+        if (bind(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0 || lstat(path, &st) < 0)
+                return log_error_errno(errno, "Cannot bind %s: %m", path);
+        s->bound = true;
+        s->dev = st.st_dev;
+        s->ino = st.st_ino;
+        if (chmod(path, 0660) < 0 || listen(fd, SOMAXCONN) < 0)
+                return log_error_errno(errno, "Cannot listen on %s: %m", path);
         return TAKE_FD(fd);
 }
 
@@ -370,14 +633,21 @@ int server_new(sd_event *event, const char *path, const struct srv_method *metho
         s->event = event;
         s->methods = methods;
         s->userdata = userdata;
-        s->fd = listen_unix(path);
+        s->lock_fd = -EBADF;
+        s->max_clients = s->budget = client_budget();
+        s->idle_usec = SRV_IDLE_TIMEOUT_USEC;
+        s->spare_fd = open("/dev/null", O_RDONLY | O_CLOEXEC);
+        r = s->spare_fd < 0 ? -errno : 0;
         s->path = strdup(path);
-        if (s->fd < 0 || !s->path) {
-                r = s->fd < 0 ? s->fd : -ENOMEM;
-                server_free(s);
-                return log_error_errno(r, "Cannot listen on %s: %m", path);
-        }
-        r = sd_event_add_io(event, &s->listen, s->fd, EPOLLIN, on_accept, s);
+        if (r >= 0 && !s->path)
+                r = -ENOMEM;
+        s->fd = r < 0 ? r : listen_unix(s, path);
+        if (s->fd < 0)
+                r = s->fd;
+        if (r >= 0)
+                r = sd_event_add_io(event, &s->listen, s->fd, EPOLLIN, on_accept, s);
+        if (r >= 0)
+                r = sd_event_source_set_enabled(s->listen, SD_EVENT_OFF);
         if (r < 0) {
                 server_free(s);
                 return r;
@@ -387,6 +657,26 @@ int server_new(sd_event *event, const char *path, const struct srv_method *metho
         return 0;
 }
 
+int server_start(struct server *s)
+{
+        return sd_event_source_set_enabled(s->listen, SD_EVENT_ON);
+}
+
+void server_set_limits(struct server *s, unsigned max_clients, uint64_t idle_usec)
+{
+        s->max_clients = CLAMP(max_clients, 1u, s->budget);
+        s->idle_usec = idle_usec;
+}
+
+/* Whether path is still the socket we bound (another process may have replaced it). */
+static bool own_socket(const struct server *s)
+{
+        struct stat st;
+
+        return s->bound && lstat(s->path, &st) == 0 && S_ISSOCK(st.st_mode) &&
+               st.st_dev == s->dev && st.st_ino == s->ino;
+}
+
 struct server *server_free(struct server *s)
 {
         if (!s)
@@ -394,10 +684,11 @@ struct server *server_free(struct server *s)
         while (s->clients)
                 client_close(s->clients);
         sd_event_source_disable_unref(s->listen);
-        if (s->fd >= 0) {
-                close(s->fd);
-                unlink(s->path);
-        }
+        safe_close(s->fd);
+        if (own_socket(s))
+                (void)unlink(s->path);
+        safe_close(s->lock_fd); /* after the unlink: the next daemon may take over */
+        safe_close(s->spare_fd);
         free(s->path);
         free(s);
         return NULL;

@@ -4,13 +4,24 @@
  * Runs entirely on the daemon's sd-event loop. A method handler receives a
  * struct srv_req and answers it exactly once, at once or later (a move answers
  * when the axis is in position); meanwhile the server keeps serving every
- * client. Notifications are broadcast to all connected clients. */
+ * client. Notifications are broadcast to all connected clients.
+ *
+ * The server remembers which clients said hello (a successful reply to the method
+ * named "hello", whatever its handler), so that when the table is full it evicts
+ * clients that never did before any that did. */
 #pragma once
 
 #include <jansson.h>
 #include <stdbool.h>
+#include <stdint.h>
 
 typedef struct sd_event sd_event;
+
+/* Clients served at once (fewer if RLIMIT_NOFILE cannot be raised to fit them). */
+#define SRV_MAX_CLIENTS 256
+/* A client that said hello and sent no request for this long may be evicted for a new one
+ * when the table is full; below it, it is kept (e.g. one listening to notifications). */
+#define SRV_IDLE_TIMEOUT_USEC (60 * 1000000ULL)
 
 struct server;
 struct srv_req;
@@ -25,14 +36,27 @@ struct srv_method {
         srv_method_fn fn;
 };
 
-/* Listens on path (removing a stale socket; mode 0660) and serves methods (a table ending
- * in {NULL}) with userdata. Returns 0 or -errno. */
+/* Listens on path (mode 0660, backlog SOMAXCONN) to serve methods (a table ending in
+ * {NULL}) with userdata once server_start is called; connections wait in the backlog
+ * until then, so the socket can be claimed before the devices are opened. Holds an flock on
+ * "<path>.lock" until server_free. Refuses with -EADDRINUSE when something accepts connections on
+ * path or another process holds the lock, with -EEXIST when path is not a socket (never removed); a
+ * stale socket is removed. Raises the soft RLIMIT_NOFILE to fit SRV_MAX_CLIENTS if needed. Returns
+ * 0 or -errno; failures are logged with the path. */
 int server_new(sd_event *event, const char *path, const struct srv_method *methods, void *userdata,
                struct server **ret);
 
-/* Closes every connection and the socket, unlinks the path. Pending requests get no
- * answer. NULL is a no-op; returns NULL. */
+/* Starts accepting connections. Returns 0 or -errno. */
+int server_start(struct server *s);
+
+/* Closes every connection and the socket, unlinks the path if it is still the socket
+ * server_new bound, releases the lock. Pending requests get no answer. NULL is a no-op;
+ * returns NULL. */
 struct server *server_free(struct server *s);
+
+/* Overrides SRV_MAX_CLIENTS (at least 1, at most what RLIMIT_NOFILE allows) and
+ * SRV_IDLE_TIMEOUT_USEC, e.g. for tests. */
+void server_set_limits(struct server *s, unsigned max_clients, uint64_t idle_usec);
 
 /* Sends notification method with params (stolen) to every client. */
 void server_broadcast(struct server *s, const char *method, json_t *params);

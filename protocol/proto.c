@@ -307,6 +307,7 @@ static const struct {
         {ENOSYS, PROTO_METHOD_NOT_FOUND},
         {EBUSY, PROTO_E_BUSY},
         {EAGAIN, PROTO_E_BUSY},
+        {EUSERS, PROTO_E_BUSY}, /* too many clients (forward only) */
         {ERANGE, PROTO_E_RANGE},
         {EDOM, PROTO_E_RANGE},
         {EIO, PROTO_E_DEVICE},

@@ -24,7 +24,7 @@ enum proto_code {
         PROTO_METHOD_NOT_FOUND = -32601,
         PROTO_INVALID_PARAMS = -32602,
         PROTO_INTERNAL_ERROR = -32603,
-        PROTO_E_BUSY = -32001,      /* EBUSY, EAGAIN: rig busy or queue full */
+        PROTO_E_BUSY = -32001,      /* EBUSY, EAGAIN, EUSERS: busy, queue full, too many clients */
         PROTO_E_RANGE = -32002,     /* ERANGE: outside soft limits */
         PROTO_E_DEVICE = -32003,    /* EIO, EPROTO, ENODEV: device fault */
         PROTO_E_TIMEOUT = -32004,   /* ETIMEDOUT */
