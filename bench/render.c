@@ -12,6 +12,7 @@
 
 #include "common/clock.h"
 #include "common/rigconf.h"
+#include "drivers/registry.h"
 #include "sim/render/internal.h"
 
 static const char rig[] =
@@ -149,7 +150,7 @@ static int load(struct rig_config **rc, struct sim_scene **s)
                 return -1;
         fputs(rig, f);
         fclose(f);
-        r = rigconf_load(path, rc, err, sizeof(err));
+        r = rigconf_load(path, registry_backends, rc, err, sizeof(err));
         if (r >= 0)
                 r = sim_scene_new(*rc, s, err, sizeof(err));
         unlink(path);

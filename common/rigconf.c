@@ -1,10 +1,12 @@
 /* rigconf.c - loads and validates the rig file (docs/rig-file.md).
  *
- * The parse is strict: unknown keys (in every entry), missing required keys,
- * out-of-range values, unset ${VAR}s, duplicate names and roles, references to
- * undefined buses, two devices on one Modbus address and two buses on one port are
- * errors that name the file, line and key. Defaults are filled in here, so the rest
- * of gonio reads plain values. */
+ * The parse is strict: unknown keys (in every entry and backend map), missing required
+ * keys, out-of-range values, unset ${VAR}s, duplicate names and roles, references to
+ * undefined buses and profiles, a device without a backend map or with two, two devices on
+ * one bus address and two buses on one port are errors that name the file, line and key.
+ * Defaults are filled in here, so the rest of gonio reads plain values. Each backend map is
+ * parsed by its backend (struct rig_backend), found in the caller's table by the map's
+ * key. */
 #include <errno.h>
 #include <libfyaml.h>
 #include <math.h>
@@ -78,8 +80,9 @@ static int read_u16(struct yconf *yc, struct fy_node *m, const char *key, uint16
         return r;
 }
 
-static int parse_profile(struct yconf *yc, struct fy_node *m, struct rig_modbus_profile *p)
+static int parse_profile(struct rig_config *rc, struct fy_node *m, struct rig_modbus_profile *p)
 {
+        struct yconf *yc = &rc->yc;
         static const char *const keys[] = {"name",     "status",    "fault",    "position",
                                            "target",   "speed",     "accel",    "command",
                                            "cmd_move", "cmd_home",  "cmd_stop", "cmd_reset",
@@ -121,12 +124,35 @@ static int read_int(struct yconf *yc, struct fy_node *m, const char *key, long m
         return r;
 }
 
-static int parse_bus(struct yconf *yc, struct fy_node *m, struct rig_bus_conf *b)
+/* Bus types by their rig-file name. */
+static const char *const bus_types[] = {
+        [RIG_BUS_MODBUS_RTU] = "modbus-rtu",
+        [RIG_BUS_MODBUS_TCP] = "modbus-tcp",
+        [RIG_BUS_SIM] = "sim",
+        [RIG_BUS_SERIAL] = "serial",
+};
+
+static int read_bus_type(struct yconf *yc, struct fy_node *m, enum rig_bus_type *ret)
+{
+        char type[32] = "";
+        int r = yconf_str_req(yc, m, "type", type, sizeof(type));
+
+        if (r < 0)
+                return r;
+        for (size_t i = 0; i < ELEMENTSOF(bus_types); i++)
+                if (strcmp(type, bus_types[i]) == 0)
+                        return *ret = i, 0;
+        return yconf_error(yc, yconf_get(m, "type"), "type",
+                           "'%s' is not a bus type (modbus-rtu, modbus-tcp, sim, serial)", type);
+}
+
+static int parse_bus(struct rig_config *rc, struct fy_node *m, struct rig_bus_conf *b)
 {
         static const char *const keys[] = {"name",      "type",       "port",    "host",
                                            "tcp_port",  "baud",       "parity",  "data_bits",
                                            "stop_bits", "timeout_ms", "retries", NULL};
-        char type[32] = "", parity[4] = "N";
+        struct yconf *yc = &rc->yc;
+        char parity[4] = "N";
         int r;
 
         *b = (struct rig_bus_conf){.baud = 115200,
@@ -137,23 +163,11 @@ static int parse_bus(struct yconf *yc, struct fy_node *m, struct rig_bus_conf *b
                                    .retries = 2};
         if ((r = yconf_check_keys(yc, m, keys)) < 0 ||
             (r = read_name(yc, m, b->name, sizeof(b->name))) < 0 ||
-            (r = yconf_str_req(yc, m, "type", type, sizeof(type))) < 0 ||
+            (r = read_bus_type(yc, m, &b->type)) < 0 ||
             (r = yconf_str(yc, m, "port", b->port, sizeof(b->port))) < 0 ||
             (r = yconf_str(yc, m, "host", b->host, sizeof(b->host))) < 0 ||
             (r = yconf_str(yc, m, "parity", parity, sizeof(parity))) < 0)
                 return r;
-        if (strcmp(type, "modbus-rtu") == 0)
-                b->type = RIG_BUS_MODBUS_RTU;
-        else if (strcmp(type, "modbus-tcp") == 0)
-                b->type = RIG_BUS_MODBUS_TCP;
-        else if (strcmp(type, "sim") == 0)
-                b->type = RIG_BUS_SIM;
-        else if (strcmp(type, "serial") == 0)
-                b->type = RIG_BUS_SERIAL;
-        else
-                return yconf_error(yc, yconf_get(m, "type"), "type",
-                                   "'%s' is not a bus type (modbus-rtu, modbus-tcp, sim, serial)",
-                                   type);
         if (!strchr("NEO", parity[0]) || parity[1])
                 return yconf_error(yc, yconf_get(m, "parity"), "parity", "must be N, E or O");
         b->parity = parity[0];
@@ -195,26 +209,133 @@ static int read_role(struct yconf *yc, struct fy_node *m, struct rig_axis_conf *
         return 0;
 }
 
-static int parse_axis(struct yconf *yc, struct fy_node *m, struct rig_axis_conf *a)
+/* The backend of rc's table named key, or NULL. */
+static const struct rig_backend *find_backend(const struct rig_config *rc, const char *key)
 {
-        static const char *const keys[] = {
-                "name",   "backend",   "bus",   "unit",      "profile",         "continuous",
-                "limits", "max_speed", "accel", "settle_ms", "move_timeout_ms", "role",
-                NULL};
+        for (const struct rig_backend *const *b = rc->backends; b && *b; b++)
+                if (strcmp((*b)->name, key) == 0)
+                        return *b;
+        return NULL;
+}
+
+/* Device classes as messages name them. */
+static const char *const class_names[] = {
+        [RIG_CLASS_AXIS] = "axes",
+        [RIG_CLASS_SWITCH] = "lamps and lasers",
+        [RIG_CLASS_CAMERA] = "cameras",
+};
+
+/* The names of the backends of class cls, "a, b", into buf. */
+static const char *backend_names(const struct rig_config *rc, enum rig_class cls, char *buf,
+                                 size_t len)
+{
+        size_t o = 0;
+
+        buf[0] = '\0';
+        for (const struct rig_backend *const *b = rc->backends; b && *b; b++)
+                if ((*b)->cls == cls && o < len)
+                        o += snprintf(buf + o, len - o, "%s%s", o ? ", " : "", (*b)->name);
+        return buf[0] ? buf : "none known";
+}
+
+/* A key of a device entry that is neither a class key nor a backend of its class. */
+static int unknown_key(struct rig_config *rc, struct fy_node *k, const char *key,
+                       enum rig_class cls)
+{
+        const struct rig_backend *b = find_backend(rc, key);
+        char names[128];
+
+        backend_names(rc, cls, names, sizeof(names));
+        if (b)
+                return yconf_error(&rc->yc, k, key, "'%s' is a backend for %s, not for %s (%s)",
+                                   key, class_names[b->cls], class_names[cls], names);
+        if (strcmp(key, "backend") == 0 || strcmp(key, "bus") == 0)
+                return yconf_error(&rc->yc, k, key,
+                                   "unknown key: the backend and its settings, bus included, go "
+                                   "in one map named after the backend (%s: { bus: ... })",
+                                   names);
+        return yconf_error(&rc->yc, k, key, "unknown key");
+}
+
+/* Checks the keys of device entry m: each is a class key (keys) or names a backend of class
+ * cls, and exactly one does; *be and *map get that backend and its map. */
+static int device_keys(struct rig_config *rc, struct fy_node *m, enum rig_class cls,
+                       const char *const *keys, const struct rig_backend **be, struct fy_node **map)
+{
+        struct fy_node_pair *pair;
+        void *iter = NULL;
+        char names[128];
+
+        *be = NULL;
+        while ((pair = fy_node_mapping_iterate(m, &iter))) {
+                struct fy_node *k = fy_node_pair_key(pair);
+                const char *key = fy_node_get_scalar0(k) ?: "?";
+                const struct rig_backend *b = find_backend(rc, key);
+                bool class_key = false;
+
+                for (const char *const *a = keys; *a; a++)
+                        class_key = class_key || strcmp(*a, key) == 0;
+                if (class_key)
+                        continue;
+                if (!b || b->cls != cls)
+                        return unknown_key(rc, k, key, cls);
+                if (*be)
+                        return yconf_error(&rc->yc, k, key,
+                                           "a second backend map (after '%s'): a device has "
+                                           "exactly one",
+                                           (*be)->name);
+                *be = b;
+                *map = fy_node_pair_value(pair);
+        }
+        if (!*be)
+                return yconf_error(&rc->yc, yconf_get(m, "name") ?: m,
+                                   backend_names(rc, cls, names, sizeof(names)),
+                                   "no backend map in this entry (one of: %s)", names);
+        return 0;
+}
+
+/* Checks the keys of device entry m (class keys and its one backend map) and has the backend
+ * parse its map into bc; the map's bus goes into bus (RIG_NAME_MAX bytes). */
+static int parse_backend(struct rig_config *rc, struct fy_node *m, enum rig_class cls,
+                         const char *const *keys, char *bus, struct rig_backend_conf *bc)
+{
+        struct yconf *yc = &rc->yc;
+        const struct rig_backend *be;
+        _cleanup_free_ void *conf = NULL;
+        struct fy_node *map;
+        int r;
+
+        if ((r = device_keys(rc, m, cls, keys, &be, &map)) < 0)
+                return r;
+        if (fy_node_get_type(map) != FYNT_MAPPING)
+                return yconf_error(yc, map, be->name,
+                                   "expected the backend's settings as a mapping (%s: { bus: "
+                                   "... })",
+                                   be->name);
+        snprintf(bc->name, sizeof(bc->name), "%s", be->name);
+        if ((r = yconf_str_req(yc, map, "bus", bus, RIG_NAME_MAX)) < 0)
+                return r;
+        if (be->conf_size && !(conf = calloc(1, be->conf_size)))
+                return -ENOMEM;
+        bc->addr = (struct rig_addr){};
+        if ((r = be->parse_conf(yc, map, rc, conf, &bc->addr)) < 0)
+                return r;
+        bc->conf = TAKE_PTR(conf);
+        return 0;
+}
+
+static int parse_axis(struct rig_config *rc, struct fy_node *m, struct rig_axis_conf *a)
+{
+        static const char *const keys[] = {"name",  "continuous", "limits",          "max_speed",
+                                           "accel", "settle_ms",  "move_timeout_ms", "role",
+                                           NULL};
+        struct yconf *yc = &rc->yc;
         double lim[2] = {-180, 180};
         int r;
 
-        *a = (struct rig_axis_conf){.unit = 1,
-                                    .profile = "gonio-default",
-                                    .max_speed = 30,
-                                    .accel = 60,
-                                    .settle_ms = 50};
-        if ((r = yconf_check_keys(yc, m, keys)) < 0 ||
+        *a = (struct rig_axis_conf){.max_speed = 30, .accel = 60, .settle_ms = 50};
+        if ((r = parse_backend(rc, m, RIG_CLASS_AXIS, keys, a->bus, &a->backend)) < 0 ||
             (r = read_name(yc, m, a->name, sizeof(a->name))) < 0 ||
-            (r = yconf_str_req(yc, m, "backend", a->backend, sizeof(a->backend))) < 0 ||
-            (r = yconf_str_req(yc, m, "bus", a->bus, sizeof(a->bus))) < 0 ||
-            (r = yconf_str(yc, m, "profile", a->profile, sizeof(a->profile))) < 0 ||
-            (r = read_int(yc, m, "unit", 1, 247, &a->unit)) < 0 ||
             (r = yconf_bool(yc, m, "continuous", &a->continuous)) < 0 ||
             (r = yconf_doubles(yc, m, "limits", lim, 2, 2, NULL)) < 0 ||
             (r = yconf_double(yc, m, "max_speed", 0.1, 6553.5, &a->max_speed)) < 0 ||
@@ -234,30 +355,28 @@ static int parse_axis(struct yconf *yc, struct fy_node *m, struct rig_axis_conf 
         return 0;
 }
 
-static int parse_switch_common(struct yconf *yc, struct fy_node *m, struct rig_switch_conf *s)
+static int parse_switch_common(struct rig_config *rc, struct fy_node *m, const char *const *keys,
+                               struct rig_switch_conf *s)
 {
+        struct yconf *yc = &rc->yc;
         int r;
 
-        if ((r = read_name(yc, m, s->name, sizeof(s->name))) < 0 ||
-            (r = yconf_str_req(yc, m, "backend", s->backend, sizeof(s->backend))) < 0 ||
-            (r = yconf_str_req(yc, m, "bus", s->bus, sizeof(s->bus))) < 0 ||
-            (r = read_int(yc, m, "unit", 1, 247, &s->unit)) < 0 ||
-            (r = read_int(yc, m, "coil", 0, 65535, &s->coil)) < 0 ||
+        if ((r = parse_backend(rc, m, RIG_CLASS_SWITCH, keys, s->bus, &s->backend)) < 0 ||
+            (r = read_name(yc, m, s->name, sizeof(s->name))) < 0 ||
             (r = read_int(yc, m, "warmup_ms", 0, 60000, &s->warmup_ms)) < 0)
                 return r;
         return 0;
 }
 
-static int parse_lamp(struct yconf *yc, struct fy_node *m, struct rig_switch_conf *s)
+static int parse_lamp(struct rig_config *rc, struct fy_node *m, struct rig_switch_conf *s)
 {
-        static const char *const keys[] = {"name",    "backend",   "bus",       "unit",
-                                           "coil",    "warmup_ms", "elevation", "radius",
+        static const char *const keys[] = {"name",    "warmup_ms", "elevation", "radius",
                                            "azimuth", "intensity", NULL};
+        struct yconf *yc = &rc->yc;
         int r;
 
-        *s = (struct rig_switch_conf){
-                .kind = RIG_SWITCH_LAMP, .unit = 1, .radius_mm = 450, .intensity = 1e5};
-        if ((r = yconf_check_keys(yc, m, keys)) < 0 || (r = parse_switch_common(yc, m, s)) < 0 ||
+        *s = (struct rig_switch_conf){.kind = RIG_SWITCH_LAMP, .radius_mm = 450, .intensity = 1e5};
+        if ((r = parse_switch_common(rc, m, keys, s)) < 0 ||
             (r = yconf_double(yc, m, "elevation", -90, 90, &s->elevation_deg)) < 0 ||
             (r = yconf_double(yc, m, "radius", 1, 1e5, &s->radius_mm)) < 0 ||
             (r = yconf_double(yc, m, "azimuth", -360, 360, &s->azimuth_deg)) < 0 ||
@@ -268,21 +387,22 @@ static int parse_lamp(struct yconf *yc, struct fy_node *m, struct rig_switch_con
         return 0;
 }
 
-static int parse_laser(struct yconf *yc, struct fy_node *m, struct rig_switch_conf *s)
+static int parse_laser(struct rig_config *rc, struct fy_node *m, struct rig_switch_conf *s)
 {
-        static const char *const keys[] = {"name",  "backend",   "bus",     "unit",
-                                           "coil",  "warmup_ms", "azimuth", "origin",
+        static const char *const keys[] = {"name",  "warmup_ms", "azimuth", "origin",
                                            "width", "power",     "channel", NULL};
         static const char *const channels[] = {"red", "green", "blue"};
+        struct yconf *yc = &rc->yc;
         char channel[16] = "red";
         int r;
 
         *s = (struct rig_switch_conf){.kind = RIG_SWITCH_LASER,
-                                      .unit = 1,
                                       .laser_origin = {600, 0, 150},
                                       .laser_width_mm = 0.5,
                                       .laser_power = 1e3};
-        if ((r = yconf_check_keys(yc, m, keys)) < 0 || (r = parse_switch_common(yc, m, s)) < 0 ||
+        if (fy_node_get_type(m) != FYNT_MAPPING)
+                return yconf_error(yc, m, "laser", "expected a mapping");
+        if ((r = parse_switch_common(rc, m, keys, s)) < 0 ||
             (r = yconf_double(yc, m, "azimuth", -360, 360, &s->laser_azimuth_deg)) < 0 ||
             (r = yconf_doubles(yc, m, "origin", s->laser_origin, 3, 3, NULL)) < 0 ||
             (r = yconf_double(yc, m, "width", 1e-3, 100, &s->laser_width_mm)) < 0 ||
@@ -314,12 +434,13 @@ static int parse_camera_geometry(struct yconf *yc, struct fy_node *m, struct rig
         return 0;
 }
 
-static int parse_camera(struct yconf *yc, struct fy_node *m, struct rig_camera_conf *c)
+static int parse_camera(struct rig_config *rc, struct fy_node *m, struct rig_camera_conf *c)
 {
-        static const char *const keys[] = {
-                "name",   "backend",    "bus",         "elevation", "distance", "azimuth",
-                "target", "width",      "height",      "fx",        "fy",       "cx",
-                "cy",     "distortion", "exposure_us", "gain",      "bits",     NULL};
+        static const char *const keys[] = {"name",        "elevation", "distance", "azimuth",
+                                           "target",      "width",     "height",   "fx",
+                                           "fy",          "cx",        "cy",       "distortion",
+                                           "exposure_us", "gain",      "bits",     NULL};
+        struct yconf *yc = &rc->yc;
         int r;
 
         *c = (struct rig_camera_conf){.distance_mm = 600,
@@ -330,10 +451,8 @@ static int parse_camera(struct yconf *yc, struct fy_node *m, struct rig_camera_c
                                       .exposure_us = 10000,
                                       .gain = 1,
                                       .bits = 8};
-        if ((r = yconf_check_keys(yc, m, keys)) < 0 ||
+        if ((r = parse_backend(rc, m, RIG_CLASS_CAMERA, keys, c->bus, &c->backend)) < 0 ||
             (r = read_name(yc, m, c->name, sizeof(c->name))) < 0 ||
-            (r = yconf_str_req(yc, m, "backend", c->backend, sizeof(c->backend))) < 0 ||
-            (r = yconf_str_req(yc, m, "bus", c->bus, sizeof(c->bus))) < 0 ||
             (r = parse_camera_geometry(yc, m, c)) < 0 ||
             (r = read_int(yc, m, "exposure_us", RIG_EXPOSURE_US_MIN, RIG_EXPOSURE_US_MAX,
                           &c->exposure_us)) < 0 ||
@@ -349,12 +468,13 @@ static int parse_camera(struct yconf *yc, struct fy_node *m, struct rig_camera_c
         return 0;
 }
 
-typedef int (*parse_fn)(struct yconf *yc, struct fy_node *m, void *item);
+typedef int (*parse_fn)(struct rig_config *rc, struct fy_node *m, void *item);
 
 /* Parses list section key into an array of max items of size bytes each. */
-static int parse_section(struct yconf *yc, struct fy_node *root, const char *key, void *array,
+static int parse_section(struct rig_config *rc, struct fy_node *root, const char *key, void *array,
                          size_t size, int max, size_t *count, parse_fn fn)
 {
+        struct yconf *yc = &rc->yc;
         struct fy_node *seq;
         int n = section_len(yc, root, key, max, &seq);
 
@@ -364,7 +484,7 @@ static int parse_section(struct yconf *yc, struct fy_node *root, const char *key
 
                 if (fy_node_get_type(item) != FYNT_MAPPING)
                         return yconf_error(yc, item, key, "entry %d is not a mapping", i);
-                r = fn(yc, item, (char *)array + i * size);
+                r = fn(rc, item, (char *)array + i * size);
                 if (r < 0)
                         return r;
         }
@@ -390,14 +510,24 @@ static struct fy_node *entry_key(struct yconf *yc, const char *section, int inde
         return yconf_get(m, key) ?: yconf_get(m, "name") ?: m;
 }
 
-/* A named entry of the rig file, and its Modbus address when it has one. */
+/* Where an error about key of the backend map of an entry points: the key's value, else
+ * the map, else the entry's name. */
+static struct fy_node *backend_key(struct yconf *yc, const char *section, int index,
+                                   const char *backend, const char *key)
+{
+        struct fy_node *map = yconf_get(entry_node(yc, section, index), backend);
+
+        return yconf_get(map, key) ?: map ?: entry_key(yc, section, index, "name");
+}
+
+/* A named entry of the rig file, and its backend when it is a device. */
 struct ref {
         const char *section; /* rig-file section: "axes", "lamps", ... */
         const char *kind;    /* for messages: "axis", "lamp", ... */
         int index;           /* entry in section */
         const char *name;
-        const char *bus; /* NULL: no Modbus address */
-        int unit, coil;  /* coil -1: a drive (the whole unit) */
+        const char *bus;                   /* NULL: not a device */
+        const struct rig_backend_conf *be; /* NULL: not a device */
 };
 
 /* The ref of a switch (lamp or laser). */
@@ -408,8 +538,7 @@ static struct ref switch_ref(const char *section, size_t index, const struct rig
                             .index = index,
                             .name = s->name,
                             .bus = s->bus,
-                            .unit = s->unit,
-                            .coil = s->coil};
+                            .be = &s->backend};
 }
 
 /* Lists the devices of rc (axes, lamps, laser, cameras) into refs; returns their number. */
@@ -420,14 +549,17 @@ static size_t device_refs(const struct rig_config *rc, struct ref *refs)
         for (size_t i = 0; i < rc->n_axes; i++) {
                 const struct rig_axis_conf *a = &rc->axes[i];
 
-                refs[n++] = (struct ref){"axes", "axis", i, a->name, a->bus, a->unit, -1};
+                refs[n++] = (struct ref){"axes", "axis", i, a->name, a->bus, &a->backend};
         }
         for (size_t i = 0; i < rc->n_lamps; i++)
                 refs[n++] = switch_ref("lamps", i, &rc->lamps[i]);
         if (rc->has_laser)
                 refs[n++] = switch_ref("laser", 0, &rc->laser);
-        for (size_t i = 0; i < rc->n_cameras; i++)
-                refs[n++] = (struct ref){"cameras", "camera", i, rc->cameras[i].name};
+        for (size_t i = 0; i < rc->n_cameras; i++) {
+                const struct rig_camera_conf *c = &rc->cameras[i];
+
+                refs[n++] = (struct ref){"cameras", "camera", i, c->name, c->bus, &c->backend};
+        }
         return n;
 }
 
@@ -452,29 +584,46 @@ static int check_names(struct yconf *yc, const struct ref *refs, size_t n, const
         return 0;
 }
 
-/* One Modbus unit is one device: a drive (one axis) or a relay module (one switch per
- * coil). Two devices on one address would drive one motor or one lamp twice. */
+/* Whether devices a and b are at one place of one bus (struct rig_addr). */
+static bool same_place(const struct ref *a, const struct ref *b)
+{
+        const struct rig_addr *x = &a->be->addr, *y = &b->be->addr;
+
+        if (!x->key || !y->key || strcmp(a->bus, b->bus) != 0 || strcmp(x->key, y->key) != 0 ||
+            x->value != y->value)
+                return false;
+        return !x->sub_key || !y->sub_key || x->sub == y->sub;
+}
+
+/* One address is one device: a drive takes a Modbus unit, a relay module's coil one lamp.
+ * Two devices at one place would drive one motor or one lamp twice. The error points at
+ * the address key in the backend map of the device written last. */
 static int check_addresses(struct yconf *yc, const struct ref *d, size_t n)
 {
         for (size_t j = 0; j < n; j++)
                 for (size_t i = 0; i < j; i++) {
-                        bool switches = d[i].coil >= 0 && d[j].coil >= 0;
+                        const struct rig_addr *a = &d[j].be->addr;
 
-                        if (!d[i].bus || !d[j].bus || strcmp(d[i].bus, d[j].bus) != 0 ||
-                            d[i].unit != d[j].unit || (switches && d[i].coil != d[j].coil))
+                        if (!same_place(&d[i], &d[j]))
                                 continue;
-                        if (switches)
+                        if (a->sub_key && d[i].be->addr.sub_key)
                                 return yconf_error(
-                                        yc, entry_key(yc, d[j].section, d[j].index, "coil"), "coil",
-                                        "%s '%s' and %s '%s' are both on coil %d of "
-                                        "unit %d on bus '%s'",
-                                        d[i].kind, d[i].name, d[j].kind, d[j].name, d[j].coil,
-                                        d[j].unit, d[j].bus);
+                                        yc,
+                                        backend_key(yc, d[j].section, d[j].index, d[j].be->name,
+                                                    a->sub_key),
+                                        a->sub_key,
+                                        "%s '%s' and %s '%s' are both on %s %d of %s %d on bus "
+                                        "'%s'",
+                                        d[i].kind, d[i].name, d[j].kind, d[j].name, a->sub_key,
+                                        a->sub, a->key, a->value, d[j].bus);
                         return yconf_error(
-                                yc, entry_key(yc, d[j].section, d[j].index, "unit"), "unit",
-                                "%s '%s' and %s '%s' are both on unit %d on bus '%s' "
-                                "(a unit is one drive or one relay module)",
-                                d[i].kind, d[i].name, d[j].kind, d[j].name, d[j].unit, d[j].bus);
+                                yc,
+                                backend_key(yc, d[j].section, d[j].index, d[j].be->name, a->key),
+                                a->key,
+                                "%s '%s' and %s '%s' are both on %s %d on bus '%s' (one device "
+                                "per %s)",
+                                d[i].kind, d[i].name, d[j].kind, d[j].name, a->key, a->value,
+                                d[j].bus, a->key);
                 }
         return 0;
 }
@@ -541,43 +690,38 @@ static int check_unique(struct yconf *yc, const struct rig_config *rc)
         return check_roles(yc, rc);
 }
 
-/* The device's bus must exist and be of a fitting kind (sim bus only for cameras). */
-static int check_bus(struct yconf *yc, struct rig_config *rc, const char *section, int index,
-                     const char *dev, const char *bus, bool camera)
+/* The bus of device ref must exist and be of a kind its backend runs on. */
+static int check_bus(struct yconf *yc, const struct rig_config *rc, const struct ref *d)
 {
-        struct fy_node *node = entry_key(yc, section, index, "bus");
-        const struct rig_bus_conf *b = rigconf_bus(rc, bus);
+        struct fy_node *node = backend_key(yc, d->section, d->index, d->be->name, "bus");
+        const struct rig_backend *be = find_backend(rc, d->be->name);
+        const struct rig_bus_conf *b = rigconf_bus(rc, d->bus);
 
         if (!b)
-                return yconf_error(yc, node, "bus", "%s '%s': no bus named '%s'", section, dev,
-                                   bus);
-        if ((b->type == RIG_BUS_SIM) != camera)
-                return yconf_error(yc, node, "bus", "%s '%s': bus '%s' is of the wrong type",
-                                   section, dev, bus);
+                return yconf_error(yc, node, "bus", "%s '%s': no bus named '%s'", d->section,
+                                   d->name, d->bus);
+        if (!(be->bus_types & (1u << b->type)))
+                return yconf_error(yc, node, "bus",
+                                   "%s '%s': bus '%s' is of the wrong type (%s; backend '%s' "
+                                   "does not run on it)",
+                                   d->section, d->name, d->bus, bus_types[b->type], be->name);
         return 0;
 }
 
-static int check_references(struct yconf *yc, struct rig_config *rc)
+static int check_references(struct yconf *yc, const struct rig_config *rc)
 {
+        struct ref refs[RIG_MAX_AXES + RIG_MAX_LAMPS + 1 + RIG_MAX_CAMERAS];
+        size_t n = device_refs(rc, refs);
         int r = 0;
 
-        for (size_t i = 0; r >= 0 && i < rc->n_axes; i++) {
-                r = check_bus(yc, rc, "axes", i, rc->axes[i].name, rc->axes[i].bus, false);
-                if (r >= 0 && !rigconf_profile(rc, rc->axes[i].profile))
-                        r = yconf_error(yc, entry_key(yc, "axes", i, "profile"), "profile",
-                                        "no register profile named '%s'", rc->axes[i].profile);
-        }
-        for (size_t i = 0; r >= 0 && i < rc->n_lamps; i++)
-                r = check_bus(yc, rc, "lamps", i, rc->lamps[i].name, rc->lamps[i].bus, false);
-        if (r >= 0 && rc->has_laser)
-                r = check_bus(yc, rc, "laser", 0, rc->laser.name, rc->laser.bus, false);
-        for (size_t i = 0; r >= 0 && i < rc->n_cameras; i++)
-                r = check_bus(yc, rc, "cameras", i, rc->cameras[i].name, rc->cameras[i].bus, true);
+        for (size_t i = 0; r >= 0 && i < n; i++)
+                r = check_bus(yc, rc, &refs[i]);
         return r;
 }
 
-static int parse_root(struct yconf *yc, struct rig_config *rc)
+static int parse_root(struct rig_config *rc)
 {
+        struct yconf *yc = &rc->yc;
         static const char *const keys[] = {"rig",   "profiles", "buses", "axes", "lamps",
                                            "laser", "cameras",  "scene", NULL};
         struct fy_node *root = yconf_root(yc), *laser;
@@ -589,23 +733,23 @@ static int parse_root(struct yconf *yc, struct rig_config *rc)
             (r = yconf_str_req(yc, root, "rig", rc->name, sizeof(rc->name))) < 0)
                 return r;
         rigconf_default_profile(&rc->profiles[0]);
-        if ((r = parse_section(yc, root, "profiles", rc->profiles + 1, sizeof(rc->profiles[0]),
+        if ((r = parse_section(rc, root, "profiles", rc->profiles + 1, sizeof(rc->profiles[0]),
                                ELEMENTSOF(rc->profiles) - 1, &rc->n_profiles,
                                (parse_fn)parse_profile)) < 0)
                 return r;
         rc->n_profiles += 1; /* the built-in default comes first */
-        if ((r = parse_section(yc, root, "buses", rc->buses, sizeof(rc->buses[0]), RIG_MAX_BUSES,
+        if ((r = parse_section(rc, root, "buses", rc->buses, sizeof(rc->buses[0]), RIG_MAX_BUSES,
                                &rc->n_buses, (parse_fn)parse_bus)) < 0 ||
-            (r = parse_section(yc, root, "axes", rc->axes, sizeof(rc->axes[0]), RIG_MAX_AXES,
+            (r = parse_section(rc, root, "axes", rc->axes, sizeof(rc->axes[0]), RIG_MAX_AXES,
                                &rc->n_axes, (parse_fn)parse_axis)) < 0 ||
-            (r = parse_section(yc, root, "lamps", rc->lamps, sizeof(rc->lamps[0]), RIG_MAX_LAMPS,
+            (r = parse_section(rc, root, "lamps", rc->lamps, sizeof(rc->lamps[0]), RIG_MAX_LAMPS,
                                &rc->n_lamps, (parse_fn)parse_lamp)) < 0 ||
-            (r = parse_section(yc, root, "cameras", rc->cameras, sizeof(rc->cameras[0]),
+            (r = parse_section(rc, root, "cameras", rc->cameras, sizeof(rc->cameras[0]),
                                RIG_MAX_CAMERAS, &rc->n_cameras, (parse_fn)parse_camera)) < 0)
                 return r;
         laser = yconf_get(root, "laser");
         if (laser) {
-                if ((r = parse_laser(yc, laser, &rc->laser)) < 0)
+                if ((r = parse_laser(rc, laser, &rc->laser)) < 0)
                         return r;
                 rc->has_laser = true;
         }
@@ -630,7 +774,8 @@ static int read_text(const char *path, char **ret)
         return 0;
 }
 
-int rigconf_load(const char *path, struct rig_config **ret, char *err, size_t errlen)
+int rigconf_load(const char *path, const struct rig_backend *const *backends,
+                 struct rig_config **ret, char *err, size_t errlen)
 {
         struct rig_config *rc = calloc(1, sizeof(*rc));
         int r;
@@ -638,6 +783,7 @@ int rigconf_load(const char *path, struct rig_config **ret, char *err, size_t er
         if (!rc)
                 return -ENOMEM;
         snprintf(rc->path, sizeof(rc->path), "%s", path);
+        rc->backends = backends;
         r = read_text(path, &rc->text);
         if (r < 0) {
                 snprintf(err, errlen, "%s: %s", path, strerror(-r));
@@ -646,7 +792,7 @@ int rigconf_load(const char *path, struct rig_config **ret, char *err, size_t er
         }
         r = yconf_open_string(&rc->yc, rc->path, rc->text, err, errlen);
         if (r >= 0)
-                r = parse_root(&rc->yc, rc);
+                r = parse_root(rc);
         if (r < 0) {
                 rigconf_free(rc);
                 return r;
@@ -659,6 +805,14 @@ struct rig_config *rigconf_free(struct rig_config *rc)
 {
         if (!rc)
                 return NULL;
+        /* every slot, parsed or not: a failed load leaves the confs parsed so far */
+        for (size_t i = 0; i < RIG_MAX_AXES; i++)
+                free((void *)rc->axes[i].backend.conf);
+        for (size_t i = 0; i < RIG_MAX_LAMPS; i++)
+                free((void *)rc->lamps[i].backend.conf);
+        free((void *)rc->laser.backend.conf);
+        for (size_t i = 0; i < RIG_MAX_CAMERAS; i++)
+                free((void *)rc->cameras[i].backend.conf);
         yconf_close(&rc->yc);
         free(rc->text);
         free(rc);

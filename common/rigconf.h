@@ -3,7 +3,12 @@
  *
  * Loaded once by goniod and by gonio-sim from the same YAML file. The parsed
  * struct is plain data; the YAML document stays open so that gonio-sim can read
- * the scene section through rigconf_scene(). */
+ * the scene section through rigconf_scene().
+ *
+ * Each device entry holds its class's keys (name, limits, elevation...) and one map named
+ * after its backend ("modbus: { bus: drives, unit: 1 }"). rigconf knows no backend: the
+ * caller passes a table of them (struct rig_backend; goniod's is registry_backends in
+ * drivers/registry.c), and each backend parses its own map at load time. */
 #pragma once
 
 #include <stdbool.h>
@@ -66,19 +71,58 @@ struct rig_modbus_profile {
         bool word_swap;
 };
 
+struct rig_config;
+
+/* The device classes of the rig file. */
+enum rig_class { RIG_CLASS_AXIS, RIG_CLASS_SWITCH, RIG_CLASS_CAMERA };
+
+/* Where a device sits on its bus, as its backend says, for the checks across entries: two
+ * devices of one bus clash when they have the same address, unless both have sub-addresses
+ * and these differ (a drive takes a whole Modbus unit, a lamp one coil of a relay module).
+ * The keys are those of the backend map, for messages. */
+struct rig_addr {
+        const char *key; /* "unit"; NULL: no address, never clashes */
+        int value;
+        const char *sub_key; /* "coil"; NULL: the device takes the whole address */
+        int sub;
+};
+
+/* A device's backend, as read from its backend map. */
+struct rig_backend_conf {
+        char name[RIG_NAME_MAX]; /* the key naming the map: "modbus" */
+        /* What the backend parsed from the map (struct mbax_conf for "modbus"), NULL for a
+         * backend without settings beyond the bus or a conf built by hand; owned by the rig
+         * config. */
+        const void *conf;
+        struct rig_addr addr;
+};
+
+/* A backend as the rig file knows it: one entry of the table given to rigconf_load(). */
+struct rig_backend {
+        const char *name; /* the key naming its map in a device entry: "modbus" */
+        enum rig_class cls;
+        unsigned bus_types; /* bit 1 << enum rig_bus_type for each kind of bus it runs on */
+        size_t conf_size;   /* bytes of its parsed conf; 0: it has none (conf is NULL) */
+        /* Parses the backend map m (its "bus" already read by rigconf) into conf
+         * (conf_size zeroed bytes) and *addr. Rejects unknown keys and bad values with
+         * yconf_error() (file, line, key). rc holds the buses and profiles read so far.
+         * Returns 0 or -EINVAL. */
+        int (*parse_conf)(struct yconf *yc, struct fy_node *m, const struct rig_config *rc,
+                          void *conf, struct rig_addr *addr);
+        const void *ops; /* the class's ops for drivers/ (struct axis_ops...), opaque here */
+};
+
 struct rig_axis_conf {
         char name[RIG_NAME_MAX];
-        char backend[RIG_NAME_MAX]; /* "modbus" */
-        char bus[RIG_NAME_MAX];
-        int unit;                   /* Modbus unit id */
-        char profile[RIG_NAME_MAX]; /* name of a profile; "gonio-default" is built in */
-        int role;                   /* enum gn_role, or -1: moves nothing the pose records */
-        bool continuous;            /* wraps at 360 deg; no soft limits */
-        double min_deg, max_deg;    /* soft limits (when !continuous) */
-        double max_speed;           /* deg/s */
-        double accel;               /* deg/s^2 */
-        int settle_ms;              /* extra wait after in-position */
-        int move_timeout_ms;        /* 0 = derived from distance, speed and accel */
+        char bus[RIG_NAME_MAX]; /* from the backend map: every backend has a bus */
+        struct rig_backend_conf backend;
+        int role;                /* enum gn_role, or -1: moves nothing the pose records */
+        bool continuous;         /* wraps at 360 deg; no soft limits */
+        double min_deg, max_deg; /* soft limits (when !continuous) */
+        double max_speed;        /* deg/s */
+        double accel;            /* deg/s^2 */
+        int settle_ms;           /* extra wait after in-position */
+        int move_timeout_ms;     /* 0 = derived from distance, speed and accel */
 };
 
 enum rig_switch_kind { RIG_SWITCH_LAMP, RIG_SWITCH_LASER };
@@ -86,10 +130,8 @@ enum rig_switch_kind { RIG_SWITCH_LAMP, RIG_SWITCH_LASER };
 struct rig_switch_conf {
         char name[RIG_NAME_MAX];
         enum rig_switch_kind kind;
-        char backend[RIG_NAME_MAX]; /* "modbus-coil" */
-        char bus[RIG_NAME_MAX];
-        int unit;
-        int coil;
+        char bus[RIG_NAME_MAX]; /* from the backend map */
+        struct rig_backend_conf backend;
         int warmup_ms; /* settle time after switching on */
         /* lamps: position on the light arm */
         double elevation_deg, radius_mm, azimuth_deg; /* azimuth: offset from arm zero */
@@ -103,8 +145,8 @@ struct rig_switch_conf {
 
 struct rig_camera_conf {
         char name[RIG_NAME_MAX];
-        char backend[RIG_NAME_MAX]; /* "sim" */
-        char bus[RIG_NAME_MAX];
+        char bus[RIG_NAME_MAX]; /* from the backend map */
+        struct rig_backend_conf backend;
         double elevation_deg, distance_mm, azimuth_deg; /* on the camera arm */
         double target[3];                               /* look-at point, mm */
         int width, height;
@@ -130,13 +172,17 @@ struct rig_config {
         bool has_laser;
         struct rig_camera_conf cameras[RIG_MAX_CAMERAS];
         size_t n_cameras;
-        char *text;      /* the file's bytes, stored with every dataset */
-        struct yconf yc; /* open document, for rigconf_scene() */
+        const struct rig_backend *const *backends; /* the table given to rigconf_load() */
+        char *text;                                /* the file's bytes, stored with every dataset */
+        struct yconf yc;                           /* open document, for rigconf_scene() */
 };
 
-/* Loads and validates a rig file. On error returns -errno and writes
- * "FILE:LINE: key 'x': reason" into err. *ret must be freed with rigconf_free(). */
-int rigconf_load(const char *path, struct rig_config **ret, char *err, size_t errlen);
+/* Loads and validates a rig file; backends is the NULL-terminated table of the backends a
+ * device entry may name (registry_backends in drivers/registry.c), borrowed for the
+ * config's lifetime. On error returns -errno and writes "FILE:LINE: key 'x': reason" into
+ * err. *ret must be freed with rigconf_free(). */
+int rigconf_load(const char *path, const struct rig_backend *const *backends,
+                 struct rig_config **ret, char *err, size_t errlen);
 
 /* Frees a rig config; NULL is a no-op. Returns NULL. */
 struct rig_config *rigconf_free(struct rig_config *rc);

@@ -8,6 +8,7 @@
 #include <systemd/sd-event.h>
 
 #include "common/log.h"
+#include "drivers/registry.h"
 #include "datasets.h"
 #include "manager.h"
 #include "protocol/proto.h"
@@ -108,7 +109,7 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
         if (!m)
                 return -ENOMEM;
         snprintf(m->data_dir, sizeof(m->data_dir), "%s", data_dir);
-        r = rigconf_load(rig_path, &m->rc, err, sizeof(err));
+        r = rigconf_load(rig_path, registry_backends, &m->rc, err, sizeof(err));
         if (r < 0) {
                 log_error("%s", err);
                 goto fail;

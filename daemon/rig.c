@@ -759,7 +759,6 @@ static int build_axis(struct rig *rig, size_t i)
             (r = sd_event_add_time_relative(rig->event, &a->timer, CLOCK_MONOTONIC, 0,
                                             TIMER_ACCURACY, on_axis_timer, a)) < 0)
                 return log_error_errno(r, "axis '%s': %m", c->name);
-        a->ax->rig = rig->rc; /* register profiles defined in the rig file */
         sd_event_source_set_enabled(a->timer, SD_EVENT_OFF);
         sd_event_source_set_description(a->timer, "axis-poll");
         return 0;

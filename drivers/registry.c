@@ -1,46 +1,40 @@
-/* registry.c - the one explicit table of driver backends, by device class. A new backend
- * adds its ops here (see docs/drivers.md). */
+/* registry.c - the one explicit table of driver backends: each entry names a backend as the
+ * rig file does, its device class, the parser of its backend map and its ops. A new backend
+ * adds its entry here (see docs/drivers.md). */
 #include <string.h>
 
-#include "common/cleanup.h"
 #include "drivers/axis/modbus/proto.h"
 #include "drivers/camera/sim/api.h"
 #include "drivers/registry.h"
 #include "drivers/switch/modbus/proto.h"
 
-static const struct axis_ops *const axis_backends[] = {
-        &mbax_ops,
+const struct rig_backend *const registry_backends[] = {
+        &mbax_backend,
+        &mbsw_backend,
+        &cam_sim_backend,
+        NULL,
 };
 
-static const struct sw_ops *const switch_backends[] = {
-        &mbsw_ops,
-};
-
-static const struct cam_ops *const camera_backends[] = {
-        &cam_sim_ops,
-};
-
-/* The entry of table whose name is backend, or NULL. Every ops struct starts with a name. */
-#define FIND(table, backend)                                                                       \
-        ({                                                                                         \
-                __typeof__(&*(table)[0]) _found = NULL;                                            \
-                for (size_t _i = 0; (backend) && !_found && _i < ELEMENTSOF(table); _i++)          \
-                        if (strcmp((table)[_i]->name, (backend)) == 0)                             \
-                                _found = (table)[_i];                                              \
-                _found;                                                                            \
-        })
+/* The ops of the backend of class cls named name, or NULL. */
+static const void *find(enum rig_class cls, const char *name)
+{
+        for (const struct rig_backend *const *b = registry_backends; name && *b; b++)
+                if ((*b)->cls == cls && strcmp((*b)->name, name) == 0)
+                        return (*b)->ops;
+        return NULL;
+}
 
 const struct axis_ops *registry_axis(const char *backend)
 {
-        return FIND(axis_backends, backend);
+        return find(RIG_CLASS_AXIS, backend);
 }
 
 const struct sw_ops *registry_switch(const char *backend)
 {
-        return FIND(switch_backends, backend);
+        return find(RIG_CLASS_SWITCH, backend);
 }
 
 const struct cam_ops *registry_camera(const char *backend)
 {
-        return FIND(camera_backends, backend);
+        return find(RIG_CLASS_CAMERA, backend);
 }

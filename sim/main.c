@@ -16,6 +16,7 @@
 #include "common/fileio.h"
 #include "common/log.h"
 #include "common/rigconf.h"
+#include "drivers/registry.h"
 #include "sim/frame_server.h"
 #include "sim/modbus_emu.h"
 #include "sim/render/render.h"
@@ -170,7 +171,7 @@ static int load(const struct args *a, struct rig_config **rc, struct sim_scene *
                 if (setenv("GONIO_SIM_DIR", a->dir, 1) < 0)
                         return log_error_errno(errno, "setenv: %m");
         }
-        int r = rigconf_load(a->rig, rc, err, sizeof err);
+        int r = rigconf_load(a->rig, registry_backends, rc, err, sizeof err);
         if (r < 0)
                 return log_error_errno(r, "%s", err[0] ? err : a->rig);
         r = sim_scene_new(*rc, scene, err, sizeof err);

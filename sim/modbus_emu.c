@@ -37,6 +37,8 @@
 
 #include "common/clock.h"
 #include "common/log.h"
+#include "drivers/axis/modbus/proto.h"
+#include "drivers/switch/modbus/proto.h"
 #include "sim/drive.h"
 #include "sim/modbus_emu.h"
 #include "sim/pty.h"
@@ -608,22 +610,17 @@ static uint16_t reg_tenths(double v)
         return (uint16_t)CLAMP(llround(v * 10.0), 1, 65535);
 }
 
+/* An axis of the "modbus" backend: its unit and profile as the rig file gave them. */
 static int add_axis(struct sim_emu *e, const struct rig_axis_conf *c)
 {
+        const struct mbax_conf *mc = c->backend.conf;
         struct emu_unit *u;
-        int r = add_unit(e, c->bus, c->unit, true, c->name, &u);
+        int r = add_unit(e, c->bus, mc->unit, true, c->name, &u);
         if (r < 0)
                 return r;
 
         struct emu_axis *a = &u->axis;
-        const struct rig_modbus_profile *p = rigconf_profile(e->rc, c->profile);
-        if (p)
-                a->prof = *p;
-        else if (!c->profile[0] || strcmp(c->profile, "gonio-default") == 0)
-                rigconf_default_profile(&a->prof);
-        else
-                return log_error_errno(SYNTHETIC_ERRNO(EINVAL), "axis '%s': unknown profile '%s'",
-                                       c->name, c->profile);
+        a->prof = *mc->profile;
         sim_drive_init(&a->drive, c);
 
         u->map = modbus_mapping_new(0, 0, profile_span(&a->prof), 0);
@@ -634,13 +631,15 @@ static int add_axis(struct sim_emu *e, const struct rig_axis_conf *c)
         return 0;
 }
 
+/* A switch of the "modbus-coil" backend. */
 static int add_coil(struct sim_emu *e, const struct rig_switch_conf *c)
 {
+        const struct mbsw_conf *mc = c->backend.conf;
         struct emu_unit *u;
-        int r = add_unit(e, c->bus, c->unit, false, c->name, &u);
+        int r = add_unit(e, c->bus, mc->unit, false, c->name, &u);
         if (r < 0)
                 return r;
-        u->n_coils = MAX(u->n_coils, c->coil + 1);
+        u->n_coils = MAX(u->n_coils, mc->coil + 1);
         return 0;
 }
 
@@ -650,12 +649,12 @@ static int add_devices(struct sim_emu *e)
         int r = 0;
 
         for (size_t i = 0; r >= 0 && i < rc->n_axes; i++)
-                if (strcmp(rc->axes[i].backend, "modbus") == 0)
+                if (strcmp(rc->axes[i].backend.name, "modbus") == 0)
                         r = add_axis(e, &rc->axes[i]);
         for (size_t i = 0; r >= 0 && i < rc->n_lamps; i++)
-                if (strcmp(rc->lamps[i].backend, "modbus-coil") == 0)
+                if (strcmp(rc->lamps[i].backend.name, "modbus-coil") == 0)
                         r = add_coil(e, &rc->lamps[i]);
-        if (r >= 0 && rc->has_laser && strcmp(rc->laser.backend, "modbus-coil") == 0)
+        if (r >= 0 && rc->has_laser && strcmp(rc->laser.backend.name, "modbus-coil") == 0)
                 r = add_coil(e, &rc->laser);
         for (size_t i = 0; r >= 0 && i < e->n_units; i++) {
                 struct emu_unit *u = &e->units[i];
@@ -706,13 +705,18 @@ struct sim_emu *sim_emu_free(struct sim_emu *e)
 
 /* ---- queries and faults ---- */
 
+/* Whether switch c is on: false unless it is an emulated "modbus-coil" switch. */
 static bool coil_state(struct sim_emu *e, const struct rig_switch_conf *c)
 {
+        const struct mbsw_conf *mc = c->backend.conf;
         int bi = bus_index(e, c->bus);
-        struct emu_unit *u = bi >= 0 ? find_unit(e, bi, c->unit) : NULL;
+        struct emu_unit *u;
 
-        return u && !u->is_axis && c->coil >= 0 && c->coil < u->n_coils &&
-               u->map->tab_bits[c->coil];
+        if (strcmp(c->backend.name, "modbus-coil") != 0 || bi < 0)
+                return false;
+        u = find_unit(e, bi, mc->unit);
+        return u && !u->is_axis && mc->coil >= 0 && mc->coil < u->n_coils &&
+               u->map->tab_bits[mc->coil];
 }
 
 void sim_emu_snapshot(struct sim_emu *e, struct gn_pose *st)

@@ -12,8 +12,9 @@
 
 int axis_log_full(struct axis *ax, int level, int err, const char *fmt, ...)
 {
-        const struct bus_dev_ref ref = {"axis",         ax->conf->name, ax->ops->name,
-                                        ax->conf->unit, ax->last_error, sizeof(ax->last_error)};
+        const struct bus_dev_ref ref = {"axis",         ax->conf->name,
+                                        ax->ops->name,  &ax->conf->backend.addr,
+                                        ax->last_error, sizeof(ax->last_error)};
         va_list ap;
         int r;
 
@@ -49,10 +50,10 @@ int axis_new(const struct rig_axis_conf *conf, struct bus *bus, struct axis **re
 
         if (!conf || !bus || !ret)
                 return -EINVAL;
-        ops = registry_axis(conf->backend);
+        ops = registry_axis(conf->backend.name);
         if (!ops)
                 return log_error_errno(SYNTHETIC_ERRNO(ENOENT), "axis '%s': Unknown backend '%s'",
-                                       conf->name, conf->backend);
+                                       conf->name, conf->backend.name);
         ax = calloc(1, sizeof(*ax));
         if (!ax)
                 return -ENOMEM;

@@ -43,9 +43,6 @@ struct axis {
         struct bus *bus;                  /* borrowed */
         void *priv;                       /* backend state */
         struct axis_state state;          /* last confirmed state */
-        /* borrowed, optional, set by the caller before axis_open(): rig-wide tables such as
-         * Modbus register profiles; without it only built-in profiles are known */
-        const struct rig_config *rig;
         /* The last message the class logged at warning level or worse, whole ("axis
          * 'turntable' [modbus@drives#1]: Failed to read the drive state: read position (reg
          * 0x0102): Connection timed out after 200 ms"), for operators; "" when none. Written

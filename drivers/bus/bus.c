@@ -139,8 +139,9 @@ struct transport *bus_transport(const struct bus *b)
         return b->t;
 }
 
-/* "PORT#UNIT": the port's last path component (host:port for TCP), unit left out if < 0. */
-static void where(const struct bus *b, int unit, char *buf, size_t len)
+/* "PORT#ADDR": the port's last path component (host:port for TCP), the address's value left
+ * out when it has none. */
+static void where(const struct bus *b, const struct rig_addr *addr, char *buf, size_t len)
 {
         const struct rig_bus_conf *c = &b->conf;
         const char *slash = strrchr(c->port, '/');
@@ -150,8 +151,8 @@ static void where(const struct bus *b, int unit, char *buf, size_t len)
                 k = snprintf(buf, len, "%s:%d", c->host, c->tcp_port);
         else
                 k = snprintf(buf, len, "%s", slash ? slash + 1 : c->port);
-        if (unit >= 0 && k >= 0 && (size_t)k < len)
-                snprintf(buf + k, len - k, "#%d", unit);
+        if (addr && addr->key && k >= 0 && (size_t)k < len)
+                snprintf(buf + k, len - k, "#%d", addr->value);
 }
 
 int bus_log_dev(const struct bus *b, const struct bus_dev_ref *dev, int level, int err,
@@ -160,7 +161,7 @@ int bus_log_dev(const struct bus *b, const struct bus_dev_ref *dev, int level, i
         char loc[RIG_PATH_MAX + 16], msg[1024];
         int saved = errno;
 
-        where(b, dev->unit, loc, sizeof(loc));
+        where(b, dev->addr, loc, sizeof(loc));
         errno = err < 0 ? -err : err;
         vsnprintf(msg, sizeof(msg), fmt, ap);
         errno = saved;

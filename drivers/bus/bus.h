@@ -55,14 +55,14 @@ struct transport *bus_transport(const struct bus *b);
 /* Where a device message comes from and where it is kept, for bus_log_dev(). */
 struct bus_dev_ref {
         const char *kind, *name, *backend; /* "axis", "turntable", "modbus" */
-        int unit;                          /* -1: none */
+        const struct rig_addr *addr;       /* the device's address, "#1"; NULL or no key: none */
         char *last_error;                  /* NULL or a buffer of last_error_len bytes */
         size_t last_error_len;
 };
 
-/* Logs "KIND 'NAME' [BACKEND@PORT#UNIT]: message" (PORT: last component of the bus's
- * port, or host:port for TCP; "#UNIT" left out when unit < 0) for the device class
- * wrappers; a message at warning level or worse is also copied, whole, into
+/* Logs "KIND 'NAME' [BACKEND@PORT#ADDR]: message" (PORT: last component of the bus's
+ * port, or host:port for TCP; ADDR: the address's value, "#ADDR" left out without one) for the
+ * device class wrappers; a message at warning level or worse is also copied, whole, into
  * dev->last_error. errno is err while formatting, for %m. Returns -abs(err). Thread of
  * the device's ops. */
 int bus_log_dev(const struct bus *b, const struct bus_dev_ref *dev, int level, int err,

@@ -14,8 +14,9 @@ static int cam_log_full(struct cam *c, int level, int err, const char *fmt, ...)
 
 static int cam_log_full(struct cam *c, int level, int err, const char *fmt, ...)
 {
-        const struct bus_dev_ref ref = {"camera", c->conf->name, c->ops->name,
-                                        -1,       c->last_error, sizeof(c->last_error)};
+        const struct bus_dev_ref ref = {"camera",      c->conf->name,
+                                        c->ops->name,  &c->conf->backend.addr,
+                                        c->last_error, sizeof(c->last_error)};
         va_list ap;
         int r;
 
@@ -51,10 +52,10 @@ int cam_new(const struct rig_camera_conf *conf, struct bus *bus, struct cam **re
 
         if (!conf || !bus || !ret)
                 return -EINVAL;
-        ops = registry_camera(conf->backend);
+        ops = registry_camera(conf->backend.name);
         if (!ops)
                 return log_error_errno(SYNTHETIC_ERRNO(ENOENT), "camera '%s': Unknown backend '%s'",
-                                       conf->name, conf->backend);
+                                       conf->name, conf->backend.name);
         c = calloc(1, sizeof(*c));
         if (!c)
                 return -ENOMEM;

@@ -11,8 +11,9 @@
 
 int sw_log_full(struct sw *s, int level, int err, const char *fmt, ...)
 {
-        const struct bus_dev_ref ref = {"switch",      s->conf->name, s->ops->name,
-                                        s->conf->unit, s->last_error, sizeof(s->last_error)};
+        const struct bus_dev_ref ref = {"switch",      s->conf->name,
+                                        s->ops->name,  &s->conf->backend.addr,
+                                        s->last_error, sizeof(s->last_error)};
         va_list ap;
         int r;
 
@@ -48,10 +49,10 @@ int sw_new(const struct rig_switch_conf *conf, struct bus *bus, struct sw **ret)
 
         if (!conf || !bus || !ret)
                 return -EINVAL;
-        ops = registry_switch(conf->backend);
+        ops = registry_switch(conf->backend.name);
         if (!ops)
                 return log_error_errno(SYNTHETIC_ERRNO(ENOENT), "switch '%s': Unknown backend '%s'",
-                                       conf->name, conf->backend);
+                                       conf->name, conf->backend.name);
         s = calloc(1, sizeof(*s));
         if (!s)
                 return -ENOMEM;

@@ -1,7 +1,8 @@
 /* test-rigconf.c - the rig file loader: the example rig loads with the values written in
  * it, and each kind of mistake is refused with file, line and key: unknown keys in every
- * kind of entry, two devices on one Modbus address, two buses on one port, unset
- * environment variables, duplicate names, axis roles, camera control ranges.
+ * kind of entry and in every backend's map, backend maps missing, doubled, misplaced or
+ * naming an unknown profile, two devices on one Modbus address, two buses on one port,
+ * unset environment variables, duplicate names, axis roles, camera control ranges.
  * Usage: test-rigconf EXAMPLE-RIG CASE; an unknown CASE fails. */
 #include <errno.h>
 #include <stdio.h>
@@ -10,9 +11,15 @@
 
 #include "common/cleanup.h"
 #include "common/rigconf.h"
+#include "drivers/axis/modbus/proto.h"
+#include "drivers/camera/sim/api.h"
+#include "drivers/registry.h"
+#include "drivers/switch/modbus/proto.h"
 #include "tests/test.h"
 
 static const char *example_path;
+/* The backend table loads use: gonio's, unless a case swaps in its own. */
+static const struct rig_backend *const *backends = registry_backends;
 
 /* Loads text from a temporary file; *path gets the file's name (already removed). */
 static int load_text(const char *text, struct rig_config **rc, char *err, size_t errlen,
@@ -26,7 +33,7 @@ static int load_text(const char *text, struct rig_config **rc, char *err, size_t
         CHECK(write(fd, text, strlen(text)) == (ssize_t)strlen(text));
         close(fd);
         err[0] = 0;
-        r = rigconf_load(path, rc, err, errlen);
+        r = rigconf_load(path, backends, rc, err, errlen);
         unlink(path);
         return r;
 }
@@ -64,10 +71,10 @@ static void expect_at(const char *text, int line, const char *key, const char *m
 #define BUS                                                                                        \
         "rig: t\nbuses:\n  - { name: b, type: modbus-rtu, port: /dev/null }\n"                     \
         "  - { name: f, type: sim, port: /tmp/f.sock }\n"
-#define AXIS(name, unit) "  - { name: " name ", backend: modbus, bus: b, unit: " unit " }\n"
+#define AXIS(name, unit) "  - { name: " name ", modbus: { bus: b, unit: " unit " } }\n"
 #define LAMP(name, unit, coil)                                                                     \
-        "  - { name: " name ", backend: modbus-coil, bus: b, unit: " unit ", coil: " coil          \
-        ", elevation: 1 }\n"
+        "  - { name: " name ", elevation: 1, modbus-coil: { bus: b, unit: " unit ", coil: " coil   \
+        " } }\n"
 
 static void case_example(void)
 {
@@ -76,7 +83,7 @@ static void case_example(void)
         int r;
 
         setenv("GONIO_SIM_DIR", "/tmp/simdir", 1);
-        r = rigconf_load(example_path, &rc, err, sizeof(err));
+        r = rigconf_load(example_path, registry_backends, &rc, err, sizeof(err));
         if (r < 0)
                 fprintf(stderr, "%s\n", err);
         CHECK_INT(r, 0);
@@ -87,7 +94,16 @@ static void case_example(void)
         CHECK(rc->axes[0].continuous);
         CHECK_NEAR(rc->axes[2].min_deg, -170, 0);
         CHECK_NEAR(rc->lamps[3].elevation_deg, 75, 0);
-        CHECK_INT(rc->laser.coil, 7);
+        CHECK_STR(rc->laser.backend.name, "modbus-coil");
+        CHECK_INT(((const struct mbsw_conf *)rc->laser.backend.conf)->coil, 7);
+        CHECK_INT(((const struct mbsw_conf *)rc->laser.backend.conf)->unit, 10);
+        CHECK_STR(rc->axes[1].backend.name, "modbus");
+        CHECK_STR(rc->axes[1].bus, "drives");
+        CHECK_INT(((const struct mbax_conf *)rc->axes[1].backend.conf)->unit, 2);
+        CHECK(((const struct mbax_conf *)rc->axes[1].backend.conf)->profile ==
+              rigconf_profile(rc, "gonio-default"));
+        CHECK_STR(rc->cameras[1].backend.name, "sim");
+        CHECK_STR(rc->cameras[1].bus, "frames");
         CHECK_STR(rc->buses[0].port, "/tmp/simdir/drives");
         CHECK(rigconf_profile(rc, "gonio-default") != NULL);
         CHECK(rigconf_scene(rc) != NULL);
@@ -105,20 +121,24 @@ static void case_errors(void)
         CHECK_INT(load_text("rig: [unclosed\n", &rc, err, sizeof(err), path), -EINVAL);
         CHECK_STR_CONTAINS(err, "YAML syntax error");
         expect_at("buses: []\n", 1, "rig", "required key is missing");
-        expect_at(BUS "axes:\n  - name: a\n    backend: modbus\n    bus: nope\n", 8, "bus",
+        expect_at(BUS "axes:\n  - name: a\n    modbus:\n      bus: nope\n", 8, "bus",
                   "axes 'a': no bus named 'nope'");
-        expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b, max_speed: fast }\n", 6,
+        expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b }, max_speed: fast }\n", 6,
                   "max_speed", "'fast' is not a number");
-        expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b, unit: 300 }\n", 6, "unit",
+        expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b, unit: 300 } }\n", 6, "unit",
                   "300 is out of range");
-        expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b, limits: [10, -10] }\n", 6,
+        expect_at(BUS "lamps:\n  - { name: l, elevation: 1, modbus-coil: { bus: b, coil: -1 } }\n",
+                  6, "coil", "-1 is out of range");
+        expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b }, limits: [10, -10] }\n", 6,
                   "limits", "need min < max");
         expect_at("rig: t\nbuses:\n  - { name: b, type: can }\n", 3, "type",
                   "'can' is not a bus type");
-        expect_at(BUS "cameras:\n  - { name: c, backend: sim, bus: b }\n", 6, "bus",
-                  "bus 'b' is of the wrong type");
-        expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b, profile: nope }\n", 6,
-                  "profile", "no register profile named 'nope'");
+        expect_at(BUS "cameras:\n  - { name: c, sim: { bus: b } }\n", 6, "bus",
+                  "bus 'b' is of the wrong type (modbus-rtu; backend 'sim' does not run on it)");
+        expect_at(BUS "axes:\n  - { name: a, modbus: { bus: f } }\n", 6, "bus",
+                  "bus 'f' is of the wrong type (sim; backend 'modbus' does not run on it)");
+        expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b, profile: nope } }\n", 6, "profile",
+                  "no register profile named 'nope'");
 }
 
 /* A misspelt key in each kind of entry, in block and flow style. */
@@ -133,49 +153,63 @@ static const struct {
          "baudrate"},
         {"buses", "rig: t\nbuses:\n  - { name: b, type: modbus-tcp, tcp-port: 502 }\n", 3,
          "tcp-port"},
-        {"axes", BUS "axes:\n  - name: a\n    backend: modbus\n    bus: b\n    limts: [-9, 9]\n", 9,
+        {"axes", BUS "axes:\n  - name: a\n    modbus: { bus: b }\n    limts: [-9, 9]\n", 8,
          "limts"},
-        {"axes", BUS "axes:\n  - { name: a, backend: modbus, bus: b, max_sped: 5 }\n", 6,
-         "max_sped"},
+        {"axes", BUS "axes:\n  - { name: a, modbus: { bus: b }, max_sped: 5 }\n", 6, "max_sped"},
         {"lamps", BUS "lamps:\n  - name: l\n    elevaton: 10\n", 7, "elevaton"},
         {"laser", BUS "laser:\n  name: x\n  orgin: [0, 0, 0]\n", 7, "orgin"},
-        {"cameras", BUS "cameras:\n  - name: c\n    bus: f\n    exposure: 100\n", 8, "exposure"},
-        {"cameras", BUS "cameras:\n  - { name: c, bus: f, distorsion: [0, 0] }\n", 6, "distorsion"},
+        {"cameras", BUS "cameras:\n  - name: c\n    sim: { bus: f }\n    exposure: 100\n", 8,
+         "exposure"},
+        {"cameras", BUS "cameras:\n  - { name: c, sim: { bus: f }, distorsion: [0, 0] }\n", 6,
+         "distorsion"},
+        /* inside each backend's map */
+        {"modbus", BUS "axes:\n  - name: a\n    modbus:\n      bus: b\n      unti: 2\n", 9, "unti"},
+        {"modbus", BUS "axes:\n  - { name: a, modbus: { bus: b, profil: p } }\n", 6, "profil"},
+        {"modbus-coil",
+         BUS "lamps:\n  - { name: l, elevation: 1, modbus-coil: { bus: b, col: 3 } }\n", 6, "col"},
+        {"modbus-coil", BUS "laser:\n  name: x\n  modbus-coil:\n    bus: b\n    cooil: 7\n", 9,
+         "cooil"},
+        {"sim", BUS "cameras:\n  - name: c\n    sim:\n      bus: f\n      port: /x\n", 9, "port"},
 };
+
+/* Whether unknown_keys has a row of kind. */
+static bool covered(const char *kind)
+{
+        for (size_t i = 0; i < ELEMENTSOF(unknown_keys); i++)
+                if (strcmp(unknown_keys[i].kind, kind) == 0)
+                        return true;
+        fprintf(stderr, "no unknown-key row for '%s'\n", kind);
+        return false;
+}
 
 static void case_unknown_keys(void)
 {
         static const char *const kinds[] = {"root",  "profiles", "buses",  "axes",
                                             "lamps", "laser",    "cameras"};
 
-        for (size_t k = 0; k < ELEMENTSOF(kinds); k++) {
-                bool covered = false;
-
-                for (size_t i = 0; i < ELEMENTSOF(unknown_keys); i++)
-                        covered = covered || strcmp(unknown_keys[i].kind, kinds[k]) == 0;
-                if (!covered)
-                        fprintf(stderr, "no unknown-key row for '%s'\n", kinds[k]);
-                CHECK(covered);
-        }
+        for (size_t k = 0; k < ELEMENTSOF(kinds); k++)
+                CHECK(covered(kinds[k]));
+        for (const struct rig_backend *const *b = registry_backends; *b; b++)
+                CHECK(covered((*b)->name)); /* every backend's map, new ones too */
         for (size_t i = 0; i < ELEMENTSOF(unknown_keys); i++)
                 expect_at(unknown_keys[i].text, unknown_keys[i].line, unknown_keys[i].key,
                           "unknown key");
         /* a list key given as a mapping is not silently ignored either */
-        expect_at(BUS "axes:\n  - name: a\n    backend: modbus\n    bus: b\n"
+        expect_at(BUS "axes:\n  - name: a\n    modbus: { bus: b }\n"
                       "    limits: { min: -9, max: 9 }\n",
-                  9, "limits", "expected a list");
+                  8, "limits", "expected a list");
 }
 
 static void case_addresses(void)
 {
         expect_at(BUS "axes:\n" AXIS("t", "1") AXIS("l", "2") AXIS("c", "1"), 8, "unit",
                   "axis 't' and axis 'c' are both on unit 1 on bus 'b'");
-        expect_at(BUS "axes:\n  - { name: t, backend: modbus, bus: b }\n" AXIS("c", "1"), 7, "unit",
+        expect_at(BUS "axes:\n  - { name: t, modbus: { bus: b } }\n" AXIS("c", "1"), 7, "unit",
                   "axis 't' and axis 'c' are both on unit 1"); /* unit 1 by default */
         expect_at(BUS "lamps:\n" LAMP("l0", "10", "0") LAMP("l1", "10", "1") LAMP("l2", "10", "1"),
                   8, "coil", "lamp 'l1' and lamp 'l2' are both on coil 1 of unit 10 on bus 'b'");
-        expect_at(BUS "lamps:\n" LAMP("l0", "10", "7") "laser:\n  name: x\n  backend: modbus-coil\n"
-                                                       "  bus: b\n  unit: 10\n  coil: 7\n",
+        expect_at(BUS "lamps:\n" LAMP("l0", "10", "7") "laser:\n  name: x\n  modbus-coil:\n"
+                                                       "    bus: b\n    unit: 10\n    coil: 7\n",
                   12, "coil", "lamp 'l0' and laser 'x' are both on coil 7 of unit 10");
         expect_at(BUS "axes:\n" AXIS("t", "3") "lamps:\n" LAMP("l0", "3", "0"), 8, "unit",
                   "axis 't' and lamp 'l0' are both on unit 3 on bus 'b'");
@@ -193,11 +227,11 @@ static void case_addresses(void)
                     "  - { name: t1, type: modbus-tcp, host: h, tcp_port: 502 }\n"
                     "  - { name: t2, type: modbus-tcp, host: h, tcp_port: 503 }\n"
                     "axes:\n" AXIS("t", "1")
-                            AXIS("l", "2") "  - { name: c, backend: modbus, bus: b2, unit: 1 }\n"
-                                           "lamps:\n" LAMP("l0", "10", "0") LAMP(
-                                                   "l1", "10",
-                                                   "1") "laser: { name: x, backend: modbus-coil, "
-                                                        "bus: b, unit: 10, coil: 2 }\n"));
+                            AXIS("l", "2") "  - { name: c, modbus: { bus: b2, unit: 1 } }\n"
+                                           "lamps:\n" LAMP("l0", "10", "0")
+                                                   LAMP("l1", "10",
+                                                        "1") "laser: { name: x, modbus-coil: { "
+                                                             "bus: b, unit: 10, coil: 2 } }\n"));
 }
 
 static void case_env(void)
@@ -227,13 +261,11 @@ static void case_duplicates(void)
 {
         expect_at(BUS "lamps:\n" LAMP("a", "1", "0") LAMP("z", "1", "1") LAMP("a", "1", "2"), 8,
                   "name", "device name 'a' is used twice (first at line 6)");
-        expect_at(BUS
-                  "axes:\n" AXIS("a", "1") "cameras:\n  - name: c\n    backend: sim\n    bus: f\n"
-                                           "  - backend: sim\n    bus: f\n    name: a\n",
-                  13, "name", "device name 'a' is used twice (first at line 6)");
-        expect_at(BUS "laser:\n  bus: b\n  name: a\n  backend: modbus-coil\nlamps:\n" LAMP("a", "1",
-                                                                                           "1"),
-                  10, "name", "device name 'a' is used twice (first at line 7)");
+        expect_at(BUS "axes:\n" AXIS("a", "1") "cameras:\n  - name: c\n    sim: { bus: f }\n"
+                                               "  - sim:\n      bus: f\n    name: a\n",
+                  12, "name", "device name 'a' is used twice (first at line 6)");
+        expect_at(BUS "laser:\n  modbus-coil: { bus: b }\n  name: a\nlamps:\n" LAMP("a", "1", "1"),
+                  9, "name", "device name 'a' is used twice (first at line 7)");
         expect_at("rig: t\nbuses:\n  - { name: b, type: sim, port: /x }\n"
                   "  - { name: b, type: sim, port: /y }\n",
                   4, "name", "bus name 'b' is used twice (first at line 3)");
@@ -247,10 +279,10 @@ static void case_roles(void)
 {
         struct rig_config *rc =
                 expect_ok(BUS "axes:\n" AXIS("turntable", "1") AXIS("light_arm", "2")
-                                  AXIS("spare", "3") "  - { name: arm2, backend: modbus, bus: b, "
-                                                     "unit: 4, role: camera_arm }\n"
-                                                     "  - { name: camera_arm, backend: modbus, "
-                                                     "bus: b, unit: 5, role: none }\n");
+                                  AXIS("spare", "3") "  - { name: arm2, modbus: { bus: b, "
+                                                     "unit: 4 }, role: camera_arm }\n"
+                                                     "  - { name: camera_arm, modbus: { "
+                                                     "bus: b, unit: 5 }, role: none }\n");
 
         CHECK_INT(rc->axes[0].role, GN_ROLE_TURNTABLE);
         CHECK_INT(rc->axes[1].role, GN_ROLE_LIGHT_ARM);
@@ -259,7 +291,7 @@ static void case_roles(void)
         CHECK_INT(rc->axes[4].role, -1);
         CHECK_INT(rigconf_axis_of_role(rc, GN_ROLE_CAMERA_ARM), 3);
         rigconf_free(rc);
-        rc = expect_ok(BUS "axes:\n  - { name: tt, backend: modbus, bus: b, role: turntable }\n");
+        rc = expect_ok(BUS "axes:\n  - { name: tt, modbus: { bus: b }, role: turntable }\n");
         CHECK_INT(rigconf_axis_of_role(rc, GN_ROLE_TURNTABLE), 0);
         CHECK_INT(rigconf_axis_of_role(rc, GN_ROLE_LIGHT_ARM), -ENOENT);
         CHECK_INT(rigconf_axis_of_role(rc, GN_ROLE_CAMERA_ARM), -ENOENT);
@@ -267,13 +299,13 @@ static void case_roles(void)
         rc = expect_ok("rig: bare\n");
         CHECK_INT(rigconf_axis_of_role(rc, GN_ROLE_TURNTABLE), -ENOENT);
         rigconf_free(rc);
-        expect_at(BUS "axes:\n  - name: a\n    backend: modbus\n    bus: b\n    role: turntabel\n",
-                  9, "role", "unknown role 'turntabel' (turntable, light_arm, camera_arm or none)");
-        expect_at(BUS "axes:\n" AXIS("turntable", "1") "  - { name: t2, backend: modbus, bus: b, "
-                                                       "unit: 2, role: turntable }\n",
+        expect_at(BUS "axes:\n  - name: a\n    modbus: { bus: b }\n    role: turntabel\n", 8,
+                  "role", "unknown role 'turntabel' (turntable, light_arm, camera_arm or none)");
+        expect_at(BUS "axes:\n" AXIS("turntable", "1") "  - { name: t2, modbus: { bus: b, "
+                                                       "unit: 2 }, role: turntable }\n",
                   7, "role", "axes 'turntable' and 't2' both have role 'turntable'");
-        expect_at(BUS "axes:\n  - { name: x, backend: modbus, bus: b, unit: 2, role: light_arm }\n"
-                      "  - name: light_arm\n    backend: modbus\n    bus: b\n",
+        expect_at(BUS "axes:\n  - { name: x, modbus: { bus: b, unit: 2 }, role: light_arm }\n"
+                      "  - name: light_arm\n    modbus: { bus: b }\n",
                   7, "role", "axes 'x' and 'light_arm' both have role 'light_arm'");
 }
 
@@ -298,13 +330,72 @@ static void case_camera_ranges(void)
 
         for (size_t i = 0; i < ELEMENTSOF(rows); i++) {
                 snprintf(text, sizeof(text),
-                         BUS "cameras:\n  - { name: c, backend: sim, bus: f, %s: %.17g }\n",
-                         rows[i].key, rows[i].v);
+                         BUS "cameras:\n  - { name: c, sim: { bus: f }, %s: %.17g }\n", rows[i].key,
+                         rows[i].v);
                 if (rows[i].ok)
                         rigconf_free(expect_ok(text));
                 else
                         expect_at(text, 6, rows[i].key, "is out of range");
         }
+}
+
+/* A second axis backend, for the rule of one backend map per device (gonio has one). */
+static int spare_parse(struct yconf *yc, struct fy_node *m, const struct rig_config *rc, void *conf,
+                       struct rig_addr *addr)
+{
+        static const char *const keys[] = {"bus", NULL};
+
+        return yconf_check_keys(yc, m, keys);
+}
+
+static const struct rig_backend spare_axis = {
+        .name = "spare",
+        .cls = RIG_CLASS_AXIS,
+        .bus_types = 1u << RIG_BUS_MODBUS_RTU,
+        .parse_conf = spare_parse,
+};
+
+/* Backend maps: exactly one per device, of its class, a mapping with a bus; its keys are the
+ * backend's; profiles resolve when the file loads. */
+static void case_backend_maps(void)
+{
+        static const struct rig_backend *const with_spare[] = {&mbax_backend, &mbsw_backend,
+                                                               &cam_sim_backend, &spare_axis, NULL};
+        struct rig_config *rc;
+
+        expect_at(BUS
+                  "axes:\n  - name: a\n    modbus:\n      bus: b\n      profile: gonio-defualt\n",
+                  9, "profile", "no register profile named 'gonio-defualt'");
+        rc = expect_ok("rig: t\nprofiles:\n  - { name: p, scale: 2 }\nbuses:\n"
+                       "  - { name: b, type: modbus-tcp, tcp_port: 502 }\n"
+                       "axes:\n  - { name: a, modbus: { bus: b, profile: p } }\n");
+        CHECK(((const struct mbax_conf *)rc->axes[0].backend.conf)->profile == &rc->profiles[1]);
+        CHECK_NEAR(((const struct mbax_conf *)rc->axes[0].backend.conf)->profile->scale, 2, 0);
+        rigconf_free(rc);
+        expect_at(BUS "axes:\n  - { name: a, max_speed: 5 }\n", 6, "modbus",
+                  "no backend map in this entry (one of: modbus)");
+        expect_at(BUS "laser:\n  name: x\n  power: 1\n", 6, "modbus-coil",
+                  "no backend map in this entry (one of: modbus-coil)");
+        expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b }\n", 6, "backend",
+                  "go in one map named after the backend (modbus: { bus: ... })");
+        expect_at(BUS "cameras:\n  - { name: c, bus: f }\n", 6, "bus",
+                  "go in one map named after the backend (sim: { bus: ... })");
+        expect_at(BUS "lamps:\n  - { name: l, elevation: 1, modbus: { bus: b } }\n", 6, "modbus",
+                  "'modbus' is a backend for axes, not for lamps and lasers (modbus-coil)");
+        expect_at(BUS "axes:\n  - { name: a, modbus: b }\n", 6, "modbus",
+                  "expected the backend's settings as a mapping");
+        expect_at(BUS "axes:\n  - { name: a, modbus: { unit: 2 } }\n", 6, "bus",
+                  "required key is missing");
+        backends = with_spare;
+        expect_at(BUS "axes:\n  - name: a\n    modbus: { bus: b }\n    spare: { bus: b }\n", 8,
+                  "spare", "a second backend map (after 'modbus'): a device has exactly one");
+        expect_at(BUS "axes:\n  - { name: a }\n", 6, "modbus, spare",
+                  "no backend map in this entry (one of: modbus, spare)");
+        rc = expect_ok(BUS "axes:\n  - { name: a, spare: { bus: b } }\n" AXIS("m", "1"));
+        CHECK_STR(rc->axes[0].backend.name, "spare");
+        CHECK(rc->axes[0].backend.conf == NULL);
+        rigconf_free(rc);
+        backends = registry_backends;
 }
 
 static const struct {
@@ -319,6 +410,7 @@ static const struct {
         {"duplicates", case_duplicates},
         {"roles", case_roles},
         {"camera-ranges", case_camera_ranges},
+        {"backend-maps", case_backend_maps},
 };
 
 int main(int argc, char **argv)

@@ -24,9 +24,9 @@ static const char rig_yaml[] =
         "  - { name: relays, type: modbus-rtu, port: '@DIR@/relays',\n"
         "      timeout_ms: 100, retries: 1 }\n"
         "axes:\n"
-        "  - { name: turntable, backend: modbus, bus: drives, unit: 1, continuous: true }\n"
+        "  - { name: turntable, modbus: { bus: drives, unit: 1 }, continuous: true }\n"
         "lamps:\n"
-        "  - { name: lamp0, backend: modbus-coil, bus: relays, unit: 10, coil: 0,\n"
+        "  - { name: lamp0, modbus-coil: { bus: relays, unit: 10, coil: 0 },\n"
         "      elevation: 10 }\n";
 
 /* Opens the turntable on a new sync bus for conf; returns axis_open()'s result. */
@@ -35,7 +35,6 @@ static int open_tt(struct testrig *t, const struct rig_bus_conf *conf, struct bu
 {
         CHECK_INT(bus_new_sync(conf, b), 0);
         CHECK_INT(axis_new(&t->rc->axes[0], *b, ax), 0);
-        (*ax)->rig = t->rc;
         return axis_open(*ax);
 }
 

@@ -72,14 +72,14 @@ static void test_registry(void)
 static void test_new_unknown(void)
 {
         struct rig_bus_conf bc = {.name = "b", .type = RIG_BUS_SIM, .port = "/x/frames.sock"};
-        struct rig_axis_conf ac = {.name = "a", .backend = "nope"};
+        struct rig_axis_conf ac = {.name = "a", .backend.name = "nope"};
         struct bus *b = NULL;
         struct axis *ax = NULL;
 
         CHECK_INT(bus_new_sync(&bc, &b), 0);
         CHECK_INT(axis_new(&ac, b, &ax), -ENOENT);
         CHECK(ax == NULL);
-        strcpy(ac.backend, "modbus");
+        strcpy(ac.backend.name, "modbus");
         CHECK_INT(axis_new(&ac, b, &ax), 0);
         CHECK_INT(axis_poll(ax), -ENOTCONN); /* not opened */
         CHECK(axis_free(ax) == NULL);
@@ -90,7 +90,7 @@ static void test_new_unknown(void)
 static void test_cam_check_request(void)
 {
         struct rig_bus_conf bc = {.name = "frames", .type = RIG_BUS_SIM, .port = "/x/f.sock"};
-        struct rig_camera_conf cc = {.name = "cam1", .backend = "sim"};
+        struct rig_camera_conf cc = {.name = "cam1", .backend.name = "sim"};
         struct bus *b = NULL;
         struct cam *c = NULL;
         char msg[128];

@@ -106,10 +106,11 @@ static void test_rates(void)
 
 static void test_coil(void)
 {
-        struct rig_switch_conf c = {.unit = 10, .coil = 7};
+        struct mbsw_conf c = {.unit = 10, .coil = 7};
         bool on = false;
 
         CHECK_INT(mbsw_check_conf(&c), 0);
+        CHECK_INT(mbsw_check_conf(NULL), -EINVAL); /* a conf built without the rig file */
         c.unit = 248;
         CHECK_INT(mbsw_check_conf(&c), -EINVAL);
         c.unit = 1;

@@ -23,11 +23,11 @@ static const char rig_yaml[] =
         "  - { name: net, type: modbus-tcp, host: 127.0.0.1, tcp_port: 0,\n"
         "      timeout_ms: 200, retries: 1 }\n"
         "axes:\n"
-        "  - { name: turntable, backend: modbus, bus: drives, unit: 1,\n"
+        "  - { name: turntable, modbus: { bus: drives, unit: 1 },\n"
         "      continuous: true, max_speed: 90, accel: 180, settle_ms: 20 }\n"
-        "  - { name: camera_arm, backend: modbus, bus: drives, unit: 3,\n"
+        "  - { name: camera_arm, modbus: { bus: drives, unit: 3 },\n"
         "      limits: [-170, 170], max_speed: 10, accel: 20, settle_ms: 20 }\n"
-        "  - { name: remote, backend: modbus, bus: net, unit: 5,\n"
+        "  - { name: remote, modbus: { bus: net, unit: 5 },\n"
         "      continuous: true, max_speed: 90, accel: 180 }\n";
 
 /* Emulated-time tolerance of positions at rest, degrees. */
@@ -44,7 +44,6 @@ static struct axis *open_axis(struct fixture *f, struct bus *b, int index)
         struct axis *ax = NULL;
 
         CHECK_INT(axis_new(&f->rig.rc->axes[index], b, &ax), 0);
-        ax->rig = f->rig.rc;
         CHECK_INT(axis_open(ax), 0);
         CHECK(ax->state.enabled);
         return ax;
@@ -81,13 +80,13 @@ static void wait_in_position(struct axis *ax)
 
 static int32_t raw_position(struct axis *ax)
 {
-        struct rig_modbus_profile p;
+        const struct mbax_conf *c = ax->conf->backend.conf;
         uint16_t regs[2];
 
-        rigconf_default_profile(&p);
-        CHECK_INT(mbus_read_regs(bus_transport(ax->bus), ax->conf->unit, p.reg_position, 2, regs),
-                  2);
-        return mbax_get_i32(&p, regs);
+        CHECK_INT(
+                mbus_read_regs(bus_transport(ax->bus), c->unit, c->profile->reg_position, 2, regs),
+                2);
+        return mbax_get_i32(c->profile, regs);
 }
 
 static void test_home(struct fixture *f)
@@ -391,7 +390,6 @@ static void run_worker(struct fixture *f)
         CHECK_INT(sd_event_new(&lt.event), 0);
         CHECK_INT(bus_new(lt.event, testrig_bus(&f->rig, "drives"), &b), 0);
         CHECK_INT(axis_new(&f->rig.rc->axes[1], b, &lt.arm), 0);
-        lt.arm->rig = f->rig.rc;
 
         submit(b, job_open, &jobs[0], false);
         submit(b, job_move, &jobs[1], false);

@@ -16,12 +16,10 @@ static const char rig_yaml[] =
         "  - { name: relays, type: modbus-rtu, port: '@DIR@/relays',\n"
         "      timeout_ms: 100, retries: 1 }\n"
         "lamps:\n"
-        "  - { name: lamp0, backend: modbus-coil, bus: relays, unit: 10,\n"
-        "      coil: 0, elevation: 10, warmup_ms: 150 }\n"
-        "  - { name: lamp1, backend: modbus-coil, bus: relays, unit: 10,\n"
-        "      coil: 1, elevation: 45 }\n"
-        "laser: { name: laser, backend: modbus-coil, bus: relays, unit: 10,\n"
-        "         coil: 7 }\n";
+        "  - { name: lamp0, elevation: 10, warmup_ms: 150,\n"
+        "      modbus-coil: { bus: relays, unit: 10, coil: 0 } }\n"
+        "  - { name: lamp1, elevation: 45, modbus-coil: { bus: relays, unit: 10, coil: 1 } }\n"
+        "laser: { name: laser, modbus-coil: { bus: relays, unit: 10, coil: 7 } }\n";
 
 struct fixture {
         struct testrig rig;

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include "common/clock.h"
+#include "drivers/registry.h"
 #include "tests/drivers/testrig.h"
 #include "tests/test.h"
 
@@ -38,7 +39,7 @@ void testrig_start(struct testrig *t, const char *yaml)
         write_expanded(f, yaml, t->dir);
         CHECK(fclose(f) == 0);
 
-        r = rigconf_load(path, &t->rc, err, sizeof(err));
+        r = rigconf_load(path, registry_backends, &t->rc, err, sizeof(err));
         if (r < 0)
                 fprintf(stderr, "%s\n", err);
         CHECK_INT(r, 0);

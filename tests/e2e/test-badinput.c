@@ -106,7 +106,7 @@ static void test_bad_rig_file(struct rigenv *e)
         f = fopen(path, "we");
         CHECK(f);
         fputs("rig: bad\nbuses:\n  - { name: b, type: modbus-rtu, port: /dev/null }\n"
-              "axes:\n  - { name: a, backend: modbus, bus: b, accel: -5 }\n",
+              "axes:\n  - { name: a, modbus: { bus: b }, accel: -5 }\n",
               f);
         fclose(f);
         CHECK_INT(run_capture((char *[]){(char *)e->goniod, "--rig", path, "--socket",

@@ -3,6 +3,7 @@
 #include <stdio.h>
 #include <unistd.h>
 
+#include "drivers/registry.h"
 #include "rtest.h"
 
 static const char header[] = "rig: render-test\n"
@@ -24,7 +25,7 @@ int rt_try_open(struct rtest *t, const char *lamps, const char *laser, const cha
         CHECK(f);
         fprintf(f, "%s%s\n%s\n%s\n%s\n", header, lamps, laser, cameras, scene);
         fclose(f);
-        r = rigconf_load(t->path, &t->rc, err, errlen);
+        r = rigconf_load(t->path, registry_backends, &t->rc, err, errlen);
         if (r >= 0)
                 r = sim_scene_new(t->rc, &t->s, err, errlen);
         return r;

@@ -9,11 +9,11 @@
 #define SQ 30.0
 
 static const char lamps[] =
-        "lamps:\n  - { name: l0, backend: modbus-coil, bus: relays, coil: 0, elevation: 20, "
+        "lamps:\n  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, elevation: 20, "
         "radius: 900, azimuth: -5, intensity: 4.0e6 }\n";
 static const char cams[] =
         "cameras:\n"
-        "  - { name: c0, backend: sim, bus: frames, elevation: 25, distance: 420, azimuth: 0,\n"
+        "  - { name: c0, sim: { bus: frames }, elevation: 25, distance: 420, azimuth: 0,\n"
         "      target: [0, 0, 60], width: 320, height: 240, fx: 380, fy: 376, cx: 161.2,\n"
         "      cy: 118.9, distortion: [-0.12, 0.08, 0.0011, -0.0007, -0.02], exposure_us: 20000 "
         "}\n";

@@ -16,11 +16,11 @@ extern "C" {
 }
 
 static const char lamps[] =
-        "lamps:\n  - { name: l0, backend: modbus-coil, bus: relays, coil: 0, elevation: 35, "
+        "lamps:\n  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, elevation: 35, "
         "radius: 800, azimuth: 10, intensity: 2.0e6 }\n";
 static const char cams[] =
         "cameras:\n"
-        "  - { name: c0, backend: sim, bus: frames, elevation: 25, distance: 420, azimuth: 0,\n"
+        "  - { name: c0, sim: { bus: frames }, elevation: 25, distance: 420, azimuth: 0,\n"
         "      target: [0, 0, 60], width: 480, height: 360, fx: 560, fy: 555, cx: 241.2,\n"
         "      cy: 178.9, distortion: [-0.12, 0.08, 0.0011, -0.0007, -0.02], exposure_us: 20000 "
         "}\n";

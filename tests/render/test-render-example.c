@@ -5,6 +5,7 @@
  * black level instead of zero. Set RTEST_DUMP=DIR to look at the frames. */
 #include <stdint.h>
 
+#include "drivers/registry.h"
 #include "rtest.h"
 
 struct example {
@@ -133,7 +134,7 @@ int main(int argc, char **argv)
         char err[512] = "";
 
         CHECK(argc == 2);
-        int r = rigconf_load(argv[1], &e.rc, err, sizeof err);
+        int r = rigconf_load(argv[1], registry_backends, &e.rc, err, sizeof err);
         if (r >= 0)
                 r = sim_scene_new(e.rc, &e.s, err, sizeof err);
         if (r < 0)

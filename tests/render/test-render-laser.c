@@ -15,11 +15,11 @@
 #define DIST_MIN 1.0  /* px: least shift distortion gives a checked row (50 x LINE_TOL) */
 
 static const char laser[] =
-        "laser: { name: laser, backend: modbus-coil, bus: relays, coil: 7, azimuth: 0,\n"
+        "laser: { name: laser, modbus-coil: { bus: relays, coil: 7 }, azimuth: 0,\n"
         "         origin: [600, 0, 60], width: 0.5, power: 2.0e3, channel: red }\n";
 static const char cams[] =
         "cameras:\n"
-        "  - { name: c0, backend: sim, bus: frames, elevation: 10, distance: 350, azimuth: 25,\n"
+        "  - { name: c0, sim: { bus: frames }, elevation: 10, distance: 350, azimuth: 25,\n"
         "      target: [30, -55, 50], width: 320, height: 240, fx: 700, fy: 700, cx: 161.3,\n"
         "      cy: 118.7, distortion: [-0.5, 0.3, 0.004, -0.003, -0.1],\n"
         "      exposure_us: 20000 }\n";

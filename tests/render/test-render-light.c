@@ -8,7 +8,7 @@
 
 #define CAMERA                                                                                     \
         "cameras:\n"                                                                               \
-        "  - { name: c0, backend: sim, bus: frames, elevation: %s, distance: 400, azimuth: 0,\n"   \
+        "  - { name: c0, sim: { bus: frames }, elevation: %s, distance: 400, azimuth: 0,\n"        \
         "      target: [0, 0, 30], width: 160, height: 120, fx: 260, fy: 260, cx: 79.5,\n"         \
         "      cy: 59.5, exposure_us: 20000, gain: 1.0 }\n"
 
@@ -60,7 +60,7 @@ static void test_lambert_sphere(void)
 
         snprintf(cams, sizeof(cams), CAMERA, "30");
         rt_open(&t,
-                "lamps:\n  - { name: l0, backend: modbus-coil, bus: relays, coil: 0, "
+                "lamps:\n  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, "
                 "elevation: 40, radius: 300, azimuth: 35, intensity: 1.0e5 }\n",
                 "", cams,
                 "scene:\n  object: { shape: sphere, size: 60, material: { albedo: [0.8, 0.5, 0.2] "
@@ -116,9 +116,9 @@ static void test_inverse_square(void)
         snprintf(cams, sizeof(cams), CAMERA, "50");
         rt_open(&t,
                 "lamps:\n"
-                "  - { name: l0, backend: modbus-coil, bus: relays, coil: 0, elevation: 90, "
+                "  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, elevation: 90, "
                 "radius: 200, intensity: 1.0e5 }\n"
-                "  - { name: l1, backend: modbus-coil, bus: relays, coil: 1, elevation: 90, "
+                "  - { name: l1, modbus-coil: { bus: relays, coil: 1 }, elevation: 90, "
                 "radius: 400, intensity: 1.0e5 }\n",
                 "", cams, "scene:\n  turntable: { radius: 150, albedo: 0.5 }\n" SENSOR);
         rt_render(&t, &s0, &ideal16, 0, &f0, SIM_TRUTH_POINT, &tr);
@@ -158,7 +158,7 @@ static void test_shadow_edge(void)
 
         snprintf(cams, sizeof(cams), CAMERA, "60");
         rt_open(&t,
-                "lamps:\n  - { name: l0, backend: modbus-coil, bus: relays, coil: 0, "
+                "lamps:\n  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, "
                 "elevation: 90, radius: 400, intensity: 1.0e5 }\n",
                 "", cams,
                 "scene:\n  object: { shape: sphere, size: 60 }\n"

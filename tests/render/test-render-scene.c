@@ -12,16 +12,16 @@
 #include "rtest.h"
 
 static const char lamp[] =
-        "lamps:\n  - { name: l0, backend: modbus-coil, bus: relays, coil: 0, elevation: 60, "
+        "lamps:\n  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, elevation: 60, "
         "radius: 400, azimuth: 20, intensity: 1.0e5 }\n";
 static const char cams[] =
         "cameras:\n"
-        "  - { name: c0, backend: sim, bus: frames, elevation: 55, distance: 350, azimuth: 0,\n"
+        "  - { name: c0, sim: { bus: frames }, elevation: 55, distance: 350, azimuth: 0,\n"
         "      target: [0, 0, 20], width: 160, height: 120, fx: 330, fy: 330, exposure_us: 20000 "
         "}\n";
 static const char zoom[] =
         "cameras:\n"
-        "  - { name: c0, backend: sim, bus: frames, elevation: 55, distance: 350, azimuth: 0,\n"
+        "  - { name: c0, sim: { bus: frames }, elevation: 55, distance: 350, azimuth: 0,\n"
         "      target: [0, 0, 20], width: 160, height: 120, fx: 900, fy: 900, exposure_us: 20000 "
         "}\n";
 
@@ -301,9 +301,8 @@ static void test_mirror_sphere(void)
 /* Area lamp: umbra and full light where a point lamp puts them +- the penumbra. */
 static void test_soft_shadow(void)
 {
-        static const char top[] =
-                "lamps:\n  - { name: l0, backend: modbus-coil, bus: relays, coil: 0, "
-                "elevation: 90, radius: 400, intensity: 1.0e5 }\n";
+        static const char top[] = "lamps:\n  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, "
+                                  "elevation: 90, radius: 400, intensity: 1.0e5 }\n";
         const char *sc = "scene:\n  object: { shape: sphere, size: 60 }\n"
                          "  turntable: { radius: 150, albedo: 0.5 }\n"
                          "  lamps: { radius: 30, samples: 32 }\n";

@@ -7,11 +7,11 @@
 #include "rtest.h"
 
 static const char lamps[] =
-        "lamps:\n  - { name: l0, backend: modbus-coil, bus: relays, coil: 0, elevation: 90, "
+        "lamps:\n  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, elevation: 90, "
         "radius: 300, intensity: 1.0e5 }\n";
 static const char cams[] =
         "cameras:\n"
-        "  - { name: c0, backend: sim, bus: frames, elevation: 60, distance: 400, azimuth: 10,\n"
+        "  - { name: c0, sim: { bus: frames }, elevation: 60, distance: 400, azimuth: 10,\n"
         "      target: [0, 0, 0], width: 96, height: 64, fx: 150, fy: 150,\n"
         "      exposure_us: 10000, gain: 1.0, bits: 8 }\n";
 

@@ -9,6 +9,7 @@
 
 #include "common/clock.h"
 #include "common/cleanup.h"
+#include "drivers/registry.h"
 #include "tests/sim/simtest.h"
 
 static const char rig_head[] =
@@ -22,21 +23,21 @@ static const char rig_drives_tcp[] =
         "  - { name: drives, type: modbus-tcp, host: 127.0.0.1, tcp_port: 0 }\n";
 static const char rig_body[] =
         "axes:\n"
-        "  - { name: turntable, backend: modbus, bus: drives, unit: 1, continuous: true,\n"
+        "  - { name: turntable, modbus: { bus: drives, unit: 1 }, continuous: true,\n"
         "      max_speed: 90, accel: 180, settle_ms: 50 }\n"
-        "  - { name: light_arm, backend: modbus, bus: drives, unit: 2, continuous: true,\n"
+        "  - { name: light_arm, modbus: { bus: drives, unit: 2 }, continuous: true,\n"
         "      max_speed: 45, accel: 90, settle_ms: 80 }\n"
-        "  - { name: camera_arm, backend: modbus, bus: drives, unit: 3, limits: [-170, 170],\n"
+        "  - { name: camera_arm, modbus: { bus: drives, unit: 3 }, limits: [-170, 170],\n"
         "      max_speed: 30, accel: 60, settle_ms: 100 }\n"
         "lamps:\n"
-        "  - { name: lamp0, backend: modbus-coil, bus: relays, unit: 10, coil: 0,\n"
+        "  - { name: lamp0, modbus-coil: { bus: relays, unit: 10, coil: 0 },\n"
         "      elevation: 30, radius: 450, intensity: 4.0e5 }\n"
-        "  - { name: lamp1, backend: modbus-coil, bus: relays, unit: 10, coil: 1,\n"
+        "  - { name: lamp1, modbus-coil: { bus: relays, unit: 10, coil: 1 },\n"
         "      elevation: 60, radius: 450, intensity: 4.0e5 }\n"
-        "laser: { name: laser, backend: modbus-coil, bus: relays, unit: 10, coil: 7,\n"
+        "laser: { name: laser, modbus-coil: { bus: relays, unit: 10, coil: 7 },\n"
         "         azimuth: 0, origin: [600, 0, 150], width: 0.6, power: 2.0e3 }\n"
         "cameras:\n"
-        "  - { name: cam0, backend: sim, bus: frames, elevation: 20, distance: 500,\n"
+        "  - { name: cam0, sim: { bus: frames }, elevation: 20, distance: 500,\n"
         "      azimuth: 30, target: [0, 0, 30], width: 160, height: 120, fx: 240, fy: 240,\n"
         "      cx: 79.5, cy: 59.5, exposure_us: 20000, gain: 1.0, bits: 8 }\n"
         "scene:\n"
@@ -90,7 +91,7 @@ struct rig_config *simtest_load(const char *dir)
 
         snprintf(path, sizeof path, "%s/rig.yaml", dir);
         CHECK(setenv("GONIO_SIM_DIR", dir, 1) == 0);
-        int r = rigconf_load(path, &rc, err, sizeof err);
+        int r = rigconf_load(path, registry_backends, &rc, err, sizeof err);
         if (r < 0)
                 fprintf(stderr, "rigconf_load: %s\n", err);
         CHECK(r >= 0);

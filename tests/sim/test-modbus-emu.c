@@ -277,10 +277,10 @@ static void test_roles(void)
                 "  - { name: drives, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/drives\" }\n"
                 "  - { name: frames, type: sim, port: \"${GONIO_SIM_DIR}/frames.sock\" }\n"
                 "axes:\n"
-                "  - { name: tt, role: turntable, backend: modbus, bus: drives, unit: 4,\n"
+                "  - { name: tt, role: turntable, modbus: { bus: drives, unit: 4 },\n"
                 "      continuous: true, max_speed: 90, accel: 180 }\n"
                 "cameras:\n"
-                "  - { name: cam0, backend: sim, bus: frames, elevation: 20, distance: 500,\n"
+                "  - { name: cam0, sim: { bus: frames }, elevation: 20, distance: 500,\n"
                 "      target: [0, 0, 30], width: 64, height: 48, fx: 100, fy: 100,\n"
                 "      cx: 31.5, cy: 23.5 }\n";
         char dir[64];

@@ -1,7 +1,7 @@
 /* api.c - the "modbus" axis backend: a servo/stepper drive behind a register profile
  * (docs/modbus-profile.md), through the Modbus transport's retrying transactions.
- * Runs on the bus worker; caches nothing but the profile: every state comes from the
- * drive. */
+ * Runs on the bus worker; caches nothing: every state comes from the drive, the unit and
+ * the register profile from the backend map, parsed and resolved when the rig file loads. */
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,8 +15,9 @@
 /* Registers read in one request when status, fault and position lie this close. */
 #define STATE_BLOCK_MAX 32
 
+/* The backend's state while open. */
 struct mbax {
-        struct rig_modbus_profile prof;
+        const struct mbax_conf *conf; /* borrowed from the rig config */
 };
 
 static const struct opt_desc mbax_opts[] = {
@@ -25,12 +26,20 @@ static const struct opt_desc mbax_opts[] = {
         {OPT_STOP, OPT_SET},
 };
 
-/* The profile loaded by open, or NULL before. */
+/* The profile of an open axis, or NULL before open. */
 static const struct rig_modbus_profile *prof(const struct axis *ax)
 {
         const struct mbax *m = ax->priv;
 
-        return m ? &m->prof : NULL;
+        return m ? m->conf->profile : NULL;
+}
+
+/* The unit of an open axis. */
+static int unit(const struct axis *ax)
+{
+        const struct mbax *m = ax->priv;
+
+        return m->conf->unit;
 }
 
 /* Register accesses that name what failed: "read position (reg 0x0102): cause", or the
@@ -49,36 +58,19 @@ static int reg_result(struct axis *ax, int r, const char *what, int reg)
 
 static int read_regs(struct axis *ax, const char *what, int reg, int n, uint16_t *dest)
 {
-        return reg_result(ax, mbus_read_regs(bus_transport(ax->bus), ax->conf->unit, reg, n, dest),
-                          what, reg);
+        return reg_result(ax, mbus_read_regs(bus_transport(ax->bus), unit(ax), reg, n, dest), what,
+                          reg);
 }
 
 static int write_reg(struct axis *ax, const char *what, int reg, uint16_t v)
 {
-        return reg_result(ax, mbus_write_reg(bus_transport(ax->bus), ax->conf->unit, reg, v), what,
-                          reg);
+        return reg_result(ax, mbus_write_reg(bus_transport(ax->bus), unit(ax), reg, v), what, reg);
 }
 
 static int write_regs(struct axis *ax, const char *what, int reg, int n, const uint16_t *src)
 {
-        return reg_result(ax, mbus_write_regs(bus_transport(ax->bus), ax->conf->unit, reg, n, src),
-                          what, reg);
-}
-
-static int find_profile(struct axis *ax, struct rig_modbus_profile *ret)
-{
-        const char *name = ax->conf->profile;
-        const struct rig_modbus_profile *p = ax->rig ? rigconf_profile(ax->rig, name) : NULL;
-
-        if (p) {
-                *ret = *p;
-                return 0;
-        }
-        if (name[0] == '\0' || strcmp(name, "gonio-default") == 0) {
-                rigconf_default_profile(ret);
-                return 0;
-        }
-        return axis_set_cause(ax, SYNTHETIC_ERRNO(ENOENT), "unknown register profile '%s'", name);
+        return reg_result(ax, mbus_write_regs(bus_transport(ax->bus), unit(ax), reg, n, src), what,
+                          reg);
 }
 
 static int command(struct axis *ax, uint16_t cmd)
@@ -98,23 +90,24 @@ static int write_rate(struct axis *ax, const char *what, uint16_t reg, double va
 
 static int mbax_open(struct axis *ax)
 {
+        const struct mbax_conf *c = ax->conf->backend.conf;
         struct mbax *m;
         int r;
 
+        if (!c)
+                return axis_set_cause(ax, SYNTHETIC_ERRNO(EINVAL),
+                                      "no Modbus settings (not loaded from a rig file)");
         if (!ax->priv) {
                 m = calloc(1, sizeof(*m));
                 if (!m)
                         return -ENOMEM;
+                *m = (struct mbax){.conf = c};
                 ax->priv = m;
         }
-        m = ax->priv;
-        r = find_profile(ax, &m->prof);
+        r = write_rate(ax, "write max speed", c->profile->reg_speed, ax->conf->max_speed);
         if (r < 0)
                 return r;
-        r = write_rate(ax, "write max speed", m->prof.reg_speed, ax->conf->max_speed);
-        if (r < 0)
-                return r;
-        return write_rate(ax, "write acceleration", m->prof.reg_accel, ax->conf->accel);
+        return write_rate(ax, "write acceleration", c->profile->reg_accel, ax->conf->accel);
 }
 
 static void mbax_close(struct axis *ax)
@@ -215,6 +208,15 @@ static int mbax_poll(struct axis *ax, struct axis_state *st)
                 mbax_counts_to_deg(prof(ax), mbax_get_i32(prof(ax), pos), ax->conf->continuous);
         return 0;
 }
+
+const struct rig_backend mbax_backend = {
+        .name = "modbus",
+        .cls = RIG_CLASS_AXIS,
+        .bus_types = 1u << RIG_BUS_MODBUS_RTU | 1u << RIG_BUS_MODBUS_TCP,
+        .conf_size = sizeof(struct mbax_conf),
+        .parse_conf = mbax_parse_conf,
+        .ops = &mbax_ops,
+};
 
 const struct axis_ops mbax_ops = {
         .name = "modbus",

@@ -81,3 +81,25 @@ void mbax_decode_status(uint16_t status, uint16_t fault, struct axis_state *st)
         st->fault = status & AXIS_ST_FAULT;
         st->fault_code = st->fault ? fault : 0;
 }
+
+int mbax_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_config *rc, void *conf,
+                    struct rig_addr *addr)
+{
+        static const char *const keys[] = {"bus", "unit", "profile", NULL};
+        char profile[RIG_NAME_MAX] = "gonio-default";
+        struct mbax_conf *c = conf;
+        long unit = 1;
+        int r;
+
+        if ((r = yconf_check_keys(yc, m, keys)) < 0 ||
+            (r = yconf_int(yc, m, "unit", 1, MBAX_UNIT_MAX, &unit)) < 0 ||
+            (r = yconf_str(yc, m, "profile", profile, sizeof(profile))) < 0)
+                return r;
+        c->unit = (int)unit;
+        c->profile = rigconf_profile(rc, profile);
+        if (!c->profile)
+                return yconf_error(yc, yconf_get(m, "profile"), "profile",
+                                   "no register profile named '%s'", profile);
+        *addr = (struct rig_addr){.key = "unit", .value = c->unit};
+        return 0;
+}

@@ -25,8 +25,26 @@ enum mbax_fault {
         MBAX_FAULT_OVERTEMP,
 };
 
-/* The backend's ops (api.c), registered in drivers/registry.c as "modbus". */
+/* Highest unit address of a Modbus serial line (Modbus over serial line spec, 2.2). */
+#define MBAX_UNIT_MAX 247
+
+/* What the backend reads from an axis's map "modbus: { bus: drives, unit: 1, profile: p }". */
+struct mbax_conf {
+        int unit; /* Modbus unit id, 1 when not given */
+        /* the register profile ("gonio-default" when not given), resolved at load: borrowed
+         * from the rig config */
+        const struct rig_modbus_profile *profile;
+};
+
+/* The backend (api.c), registered in drivers/registry.c as "modbus". */
 extern const struct axis_ops mbax_ops;
+extern const struct rig_backend mbax_backend;
+
+/* Parses the backend map m into conf (a struct mbax_conf) and addr (the unit), resolving the
+ * profile in rc: unknown keys, a unit outside 1..247 and an unknown profile are errors at
+ * their key's line. Returns 0 or -EINVAL (message in yc). Pure. */
+int mbax_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_config *rc, void *conf,
+                    struct rig_addr *addr);
 
 /* Splits v into two registers in the profile's word order (high word first unless
  * word_swap). Never fails. */

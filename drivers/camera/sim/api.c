@@ -215,6 +215,23 @@ static void sim_stream_stop(struct cam *c)
         s->streaming = s->pending = false;
 }
 
+/* The map holds the bus alone: the camera's name is what gonio-sim renders by. */
+static int sim_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_config *rc,
+                          void *conf, struct rig_addr *addr)
+{
+        static const char *const keys[] = {"bus", NULL};
+
+        return yconf_check_keys(yc, m, keys);
+}
+
+const struct rig_backend cam_sim_backend = {
+        .name = "sim",
+        .cls = RIG_CLASS_CAMERA,
+        .bus_types = 1u << RIG_BUS_SIM,
+        .parse_conf = sim_parse_conf,
+        .ops = &cam_sim_ops,
+};
+
 const struct cam_ops cam_sim_ops = {
         .name = "sim",
         .opts = cam_sim_opts,

@@ -14,5 +14,9 @@
  * (blocking at most CAM_SIM_TIMEOUT_MS) and asks for the next with the same request. */
 extern const struct cam_ops cam_sim_ops;
 
+/* The backend as the rig file knows it: a map "sim: { bus: frames }" on a bus of type sim,
+ * with no other key. */
+extern const struct rig_backend cam_sim_backend;
+
 /* Bound on one capture: request, render and transfer. */
 #define CAM_SIM_TIMEOUT_MS 10000
