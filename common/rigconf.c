@@ -302,7 +302,7 @@ static int parse_backend(struct rig_config *rc, struct fy_node *m, enum rig_clas
         struct yconf *yc = &rc->yc;
         const struct rig_backend *be;
         _cleanup_free_ void *conf = NULL;
-        struct fy_node *map;
+        struct fy_node *map = NULL;
         int r;
 
         if ((r = device_keys(rc, m, cls, keys, &be, &map)) < 0)
