@@ -7,6 +7,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "common/cleanup.h"
 #include "harness.h"
 #include "tests/test.h"
 
@@ -97,24 +98,38 @@ static void test_stop_and_responsive(struct rigenv *e)
         close(fd);
 }
 
+/* goniod refuses a bad rig file with file, line and key, also for a key inside a backend's
+ * map and a profile it does not define (both parsed by the backend when the file loads). */
 static void test_bad_rig_file(struct rigenv *e)
 {
+        static const struct {
+                const char *axes, *want;
+        } rows[] = {
+                {"  - { name: a, modbus: { bus: b }, accel: -5 }\n", ":5: key 'accel'"},
+                {"  - name: a\n    modbus:\n      bus: b\n      unti: 2\n",
+                 ":8: key 'unti': unknown key"},
+                {"  - { name: a, modbus: { bus: b, profile: nope } }\n",
+                 ":5: key 'profile': no register profile named 'nope'"},
+        };
         char path[400], err[4096];
-        FILE *f;
 
         snprintf(path, sizeof(path), "%s/bad.yaml", e->dir);
-        f = fopen(path, "we");
-        CHECK(f);
-        fputs("rig: bad\nbuses:\n  - { name: b, type: modbus-rtu, port: /dev/null }\n"
-              "axes:\n  - { name: a, modbus: { bus: b }, accel: -5 }\n",
-              f);
-        fclose(f);
-        CHECK_INT(run_capture((char *[]){(char *)e->goniod, "--rig", path, "--socket",
-                                         "/tmp/never.sock", NULL},
-                              NULL, 0, err, sizeof(err)),
-                  1);
-        CHECK_STR_CONTAINS(err, path);
-        CHECK_STR_CONTAINS(err, ":5: key 'accel'");
+        for (size_t i = 0; i < ELEMENTSOF(rows); i++) {
+                FILE *f = fopen(path, "we");
+
+                CHECK(f);
+                fprintf(f,
+                        "rig: bad\nbuses:\n  - { name: b, type: modbus-rtu, port: /dev/null }\n"
+                        "axes:\n%s",
+                        rows[i].axes);
+                fclose(f);
+                CHECK_INT(run_capture((char *[]){(char *)e->goniod, "--rig", path, "--socket",
+                                                 "/tmp/never.sock", NULL},
+                                      NULL, 0, err, sizeof(err)),
+                          1);
+                CHECK_STR_CONTAINS(err, path);
+                CHECK_STR_CONTAINS(err, rows[i].want);
+        }
 }
 
 int main(int argc, char **argv)
