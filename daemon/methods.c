@@ -419,6 +419,8 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
                 return srv_req_errmsg(req, -ENOENT, "no camera named '%s'", camera);
         for (size_t i = 0; !camera && i < m->rc->n_cameras; i++)
                 cams[n++] = i;
+        if (n == 0)
+                return srv_req_errmsg(req, -ENOENT, "this rig has no camera");
         if ((r = check_cameras(req, m, cams, n, &cr)) < 0)
                 return r;
         if (!capture_dataset(m->capture))

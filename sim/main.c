@@ -179,6 +179,14 @@ static int load(const struct args *a, struct rig_config **rc, struct sim_scene *
         return 0;
 }
 
+static bool has_sim_bus(const struct rig_config *rc)
+{
+        for (size_t i = 0; i < rc->n_buses; i++)
+                if (rc->buses[i].type == RIG_BUS_SIM)
+                        return true;
+        return false;
+}
+
 static int run(const struct args *a)
 {
         _cleanup_(rigconf_freep) struct rig_config *rc = NULL;
@@ -197,7 +205,9 @@ static int run(const struct args *a)
         r = load(a, &rc, &scene);
         if (r >= 0)
                 r = sim_emu_new(rc, a->time_scale, &emu);
-        if (r >= 0)
+        if (r >= 0 && !has_sim_bus(rc))
+                log_info("the rig has no camera bus (type sim): no frame socket");
+        else if (r >= 0)
                 r = sim_frame_server_new(rc, scene, emu,
                                          &(struct sim_fs_options){.time_scale = a->time_scale,
                                                                   .render_log = a->render_log},
