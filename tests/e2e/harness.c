@@ -130,7 +130,7 @@ json_t *sim_query(struct rigenv *e, const char *json_line)
         int fd;
         ssize_t n;
 
-        snprintf(path, sizeof(path), "%s/frames.sock", e->simdir);
+        snprintf(path, sizeof(path), "%s/control.sock", e->simdir);
         fd = test_unix_connect(path);
         CHECK(fd >= 0);
         CHECK(write(fd, json_line, strlen(json_line)) == (ssize_t)strlen(json_line));

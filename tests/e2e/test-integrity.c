@@ -398,8 +398,14 @@ static void test_no_camera(struct rigenv *e)
         char buf[256];
         json_t *r;
 
+        json_t *sim;
+
         json_decref(ctl_ok(e, "home", NULL));
         json_decref(ctl_ok(e, "move", "turntable", "30", NULL));
+        sim = sim_query(e, "{\"cmd\":\"state\"}\n"); /* control without a frame socket */
+        CHECK_NEAR(json_number_value(json_object_get(json_object_get(sim, "state"), "turntable")),
+                   30, POSE_TOL_DEG);
+        json_decref(sim);
         json_decref(ctl_ok(e, "dataset", "create", "none", NULL));
         r = raw_call(fd, rpc(buf, sizeof(buf), 1, "capture", "{}"));
         CHECK(strstr(err_message(r), "no camera"));
