@@ -208,17 +208,19 @@ static void test_pipelined(struct rigenv *e)
 }
 
 /* Bug 2: goniod killed during a move finds the drive moving when it starts again: it
- * stops it and reports (and records) where it really is. */
+ * stops it and reports (and records) where it really is; the laser it left on goes off. */
 static void test_restart_moving(struct rigenv *e)
 {
         json_t *st, *sim;
         double pos, truth;
 
         json_decref(ctl_ok(e, "home", NULL));
+        json_decref(ctl_ok(e, "laser", "on", NULL));
         json_decref(ctl_ok(e, "move", "--no-wait", "turntable", "350", NULL));
         usleep(150 * 1000);
         rigenv_crash_daemon(e);
         st = ctl_ok(e, "status", NULL);
+        CHECK(!json_is_true(json_object_get(json_object_get(st, "laser"), "on")));
         CHECK(!json_is_true(
                 json_object_get(json_array_get(json_object_get(st, "axes"), 0), "moving")));
         pos = json_number_value(
@@ -226,6 +228,7 @@ static void test_restart_moving(struct rigenv *e)
         json_decref(st);
         sim = sim_query(e, "{\"cmd\":\"state\"}\n");
         truth = json_number_value(json_object_get(json_object_get(sim, "state"), "turntable"));
+        CHECK(!json_is_true(json_object_get(json_object_get(sim, "state"), "laser")));
         json_decref(sim);
         if (gn_angle_distance(pos, truth) > POSE_TOL_DEG)
                 fprintf(stderr, "goniod says %.3f, the drive is at %.3f\n", pos, truth);
