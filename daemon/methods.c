@@ -256,8 +256,11 @@ static int m_stop(struct srv_req *req, json_t *params, void *userdata)
 {
         struct manager *m = userdata;
         json_t *names = json_array();
+        int stopped[RIG_MAX_AXES];
+        size_t n = rig_stop(m->rig, stopped);
 
-        rig_stop(m->rig, names);
+        for (size_t i = 0; i < n; i++)
+                json_array_append_new(names, json_string(m->rc->axes[stopped[i]].name));
         srv_reply(req, json_pack("{so}", "stopped", names));
         return 0;
 }
@@ -416,6 +419,8 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
                 return srv_req_errmsg(req, -ENOENT, "no camera named '%s'", camera);
         for (size_t i = 0; !camera && i < m->rc->n_cameras; i++)
                 cams[n++] = i;
+        if (n == 0)
+                return srv_req_errmsg(req, -ENOENT, "this rig has no camera");
         if ((r = check_cameras(req, m, cams, n, &cr)) < 0)
                 return r;
         if (!capture_dataset(m->capture))

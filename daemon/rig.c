@@ -594,8 +594,10 @@ int rig_move(struct rig *rig, int i, double *target, bool relative, rig_done_fn 
         return start_motion(rig, i, AX_MOVING, deg, done, userdata);
 }
 
-void rig_stop(struct rig *rig, json_t *names)
+size_t rig_stop(struct rig *rig, int *stopped)
 {
+        size_t n = 0;
+
         for (size_t i = 0; i < rig->rc->n_axes; i++) {
                 struct rig_axis *a = &rig->axes[i];
                 char msg[128];
@@ -607,14 +609,16 @@ void rig_stop(struct rig *rig, json_t *names)
                         (void)rig_submit_new(rig, J_STOP, i, 0, false, true);
                         continue;
                 }
-                if (names)
-                        json_array_append_new(names, json_string(a->ax->conf->name));
+                if (stopped)
+                        stopped[n] = i;
+                n++;
                 snprintf(msg, sizeof(msg), "%s of '%s' canceled by stop",
                          a->op == AX_HOMING ? "homing" : "move", a->ax->conf->name);
                 if (a->op != AX_IDLE)
                         axis_finish(a, -ECANCELED, msg);
                 rig_axis_stop_and_follow(a, "stop requested");
         }
+        return n;
 }
 
 int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata)

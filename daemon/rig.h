@@ -92,9 +92,10 @@ int rig_home(struct rig *rig, int i, rig_done_fn done, void *userdata);
 int rig_move(struct rig *rig, int i, double *target, bool relative, rig_done_fn done,
              void *userdata);
 
-/* Stops every axis at once (urgent); pending moves complete with -ECANCELED.
- * Fills names (array of names stopped). */
-void rig_stop(struct rig *rig, json_t *names);
+/* Stops every axis at once (urgent); pending moves complete with -ECANCELED, and axes in
+ * motion are followed until they stand still. Writes the indices of the axes that were
+ * moving into stopped (may be NULL; room for RIG_MAX_AXES) and returns their number. */
+size_t rig_stop(struct rig *rig, int *stopped);
 
 /* Switches lamp i (or the laser when i < 0) and waits for its warm-up. */
 int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata);

@@ -272,12 +272,14 @@ static void dispatch(struct client *c, struct proto_msg *msg)
         if (!m) {
                 char text[300];
                 snprintf(text, sizeof(text), "unknown method '%.200s'", msg->method);
-                send_error(c, msg->id, PROTO_METHOD_NOT_FOUND, text);
+                if (msg->id) /* a notification gets no response, not even an error */
+                        send_error(c, msg->id, PROTO_METHOD_NOT_FOUND, text);
                 return;
         }
         req = calloc(1, sizeof(*req));
         if (!req) {
-                send_error(c, msg->id, PROTO_INTERNAL_ERROR, "out of memory");
+                if (msg->id)
+                        send_error(c, msg->id, PROTO_INTERNAL_ERROR, "out of memory");
                 return;
         }
         req->client = c;

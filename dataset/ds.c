@@ -365,15 +365,17 @@ static void name_part(char *out, size_t outlen, const char *in, const char *empt
         out[n] = 0;
 }
 
-/* Sets c->file to "images/NNNNNN_<camera>_<lamps or dark>.png"; returns the base name. */
+/* Sets c->file to "images/NNNNNN_<camera>_<lamps>[_laser].png", the lamps part "dark"
+ * without lamps and left out for a frame lit by the laser alone; returns the base name. */
 static const char *image_name(struct ds_capture *c)
 {
         char cam[DS_NAME_MAX], lamps[128];
+        bool laser = c->pose.laser;
 
         name_part(cam, sizeof(cam), c->camera, "camera");
-        name_part(lamps, sizeof(lamps), c->lamps, "dark");
-        snprintf(c->file, sizeof(c->file), "%s/%06lld_%s_%s.png", DS_IMAGES, (long long)c->id, cam,
-                 lamps);
+        name_part(lamps, sizeof(lamps), c->lamps, laser ? "" : "dark");
+        snprintf(c->file, sizeof(c->file), "%s/%06lld_%s%s%s%s.png", DS_IMAGES, (long long)c->id,
+                 cam, lamps[0] ? "_" : "", lamps, laser ? "_laser" : "");
         return c->file + strlen(DS_IMAGES "/");
 }
 

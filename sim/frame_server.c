@@ -43,14 +43,16 @@ struct fs_client {
         char buf[SIM_FS_LINE_MAX];
         size_t len;
         bool overlong; /* discarding the rest of a too long line */
+        bool control;  /* came in on the control socket: no frames */
 };
 
 struct sim_frame_server {
         struct rig_config *rc;
         struct sim_scene *scene;
         struct sim_emu *emu;
-        int listen[RIG_MAX_BUSES];
-        const char *paths[RIG_MAX_BUSES];
+        int listen[RIG_MAX_BUSES + 1]; /* frame sockets, then the control socket */
+        const char *paths[RIG_MAX_BUSES + 1];
+        bool control[RIG_MAX_BUSES + 1];
         size_t n_listen;
         struct fs_client clients[FS_MAX_CLIENTS];
         struct sim_control *ctl;
@@ -335,6 +337,9 @@ static void handle_line(struct sim_frame_server *fs, struct fs_client *cl, const
                 r = sim_req_fail(&rq.base, EINVAL, "malformed JSON: %s", jerr.text);
         else if (!cmd)
                 r = sim_req_fail(&rq.base, EINVAL, "a request is an object with a string 'cmd'");
+        else if (strcmp(cmd, "render") == 0 && cl->control)
+                r = sim_req_fail(&rq.base, EINVAL,
+                                 "the control socket renders nothing: ask a camera bus's socket");
         else if (strcmp(cmd, "render") == 0)
                 r = do_render(&rq);
         else if ((r = sim_control_handle(fs->ctl, &rq.base, cmd, &reply)) >= 0)
@@ -393,17 +398,17 @@ static void client_input(struct sim_frame_server *fs, struct fs_client *cl)
         }
 }
 
-static void accept_client(struct sim_frame_server *fs, int lfd)
+static void accept_client(struct sim_frame_server *fs, size_t li)
 {
         struct timeval tv = {.tv_sec = FS_SEND_TIMEOUT};
-        int fd = accept4(lfd, NULL, NULL, SOCK_CLOEXEC);
+        int fd = accept4(fs->listen[li], NULL, NULL, SOCK_CLOEXEC);
 
         if (fd < 0)
                 return;
         (void)setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
         for (size_t i = 0; i < FS_MAX_CLIENTS; i++)
                 if (fs->clients[i].fd < 0) {
-                        fs->clients[i].fd = fd;
+                        fs->clients[i] = (struct fs_client){.fd = fd, .control = fs->control[li]};
                         return;
                 }
         struct fs_client tmp = {.fd = fd};
@@ -415,7 +420,7 @@ static void accept_client(struct sim_frame_server *fs, int lfd)
 static void *server_thread(void *userdata)
 {
         struct sim_frame_server *fs = userdata;
-        struct pollfd p[RIG_MAX_BUSES + FS_MAX_CLIENTS];
+        struct pollfd p[RIG_MAX_BUSES + 1 + FS_MAX_CLIENTS];
 
         while (!atomic_load(&fs->stop)) {
                 size_t n = 0;
@@ -427,7 +432,7 @@ static void *server_thread(void *userdata)
                         continue;
                 for (size_t i = 0; i < fs->n_listen; i++)
                         if (p[i].revents)
-                                accept_client(fs, fs->listen[i]);
+                                accept_client(fs, i);
                 for (size_t i = 0; i < FS_MAX_CLIENTS; i++)
                         if (p[fs->n_listen + i].revents && fs->clients[i].fd >= 0)
                                 client_input(fs, &fs->clients[i]);
@@ -455,7 +460,7 @@ static int clear_stale(const char *path, const struct sockaddr_un *sa)
         return 0;
 }
 
-static int listen_on(struct sim_frame_server *fs, const char *path)
+static int listen_on(struct sim_frame_server *fs, const char *path, bool control)
 {
         struct sockaddr_un sa = {.sun_family = AF_UNIX};
 
@@ -470,6 +475,7 @@ static int listen_on(struct sim_frame_server *fs, const char *path)
         if (fd < 0 || bind(fd, (struct sockaddr *)&sa, sizeof sa) < 0)
                 return log_error_errno(errno, "frame socket %s: %m", path);
         fs->paths[fs->n_listen] = path; /* bound: removed by sim_frame_server_free */
+        fs->control[fs->n_listen] = control;
         fs->listen[fs->n_listen++] = TAKE_FD(fd);
         if (listen(fs->listen[fs->n_listen - 1], FS_MAX_CLIENTS) < 0)
                 return log_error_errno(errno, "frame socket %s: %m", path);
@@ -478,19 +484,22 @@ static int listen_on(struct sim_frame_server *fs, const char *path)
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct sim_frame_server *, sim_frame_server_free);
 
-static int listen_all(struct sim_frame_server *fs)
+static int listen_all(struct sim_frame_server *fs, const char *control)
 {
         const struct rig_config *rc = fs->rc;
 
         for (size_t i = 0; i < rc->n_buses; i++) {
                 if (rc->buses[i].type != RIG_BUS_SIM)
                         continue;
-                int r = listen_on(fs, rc->buses[i].port);
+                int r = listen_on(fs, rc->buses[i].port, false);
                 if (r < 0)
                         return r;
         }
+        if (control)
+                return listen_on(fs, control, true);
         if (fs->n_listen == 0)
-                return log_error_errno(SYNTHETIC_ERRNO(ENOENT), "the rig has no bus of type sim");
+                return log_error_errno(SYNTHETIC_ERRNO(ENOENT),
+                                       "the rig has no bus of type sim and no control socket");
         return 0;
 }
 
@@ -521,7 +530,7 @@ int sim_frame_server_new(struct rig_config *rc, struct sim_scene *scene, struct 
         if (r >= 0)
                 r = apply_options(fs, opt);
         if (r >= 0)
-                r = listen_all(fs);
+                r = listen_all(fs, opt ? opt->control : NULL);
         if (r < 0)
                 return r;
         r = -pthread_create(&fs->thread, NULL, server_thread, fs);

@@ -17,6 +17,7 @@
 struct sim_fs_options {
         double time_scale;      /* emulated seconds per real second; 0 means 1 */
         const char *render_log; /* file to append one JSON line per rendered frame, or NULL */
+        const char *control;    /* path of a control socket (no "render"), or NULL */
 };
 
 /* Longest request line, newline included; longer requests are answered with an error. */

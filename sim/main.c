@@ -22,7 +22,7 @@
 #include "sim/render/render.h"
 
 struct args {
-        const char *rig, *dir, *ports_file, *render_log;
+        const char *rig, *dir, *ports_file, *render_log, *control;
         double time_scale;
 };
 
@@ -34,12 +34,14 @@ DEFINE_TRIVIAL_CLEANUP_FUNC(struct sim_frame_server *, sim_frame_server_free);
 static void usage(FILE *f)
 {
         fputs("Usage: gonio-sim --rig FILE [--dir DIR] [--time-scale X] [--ports-file FILE]\n"
-              "                 [--render-log FILE]\n"
+              "                 [--render-log FILE] [--control PATH]\n"
               "  --rig FILE         rig file (YAML) to simulate\n"
               "  --dir DIR          directory of the ports (sets GONIO_SIM_DIR; created)\n"
               "  --time-scale X     emulated seconds per real second (default 1)\n"
               "  --ports-file FILE  write the ports (JSON) to FILE as well\n"
-              "  --render-log FILE  append one JSON line per rendered frame to FILE\n",
+              "  --render-log FILE  append one JSON line per rendered frame to FILE\n"
+              "  --control PATH     control socket (state, geometry, inject); default\n"
+              "                     DIR/control.sock with --dir, else none\n",
               f);
 }
 
@@ -52,6 +54,7 @@ static int parse_args(int argc, char **argv, struct args *a)
                 {"time-scale", required_argument, NULL, 't'},
                 {"ports-file", required_argument, NULL, 'p'},
                 {"render-log", required_argument, NULL, 'l'},
+                {"control", required_argument, NULL, 'c'},
                 {"help", no_argument, NULL, 'h'},
                 {},
         };
@@ -59,7 +62,7 @@ static int parse_args(int argc, char **argv, struct args *a)
         int c;
 
         *a = (struct args){.time_scale = 1.0};
-        while ((c = getopt_long(argc, argv, "r:d:t:p:l:h", opts, NULL)) >= 0) {
+        while ((c = getopt_long(argc, argv, "r:d:t:p:l:c:h", opts, NULL)) >= 0) {
                 switch (c) {
                 case 'r':
                         a->rig = optarg;
@@ -79,6 +82,9 @@ static int parse_args(int argc, char **argv, struct args *a)
                         break;
                 case 'l':
                         a->render_log = optarg;
+                        break;
+                case 'c':
+                        a->control = optarg;
                         break;
                 case 'h':
                         usage(stdout);
@@ -182,6 +188,7 @@ static int load(const struct args *a, struct rig_config **rc, struct sim_scene *
 
 static int run(const struct args *a)
 {
+        _cleanup_free_ char *control = NULL; /* first: freed after the frame server below */
         _cleanup_(rigconf_freep) struct rig_config *rc = NULL;
         _cleanup_(sim_scene_freep) struct sim_scene *scene = NULL;
         _cleanup_(sim_emu_freep) struct sim_emu *emu = NULL;
@@ -189,6 +196,12 @@ static int run(const struct args *a)
         sigset_t sigs;
         int sig, r;
 
+        if (a->control)
+                control = strdup(a->control);
+        else if (a->dir && asprintf(&control, "%s/control.sock", a->dir) < 0)
+                control = NULL;
+        if ((a->control || a->dir) && !control)
+                return -ENOMEM;
         /* Blocked before any thread starts, so that only sigwait() below takes them. */
         sigemptyset(&sigs);
         sigaddset(&sigs, SIGTERM);
@@ -201,7 +214,8 @@ static int run(const struct args *a)
         if (r >= 0)
                 r = sim_frame_server_new(rc, scene, emu,
                                          &(struct sim_fs_options){.time_scale = a->time_scale,
-                                                                  .render_log = a->render_log},
+                                                                  .render_log = a->render_log,
+                                                                  .control = control},
                                          &fs);
         if (r >= 0)
                 r = publish_ports(rc, emu, a->ports_file);

@@ -2,10 +2,14 @@
  * 77 to tell meson the test was skipped). */
 #pragma once
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
 
 #define TEST_SKIP 77
 
@@ -87,3 +91,22 @@ static inline int test_run_cases(const struct test_case *cases, size_t n, int ar
 
 #define TEST_RUN_CASES(cases, argc, argv)                                                          \
         test_run_cases((cases), sizeof(cases) / sizeof((cases)[0]), (argc), (argv))
+
+/* Connects a Unix stream socket to path. Returns the fd, or -errno when nothing accepts
+ * there (the test decides whether that is a failure). */
+static inline int test_unix_connect(const char *path)
+{
+        struct sockaddr_un sa;
+        int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+
+        CHECK(fd >= 0);
+        memset(&sa, 0, sizeof(sa));
+        sa.sun_family = AF_UNIX;
+        snprintf(sa.sun_path, sizeof(sa.sun_path), "%s", path);
+        if (connect(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0) {
+                int r = -errno;
+                close(fd);
+                return r;
+        }
+        return fd;
+}

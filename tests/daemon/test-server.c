@@ -157,20 +157,6 @@ static double now_s(void)
         return ts.tv_sec + ts.tv_nsec * 1e-9;
 }
 
-static int conn(const char *path)
-{
-        struct sockaddr_un sa = {.sun_family = AF_UNIX};
-        int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
-
-        CHECK(fd >= 0);
-        snprintf(sa.sun_path, sizeof(sa.sun_path), "%s", path);
-        if (connect(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0) {
-                close(fd);
-                return -errno;
-        }
-        return fd;
-}
-
 /* Reads one line (without '\n') within 5 s. Returns its length, 0 at EOF, or -errno. */
 static int read_line(int fd, char *buf, size_t size)
 {
@@ -306,7 +292,7 @@ static void test_socket(const char *dir)
         /* live: refused, the first keeps its socket */
         CHECK_INT(server_new(ev, path, methods, NULL, &a), 0);
         CHECK_INT(server_new(ev, path, methods, NULL, &b), -EADDRINUSE);
-        CHECK((fd = conn(path)) >= 0);
+        CHECK((fd = test_unix_connect(path)) >= 0);
         close(fd);
         /* on exit the path is unlinked only while it is still our socket */
         CHECK(rename(path, moved) == 0);
@@ -315,7 +301,7 @@ static void test_socket(const char *dir)
         CHECK(access(path, F_OK) == 0);
         /* stale: replaced, and unlinked on exit */
         CHECK_INT(server_new(ev, path, methods, NULL, &a), 0);
-        CHECK((fd = conn(path)) >= 0);
+        CHECK((fd = test_unix_connect(path)) >= 0);
         close(fd);
         a = server_free(a);
         CHECK(access(path, F_OK) < 0 && errno == ENOENT);
@@ -336,12 +322,12 @@ static void test_socket(const char *dir)
 static void test_churn(const char *path)
 {
         pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 0);
-        int watch = conn(path);
+        int watch = test_unix_connect(path);
 
         CHECK(watch >= 0);
         call_ok(watch, "hello"); /* not evicted when leavers fill the table */
         for (int i = 0; i < 3000; i++) {
-                int fd = conn(path);
+                int fd = test_unix_connect(path);
 
                 CHECK(fd >= 0);
                 if (i % 2)
@@ -355,7 +341,7 @@ static void test_churn(const char *path)
 static void test_noread(const char *path)
 {
         pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 0);
-        int watch = conn(path), rude = conn(path), sent = 0;
+        int watch = test_unix_connect(path), rude = test_unix_connect(path), sent = 0;
         double end = now_s() + 30;
 
         CHECK(watch >= 0 && rude >= 0);
@@ -385,7 +371,8 @@ static void test_noread(const char *path)
 static void test_evict(const char *path)
 {
         pid_t pid = serve(path, EVICT_MAX, EVICT_IDLE_US, 0);
-        int a = conn(path), b = conn(path), c = conn(path), d = conn(path), e, f, g, h;
+        int a = test_unix_connect(path), b = test_unix_connect(path), c = test_unix_connect(path),
+            d = test_unix_connect(path), e, f, g, h;
 
         call_ok(a, "hello");
         send_req(a, "hold"); /* a is idle longest, but awaits a reply */
@@ -393,19 +380,19 @@ static void test_evict(const char *path)
         call_ok(b, "hello");
         call_ok(c, "status"); /* a request is not a hello */
         /* full: the oldest without hello goes (c, then d) */
-        e = conn(path);
+        e = test_unix_connect(path);
         expect_dropped(c, "never said hello");
-        f = conn(path);
+        f = test_unix_connect(path);
         expect_dropped(d, "never said hello");
         call_ok(e, "hello");
         call_ok(f, "hello");
         /* full of fresh clients that said hello: refused with one line */
-        g = conn(path);
+        g = test_unix_connect(path);
         expect_dropped(g, "too many clients (4)");
         /* past the idle timeout: the one idle longest goes, not one awaiting a reply */
         usleep(EVICT_IDLE_US + 100000);
         call_ok(e, "status");
-        h = conn(path);
+        h = test_unix_connect(path);
         expect_dropped(b, "was idle for");
         call_ok(h, "hello");
         call_ok(f, "release");
@@ -420,17 +407,17 @@ static void test_evict(const char *path)
 static void test_nofd(const char *path)
 {
         pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 2);
-        int a = conn(path), b = conn(path), c;
+        int a = test_unix_connect(path), b = test_unix_connect(path), c;
 
         call_ok(a, "hello");
         call_ok(b, "hello");
-        c = conn(path);
+        c = test_unix_connect(path);
         expect_dropped(c, "out of file descriptors");
-        c = conn(path); /* the spare descriptor is back: the same again */
+        c = test_unix_connect(path); /* the spare descriptor is back: the same again */
         expect_dropped(c, "out of file descriptors");
         close(b);
         wait_clients(a, 1);
-        c = conn(path);
+        c = test_unix_connect(path);
         call_ok(c, "hello");
         wait_clients(a, 2);
         close(c);

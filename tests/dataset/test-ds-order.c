@@ -147,9 +147,9 @@ int main(void)
         CHECK_INT(ds_store(d, &f, &c), 0);
         recording = false;
         dump();
-        CHECK_STR(c.file, "images/000002_cam0_l1.png");
-        i_sync = find(EV_FSYNC, "/images/000002_cam0_l1.png.tmp");
-        i_rename = find(EV_RENAME, "000002_cam0_l1.png");
+        CHECK_STR(c.file, "images/000002_cam0_l1_laser.png");
+        i_sync = find(EV_FSYNC, "/images/000002_cam0_l1_laser.png.tmp");
+        i_rename = find(EV_RENAME, "000002_cam0_l1_laser.png");
         i_dir = find(EV_FSYNC, "/images");
         i_wal = find(EV_WAL_WRITE, "/index.sqlite-wal");
         fprintf(stderr, "file fsync %d, rename %d, dir fsync %d, commit %d\n", i_sync, i_rename,

@@ -140,7 +140,8 @@ static void check_roundtrip(struct ds *d, int ch, int bits, bool pad, int i)
         CHECK_INT(strlen(c.sha256), 64);
         CHECK(c.t_stored_ns >= want.t_exposure_ns);
         char name[64];
-        snprintf(name, sizeof(name), "images/%06d_cam0_l1+l3.png", i + 1);
+        snprintf(name, sizeof(name), "images/%06d_cam0_l1+l3%s.png", i + 1,
+                 c.pose.laser ? "_laser" : "");
         CHECK(strcmp(c.file, name) == 0);
         CHECK_INT(ds_load_image(d, c.file, &back), 0);
         CHECK(tu_frames_equal(&f, &back));
@@ -160,7 +161,7 @@ static void check_big_endian(struct fixture *fx)
 
         CHECK_INT(gn_frame_alloc(&f, 1, 1, 1, 16), 0);
         ((uint16_t *)f.data)[0] = 0xA1B2;
-        tu_capture(&c, "cam9", "", 9);
+        tu_capture(&c, "cam9", "", 8); /* even: laser off, a dark frame */
         CHECK_INT(ds_set_compression(fx->d, 0), 0);
         CHECK_INT(ds_set_compression(fx->d, 10), -EINVAL);
         CHECK_INT(ds_store(fx->d, &f, &c), 0);
@@ -691,7 +692,7 @@ static void test_tmpfiles(void)
         CHECK_INT(tu_count(images, ""), 7); /* readers leave them alone */
         CHECK_INT(store(fx.d, 32, 16, 1, 8, "cam2", "", 5, &c), 0);
         CHECK_INT(c.id, 5);
-        CHECK(strcmp(c.file, "images/000005_cam2_dark.png") == 0);
+        CHECK(strcmp(c.file, "images/000005_cam2_laser.png") == 0); /* laser alone */
         CHECK_INT(tu_count(images, ""), 5);
         CHECK_INT(tu_count_tmp(fx.path), 0);
         CHECK_INT(ds_verify(fx.d), 0);

@@ -113,23 +113,9 @@ static bool wait_word(int fd, const char *word, double timeout)
         return false;
 }
 
-static int connect_path(const char *path)
-{
-        struct sockaddr_un sa = {.sun_family = AF_UNIX};
-        int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
-
-        CHECK(fd >= 0);
-        snprintf(sa.sun_path, sizeof(sa.sun_path), "%s", path);
-        if (connect(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0) {
-                close(fd);
-                return -errno;
-        }
-        return fd;
-}
-
 int raw_connect(struct rigenv *e)
 {
-        return connect_path(e->sock);
+        return test_unix_connect(e->sock);
 }
 
 void sim_request(struct rigenv *e, const char *json_line)
@@ -144,8 +130,8 @@ json_t *sim_query(struct rigenv *e, const char *json_line)
         int fd;
         ssize_t n;
 
-        snprintf(path, sizeof(path), "%s/frames.sock", e->simdir);
-        fd = connect_path(path);
+        snprintf(path, sizeof(path), "%s/control.sock", e->simdir);
+        fd = test_unix_connect(path);
         CHECK(fd >= 0);
         CHECK(write(fd, json_line, strlen(json_line)) == (ssize_t)strlen(json_line));
         n = read(fd, reply, sizeof(reply) - 1);

@@ -44,10 +44,11 @@ int raw_connect(struct rigenv *e);
  * past it are kept for the next call on the same fd (pipelined requests). */
 json_t *raw_call(int fd, const char *text);
 
-/* Sends one request to gonio-sim's frame socket (e.g. a fault injection) and checks "ok". */
+/* Sends one request to gonio-sim's control socket (e.g. a fault injection) and checks "ok". */
 void sim_request(struct rigenv *e, const char *json_line);
 
-/* Sends one request to gonio-sim's frame socket and returns its parsed reply ("ok" checked). */
+/* Sends one request to gonio-sim's control socket and returns its parsed reply ("ok"
+ * checked). */
 json_t *sim_query(struct rigenv *e, const char *json_line);
 
 /* Polls status until field state == want (or fails the test after timeout seconds). */

@@ -40,6 +40,12 @@ static void test_malformed(struct rigenv *e)
         expect_error(fd, "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\n", -32700, "");
         expect_error(fd, "[1,2]\n", -32600, "");
         expect_error(fd, "{\"jsonrpc\":\"2.0\",\"id\":2,\"method\":\"warp\"}\n", -32601, "warp");
+        /* a notification (no id) with an unknown method gets no response at all: the next
+         * reply on the connection is that of the request after it */
+        expect_error(fd,
+                     "{\"jsonrpc\":\"2.0\",\"method\":\"warp\"}\n"
+                     "{\"jsonrpc\":\"2.0\",\"id\":22,\"method\":\"warp2\"}\n",
+                     -32601, "warp2");
         expect_error(fd,
                      "{\"jsonrpc\":\"2.0\",\"id\":3,\"method\":\"move\",\"params\":"
                      "{\"axis\":\"turntable\",\"position\":\"ninety\"}}\n",

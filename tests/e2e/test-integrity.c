@@ -208,17 +208,19 @@ static void test_pipelined(struct rigenv *e)
 }
 
 /* Bug 2: goniod killed during a move finds the drive moving when it starts again: it
- * stops it and reports (and records) where it really is. */
+ * stops it and reports (and records) where it really is; the laser it left on goes off. */
 static void test_restart_moving(struct rigenv *e)
 {
         json_t *st, *sim;
         double pos, truth;
 
         json_decref(ctl_ok(e, "home", NULL));
+        json_decref(ctl_ok(e, "laser", "on", NULL));
         json_decref(ctl_ok(e, "move", "--no-wait", "turntable", "350", NULL));
         usleep(150 * 1000);
         rigenv_crash_daemon(e);
         st = ctl_ok(e, "status", NULL);
+        CHECK(!json_is_true(json_object_get(json_object_get(st, "laser"), "on")));
         CHECK(!json_is_true(
                 json_object_get(json_array_get(json_object_get(st, "axes"), 0), "moving")));
         pos = json_number_value(
@@ -226,6 +228,7 @@ static void test_restart_moving(struct rigenv *e)
         json_decref(st);
         sim = sim_query(e, "{\"cmd\":\"state\"}\n");
         truth = json_number_value(json_object_get(json_object_get(sim, "state"), "turntable"));
+        CHECK(!json_is_true(json_object_get(json_object_get(sim, "state"), "laser")));
         json_decref(sim);
         if (gn_angle_distance(pos, truth) > POSE_TOL_DEG)
                 fprintf(stderr, "goniod says %.3f, the drive is at %.3f\n", pos, truth);
@@ -357,6 +360,62 @@ static void test_turntable_only(struct rigenv *e)
         CHECK_INT(check_dataset_roles(e, "tt", 1u << GN_ROLE_TURNTABLE), 1);
 }
 
+static const char *const camera_only =
+        "rig: camera-only\n"
+        "buses:\n"
+        "  - { name: frames, type: sim, port: \"${GONIO_SIM_DIR}/frames.sock\" }\n"
+        "cameras:\n"
+        "  - { name: cam, sim: { bus: frames }, elevation: 20, distance: 500,\n"
+        "      target: [0, 0, 30], width: 96, height: 64, fx: 200, fy: 200 }\n"
+        "scene:\n"
+        "  ambient: 0.3\n"
+        "  object: { shape: sphere, size: 60 }\n";
+
+/* A rig of one camera: homing has nothing to do, rows have no angle and no lamp. */
+static void test_camera_only(struct rigenv *e)
+{
+        json_t *st = ctl_ok(e, "status", NULL);
+
+        CHECK_STR(json_string_value(json_object_get(st, "state")), "idle");
+        CHECK_INT(json_array_size(json_object_get(st, "axes")), 0);
+        json_decref(st);
+        json_decref(ctl_ok(e, "home", NULL));
+        json_decref(ctl_ok(e, "dataset", "create", "cam", NULL));
+        json_decref(ctl_ok(e, "capture", NULL));
+        CHECK_INT(check_dataset_roles(e, "cam", 0), 1);
+        CHECK_INT(ctl(e, NULL, "lamp", "lamp0", "on", NULL), 6);
+        CHECK_INT(ctl(e, NULL, "laser", "on", NULL), 6);
+}
+
+static const char *const no_camera =
+        "rig: no-camera\n"
+        "buses:\n"
+        "  - { name: drives, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/drives\" }\n"
+        "axes:\n"
+        "  - { name: turntable, modbus: { bus: drives, unit: 1 }, continuous: true }\n";
+
+/* A rig without a camera moves, and says why it cannot capture. */
+static void test_no_camera(struct rigenv *e)
+{
+        int fd = raw_connect(e);
+        char buf[256];
+        json_t *r;
+
+        json_t *sim;
+
+        json_decref(ctl_ok(e, "home", NULL));
+        json_decref(ctl_ok(e, "move", "turntable", "30", NULL));
+        sim = sim_query(e, "{\"cmd\":\"state\"}\n"); /* control without a frame socket */
+        CHECK_NEAR(json_number_value(json_object_get(json_object_get(sim, "state"), "turntable")),
+                   30, POSE_TOL_DEG);
+        json_decref(sim);
+        json_decref(ctl_ok(e, "dataset", "create", "none", NULL));
+        r = raw_call(fd, rpc(buf, sizeof(buf), 1, "capture", "{}"));
+        CHECK(strstr(err_message(r), "no camera"));
+        json_decref(r);
+        close(fd);
+}
+
 int main(int argc, char **argv)
 {
         static const struct {
@@ -370,6 +429,8 @@ int main(int argc, char **argv)
                 {"causes", test_causes, NULL},
                 {"progress", test_progress, NULL},
                 {"turntable-only", test_turntable_only, turntable_only},
+                {"camera-only", test_camera_only, camera_only},
+                {"no-camera", test_no_camera, no_camera},
         };
         struct rigenv e;
 

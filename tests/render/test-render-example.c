@@ -7,6 +7,7 @@
 
 #include "drivers/registry.h"
 #include "rtest.h"
+#include "tests/test-frame.h"
 
 struct example {
         struct rig_config *rc;
@@ -23,24 +24,6 @@ static void render(struct example *e, int cam, const struct gn_pose *p, uint64_t
 {
         *f = (struct gn_frame){0};
         CHECK_INT(sim_render(e->s, p, cam, &(struct sim_expose){0}, seq, f, 0, NULL), 0);
-}
-
-static double mean(const struct gn_frame *f)
-{
-        double s = 0.0;
-
-        for (size_t i = 0; i < gn_frame_bytes(f); i++)
-                s += f->data[i];
-        return s / (double)gn_frame_bytes(f);
-}
-
-static double mean_abs_diff(const struct gn_frame *a, const struct gn_frame *b)
-{
-        double s = 0.0;
-
-        for (size_t i = 0; i < gn_frame_bytes(a); i++)
-                s += fabs((double)a->data[i] - b->data[i]);
-        return s / (double)gn_frame_bytes(a);
 }
 
 /* Turntable 0, 90, 180, 270 with all lamps: every pair differs by far more than two
@@ -60,10 +43,10 @@ static void test_rotation(struct example *e)
                 }
                 p.deg[GN_ROLE_TURNTABLE] = 0.0;
                 render(e, cam, &p, 99, &again);
-                double noise = mean_abs_diff(&f[0], &again);
+                double noise = test_frame_mean_abs_diff(&f[0], &again);
                 for (int i = 0; i < 4; i++)
                         for (int j = i + 1; j < 4; j++) {
-                                double d = mean_abs_diff(&f[i], &f[j]);
+                                double d = test_frame_mean_abs_diff(&f[i], &f[j]);
                                 fprintf(stderr, "cam%d: tt %d vs %d: %.2f (noise %.2f)\n", cam,
                                         90 * i, 90 * j, d, noise);
                                 CHECK(d > 3.0 * noise && d > 2.0);
@@ -84,7 +67,7 @@ static void test_lamps(struct example *e)
         for (int cam = 0; cam < (int)e->rc->n_cameras; cam++) {
                 struct gn_pose p = pose(0, 0, 0, false);
                 render(e, cam, &p, 0, &dark);
-                double black = mean(&dark);
+                double black = test_frame_mean(&dark);
                 fprintf(stderr, "cam%d: dark %.2f\n", cam, black);
                 CHECK(black > 2.0 && black < 40.0);
                 for (int la = 0; la < 360; la += 90)
@@ -95,8 +78,8 @@ static void test_lamps(struct example *e)
                                          l);
                                 rt_dump(&lit, name);
                                 fprintf(stderr, "cam%d: arm %d lamp%zu: %.2f\n", cam, la, l,
-                                        mean(&lit));
-                                CHECK(mean(&lit) > black + 2.0);
+                                        test_frame_mean(&lit));
+                                CHECK(test_frame_mean(&lit) > black + 2.0);
                                 gn_frame_free_data(&lit);
                         }
                 gn_frame_free_data(&dark);

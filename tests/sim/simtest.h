@@ -1,5 +1,5 @@
-/* simtest.h - helpers shared by the tests of sim/: checks that abort with the
- * location, a temporary directory holding a small test rig, and a monotonic clock. */
+/* simtest.h - helpers shared by the tests of sim/: a temporary directory holding a small
+ * test rig, and a monotonic clock (checks are tests/test.h's). */
 #pragma once
 
 #include <stdbool.h>
@@ -10,24 +10,7 @@
 #include <modbus/modbus.h>
 
 #include "common/rigconf.h"
-
-#define CHECK(cond)                                                                                \
-        do {                                                                                       \
-                if (!(cond)) {                                                                     \
-                        fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond);   \
-                        abort();                                                                   \
-                }                                                                                  \
-        } while (0)
-
-#define CHECK_NEAR(a, b, tol)                                                                      \
-        do {                                                                                       \
-                double _a = (a), _b = (b);                                                         \
-                if (!(_a >= _b - (tol) && _a <= _b + (tol))) {                                     \
-                        fprintf(stderr, "%s:%d: %s = %g, expected %s = %g +- %g\n", __FILE__,      \
-                                __LINE__, #a, _a, #b, _b, (double)(tol));                          \
-                        abort();                                                                   \
-                }                                                                                  \
-        } while (0)
+#include "tests/test.h"
 
 /* Makes a temporary directory (path into dir, at least 64 bytes) and writes the test rig
  * into dir/rig.yaml: three Modbus axes on bus 'drives' (units 1..3), two lamps and the

@@ -18,6 +18,7 @@
 #include "drivers/camera/camera.h"
 #include "sim/frame_server.h"
 #include "tests/sim/simtest.h"
+#include "tests/test-frame.h"
 
 #define TIME_SCALE 20.0
 
@@ -71,25 +72,6 @@ static void rig_down(struct rig *t)
         simtest_rmdir(t->dir);
 }
 
-static double mean(const struct gn_frame *f)
-{
-        double s = 0.0;
-
-        for (size_t i = 0; i < gn_frame_bytes(f); i++)
-                s += f->data[i];
-        return s / (double)gn_frame_bytes(f);
-}
-
-static double mean_abs_diff(const struct gn_frame *a, const struct gn_frame *b)
-{
-        double s = 0.0;
-
-        CHECK(gn_frame_bytes(a) == gn_frame_bytes(b));
-        for (size_t i = 0; i < gn_frame_bytes(a); i++)
-                s += fabs((double)a->data[i] - b->data[i]);
-        return s / (double)gn_frame_bytes(a);
-}
-
 static void capture(struct rig *t, struct gn_frame *f)
 {
         CHECK(cam_capture(t->cam, NULL, f) == 0);
@@ -107,21 +89,22 @@ static void test_frames_follow_rig(struct rig *t)
         capture(t, &lit);
         capture(t, &again);
         CHECK(again.seq == lit.seq + 1);
-        double noise = mean_abs_diff(&lit, &again);
-        CHECK(mean(&lit) > 5.0);
+        double noise = test_frame_mean_abs_diff(&lit, &again);
+        CHECK(test_frame_mean(&lit) > 5.0);
 
         CHECK(modbus_write_bit(t->relays, 0, 0) == 1);
         capture(t, &dark);
-        CHECK(mean(&dark) < 0.5 * mean(&lit));
+        CHECK(test_frame_mean(&dark) < 0.5 * test_frame_mean(&lit));
 
         CHECK(modbus_write_bit(t->relays, 0, 1) == 1);
         CHECK(simtest_command(t->drives, 1, 90.0, SIMTEST_CMD_MOVE) == 1);
         simtest_wait_status(t->drives, 1, SIMTEST_ST_MOVING | SIMTEST_ST_INPOS, SIMTEST_ST_INPOS,
                             5.0);
         capture(t, &turned);
-        fprintf(stderr, "mean lit %.2f dark %.2f; diff noise %.3f turned %.3f\n", mean(&lit),
-                mean(&dark), noise, mean_abs_diff(&lit, &turned));
-        CHECK(mean_abs_diff(&lit, &turned) > 2.0 * noise + 0.5);
+        fprintf(stderr, "mean lit %.2f dark %.2f; diff noise %.3f turned %.3f\n",
+                test_frame_mean(&lit), test_frame_mean(&dark), noise,
+                test_frame_mean_abs_diff(&lit, &turned));
+        CHECK(test_frame_mean_abs_diff(&lit, &turned) > 2.0 * noise + 0.5);
 
         gn_frame_free_data(&lit);
         gn_frame_free_data(&again);

@@ -88,6 +88,26 @@ static void check_link(const char *path, const char *target)
         CHECK(strcmp(buf, target) == 0);
 }
 
+/* The control socket answers control requests and renders nothing. */
+static void check_control(const char *path)
+{
+        static const char req[] = "{\"cmd\":\"state\"}\n{\"cmd\":\"render\",\"camera\":\"cam0\"}\n";
+        char reply[4096] = "";
+        size_t len = 0;
+        int fd = test_unix_connect(path);
+
+        CHECK(fd >= 0);
+        CHECK(write(fd, req, strlen(req)) == (ssize_t)strlen(req));
+        while (len < sizeof(reply) - 1 && !strstr(reply, "renders nothing")) {
+                ssize_t n = read(fd, reply + len, sizeof(reply) - 1 - len);
+                CHECK(n > 0);
+                len += n;
+                reply[len] = 0;
+        }
+        CHECK(strstr(reply, "\"state\""));
+        close(fd);
+}
+
 static void test_run(const char *prog)
 {
         char dir[64], rig[128], run[128], ports[128], path[256], out[8192];
@@ -120,6 +140,9 @@ static void test_run(const char *prog)
         snprintf(path, sizeof path, "%s/frames.sock", run);
         CHECK(strcmp(sock, path) == 0);
         CHECK(stat(sock, &st) == 0 && S_ISSOCK(st.st_mode));
+        snprintf(path, sizeof path, "%s/control.sock", run); /* --dir gives a control socket */
+        CHECK(stat(path, &st) == 0 && S_ISSOCK(st.st_mode));
+        check_control(path);
         snprintf(path, sizeof path, "%s/render.log", dir);
         CHECK(stat(path, &st) == 0 && st.st_size == 0); /* opened, no frame yet */
 
@@ -132,6 +155,8 @@ static void test_run(const char *prog)
         CHECK(kill(c.pid, SIGTERM) == 0);
         CHECK(wait_exit(c.pid, 10.0) == 0);
         CHECK(lstat(sock, &st) < 0 && errno == ENOENT);
+        snprintf(path, sizeof path, "%s/control.sock", run);
+        CHECK(lstat(path, &st) < 0 && errno == ENOENT);
         snprintf(path, sizeof path, "%s/drives", run);
         CHECK(lstat(path, &st) < 0 && errno == ENOENT);
         snprintf(path, sizeof path, "%s/relays", run);
