@@ -476,6 +476,19 @@ static void finish_switch_later(struct rig *rig, struct rig_switch *s, int ms, r
         later_finish(l);
 }
 
+/* A laser nobody here switched on (goniod restarted, a hand on the relay) goes off: only
+ * a client or a session that owns it may have it on. */
+static void laser_found_on(struct rig *rig)
+{
+        struct job *j = calloc(1, sizeof(*j));
+
+        log_warning("laser '%s' found on when opened: switching it off", rig->rc->laser.name);
+        if (!j)
+                return;
+        *j = (struct job){.rig = rig, .kind = J_SWITCH, .idx = -1, .on = false};
+        switch_submit(rig, j, true);
+}
+
 static void switch_job_done(struct job *j, int result)
 {
         struct rig *rig = j->rig;
@@ -498,6 +511,8 @@ static void switch_job_done(struct job *j, int result)
                         j->done(rig, result, msg, j->ud);
                 return;
         }
+        if (j->kind == J_OPEN_SW && j->idx < 0 && j->on)
+                laser_found_on(rig);
         if (j->kind != J_SWITCH)
                 return;
         rig_emit(rig, &(struct rig_event){.type = RIG_EVENT_SWITCH, .device = name, .on = j->on});
