@@ -82,6 +82,9 @@ static void test_new_unknown(void)
         strcpy(ac.backend.name, "modbus");
         CHECK_INT(axis_new(&ac, b, &ax), 0);
         CHECK_INT(axis_poll(ax), -ENOTCONN); /* not opened */
+        /* a conf built by hand has no backend settings (unit, profile): open refuses it */
+        CHECK_INT(axis_open(ax), -EINVAL);
+        CHECK_STR_CONTAINS(ax->last_error, "no Modbus settings");
         CHECK(axis_free(ax) == NULL);
         CHECK(bus_free(b) == NULL);
 }
