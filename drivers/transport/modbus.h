@@ -15,6 +15,9 @@
 
 struct transport;
 
+/* Highest unit address of a Modbus serial line (Modbus over serial line spec, 2.2). */
+#define MBUS_UNIT_MAX 247
+
 /* Return the count transferred (>= 0) or -errno, see above. */
 int mbus_read_regs(struct transport *t, int unit, int addr, int n, uint16_t *dest);       /* FC03 */
 int mbus_write_reg(struct transport *t, int unit, int addr, uint16_t value);              /* FC06 */

@@ -92,7 +92,7 @@ int mbax_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_config
         int r;
 
         if ((r = yconf_check_keys(yc, m, keys)) < 0 ||
-            (r = yconf_int(yc, m, "unit", 1, MBAX_UNIT_MAX, &unit)) < 0 ||
+            (r = yconf_int(yc, m, "unit", 1, MBUS_UNIT_MAX, &unit)) < 0 ||
             (r = yconf_str(yc, m, "profile", profile, sizeof(profile))) < 0)
                 return r;
         c->unit = (int)unit;

@@ -7,6 +7,7 @@
 
 #include "common/rigconf.h"
 #include "drivers/axis/axis.h"
+#include "drivers/transport/modbus.h"
 
 /* Bits of the status register. */
 #define AXIS_ST_ENABLED     (1u << 0)
@@ -24,9 +25,6 @@ enum mbax_fault {
         MBAX_FAULT_LIMIT,
         MBAX_FAULT_OVERTEMP,
 };
-
-/* Highest unit address of a Modbus serial line (Modbus over serial line spec, 2.2). */
-#define MBAX_UNIT_MAX 247
 
 /* What the backend reads from an axis's map "modbus: { bus: drives, unit: 1, profile: p }". */
 struct mbax_conf {

@@ -12,7 +12,7 @@ int mbsw_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_config
         int r;
 
         if ((r = yconf_check_keys(yc, m, keys)) < 0 ||
-            (r = yconf_int(yc, m, "unit", 1, MBSW_UNIT_MAX, &unit)) < 0 ||
+            (r = yconf_int(yc, m, "unit", 1, MBUS_UNIT_MAX, &unit)) < 0 ||
             (r = yconf_int(yc, m, "coil", 0, MBSW_COIL_MAX, &coil)) < 0)
                 return r;
         *c = (struct mbsw_conf){.unit = (int)unit, .coil = (int)coil};
@@ -23,7 +23,7 @@ int mbsw_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_config
 
 int mbsw_check_conf(const struct mbsw_conf *c)
 {
-        if (!c || c->unit < 0 || c->unit > MBSW_UNIT_MAX || c->coil < 0 || c->coil > MBSW_COIL_MAX)
+        if (!c || c->unit < 0 || c->unit > MBUS_UNIT_MAX || c->coil < 0 || c->coil > MBSW_COIL_MAX)
                 return -EINVAL;
         return 0;
 }

@@ -7,9 +7,8 @@
 
 #include "common/rigconf.h"
 #include "drivers/switch/switch.h"
+#include "drivers/transport/modbus.h"
 
-/* Highest unit address of a Modbus serial line (Modbus over serial line spec, 2.2). */
-#define MBSW_UNIT_MAX 247
 #define MBSW_COIL_MAX 0xffff
 
 /* What the backend reads from a switch's map "modbus-coil: { bus: relays, unit: 10, coil: 0 }". */
