@@ -217,11 +217,20 @@ static void switch_submit(struct rig *rig, struct job *j, bool urgent)
                 s->changing--;
 }
 
+static void axis_finish(struct rig_axis *a, int result, const char *msg);
+
 void rig_safe_state(struct rig *rig)
 {
         for (size_t i = 0; i < rig->rc->n_axes; i++) {
-                atomic_fetch_add(&rig->axes[i].gen, 1);
-                if (rig->axes[i].open)
+                struct rig_axis *a = &rig->axes[i];
+                bool moving = a->st.moving || a->op == AX_MOVING || a->op == AX_HOMING;
+
+                atomic_fetch_add(&a->gen, 1);
+                if (a->op == AX_MOVING || a->op == AX_HOMING)
+                        axis_finish(a, -ECANCELED, "canceled: the rig goes to its safe state");
+                if (a->open && moving)
+                        rig_axis_stop_and_follow(a, "moves when the rig goes to its safe state");
+                else if (a->open)
                         (void)rig_submit_new(rig, J_STOP, i, 0, false, true);
         }
         for (int i = rig->rc->has_laser ? -1 : 0; i < (int)rig->rc->n_lamps; i++) {
@@ -232,8 +241,6 @@ void rig_safe_state(struct rig *rig)
                 switch_submit(rig, j, true);
         }
 }
-
-static void axis_finish(struct rig_axis *a, int result, const char *msg);
 
 /* Latches the first fault, tells clients, and goes to the safe state. A device that
  * fails while the rig is already faulted (e.g. during the safe state) is only logged,
@@ -398,12 +405,23 @@ static void idle_poll_done(struct rig_axis *a)
                 rig_axis_stop_and_follow(a, "moves although goniod did not command it");
 }
 
+/* True when err means the device no longer answers: it counts as closed until fault.clear
+ * reopens it, so the safe state and idle polls do not wait for it again and again. */
+static bool device_lost(int err)
+{
+        return err == -EIO || err == -ETIMEDOUT || err == -ENOENT || err == -ENODEV;
+}
+
 static void axis_job_failed(struct job *j, struct rig_axis *a, int result)
 {
         const char *msg = job_error(j, result);
 
-        if (result == -EIO || result == -ETIMEDOUT || result == -ENOENT || result == -ENODEV)
+        if (device_lost(result))
                 a->open = false; /* fault.clear reopens it */
+        if (j->rig->fault && a->op == AX_IDLE && j->kind == J_POLL) {
+                log_debug("%s (rig in fault state)", msg); /* idle polls: no log every second */
+                return;
+        }
         rig_fault(j->rig, a->ax->conf->name, result, "%s", msg);
         if (a->op != AX_IDLE)
                 axis_finish(a, result, msg);
@@ -506,6 +524,7 @@ static void switch_job_done(struct job *j, int result)
         }
         if (result < 0) {
                 const char *msg = job_error(j, result);
+                s->open = s->open && !device_lost(result);
                 rig_fault(rig, name, result, "%s", msg);
                 if (j->done)
                         j->done(rig, result, msg, j->ud);

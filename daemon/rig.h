@@ -125,7 +125,8 @@ const char *rig_busy_reason(const struct rig *rig);
 void rig_fault(struct rig *rig, const char *device, int err, const char *fmt, ...)
         __attribute__((format(printf, 4, 5)));
 
-/* Stops every axis and switches lamps and laser off, urgently (asynchronous). */
+/* Stops every axis and switches lamps and laser off, urgently (asynchronous). Running
+ * moves complete with -ECANCELED; axes in motion are followed until they stand still. */
 void rig_safe_state(struct rig *rig);
 
 /* Device jobs in flight; 0 once the safe state has been reached. */

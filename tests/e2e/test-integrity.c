@@ -330,6 +330,40 @@ static void test_progress(struct rigenv *e)
         close(fd);
 }
 
+/* A fault elsewhere while an axis moves: the axis is stopped and followed until it stands
+ * still, so status shows where it stopped, never a move that goes on or a stale angle. */
+static void test_fault_while_moving(struct rigenv *e)
+{
+        json_t *st, *ax, *sim;
+        double pos, truth;
+
+        json_decref(ctl_ok(e, "home", NULL));
+        json_decref(ctl_ok(e, "move", "--no-wait", "camera_arm", "150", NULL));
+        usleep(500 * 1000);
+        sim_request(e,
+                    "{\"cmd\":\"inject\",\"bus\":\"relays\",\"unit\":10,\"fault\":\"timeout\"}\n");
+        CHECK(ctl(e, NULL, "lamp", "lamp0", "on", NULL) != 0);
+        json_decref(wait_state(e, "fault", 10));
+        for (int tries = 0;; tries++) {
+                st = ctl_ok(e, "status", NULL);
+                ax = json_array_get(json_object_get(st, "axes"), 2);
+                if (!json_is_true(json_object_get(ax, "moving")))
+                        break;
+                json_decref(st);
+                CHECK(tries < 100);
+                usleep(50 * 1000);
+        }
+        pos = json_number_value(json_object_get(ax, "position"));
+        json_decref(st);
+        sim = sim_query(e, "{\"cmd\":\"state\"}\n");
+        truth = json_number_value(json_object_get(json_object_get(sim, "state"), "camera_arm"));
+        json_decref(sim);
+        if (fabs(pos - truth) > POSE_TOL_DEG)
+                fprintf(stderr, "goniod says %.3f, the arm is at %.3f\n", pos, truth);
+        CHECK(fabs(pos - truth) <= POSE_TOL_DEG);
+        CHECK(truth < 140); /* stopped, not left to arrive */
+}
+
 static const char *const turntable_only =
         "rig: tt-only\n"
         "buses:\n"
@@ -426,6 +460,7 @@ int main(int argc, char **argv)
                 {"pipelined", test_pipelined, NULL},
                 {"restart-moving", test_restart_moving, NULL},
                 {"partial", test_partial, NULL},
+                {"fault-while-moving", test_fault_while_moving, NULL},
                 {"causes", test_causes, NULL},
                 {"progress", test_progress, NULL},
                 {"turntable-only", test_turntable_only, turntable_only},
