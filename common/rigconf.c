@@ -324,11 +324,28 @@ static int parse_backend(struct rig_config *rc, struct fy_node *m, enum rig_clas
         return 0;
 }
 
+/* The motion semantics keys of an axis (docs/rig-file.md, "Motion"). */
+static int read_motion(struct yconf *yc, struct fy_node *m, struct rig_axis_conf *a)
+{
+        int r;
+
+        if ((r = yconf_double(yc, m, "backlash", -30, 30, &a->backlash_deg)) < 0 ||
+            (r = yconf_double(yc, m, "deadband", 0, 10, &a->deadband_deg)) < 0 ||
+            (r = read_int(yc, m, "move_retries", 0, 10, &a->move_retries)) < 0 ||
+            (r = yconf_bool(yc, m, "absolute_encoder", &a->absolute_encoder)) < 0)
+                return r;
+        if (a->move_retries > 0 && a->deadband_deg <= 0)
+                return yconf_error(yc, yconf_get(m, "move_retries"), "move_retries",
+                                   "retries need a deadband > 0 to aim for");
+        return 0;
+}
+
 static int parse_axis(struct rig_config *rc, struct fy_node *m, struct rig_axis_conf *a)
 {
-        static const char *const keys[] = {"name",  "continuous", "limits",          "max_speed",
-                                           "accel", "settle_ms",  "move_timeout_ms", "role",
-                                           NULL};
+        static const char *const keys[] = {
+                "name",         "continuous",       "limits", "max_speed", "accel",
+                "settle_ms",    "move_timeout_ms",  "role",   "backlash",  "deadband",
+                "move_retries", "absolute_encoder", NULL};
         struct yconf *yc = &rc->yc;
         double lim[2] = {-180, 180};
         int r;
@@ -342,7 +359,7 @@ static int parse_axis(struct rig_config *rc, struct fy_node *m, struct rig_axis_
             (r = yconf_double(yc, m, "accel", 0.1, 6553.5, &a->accel)) < 0 ||
             (r = read_int(yc, m, "settle_ms", 0, 60000, &a->settle_ms)) < 0 ||
             (r = read_int(yc, m, "move_timeout_ms", 0, 3600000, &a->move_timeout_ms)) < 0 ||
-            (r = read_role(yc, m, a)) < 0)
+            (r = read_role(yc, m, a)) < 0 || (r = read_motion(yc, m, a)) < 0)
                 return r;
         if (a->continuous && yconf_get(m, "limits"))
                 return yconf_error(yc, yconf_get(m, "limits"), "limits",

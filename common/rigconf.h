@@ -123,6 +123,11 @@ struct rig_axis_conf {
         double accel;            /* deg/s^2 */
         int settle_ms;           /* extra wait after in-position */
         int move_timeout_ms;     /* 0 = derived from distance, speed and accel */
+        /* motion semantics of the EPICS motor record, applied above every backend */
+        double backlash_deg;   /* > 0: final approach upwards by this much, < 0 downwards */
+        double deadband_deg;   /* a move ends within this of its target; 0: in-position only */
+        int move_retries;      /* extra moves to get within the deadband before "missed" */
+        bool absolute_encoder; /* the position means something without homing */
 };
 
 enum rig_switch_kind { RIG_SWITCH_LAMP, RIG_SWITCH_LASER };

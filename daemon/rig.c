@@ -344,6 +344,52 @@ void rig_axis_stop_and_follow(struct rig_axis *a, const char *why)
         rig_update_state(rig);
 }
 
+/* Commands the next leg of the move of a (to leg degrees) and follows it. */
+static void submit_leg(struct rig_axis *a, double leg)
+{
+        int r = rig_submit_new(a->rig, J_MOVE, a->idx, leg, false, false);
+
+        a->leg = leg;
+        a->settling = false;
+        a->started = now_usec(a->rig);
+        if (r < 0)
+                return axis_finish(a, r, "the drive's queue is full");
+        arm(a, POLL_USEC);
+}
+
+/* The move of a ended away from its target: another try while retries are left
+ * (approaching again past the backlash), else the move missed, which faults the rig. */
+static void retry_or_miss(struct rig_axis *a, const char *why)
+{
+        const struct rig_axis_conf *c = a->ax->conf;
+
+        if (a->retries_left > 0) {
+                a->retries_left--;
+                log_warning("axis '%s' %s at %.3f deg (target %.3f): retrying, %d left", c->name,
+                            why, a->st.position_deg, a->target, a->retries_left);
+                return submit_leg(a, axis_takeup_target(c, a->st.position_deg, a->target));
+        }
+        a->missed = true;
+        rig_fault(a->rig, c->name, -EIO,
+                  "axis '%s' missed its target %.3f deg: %s at %.3f deg after %d retries "
+                  "(deadband %g deg)",
+                  c->name, a->target, why, a->st.position_deg, c->move_retries, c->deadband_deg);
+}
+
+/* A leg of a move is in position and settled: the next leg, a retry, or done. */
+static void leg_done(struct rig_axis *a)
+{
+        const struct rig_axis_conf *c = a->ax->conf;
+
+        if (a->op != AX_MOVING)
+                return axis_finish(a, 0, NULL);
+        if (a->leg != a->target)
+                return submit_leg(a, a->target);
+        if (!axis_within_deadband(c, a->st.position_deg, a->target))
+                return retry_or_miss(a, "ended outside the deadband");
+        axis_finish(a, 0, NULL);
+}
+
 /* Decides, from a fresh poll, whether the move of a is done, failed or goes on. */
 static void axis_progress(struct rig_axis *a)
 {
@@ -368,11 +414,8 @@ static void axis_progress(struct rig_axis *a)
         }
         if (a->op == AX_MOVING && !a->st.moving && !a->st.in_position &&
             now - a->started > SHORT_GRACE_USEC &&
-            gn_angle_distance(a->st.position_deg, a->target) > SHORT_DEADBAND_DEG)
-                return rig_fault(rig, name, -EIO,
-                                 "axis '%s': the drive stopped at %.3f deg, short of its target "
-                                 "%.3f deg (not in position)",
-                                 name, a->st.position_deg, a->target);
+            gn_angle_distance(a->st.position_deg, a->leg) > SHORT_DEADBAND_DEG)
+                return retry_or_miss(a, "stopped short, not in position");
         if (now > a->deadline)
                 return rig_fault(rig, name, -ETIMEDOUT,
                                  "axis '%s': %s did not complete within %.1f s (at %.3f deg)", name,
@@ -388,7 +431,7 @@ static int on_axis_timer(sd_event_source *s, uint64_t usec, void *userdata)
         if (a->op == AX_IDLE)
                 return 0;
         if (a->settling)
-                return axis_finish(a, 0, NULL), 0;
+                return leg_done(a), 0;
         if (rig_submit_new(a->rig, J_POLL, a->idx, 0, false, false) < 0)
                 arm(a, POLL_USEC); /* queue full: try again */
         return 0;
@@ -576,7 +619,8 @@ static int start_motion(struct rig *rig, int i, enum axis_op op, double target, 
         struct rig_axis *a = &rig->axes[i];
         const struct rig_axis_conf *c = a->ax->conf;
         double t = axis_move_time(op == AX_HOMING ? 360 : fabs(target - a->st.position_deg),
-                                  c->max_speed, c->accel);
+                                  c->max_speed, c->accel),
+               leg;
         int r;
 
         if (rig->fault)
@@ -589,16 +633,21 @@ static int start_motion(struct rig *rig, int i, enum axis_op op, double target, 
                        -EBUSY;
         if (!a->open)
                 return -ENODEV;
-        r = rig_submit_new(rig, op == AX_HOMING ? J_HOME : J_MOVE, i, target, false, false);
+        leg = op == AX_HOMING ? 0 : axis_takeup_target(c, a->st.position_deg, target);
+        r = rig_submit_new(rig, op == AX_HOMING ? J_HOME : J_MOVE, i, leg, false, false);
         if (r < 0)
                 return r;
         a->op = op;
         a->target = target;
+        a->leg = leg;
+        a->retries_left = c->move_retries;
+        a->missed = false;
         a->done = done;
         a->ud = ud;
         a->started = now_usec(rig);
         a->deadline = a->started + (c->move_timeout_ms ? c->move_timeout_ms * 1000ULL
-                                                       : (uint64_t)(3 * t * 1e6) + 10000000);
+                                                       : (uint64_t)(3 * t * 1e6) + 10000000) *
+                                           (1 + (leg != target) + c->move_retries);
         rig_update_state(rig);
         return 0;
 }
@@ -617,7 +666,7 @@ int rig_move(struct rig *rig, int i, double *target, bool relative, rig_done_fn 
 
         if (!a->open)
                 return -ENODEV;
-        if (!a->st.homed)
+        if (!a->st.homed && !a->ax->conf->absolute_encoder)
                 return -EPERM;
         if (relative)
                 deg += a->st.position_deg;
@@ -697,7 +746,8 @@ struct gn_pose rig_pose(const struct rig *rig)
         struct gn_pose p = gn_pose_none();
 
         for (size_t i = 0; i < rig->rc->n_axes; i++)
-                if (rig->rc->axes[i].role >= 0 && rig->axes[i].st.homed)
+                if (rig->rc->axes[i].role >= 0 &&
+                    (rig->axes[i].st.homed || rig->rc->axes[i].absolute_encoder))
                         p.deg[rig->rc->axes[i].role] = rig->axes[i].st.position_deg;
         for (size_t i = 0; i < rig->rc->n_lamps && i < GN_POSE_MAX_LAMPS; i++)
                 if (rig->lamps[i].sw->on)

@@ -24,7 +24,10 @@ struct rig_axis {
         rig_done_fn done;
         void *ud;
         sd_event_source *timer;
-        double target; /* of the running move, degrees */
+        double target;    /* of the running move, degrees */
+        double leg;       /* commanded now: target, or the backlash take-up point before it */
+        int retries_left; /* extra moves allowed to reach the deadband */
+        bool missed;      /* the last move ended outside its deadband */
         uint64_t started, deadline, last_notify;
         bool settling;
         bool polling; /* an idle poll is queued */

@@ -6,12 +6,12 @@ static json_t *axis_status(const struct rig_axis *a)
 {
         const struct rig_axis_conf *c = a->ax->conf;
 
-        return json_pack("{sssfsbsbsbsbsisfsfsbss?}", "name", c->name, "position",
-                         a->st.position_deg, "moving",
-                         a->op != AX_IDLE || (a->open && a->st.moving), "homed", a->st.homed,
-                         "fault", a->st.fault, "open", a->open, "fault_code", a->st.fault_code,
-                         "min", c->min_deg, "max", c->max_deg, "continuous", c->continuous, "role",
-                         gn_role_name(c->role));
+        return json_pack(
+                "{sssfsbsbsbsbsbsbsisfsfsbss?}", "name", c->name, "position", a->st.position_deg,
+                "moving", a->op != AX_IDLE || (a->open && a->st.moving), "done", a->op == AX_IDLE,
+                "missed", a->missed, "homed", a->st.homed || c->absolute_encoder, "fault",
+                a->st.fault, "open", a->open, "fault_code", a->st.fault_code, "min", c->min_deg,
+                "max", c->max_deg, "continuous", c->continuous, "role", gn_role_name(c->role));
 }
 
 static json_t *switch_status(const struct rig_switch *s)

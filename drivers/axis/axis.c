@@ -163,6 +163,29 @@ int axis_poll(struct axis *ax)
         return 0;
 }
 
+/* Signed travel from pos to target: the shortest way round on continuous axes. */
+static double travel(const struct rig_axis_conf *c, double pos, double target)
+{
+        return c->continuous ? remainder(target - pos, 360.0) : target - pos;
+}
+
+double axis_takeup_target(const struct rig_axis_conf *c, double pos, double target)
+{
+        double d = travel(c, pos, target), t;
+
+        if (c->backlash_deg == 0 || (d > 0) == (c->backlash_deg > 0) || d == 0)
+                return target;
+        t = target - c->backlash_deg;
+        if (c->continuous)
+                t = fmod(fmod(t, 360.0) + 360.0, 360.0);
+        return c->continuous ? t : fmin(fmax(t, c->min_deg), c->max_deg);
+}
+
+bool axis_within_deadband(const struct rig_axis_conf *c, double pos, double target)
+{
+        return c->deadband_deg <= 0 || fabs(travel(c, pos, target)) <= c->deadband_deg;
+}
+
 double axis_move_time(double delta_deg, double max_speed, double accel)
 {
         double d = fabs(delta_deg);

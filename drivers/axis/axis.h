@@ -84,5 +84,14 @@ int axis_log_full(struct axis *ax, int level, int err, const char *fmt, ...)
 int axis_set_cause(struct axis *ax, int err, const char *fmt, ...)
         __attribute__((format(printf, 3, 4)));
 
+/* Where to command a move from pos to target first, with the backlash of c: target when the
+ * move already ends in the direction of the backlash (or there is none), else the point
+ * backlash short of target, so the final approach always comes from the same side.
+ * Continuous axes compare the shortest way round. Pure. */
+double axis_takeup_target(const struct rig_axis_conf *c, double pos, double target);
+
+/* True when pos is within c's deadband of target (always, with no deadband). Pure. */
+bool axis_within_deadband(const struct rig_axis_conf *c, double pos, double target);
+
 /* Estimated duration of a move of delta degrees with a trapezoidal profile, in seconds. */
 double axis_move_time(double delta_deg, double max_speed, double accel);

@@ -131,6 +131,10 @@ static void case_errors(void)
                   6, "coil", "-1 is out of range");
         expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b }, limits: [10, -10] }\n", 6,
                   "limits", "need min < max");
+        expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b }, move_retries: 2 }\n", 6,
+                  "move_retries", "retries need a deadband > 0");
+        expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b }, backlash: 45 }\n", 6, "backlash",
+                  "");
         expect_at("rig: t\nbuses:\n  - { name: b, type: can }\n", 3, "type",
                   "'can' is not a bus type");
         expect_at(BUS "cameras:\n  - { name: c, sim: { bus: b } }\n", 6, "bus",

@@ -30,6 +30,9 @@ static const char rig_yaml[] =
         "axes:\n"
         "  - { name: tt, role: turntable, modbus: { bus: drives, unit: 1 },\n"
         "      continuous: true, max_speed: 90, accel: 180, settle_ms: 10 }\n"
+        "  - { name: light_arm, modbus: { bus: drives, unit: 2 }, continuous: true,\n"
+        "      max_speed: 45, accel: 90, settle_ms: 10,\n"
+        "      backlash: 3, deadband: 0.02, move_retries: 2 }\n"
         "  - { name: camera_arm, modbus: { bus: drives, unit: 3 }, limits: [-170, 170],\n"
         "      max_speed: 30, accel: 60, settle_ms: 10 }\n"
         "lamps:\n"
@@ -106,13 +109,14 @@ static void run_for(struct fixture *f, double s)
                 CHECK(sd_event_run(f->event, 10 * 1000) >= 0);
 }
 
-static void start(struct fixture *f)
+static void start(struct fixture *f, const char *yaml)
 {
         char err[512] = "";
 
-        testrig_start(&f->t, rig_yaml);
+        testrig_start(&f->t, yaml);
         CHECK_INT(sim_scene_new(f->t.rc, &f->scene, err, sizeof(err)), 0);
-        CHECK_INT(sim_frame_server_new(f->t.rc, f->scene, f->t.emu, NULL, &f->fs), 0);
+        if (f->t.rc->n_cameras > 0)
+                CHECK_INT(sim_frame_server_new(f->t.rc, f->scene, f->t.emu, NULL, &f->fs), 0);
         CHECK_INT(sd_event_new(&f->event), 0);
         CHECK_INT(rig_new(f->event, f->t.rc, NULL, NULL, &f->rig), 0);
         CHECK_STR(rig_state(f->rig), "idle");
@@ -160,7 +164,6 @@ static struct gn_pose sim_pose(struct fixture *f)
         struct gn_pose p;
 
         sim_emu_snapshot(f->t.emu, &p);
-        p.deg[GN_ROLE_LIGHT_ARM] = NAN; /* this rig has no light arm */
         return p;
 }
 
@@ -173,7 +176,7 @@ static void test_expose(struct fixture *f)
 
         home_all(f);
         move(f, 0, 123.4);
-        move(f, 1, -20);
+        move(f, 2, -20);
         lamp(f, 1, true);
         CHECK_INT(rig_expose(f->rig, cams, 2, &(struct cam_request){0}, on_exposed, f), 0);
         CHECK_STR(rig_state(f->rig), "capturing");
@@ -207,7 +210,6 @@ static void test_unhomed(struct fixture *f)
         home_all(f);
         p = rig_pose(f->rig);
         CHECK(gn_pose_has(&p, GN_ROLE_TURNTABLE));
-        CHECK(!gn_pose_has(&p, GN_ROLE_LIGHT_ARM)); /* no such axis */
 }
 
 /* A stop is followed until the drive stands still; then the pose is the drive's. */
@@ -219,7 +221,7 @@ static void test_stop(struct fixture *f)
 
         home_all(f);
         want = f->done + 1;
-        CHECK_INT(rig_move(f->rig, 1, &deg, false, on_done, f), 0);
+        CHECK_INT(rig_move(f->rig, 2, &deg, false, on_done, f), 0);
         run_for(f, 2.0 / TESTRIG_TIME_SCALE); /* 2 s of emulated motion, of about 6 */
         rig_stop(f->rig, NULL);
         run_until(f, want);
@@ -232,6 +234,86 @@ static void test_stop(struct fixture *f)
         p = rig_pose(f->rig);
         CHECK(gn_pose_equal(&p, &truth, POSE_TOL_DEG));
         CHECK(p.deg[GN_ROLE_CAMERA_ARM] < 150); /* stopped, not left to arrive */
+}
+
+/* Moves axis i to deg and runs the loop until done, recording the extremes of the
+ * emulated axis of role on the way. Returns the move's result. */
+static int move_tracking(struct fixture *f, int i, double deg, int role, double *lo, double *hi)
+{
+        int want = f->done + 1;
+        double end = testrig_now() + 20;
+
+        *lo = INFINITY, *hi = -INFINITY;
+        CHECK_INT(rig_move(f->rig, i, &deg, false, on_done, f), 0);
+        while (f->done < want) {
+                double a = sim_pose(f).deg[role];
+                *lo = fmin(*lo, a), *hi = fmax(*hi, a);
+                CHECK(testrig_now() < end);
+                CHECK(sd_event_run(f->event, 2 * 1000) >= 0);
+        }
+        return f->result;
+}
+
+/* Backlash 3 deg upwards: a move down overshoots by 3 deg and comes back up; a move up
+ * goes straight; both end within the deadband. */
+static void test_backlash(struct fixture *f)
+{
+        double lo, hi;
+
+        home_all(f);
+        move(f, 1, 100);
+        CHECK_INT(move_tracking(f, 1, 50, GN_ROLE_LIGHT_ARM, &lo, &hi), 0);
+        CHECK(lo < 50 - 2.5); /* went past, to 47 */
+        CHECK_NEAR(sim_pose(f).deg[GN_ROLE_LIGHT_ARM], 50, 0.02);
+        CHECK_INT(move_tracking(f, 1, 60, GN_ROLE_LIGHT_ARM, &lo, &hi), 0);
+        CHECK(lo > 50 - 0.05 && hi < 60 + 0.05); /* straight up */
+        CHECK_NEAR(sim_pose(f).deg[GN_ROLE_LIGHT_ARM], 60, 0.02);
+}
+
+/* A drive that stops short is sent again while retries are left; the move then succeeds. */
+static void test_retry(struct fixture *f)
+{
+        struct gn_pose p;
+
+        home_all(f);
+        CHECK_INT(sim_emu_inject(f->t.emu, "drives", 2, SIM_FAULT_SHORT), 0);
+        move(f, 1, 200);
+        CHECK_STR(rig_state(f->rig), "idle");
+        p = sim_pose(f);
+        CHECK_NEAR(p.deg[GN_ROLE_LIGHT_ARM], 200, 0.02);
+}
+
+/* Without retries a short stop is a missed move: the move fails and the rig faults. */
+static void test_missed(struct fixture *f)
+{
+        double deg = 90;
+
+        home_all(f);
+        CHECK_INT(sim_emu_inject(f->t.emu, "drives", 3, SIM_FAULT_SHORT), 0);
+        CHECK_INT(rig_move(f->rig, 2, &deg, false, on_done, f), 0);
+        run_until(f, f->done + 1);
+        CHECK(f->result < 0);
+        CHECK_STR(rig_state(f->rig), "fault");
+        CHECK(strstr(rig_last_error(f->rig), "missed its target 90.000"));
+}
+
+static const char abs_yaml[] =
+        "rig: test-absolute\n"
+        "buses:\n"
+        "  - { name: drives, type: modbus-rtu, port: '@DIR@/drives' }\n"
+        "axes:\n"
+        "  - { name: tt, role: turntable, modbus: { bus: drives, unit: 1 }, continuous: true,\n"
+        "      absolute_encoder: true, settle_ms: 10 }\n";
+
+/* An axis with an absolute encoder moves and has an angle without homing. */
+static void test_absolute(struct fixture *f)
+{
+        struct gn_pose p = rig_pose(f->rig);
+
+        CHECK(gn_pose_has(&p, GN_ROLE_TURNTABLE));
+        move(f, 0, 45);
+        p = rig_pose(f->rig);
+        CHECK_NEAR(p.deg[GN_ROLE_TURNTABLE], 45, POSE_TOL_DEG);
 }
 
 static void inject_drop(struct fixture *f, const char *camera)
@@ -292,11 +374,12 @@ int main(int argc, char **argv)
         static const struct {
                 const char *name;
                 void (*fn)(struct fixture *f);
+                const char *yaml;
         } cases[] = {
-                {"expose", test_expose},
-                {"unhomed", test_unhomed},
-                {"stop", test_stop},
-                {"partial", test_partial},
+                {"expose", test_expose, rig_yaml},     {"unhomed", test_unhomed, rig_yaml},
+                {"stop", test_stop, rig_yaml},         {"partial", test_partial, rig_yaml},
+                {"backlash", test_backlash, rig_yaml}, {"retry", test_retry, rig_yaml},
+                {"missed", test_missed, rig_yaml},     {"absolute", test_absolute, abs_yaml},
         };
         struct fixture f = {};
 
@@ -304,7 +387,7 @@ int main(int argc, char **argv)
         for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
                 if (strcmp(argv[1], cases[i].name) != 0)
                         continue;
-                start(&f);
+                start(&f, cases[i].yaml);
                 cases[i].fn(&f);
                 stop(&f);
                 return 0;
