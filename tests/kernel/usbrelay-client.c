@@ -52,7 +52,8 @@ static void set_report(libusb_device_handle *h, unsigned char cmd, const void *a
 {
         unsigned char r[8] = {cmd};
 
-        memcpy(r + 1, arg, len);
+        if (len)
+                memcpy(r + 1, arg, len);
         CHECK_INT(libusb_control_transfer(h,
                                           LIBUSB_ENDPOINT_OUT | LIBUSB_REQUEST_TYPE_CLASS |
                                                   LIBUSB_RECIPIENT_INTERFACE,
