@@ -130,7 +130,13 @@ static const char *const bus_types[] = {
         [RIG_BUS_MODBUS_TCP] = "modbus-tcp",
         [RIG_BUS_SIM] = "sim",
         [RIG_BUS_SERIAL] = "serial",
+        [RIG_BUS_LOCAL] = "local",
 };
+
+const char *rigconf_bus_type_name(enum rig_bus_type t)
+{
+        return (size_t)t < ELEMENTSOF(bus_types) ? bus_types[t] : "?";
+}
 
 static int read_bus_type(struct yconf *yc, struct fy_node *m, enum rig_bus_type *ret)
 {
@@ -180,7 +186,7 @@ static int parse_bus(struct rig_config *rc, struct fy_node *m, struct rig_bus_co
                 return r;
         if (b->type == RIG_BUS_MODBUS_TCP && !b->host[0])
                 strcpy(b->host, "127.0.0.1");
-        if (b->type != RIG_BUS_MODBUS_TCP && !b->port[0])
+        if (b->type != RIG_BUS_MODBUS_TCP && b->type != RIG_BUS_LOCAL && !b->port[0])
                 return yconf_error(yc, m, "port", "required key is missing");
         return 0;
 }

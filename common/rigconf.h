@@ -39,6 +39,8 @@ enum rig_bus_type {
         RIG_BUS_MODBUS_TCP,
         RIG_BUS_SIM,    /* gonio-sim frame socket (Unix stream socket path in port) */
         RIG_BUS_SERIAL, /* a plain serial line (G-code controllers), port and line settings */
+        RIG_BUS_LOCAL,  /* no line: a worker for devices their backend opens itself (V4L2 node,
+                         * gpiochip, USB device, libcamera id) */
 };
 
 struct rig_bus_conf {
@@ -194,6 +196,9 @@ struct rig_config *rigconf_free(struct rig_config *rc);
 
 /* The scene mapping node (gonio-sim only); NULL if absent. Valid until rigconf_free. */
 struct fy_node *rigconf_scene(struct rig_config *rc);
+
+/* The rig-file name of bus type t ("modbus-rtu", ...). */
+const char *rigconf_bus_type_name(enum rig_bus_type t);
 
 /* Lookups by name; NULL if absent. */
 const struct rig_bus_conf *rigconf_bus(const struct rig_config *rc, const char *name);

@@ -121,13 +121,6 @@ static int make_dir(const char *dir)
         }
 }
 
-static const char *bus_type_name(enum rig_bus_type t)
-{
-        return t == RIG_BUS_MODBUS_RTU   ? "modbus-rtu"
-               : t == RIG_BUS_MODBUS_TCP ? "modbus-tcp"
-                                         : "sim";
-}
-
 /* {"rig": NAME, "buses": {NAME: {"type": T, "path": P, "pty": TTY | "host": H, "port": N}}} */
 static json_t *ports_json(const struct rig_config *rc, struct sim_emu *emu)
 {
@@ -136,11 +129,11 @@ static json_t *ports_json(const struct rig_config *rc, struct sim_emu *emu)
         for (size_t i = 0; buses && i < rc->n_buses; i++) {
                 const struct rig_bus_conf *b = &rc->buses[i];
                 json_t *o = b->type == RIG_BUS_MODBUS_TCP
-                                    ? json_pack("{s:s, s:s, s:i}", "type", bus_type_name(b->type),
-                                                "host", "127.0.0.1", "port",
-                                                sim_emu_tcp_port(emu, b->name))
-                                    : json_pack("{s:s, s:s}", "type", bus_type_name(b->type),
-                                                "path", b->port);
+                                    ? json_pack("{s:s, s:s, s:i}", "type",
+                                                rigconf_bus_type_name(b->type), "host", "127.0.0.1",
+                                                "port", sim_emu_tcp_port(emu, b->name))
+                                    : json_pack("{s:s, s:s}", "type",
+                                                rigconf_bus_type_name(b->type), "path", b->port);
                 const char *pty = sim_emu_pty(emu, b->name);
                 if (!o || (pty && json_object_set_new(o, "pty", json_string(pty)) < 0) ||
                     json_object_set_new(buses, b->name, o) < 0)

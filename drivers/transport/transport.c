@@ -29,6 +29,7 @@ static const struct transport_ops *const transports[] = {
         &transport_modbus_tcp_ops,
         &transport_sim_ops,
         &transport_serial_ops,
+        &transport_local_ops,
 };
 
 int transport_new(const struct rig_bus_conf *conf, struct transport **ret)

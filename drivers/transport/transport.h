@@ -131,4 +131,4 @@ void transport_unlock_line(int fd);
 
 /* The transports, by bus type (transport_new() picks them). */
 extern const struct transport_ops transport_modbus_rtu_ops, transport_modbus_tcp_ops,
-        transport_sim_ops, transport_serial_ops;
+        transport_sim_ops, transport_serial_ops, transport_local_ops;

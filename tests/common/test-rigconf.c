@@ -131,6 +131,10 @@ static void case_errors(void)
                   6, "coil", "-1 is out of range");
         expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b }, limits: [10, -10] }\n", 6,
                   "limits", "need min < max");
+        rc = expect_ok("rig: t\nbuses:\n  - { name: l, type: local }\n"); /* no port */
+        CHECK(rc->buses[0].type == RIG_BUS_LOCAL);
+        CHECK_STR(rigconf_bus_type_name(rc->buses[0].type), "local");
+        rigconf_free(rc);
         expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b }, move_retries: 2 }\n", 6,
                   "move_retries", "retries need a deadband > 0");
         expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b }, backlash: 45 }\n", 6, "backlash",
