@@ -97,14 +97,14 @@ static void test_capture(struct cam *c)
 
 static void test_stream(struct cam *c)
 {
-        struct gn_frame fr[4] = {};
+        struct gn_frame fr[8] = {}; /* more than the camera's buffers: each is requeued */
         int r;
 
         CHECK_INT(cam_stream_fd(c), -ENOTCONN);
         CHECK_INT(cam_stream_start(c, NULL), 0);
         CHECK_INT(cam_stream_start(c, NULL), -EBUSY);
         CHECK_INT(cam_capture(c, NULL, &fr[0]), -EBUSY);
-        for (int i = 0; i < 4; i++) {
+        for (int i = 0; i < 8; i++) {
                 struct pollfd p = {.fd = cam_stream_fd(c), .events = POLLIN};
 
                 CHECK(p.fd >= 0);
@@ -121,7 +121,7 @@ static void test_stream(struct cam *c)
         CHECK_INT(r, -EAGAIN);
         cam_stream_stop(c);
         CHECK_INT(cam_stream_fd(c), -ENOTCONN);
-        for (int i = 1; i < 4; i++)
+        for (int i = 1; i < 8; i++)
                 gn_frame_free_data(&fr[i]);
 }
 
