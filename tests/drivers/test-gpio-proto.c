@@ -59,6 +59,8 @@ static void test_no_ramp(void)
         CHECK_NEAR(p.total, 2.0, 1e-12);
         CHECK_NEAR(gpst_step_time(&p, 1), 0.04, 1e-12);
         CHECK_NEAR(gpst_step_time(&p, 37), 37 * 0.04, 1e-12);
+        CHECK_INT(gpst_profile_init(&p, 50, 25, INFINITY), 0);
+        CHECK_NEAR(gpst_step_time(&p, 50), 2.0, 1e-12);
         CHECK_INT(gpst_profile_init(&p, 50, INFINITY, 10), -EINVAL);
         CHECK_INT(gpst_profile_init(&p, 50, 0, 10), -EINVAL);
         CHECK_INT(gpst_profile_init(&p, -1, 10, 10), -EINVAL);
@@ -88,6 +90,8 @@ static void test_steps(void)
         CHECK_INT(s, 35900);
         CHECK_INT(gpst_target_steps(100, 0, 180.0, true, &s), 0); /* (-180, 180]: up */
         CHECK_INT(s, 18000);
+        CHECK_INT(gpst_target_steps(100, 18000, 0.0, true, &s), 0); /* half a turn: up too */
+        CHECK_INT(s, 36000);
 }
 
 /* Parses text (one map) with parse; returns its result, the error in err. */

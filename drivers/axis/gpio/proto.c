@@ -101,7 +101,7 @@ int gpst_profile_init(struct gpst_profile *p, long n, double v, double a)
         if (!(v > 0) || isinf(v) || n < 0)
                 return -EINVAL;
         *p = (struct gpst_profile){.n = n, .v = v, .a = a};
-        if (!(a > 0) || isinf(a)) {
+        if (!(a > 0)) {
                 p->total = n / v;
                 return 0;
         }
