@@ -3,16 +3,15 @@
  * adds its entry here (see docs/drivers.md). */
 #include <string.h>
 
+#include "drivers/axis/gcode/proto.h"
 #include "drivers/axis/modbus/proto.h"
 #include "drivers/camera/sim/api.h"
 #include "drivers/registry.h"
+#include "drivers/switch/gcode/proto.h"
 #include "drivers/switch/modbus/proto.h"
 
 const struct rig_backend *const registry_backends[] = {
-        &mbax_backend,
-        &mbsw_backend,
-        &cam_sim_backend,
-        NULL,
+        &mbax_backend, &mbsw_backend, &gcax_backend, &gcsw_backend, &cam_sim_backend, NULL,
 };
 
 /* The ops of the backend of class cls named name, or NULL. */

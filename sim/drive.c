@@ -156,6 +156,12 @@ void sim_drive_reset(struct sim_drive *d)
         d->fault_code = 0;
 }
 
+void sim_drive_set_origin(struct sim_drive *d, double now)
+{
+        update(d, now);
+        d->offset = sim_drive_physical(d, now);
+}
+
 void sim_drive_inject(struct sim_drive *d, double now, enum sim_drive_fault fault)
 {
         update(d, now);

@@ -81,6 +81,10 @@ int sim_drive_home(struct sim_drive *d, double now, double vmax, double accel);
 /* Halts at once (emergency stop); a scheduled fault halt is cancelled. Never fails. */
 void sim_drive_stop(struct sim_drive *d, double now);
 
+/* Makes the position at time now drive position 0, homed or not (a G-code controller's
+ * G50: "this is the origin"). Never fails. */
+void sim_drive_set_origin(struct sim_drive *d, double now);
+
 /* Clears the latched fault code. Never fails. */
 void sim_drive_reset(struct sim_drive *d);
 

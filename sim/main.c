@@ -125,6 +125,7 @@ static const char *bus_type_name(enum rig_bus_type t)
 {
         return t == RIG_BUS_MODBUS_RTU   ? "modbus-rtu"
                : t == RIG_BUS_MODBUS_TCP ? "modbus-tcp"
+               : t == RIG_BUS_SERIAL     ? "serial"
                                          : "sim";
 }
 

@@ -170,6 +170,14 @@ static const struct {
         {"modbus-coil", BUS "laser:\n  name: x\n  modbus-coil:\n    bus: b\n    cooil: 7\n", 9,
          "cooil"},
         {"sim", BUS "cameras:\n  - name: c\n    sim:\n      bus: f\n      port: /x\n", 9, "port"},
+        {"gcode",
+         "rig: t\nbuses:\n  - { name: s, type: serial, port: /dev/null }\n"
+         "axes:\n  - { name: a, gcode: { bus: s, axs: Y } }\n",
+         5, "axs"},
+        {"gcode-laser",
+         "rig: t\nbuses:\n  - { name: s, type: serial, port: /dev/null }\n"
+         "laser:\n  name: x\n  gcode-laser: { bus: s, tol: 2 }\n",
+         6, "tol"},
 };
 
 /* Whether unknown_keys has a row of kind. */
@@ -372,16 +380,17 @@ static void case_backend_maps(void)
         CHECK(((const struct mbax_conf *)rc->axes[0].backend.conf)->profile == &rc->profiles[1]);
         CHECK_NEAR(((const struct mbax_conf *)rc->axes[0].backend.conf)->profile->scale, 2, 0);
         rigconf_free(rc);
-        expect_at(BUS "axes:\n  - { name: a, max_speed: 5 }\n", 6, "modbus",
-                  "no backend map in this entry (one of: modbus)");
-        expect_at(BUS "laser:\n  name: x\n  power: 1\n", 6, "modbus-coil",
-                  "no backend map in this entry (one of: modbus-coil)");
+        expect_at(BUS "axes:\n  - { name: a, max_speed: 5 }\n", 6, "modbus, gcode",
+                  "no backend map in this entry (one of: modbus, gcode)");
+        expect_at(BUS "laser:\n  name: x\n  power: 1\n", 6, "modbus-coil, gcode-laser",
+                  "no backend map in this entry (one of: modbus-coil, gcode-laser)");
         expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b }\n", 6, "backend",
-                  "go in one map named after the backend (modbus: { bus: ... })");
+                  "go in one map named after the backend (modbus, gcode: { bus: ... })");
         expect_at(BUS "cameras:\n  - { name: c, bus: f }\n", 6, "bus",
                   "go in one map named after the backend (sim: { bus: ... })");
         expect_at(BUS "lamps:\n  - { name: l, elevation: 1, modbus: { bus: b } }\n", 6, "modbus",
-                  "'modbus' is a backend for axes, not for lamps and lasers (modbus-coil)");
+                  "'modbus' is a backend for axes, not for lamps and lasers (modbus-coil, "
+                  "gcode-laser)");
         expect_at(BUS "axes:\n  - { name: a, modbus: b }\n", 6, "modbus",
                   "expected the backend's settings as a mapping");
         expect_at(BUS "axes:\n  - { name: a, modbus: { unit: 2 } }\n", 6, "bus",
