@@ -53,6 +53,10 @@ struct sim_drive_status {
  * position (derived from the axis name), unhomed. c must outlive d. Never fails. */
 void sim_drive_init(struct sim_drive *d, const struct rig_axis_conf *c);
 
+/* Like sim_drive_init() but at rest at physical angle physical: an axis with no reference
+ * whose power-on position defines the world's zero (a Ciclop turntable). */
+void sim_drive_init_at(struct sim_drive *d, const struct rig_axis_conf *c, double physical);
+
 /* The physical angle at time now (not wrapped). */
 double sim_drive_physical(struct sim_drive *d, double now);
 

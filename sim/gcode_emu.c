@@ -730,7 +730,12 @@ static int add_axis(struct sim_gcode *g, const struct rig_axis_conf *c)
                 return r;
         struct ge_axis *a = &b->axes[gc->axis];
         *a = (struct ge_axis){.conf = c, .steps_per_deg = gc->steps_per_deg};
-        sim_drive_init(&a->drive, c);
+        /* A Horus turntable has no reference: where it powers up is the world's zero. A
+         * GRBL axis homes to its switch at physical 0 from anywhere. */
+        if (gc->flavor == GC_FLAVOR_HORUS)
+                sim_drive_init_at(&a->drive, c, 0.0);
+        else
+                sim_drive_init(&a->drive, c);
         return 0;
 }
 

@@ -51,7 +51,7 @@ int sim_emu_tcp_port(struct sim_emu *e, const char *bus);
 
 /* Injects a fault into the device at (bus, unit); SIM_FAULT_NONE clears it (a latched
  * stall stays until the drive's reset command). On a G-code bus the unit is ignored and
- * sim_gcode_inject() applies (timeout, late, error, none). Stall and short apply to the current move,
- * or the next one when the axis is at rest. Returns 0, -ENOENT for an unknown device,
- * -EINVAL for a stall or short of a device that is no axis. Any thread. */
+ * sim_gcode_inject() applies (timeout, late, error, none). Stall and short apply to the current
+ * move, or the next one when the axis is at rest. Returns 0, -ENOENT for an unknown device, -EINVAL
+ * for a stall or short of a device that is no axis. Any thread. */
 int sim_emu_inject(struct sim_emu *e, const char *bus, int unit, enum sim_fault fault);
