@@ -84,7 +84,6 @@ static void gcax_close(struct axis *ax)
 
         if (!m)
                 return;
-        gclink_detach(m->link);
         free(m);
         ax->priv = NULL;
 }

@@ -38,18 +38,10 @@ int gclink_attach(struct bus *b, enum gc_flavor flavor, struct gclink **ret)
                         return -ENOMEM;
                 *l = (struct gclink){.bus = b, .flavor = flavor};
                 t->priv = l;
+                t->priv_free = free;
         }
-        l->refs++;
         *ret = l;
         return 0;
-}
-
-void gclink_detach(struct gclink *l)
-{
-        if (!l || --l->refs > 0)
-                return;
-        tp(l)->priv = NULL;
-        free(l);
 }
 
 const char *gclink_cause(const struct gclink *l)

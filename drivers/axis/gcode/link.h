@@ -13,10 +13,11 @@
  *   later, so the bus worker is never blocked for a whole move. While a reply is owed, a
  *   synchronous command is refused with -EBUSY (the firmware would not read it before the
  *   move ends).
- * - The link lives in the serial transport's priv slot, reference-counted by the devices
- *   that attach to it; all calls run on the bus worker. The first use after the port opens
- *   resets the controller (Ctrl-X) and waits for its greeting; any timeout or unexpected
- *   reply desynchronises the session, and the next use resets again (docs/gcode.md:
+ * - The link belongs to the line: it lives in the serial transport's priv slot and is freed
+ *   with the transport, so devices closed before or after their bus never touch a freed
+ *   link or bus (they only drop their pointer). All calls run on the bus worker. The first use
+ * after the port opens resets the controller (Ctrl-X) and waits for its greeting; any timeout or
+ * unexpected reply desynchronises the session, and the next use resets again (docs/gcode.md:
  *   "Resets and position loss"). */
 #pragma once
 
@@ -31,8 +32,7 @@
 #define GCLINK_GREETING_MS 2500
 
 struct gclink {
-        struct bus *bus; /* borrowed */
-        unsigned refs;
+        struct bus *bus; /* borrowed: the link dies with the bus's transport */
         enum gc_flavor flavor;
         bool synced;     /* greeting seen since the port opened, no desync since */
         bool alarm;      /* locked in alarm ('$H'|'$X' to unlock, or an ALARM line) */
@@ -47,13 +47,11 @@ struct gclink {
         char value[GC_LINE_MAX]; /* the last line of kind OTHER (the M50 reading) */
 };
 
-/* Attaches a device of flavor to the link of bus b, creating it on first use. Returns 0,
- * -EINVAL when the bus is no serial line or its controller was attached with another
- * flavor, -ENOMEM. Bus worker. */
+/* The link of bus b for a device of flavor, created on first use (owned by the bus's
+ * transport: valid until bus_free()). Returns 0, -EINVAL when the bus is no serial line or
+ * its controller was attached with another flavor (cause in the transport), -ENOMEM. Bus
+ * worker. */
 int gclink_attach(struct bus *b, enum gc_flavor flavor, struct gclink **ret);
-
-/* Detaches a device; the last one frees the link. NULL is a no-op. */
-void gclink_detach(struct gclink *l);
 
 /* Opens the port if needed and, unless synced, resets the controller and waits for its
  * greeting, then reads its state. Returns 0 or -errno (cause in the transport). */

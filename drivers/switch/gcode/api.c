@@ -64,7 +64,6 @@ static void gcsw_close(struct sw *s)
 
         if (!m)
                 return;
-        gclink_detach(m->link);
         free(m);
         s->priv = NULL;
 }
