@@ -4,11 +4,13 @@
 #include <string.h>
 
 #include "drivers/axis/gpio/proto.h"
+#include "drivers/axis/gcode/proto.h"
 #include "drivers/axis/modbus/proto.h"
 #include "drivers/camera/libcamera/api.h"
 #include "drivers/camera/sim/api.h"
 #include "drivers/registry.h"
 #include "drivers/switch/gpio/proto.h"
+#include "drivers/switch/gcode/proto.h"
 #include "drivers/switch/modbus/proto.h"
 #ifdef GONIO_USBRELAY
 #include "drivers/switch/usbrelay/proto.h"
@@ -19,6 +21,8 @@
 const struct rig_backend *const registry_backends[] = {
         &mbax_backend,
         &mbsw_backend,
+        &gcax_backend,
+        &gcsw_backend,
         &cam_sim_backend,
         &cam_lc_backend,
 #ifdef GONIO_USBRELAY

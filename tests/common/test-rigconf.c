@@ -194,6 +194,14 @@ static const struct {
          "rig: t\nbuses: [{ name: u, type: local }]\nlamps:\n"
          "  - { name: l, elevation: 1, usbrelay: { bus: u, rely: 2 } }\n",
          4, "rely"},
+        {"gcode",
+         "rig: t\nbuses:\n  - { name: s, type: serial, port: /dev/null }\n"
+         "axes:\n  - { name: a, gcode: { bus: s, axs: Y } }\n",
+         5, "axs"},
+        {"gcode-laser",
+         "rig: t\nbuses:\n  - { name: s, type: serial, port: /dev/null }\n"
+         "laser:\n  name: x\n  gcode-laser: { bus: s, tol: 2 }\n",
+         6, "tol"},
 };
 
 /* Whether unknown_keys has a row of kind. */
