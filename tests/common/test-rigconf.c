@@ -178,6 +178,8 @@ static const struct {
         {"modbus-coil", BUS "laser:\n  name: x\n  modbus-coil:\n    bus: b\n    cooil: 7\n", 9,
          "cooil"},
         {"sim", BUS "cameras:\n  - name: c\n    sim:\n      bus: f\n      port: /x\n", 9, "port"},
+        {"libcamera", BUS "cameras:\n  - name: c\n    libcamera:\n      bus: f\n      device: /x\n",
+         9, "device"},
 };
 
 /* Whether unknown_keys has a row of kind. */
@@ -387,7 +389,7 @@ static void case_backend_maps(void)
         expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b }\n", 6, "backend",
                   "go in one map named after the backend (modbus: { bus: ... })");
         expect_at(BUS "cameras:\n  - { name: c, bus: f }\n", 6, "bus",
-                  "go in one map named after the backend (sim: { bus: ... })");
+                  "go in one map named after the backend (sim"); /* then other camera backends */
         expect_at(BUS "lamps:\n  - { name: l, elevation: 1, modbus: { bus: b } }\n", 6, "modbus",
                   "'modbus' is a backend for axes, not for lamps and lasers (modbus-coil)");
         expect_at(BUS "axes:\n  - { name: a, modbus: b }\n", 6, "modbus",

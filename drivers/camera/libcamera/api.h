@@ -7,9 +7,9 @@
 /* The backend's ops, registered as "libcamera" in drivers/registry.c.
  * open() finds the camera (by id, or model and index: struct lccam_conf), acquires it and
  * configures one stream at the rig file's width x height in a format gonio converts to
- * rgb8 (mono8 for a grey sensor): -ENODEV (the cause lists the cameras there are), -EBUSY,
- * -EINVAL (size or format not offered), -EOPNOTSUPP (built without libcamera). It then
- * narrows the camera's option table to the controls the camera offers (c->ops becomes a
+ * rgb8 (mono8 for a grey sensor; 0 when already open): -ENODEV (the cause lists the cameras there
+ * are), -EBUSY, -EINVAL (size or format not offered), -EOPNOTSUPP (built without libcamera). It
+ * then narrows the camera's option table to the controls the camera offers (c->ops becomes a
  * per-camera copy until close), so cam_check_request() refuses exposure or gain with
  * -EOPNOTSUPP on a camera without ExposureTime or AnalogueGain (vimc has neither); a request for
  * 16-bit samples fails with -EOPNOTSUPP. capture() starts the camera, waits for a frame (at most
