@@ -168,6 +168,15 @@ std::string camera_ids()
         return s.empty() ? "none" : s;
 }
 
+/* How the rig file names the camera: "'ID'", "of model 'M' at index N" or "at index N". */
+std::string which(const char *id, const char *model, int index)
+{
+        if (id && *id)
+                return std::string("'") + id + "'";
+        return (model && *model ? std::string("of model '") + model + "' " : std::string()) +
+               "at index " + std::to_string(index);
+}
+
 std::shared_ptr<Camera> find_camera(const char *id, const char *model, int index)
 {
         int n = 0;
@@ -220,9 +229,10 @@ int map_buffer(lc_cam *c, const FrameBuffer &b, char *cause, size_t len)
 
         m.size = p.offset + p.length;
         m.base = mmap(nullptr, m.size, PROT_READ, MAP_SHARED, p.fd.get(), 0);
-        if (m.base == MAP_FAILED)
-                return fail(cause, len, -errno,
-                            std::string("cannot map a buffer: ") + strerror(errno));
+        if (m.base == MAP_FAILED) {
+                int err = errno;
+                return fail(cause, len, -err, std::string("cannot map a buffer: ") + strerror(err));
+        }
         m.data = static_cast<const uint8_t *>(m.base) + p.offset;
         c->maps.push_back(m);
         return 0;
@@ -258,11 +268,8 @@ int open_camera(lc_cam *c, const char *id, const char *model, int index, char *c
         c->camera = find_camera(id, model, index);
         if (!c->camera)
                 return fail(cause, len, -ENODEV,
-                            (id && *id
-                                     ? std::string("no camera '") + id + "'"
-                                     : std::string("no camera of model '") + (model ? model : "") +
-                                               "' at index " + std::to_string(index)) +
-                                    " (cameras: " + camera_ids() + ")");
+                            "no camera " + which(id, model, index) + " (cameras: " + camera_ids() +
+                                    ")");
         r = c->camera->acquire();
         if (r < 0)
                 return fail(cause, len, r,
