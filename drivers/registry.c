@@ -8,12 +8,18 @@
 #include "drivers/camera/sim/api.h"
 #include "drivers/registry.h"
 #include "drivers/switch/modbus/proto.h"
+#ifdef GONIO_USBRELAY
+#include "drivers/switch/usbrelay/proto.h"
+#endif
 
 const struct rig_backend *const registry_backends[] = {
         &mbax_backend,
         &mbsw_backend,
         &cam_sim_backend,
         &cam_lc_backend,
+#ifdef GONIO_USBRELAY
+        &usbrelay_backend,
+#endif
         NULL,
 };
 

@@ -178,8 +178,14 @@ static const struct {
         {"modbus-coil", BUS "laser:\n  name: x\n  modbus-coil:\n    bus: b\n    cooil: 7\n", 9,
          "cooil"},
         {"sim", BUS "cameras:\n  - name: c\n    sim:\n      bus: f\n      port: /x\n", 9, "port"},
-        {"libcamera", BUS "cameras:\n  - name: c\n    libcamera:\n      bus: f\n      device: /x\n",
-         9, "device"},
+        {"libcamera",
+         "rig: t\nbuses: [{ name: u, type: local }]\ncameras:\n"
+         "  - { name: c, libcamera: { bus: u, idd: x } }\n",
+         4, "idd"},
+        {"usbrelay",
+         "rig: t\nbuses: [{ name: u, type: local }]\nlamps:\n"
+         "  - { name: l, elevation: 1, usbrelay: { bus: u, rely: 2 } }\n",
+         4, "rely"},
 };
 
 /* Whether unknown_keys has a row of kind. */
@@ -384,19 +390,19 @@ static void case_backend_maps(void)
         rigconf_free(rc);
         expect_at(BUS "axes:\n  - { name: a, max_speed: 5 }\n", 6, "modbus",
                   "no backend map in this entry (one of: modbus)");
-        expect_at(BUS "laser:\n  name: x\n  power: 1\n", 6, "modbus-coil",
-                  "no backend map in this entry (one of: modbus-coil)");
         expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b }\n", 6, "backend",
                   "go in one map named after the backend (modbus: { bus: ... })");
         expect_at(BUS "cameras:\n  - { name: c, bus: f }\n", 6, "bus",
-                  "go in one map named after the backend (sim"); /* then other camera backends */
-        expect_at(BUS "lamps:\n  - { name: l, elevation: 1, modbus: { bus: b } }\n", 6, "modbus",
-                  "'modbus' is a backend for axes, not for lamps and lasers (modbus-coil)");
+                  "go in one map named after the backend (sim");
         expect_at(BUS "axes:\n  - { name: a, modbus: b }\n", 6, "modbus",
                   "expected the backend's settings as a mapping");
         expect_at(BUS "axes:\n  - { name: a, modbus: { unit: 2 } }\n", 6, "bus",
                   "required key is missing");
-        backends = with_spare;
+        backends = with_spare; /* messages listing the backends: a fixed table */
+        expect_at(BUS "laser:\n  name: x\n  power: 1\n", 6, "modbus-coil",
+                  "no backend map in this entry (one of: modbus-coil)");
+        expect_at(BUS "lamps:\n  - { name: l, elevation: 1, modbus: { bus: b } }\n", 6, "modbus",
+                  "'modbus' is a backend for axes, not for lamps and lasers (modbus-coil)");
         expect_at(BUS "axes:\n  - name: a\n    modbus: { bus: b }\n    spare: { bus: b }\n", 8,
                   "spare", "a second backend map (after 'modbus'): a device has exactly one");
         expect_at(BUS "axes:\n  - { name: a }\n", 6, "modbus, spare",
