@@ -1,5 +1,6 @@
 /* test-lc-proto.c - the libcamera backend's pure parts (drivers/camera/libcamera/proto.c):
- * each pixel format converted to rgb8/mono8 with its channel order and row stride, short
+ * each pixel format converted to rgb8/mono8 with its channel order and row stride (YUYV
+ * with BT.601 colours), short
  * buffers refused, the sensor clock moved onto the wall clock, the option table built from a
  * camera's controls, and the rig-file map parsed with file:line:key errors. */
 #include <errno.h>
@@ -60,12 +61,31 @@ static void test_convert(void)
         gn_frame_free_data(&f);
         CHECK_INT(lcproto_convert(LCPROTO_BGR888, buf, 8 + 5, 8, 2, 2, &f), -EBADMSG);
         CHECK_INT(lcproto_convert(LCPROTO_BGR888, buf, 16, 5, 2, 2, &f), -EBADMSG);
-        CHECK_INT(lcproto_convert(LCPROTO_FOURCC('Y', 'U', 'Y', 'V'), buf, 16, 8, 2, 2, &f),
+        CHECK_INT(lcproto_convert(LCPROTO_FOURCC('N', 'V', '1', '2'), buf, 16, 8, 2, 2, &f),
                   -EINVAL);
         CHECK_STR(lcproto_format_name(LCPROTO_RGB888), "RGB888");
         CHECK_STR(lcproto_format_name(0), "?");
         CHECK_INT(lcproto_format_at(0), LCPROTO_BGR888);
         CHECK_INT(lcproto_format_at(LCPROTO_N_FORMATS), 0);
+}
+
+/* YUYV, BT.601 limited range: white, black, then a red pair; width 3 takes a whole pair. */
+static void test_yuyv(void)
+{
+        static const uint8_t yuyv[2 * 8] = {235, 128, 16, 128, 81, 90, 81, 240,
+                                            235, 128, 16, 128, 81, 90, 81, 240};
+        static const uint8_t want[3][3] = {{255, 255, 255}, {0, 0, 0}, {255, 0, 0}};
+        struct gn_frame f = {};
+
+        CHECK_INT(lcproto_convert(LCPROTO_YUYV, yuyv, sizeof(yuyv), 8, 3, 2, &f), 0);
+        CHECK_STR(gn_frame_format(&f), "rgb8");
+        for (int y = 0; y < 2; y++)
+                for (int x = 0; x < 3; x++)
+                        for (int k = 0; k < 3; k++)
+                                CHECK_INT(f.data[y * f.stride + x * 3 + k], want[x][k]);
+        gn_frame_free_data(&f);
+        CHECK_INT(lcproto_convert(LCPROTO_YUYV, yuyv, sizeof(yuyv) - 1, 8, 3, 2, &f), -EBADMSG);
+        CHECK_INT(lcproto_convert(LCPROTO_YUYV, yuyv, sizeof(yuyv), 6, 3, 2, &f), -EBADMSG);
 }
 
 static void test_clock(void)
@@ -152,6 +172,7 @@ static void test_conf(void)
 int main(void)
 {
         test_convert();
+        test_yuyv();
         test_clock();
         test_opts();
         test_conf();

@@ -116,6 +116,7 @@ static void test_stream(struct cam *c)
                         CHECK(fr[i].timestamp_ns > fr[i - 1].timestamp_ns);
                 }
         }
+        gn_frame_free_data(&fr[0]);
         while ((r = cam_stream_dequeue(c, &fr[0])) == 0) /* drain what is ready */
                 gn_frame_free_data(&fr[0]);
         CHECK_INT(r, -EAGAIN);

@@ -36,6 +36,8 @@ static int lc_open(struct cam *c)
         struct cam_lc *s;
         int r;
 
+        if (c->priv)
+                return 0; /* open already */
         for (size_t i = 0; i < LCPROTO_N_FORMATS; i++)
                 fourccs[i] = lcproto_format_at(i);
         s = calloc(1, sizeof(*s));

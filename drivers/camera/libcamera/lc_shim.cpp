@@ -6,7 +6,6 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
-#include <deque>
 #include <memory>
 #include <mutex>
 #include <new>
@@ -97,7 +96,9 @@ struct lc_cam {
         std::vector<std::unique_ptr<Request>> requests;
         std::vector<mapping> maps; /* by request cookie */
         std::mutex lock;           /* guards done */
-        std::deque<Request *> done;
+        /* completed requests, oldest first; capacity reserved for all of them at open, so
+         * that complete() never allocates */
+        std::vector<Request *> done;
         Request *held = nullptr; /* the request of the frame last handed out */
         int efd = -1;
         bool running = false, acquired = false, have_cm = false;
@@ -109,7 +110,8 @@ struct lc_cam {
         int queue(Request *rq, char *cause, size_t len);
 };
 
-/* On libcamera's thread. Cancelled requests (lc_cam_stop) are not handed out. */
+/* On libcamera's thread. Cancelled requests (lc_cam_stop) are not handed out. Never throws:
+ * done has room for every request and a mutex lock only fails on a misuse. */
 void lc_cam::complete(Request *rq)
 {
         uint64_t one = 1;
@@ -166,6 +168,15 @@ std::string camera_ids()
         return s.empty() ? "none" : s;
 }
 
+/* How the rig file names the camera: "'ID'", "of model 'M' at index N" or "at index N". */
+std::string which(const char *id, const char *model, int index)
+{
+        if (id && *id)
+                return std::string("'") + id + "'";
+        return (model && *model ? std::string("of model '") + model + "' " : std::string()) +
+               "at index " + std::to_string(index);
+}
+
 std::shared_ptr<Camera> find_camera(const char *id, const char *model, int index)
 {
         int n = 0;
@@ -218,9 +229,10 @@ int map_buffer(lc_cam *c, const FrameBuffer &b, char *cause, size_t len)
 
         m.size = p.offset + p.length;
         m.base = mmap(nullptr, m.size, PROT_READ, MAP_SHARED, p.fd.get(), 0);
-        if (m.base == MAP_FAILED)
-                return fail(cause, len, -errno,
-                            std::string("cannot map a buffer: ") + strerror(errno));
+        if (m.base == MAP_FAILED) {
+                int err = errno;
+                return fail(cause, len, -err, std::string("cannot map a buffer: ") + strerror(err));
+        }
         m.data = static_cast<const uint8_t *>(m.base) + p.offset;
         c->maps.push_back(m);
         return 0;
@@ -256,11 +268,8 @@ int open_camera(lc_cam *c, const char *id, const char *model, int index, char *c
         c->camera = find_camera(id, model, index);
         if (!c->camera)
                 return fail(cause, len, -ENODEV,
-                            (id && *id
-                                     ? std::string("no camera '") + id + "'"
-                                     : std::string("no camera of model '") + (model ? model : "") +
-                                               "' at index " + std::to_string(index)) +
-                                    " (cameras: " + camera_ids() + ")");
+                            "no camera " + which(id, model, index) + " (cameras: " + camera_ids() +
+                                    ")");
         r = c->camera->acquire();
         if (r < 0)
                 return fail(cause, len, r,
@@ -289,6 +298,7 @@ extern "C" int lc_cam_open(const char *id, const char *model, int index, int wid
                     (r = configure(c.get(), width, height, fourccs, n, cause, len)) < 0 ||
                     (r = make_requests(c.get(), cause, len)) < 0)
                         return r;
+                c->done.reserve(c->requests.size());
                 *ret = c.release();
                 return 0;
         });
@@ -411,7 +421,7 @@ extern "C" int lc_cam_next(struct lc_cam *cam, struct lc_frame *out, char *cause
                         if (cam->done.empty())
                                 return -EAGAIN;
                         rq = cam->done.front();
-                        cam->done.pop_front();
+                        cam->done.erase(cam->done.begin());
                         if (read(cam->efd, &count, sizeof(count)) < 0)
                                 count = 0; /* the count matches done: cannot fail */
                 }
@@ -422,15 +432,18 @@ extern "C" int lc_cam_next(struct lc_cam *cam, struct lc_frame *out, char *cause
 
 extern "C" void lc_cam_stop(struct lc_cam *cam)
 {
-        uint64_t count;
-
         if (!cam || !cam->running)
                 return;
-        guard(nullptr, 0, [&]() { return cam->camera->stop(); });
-        std::lock_guard<std::mutex> g(cam->lock);
-        cam->done.clear();
-        while (read(cam->efd, &count, sizeof(count)) > 0)
-                ;
-        cam->held = nullptr;
         cam->running = false;
+        cam->held = nullptr;
+        guard(nullptr, 0, [&]() {
+                uint64_t count;
+
+                cam->camera->stop();
+                std::lock_guard<std::mutex> g(cam->lock);
+                cam->done.clear();
+                while (read(cam->efd, &count, sizeof(count)) > 0)
+                        ;
+                return 0;
+        });
 }

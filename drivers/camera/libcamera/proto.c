@@ -30,20 +30,61 @@ int lcproto_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_con
         return 0;
 }
 
-/* One accepted format: its name, bytes per pixel, and where R, G, B sit in a pixel (all
- * three 0 for grey). */
+/* One accepted format: its name, bytes per pixel, where R, G, B sit in a pixel (packed
+ * RGB), and the function that converts a row of it. */
 struct fmt {
         uint32_t fourcc;
         const char *name;
         int bpp, r, g, b;
+        void (*row)(const struct fmt *f, const uint8_t *src, uint8_t *dst, int width);
 };
 
+static void rgb_row(const struct fmt *f, const uint8_t *src, uint8_t *dst, int width)
+{
+        for (int x = 0; x < width; x++, src += f->bpp, dst += 3) {
+                dst[0] = src[f->r];
+                dst[1] = src[f->g];
+                dst[2] = src[f->b];
+        }
+}
+
+static void grey_row(const struct fmt *f, const uint8_t *src, uint8_t *dst, int width)
+{
+        memcpy(dst, src, (size_t)width);
+}
+
+static uint8_t clamp8(int v)
+{
+        return v < 0 ? 0 : v > 255 ? 255 : (uint8_t)v;
+}
+
+/* BT.601 limited range (what UVC cameras send), in 8.8 fixed point. */
+static void yuv_to_rgb(int y, int u, int v, uint8_t *dst)
+{
+        int c = 298 * (y - 16), d = u - 128, e = v - 128;
+
+        dst[0] = clamp8((c + 409 * e + 128) >> 8);
+        dst[1] = clamp8((c - 100 * d - 208 * e + 128) >> 8);
+        dst[2] = clamp8((c + 516 * d + 128) >> 8);
+}
+
+/* Y0 U Y1 V: two pixels share U and V; an odd last pixel uses its pair's. */
+static void yuyv_row(const struct fmt *f, const uint8_t *src, uint8_t *dst, int width)
+{
+        for (int x = 0; x < width; x++, dst += 3) {
+                const uint8_t *pair = src + (x / 2) * 4;
+
+                yuv_to_rgb(pair[(x % 2) * 2], pair[1], pair[3], dst);
+        }
+}
+
 static const struct fmt fmts[] = {
-        {LCPROTO_BGR888, "BGR888", 3, 0, 1, 2},
-        {LCPROTO_RGB888, "RGB888", 3, 2, 1, 0},
-        {LCPROTO_XBGR8888, "XBGR8888", 4, 0, 1, 2},
-        {LCPROTO_XRGB8888, "XRGB8888", 4, 2, 1, 0},
-        {LCPROTO_R8, "R8", 1, 0, 0, 0},
+        {LCPROTO_BGR888, "BGR888", 3, 0, 1, 2, rgb_row},
+        {LCPROTO_RGB888, "RGB888", 3, 2, 1, 0, rgb_row},
+        {LCPROTO_XBGR8888, "XBGR8888", 4, 0, 1, 2, rgb_row},
+        {LCPROTO_XRGB8888, "XRGB8888", 4, 2, 1, 0, rgb_row},
+        {LCPROTO_R8, "R8", 1, 0, 0, 0, grey_row},
+        {LCPROTO_YUYV, "YUYV", 2, 0, 0, 0, yuyv_row},
 };
 
 _Static_assert(ELEMENTSOF(fmts) == LCPROTO_N_FORMATS, "LCPROTO_N_FORMATS");
@@ -68,35 +109,23 @@ const char *lcproto_format_name(uint32_t fourcc)
         return f ? f->name : "?";
 }
 
-static void convert_row(const struct fmt *f, const uint8_t *src, uint8_t *dst, int width)
-{
-        if (f->bpp == 1) {
-                memcpy(dst, src, (size_t)width);
-                return;
-        }
-        for (int x = 0; x < width; x++, src += f->bpp, dst += 3) {
-                dst[0] = src[f->r];
-                dst[1] = src[f->g];
-                dst[2] = src[f->b];
-        }
-}
-
 int lcproto_convert(uint32_t fourcc, const uint8_t *src, size_t bytes, size_t stride, int width,
                     int height, struct gn_frame *out)
 {
         const struct fmt *f = find_fmt(fourcc);
+        size_t row;
         int r;
 
         if (!f || width <= 0 || height <= 0)
                 return -EINVAL;
-        if (stride < (size_t)width * f->bpp ||
-            bytes < stride * (size_t)(height - 1) + (size_t)width * f->bpp)
+        row = (size_t)width * f->bpp + (f->row == yuyv_row ? (size_t)(width % 2) * 2 : 0);
+        if (stride < row || bytes < stride * (size_t)(height - 1) + row)
                 return -EBADMSG;
-        r = gn_frame_alloc(out, width, height, f->bpp == 1 ? 1 : 3, 8);
+        r = gn_frame_alloc(out, width, height, f->row == grey_row ? 1 : 3, 8);
         if (r < 0)
                 return r;
         for (int y = 0; y < height; y++)
-                convert_row(f, src + stride * y, out->data + out->stride * y, width);
+                f->row(f, src + stride * y, out->data + out->stride * y, width);
         return 0;
 }
 

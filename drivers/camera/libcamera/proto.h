@@ -37,16 +37,17 @@ int lcproto_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_con
 #define LCPROTO_XBGR8888 LCPROTO_FOURCC('X', 'B', '2', '4') /* R G B x */
 #define LCPROTO_XRGB8888 LCPROTO_FOURCC('X', 'R', '2', '4') /* B G R x */
 #define LCPROTO_R8       LCPROTO_FOURCC('R', '8', ' ', ' ') /* grey */
+#define LCPROTO_YUYV     LCPROTO_FOURCC('Y', 'U', 'Y', 'V') /* Y0 U Y1 V (UVC cameras) */
 
 /* The formats the backend converts, most preferred first (no reordering first): the i-th, or 0
  * past the last (LCPROTO_N_FORMATS). */
-#define LCPROTO_N_FORMATS 5
+#define LCPROTO_N_FORMATS 6
 uint32_t lcproto_format_at(size_t i);
 
 /* Converts a width x height image of format fourcc (rows stride bytes apart, bytes in all)
- * into out, which it allocates (rgb8, or mono8 for R8; owned by the caller,
- * gn_frame_free_data). Returns 0; -EINVAL for a format not in that list; -EBADMSG
- * when stride or bytes are too short for the shape; -ENOMEM. */
+ * into out, which it allocates (rgb8, or mono8 for R8; YUYV as BT.601 limited range; owned by the
+ * caller, gn_frame_free_data). Returns 0; -EINVAL for a format not in that list; -EBADMSG when
+ * stride or bytes are too short for the shape; -ENOMEM. */
 int lcproto_convert(uint32_t fourcc, const uint8_t *src, size_t bytes, size_t stride, int width,
                     int height, struct gn_frame *out);
 
