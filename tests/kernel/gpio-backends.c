@@ -353,6 +353,9 @@ static void test_limit(struct axis *ax, struct watcher *w)
         /* further up is refused; down is allowed */
         CHECK_INT(axis_move_abs(ax, 85.0), -ERANGE);
         CHECK_STR_CONTAINS(ax->last_error, "limit_max switch is made");
+        CHECK_INT(axis_move_abs(ax, ax->state.position_deg), 0); /* going nowhere is fine */
+        wait_stopped(ax, 1.0);
+        CHECK(ax->state.in_position);
         sim_pull("limit_max", "pull-down");
         CHECK_INT(axis_reset(ax), 0);
         CHECK_INT(axis_poll(ax), 0);
@@ -444,6 +447,9 @@ int main(void)
         test_home_missing(rc, b, &w);
         atomic_store(&w.quit, true);
         pthread_join(w.thread, NULL);
+        close(w.pipe_fd);
+        trace_write("events/gpio/gpio_value/enable", "0");
+        unlink(path);
         bus_free(b);
         rigconf_free(rc);
         gpiod_chip_close(chip);

@@ -42,7 +42,7 @@ struct gpst {
         bool running; /* a thread was started and not joined yet (worker only) */
         /* the run of the thread, set before it starts */
         struct gpst_profile prof;
-        int dir; /* +1 upwards, -1 downwards */
+        int dir; /* +1 upwards, -1 downwards, 0 no move (no limit switch applies) */
         bool homing;
         int logged_fault;     /* the fault code poll last logged (worker only) */
         pthread_mutex_t lock; /* guards what follows */
@@ -193,7 +193,8 @@ static void stop_thread(struct gpst *g)
         g->running = false;
 }
 
-/* Starts a run of n steps in direction dir at speed deg/s (homing: until the home switch). */
+/* Starts a run of n steps in direction dir (-1, 0 with n 0, 1) at speed deg/s (homing: until
+ * the home switch). */
 static int start(struct axis *ax, int dir, long n, double speed, bool homing)
 {
         struct gpst *g = ax->priv;
@@ -245,8 +246,8 @@ static int gpst_move_abs(struct axis *ax, double deg)
         r = gpst_target_steps(g->conf->steps_per_deg, cur, deg, ax->conf->continuous, &target);
         if (r < 0)
                 return axis_set_cause(ax, r, "%.3f deg is beyond the step counter", deg);
-        return start(ax, target >= cur ? 1 : -1, (long)llabs(target - cur), ax->conf->max_speed,
-                     false);
+        return start(ax, (target > cur) - (target < cur), (long)llabs(target - cur),
+                     ax->conf->max_speed, false);
 }
 
 /* Homing travels at most this far: the whole range and some, or a turn and some. */
