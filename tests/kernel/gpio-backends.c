@@ -34,9 +34,16 @@ static const char rig_yaml[] =
         "      gpio-stepper: { bus: io, chip: gonio-gpio, step: step, dir: dir, enable: enable,\n"
         "                      home: home, limit_min: limit, limit_max: limit_max,\n"
         "                      steps_per_deg: 10, home_speed: 3 } }\n"
+        "  - { name: short, limits: [-1, 1], max_speed: 20, accel: 200,\n"
+        "      gpio-stepper: { bus: io, chip: gonio-gpio, step: step, dir: dir, home: home,\n"
+        "                      steps_per_deg: 10 } }\n"
+        "  - { name: misspelt, max_speed: 4,\n"
+        "      gpio-stepper: { bus: io, chip: gonio-gpio, step: stepx, dir: dir,\n"
+        "                      steps_per_deg: 10 } }\n"
         "lamps:\n"
         "  - { name: lamp0, elevation: 10, gpio: { bus: io, chip: gonio-gpio, line: lamp } }\n"
         "  - { name: lamp1, elevation: 20, gpio: { bus: io, chip: gonio-gpio, line: lamp } }\n"
+        "  - { name: lamp2, elevation: 30, gpio: { bus: io, chip: nochip, line: 0 } }\n"
         "laser: { name: laser, gpio: { bus: io, chip: gonio-gpio, line: 6, active_low: true } }\n";
 
 #define STEPS_PER_DEG 10
@@ -252,7 +259,7 @@ static void check_at_rest(struct axis *ax, struct watcher *w, long offset)
 
 static void test_switches(struct rig_config *rc, struct bus *b)
 {
-        struct sw *lamp0 = NULL, *lamp1 = NULL, *laser = NULL;
+        struct sw *lamp0 = NULL, *lamp1 = NULL, *lamp2 = NULL, *laser = NULL;
 
         CHECK_INT(sw_new(&rc->lamps[0], b, &lamp0), 0);
         CHECK_INT(sw_new(&rc->lamps[1], b, &lamp1), 0);
@@ -275,8 +282,13 @@ static void test_switches(struct rig_config *rc, struct bus *b)
         CHECK_INT(sw_open(lamp1), -EBUSY);
         CHECK_STR_CONTAINS(lamp1->last_error, "line lamp of gpiochip");
         CHECK_STR_CONTAINS(lamp1->last_error, "busy");
+        /* no such chip */
+        CHECK_INT(sw_new(&rc->lamps[2], b, &lamp2), 0);
+        CHECK_INT(sw_open(lamp2), -ENOENT);
+        CHECK_STR_CONTAINS(lamp2->last_error, "cannot open GPIO chip 'nochip'");
         sw_free(lamp0);
         sw_free(lamp1);
+        sw_free(lamp2);
         sw_free(laser);
         printf("switches: lamp and active-low laser levels read back through gpio-sim\n");
 }
@@ -336,10 +348,14 @@ static void test_limit(struct axis *ax, struct watcher *w)
         CHECK(atomic_load(&w->count) <= c + 1); /* stopped at the edge, not at the target */
         CHECK(ax->state.fault && !ax->state.in_position);
         CHECK_INT(ax->state.fault_code, GPST_FAULT_LIMIT_MAX);
+        CHECK_STR_CONTAINS(ax->last_error, "Fault 2: the limit_max switch stopped the move");
         check_at_rest(ax, w, 0);
         /* further up is refused; down is allowed */
         CHECK_INT(axis_move_abs(ax, 85.0), -ERANGE);
         CHECK_STR_CONTAINS(ax->last_error, "limit_max switch is made");
+        CHECK_INT(axis_move_abs(ax, ax->state.position_deg), 0); /* going nowhere is fine */
+        wait_stopped(ax, 1.0);
+        CHECK(ax->state.in_position);
         sim_pull("limit_max", "pull-down");
         CHECK_INT(axis_reset(ax), 0);
         CHECK_INT(axis_poll(ax), 0);
@@ -366,6 +382,29 @@ static void test_home(struct axis *ax, struct watcher *w)
         move(ax, w, 3.0, c);
         CHECK_INT(atomic_load(&w->count) - c, 30);
         printf("homing stopped by the home switch after %ld steps\n", start - c);
+}
+
+/* Homing that never meets the switch ends after the whole range and some, with a fault; an
+ * axis whose line does not exist fails to open, naming it. */
+static void test_home_missing(struct rig_config *rc, struct bus *b, struct watcher *w)
+{
+        struct axis *ax = NULL, *bad = NULL;
+        long c = atomic_load(&w->count);
+
+        CHECK_INT(axis_new(&rc->axes[1], b, &ax), 0);
+        CHECK_INT(axis_open(ax), 0);
+        CHECK_INT(axis_home(ax), 0);
+        wait_stopped(ax, 5.0);
+        CHECK(ax->state.fault && !ax->state.homed && !ax->state.in_position);
+        CHECK_INT(ax->state.fault_code, GPST_FAULT_HOME_MISSING);
+        CHECK_STR_CONTAINS(ax->last_error, "without the home switch");
+        CHECK_INT(atomic_load(&w->count) - c, -124); /* (1.2 x 2 deg + 10 deg) x 10 steps/deg */
+        axis_free(ax);
+        CHECK_INT(axis_new(&rc->axes[2], b, &bad), 0);
+        CHECK_INT(axis_open(bad), -ENOENT);
+        CHECK_STR_CONTAINS(bad->last_error, "no line named 'stepx' on gpiochip");
+        axis_free(bad);
+        printf("homing without the switch ended after %ld steps\n", c - atomic_load(&w->count));
 }
 
 /* Finds gpio-sim's chip, or exits 77. */
@@ -405,8 +444,12 @@ int main(void)
         test_home(ax, &w);
         axis_free(ax);
         CHECK(sim_value("enable") == '0');
+        test_home_missing(rc, b, &w);
         atomic_store(&w.quit, true);
         pthread_join(w.thread, NULL);
+        close(w.pipe_fd);
+        trace_write("events/gpio/gpio_value/enable", "0");
+        unlink(path);
         bus_free(b);
         rigconf_free(rc);
         gpiod_chip_close(chip);

@@ -42,8 +42,9 @@ struct gpst {
         bool running; /* a thread was started and not joined yet (worker only) */
         /* the run of the thread, set before it starts */
         struct gpst_profile prof;
-        int dir; /* +1 upwards, -1 downwards */
+        int dir; /* +1 upwards, -1 downwards, 0 no move (no limit switch applies) */
         bool homing;
+        int logged_fault;     /* the fault code poll last logged (worker only) */
         pthread_mutex_t lock; /* guards what follows */
         int64_t pos;          /* steps */
         bool moving, homed, in_position;
@@ -192,7 +193,8 @@ static void stop_thread(struct gpst *g)
         g->running = false;
 }
 
-/* Starts a run of n steps in direction dir at speed deg/s (homing: until the home switch). */
+/* Starts a run of n steps in direction dir (-1, 0 with n 0, 1) at speed deg/s (homing: until
+ * the home switch). */
 static int start(struct axis *ax, int dir, long n, double speed, bool homing)
 {
         struct gpst *g = ax->priv;
@@ -244,8 +246,8 @@ static int gpst_move_abs(struct axis *ax, double deg)
         r = gpst_target_steps(g->conf->steps_per_deg, cur, deg, ax->conf->continuous, &target);
         if (r < 0)
                 return axis_set_cause(ax, r, "%.3f deg is beyond the step counter", deg);
-        return start(ax, target >= cur ? 1 : -1, (long)llabs(target - cur), ax->conf->max_speed,
-                     false);
+        return start(ax, (target > cur) - (target < cur), (long)llabs(target - cur),
+                     ax->conf->max_speed, false);
 }
 
 /* Homing travels at most this far: the whole range and some, or a turn and some. */
@@ -263,7 +265,7 @@ static int gpst_home(struct axis *ax)
                 return -ENOTCONN;
         if (g->idx[GPST_HOME] < 0)
                 return axis_set_cause(ax, SYNTHETIC_ERRNO(EOPNOTSUPP), "no home switch wired");
-        speed = g->conf->home_speed > 0 ? g->conf->home_speed : ax->conf->max_speed / 4;
+        speed = g->conf->home_speed > 0 ? g->conf->home_speed : ax->conf->max_speed / 2;
         return start(ax, g->conf->home_dir,
                      (long)ceil(home_travel(ax->conf) * g->conf->steps_per_deg), speed, true);
 }
@@ -289,6 +291,26 @@ static int gpst_reset(struct axis *ax)
         return 0;
 }
 
+/* Logs a new fault once, in words, for the operator (poll still reports it as a code). */
+static void log_fault(struct axis *ax, const struct axis_state *st)
+{
+        static const char *const what[] = {
+                [GPST_FAULT_LIMIT_MIN] = "the limit_min switch stopped the move",
+                [GPST_FAULT_LIMIT_MAX] = "the limit_max switch stopped the move",
+                [GPST_FAULT_HOME_MISSING] = "homing travelled its whole range without the "
+                                            "home switch",
+                [GPST_FAULT_IO] = "a line could not be written while stepping",
+        };
+        struct gpst *g = ax->priv;
+
+        if (st->fault_code == g->logged_fault)
+                return;
+        g->logged_fault = st->fault_code;
+        if (st->fault_code > 0 && (size_t)st->fault_code < ELEMENTSOF(what))
+                axis_log_full(ax, GN_LOG_WARNING, 0, "Fault %d: %s, at %.3f deg", st->fault_code,
+                              what[st->fault_code], st->position_deg);
+}
+
 static int gpst_poll(struct axis *ax, struct axis_state *st)
 {
         struct gpst *g = ax->priv;
@@ -308,6 +330,7 @@ static int gpst_poll(struct axis *ax, struct axis_state *st)
         if (!st->moving)
                 stop_thread(g); /* joins a thread that has ended */
         st->position_deg = gpst_steps_to_deg(g->conf->steps_per_deg, pos, ax->conf->continuous);
+        log_fault(ax, st);
         return 0;
 }
 

@@ -40,7 +40,7 @@ struct gpst_conf {
         bool active_low[GPST_N_LINES];          /* from the list "active_low: [enable, home]" */
         double steps_per_deg;                   /* > 0, microsteps and gearing included */
         int home_dir;                           /* -1: the home switch lies below, +1 above */
-        double home_speed;                      /* deg/s; 0: a quarter of the axis's max_speed */
+        double home_speed;                      /* deg/s; 0: half the axis's max_speed */
 };
 
 /* A trapezoidal schedule of n steps: accelerate at a, cruise at v, decelerate at a. */
