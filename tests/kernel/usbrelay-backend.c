@@ -3,7 +3,8 @@
  * lamps and a laser on two boards told apart by serial, switched through the switch class and
  * checked in each emulator's state file (what the relays do, seen by something other than
  * the driver); usbhid detached while the backend holds a board and back after; the switches
- * of one board share one handle; a relay the board lacks, a serial no board has and several
+ * of one board share one handle; a relay that does not follow its command is an error and
+ * leaves the cached state alone; a relay the board lacks, a serial no board has and several
  * boards without a serial are clear errors; a board unplugged (its gadget unbound) gives
  * -ENODEV with a clear message while the other board works on, and once plugged back in
  * sw_open (what fault.clear calls) reopens it.
@@ -22,7 +23,7 @@
 
 #define GADGET_A "/sys/kernel/config/usb_gadget/relay-a/UDC"
 
-/* Board A: 2 relays, serial ABCDE; board B: 4 relays, serial FGHIJ. */
+/* Board A: 2 relays, serial ABCDE; board B: 4 relays, serial FGHIJ, relay 3 stuck. */
 static const char rig[] =
         "rig: usbrelay\n"
         "buses:\n"
@@ -35,9 +36,10 @@ static const char rig[] =
         "  - { name: a3, elevation: 1, usbrelay: { bus: usb, serial: ABCDE, relay: 3 } }\n"
         "  - { name: zz, elevation: 1, usbrelay: { bus: usb, serial: ZZZZZ } }\n"
         "  - { name: any, elevation: 1, usbrelay: { bus: usb2 } }\n"
+        "  - { name: b3, elevation: 1, usbrelay: { bus: usb, serial: FGHIJ, relay: 3 } }\n"
         "laser: { name: laser, usbrelay: { bus: usb, serial: FGHIJ, relay: 1 } }\n";
 
-enum { A1, A2, B4, A3, ZZ, ANY, LASER, N_SW };
+enum { A1, A2, B4, A3, ZZ, ANY, B3, LASER, N_SW };
 
 static struct sw *sw[N_SW];
 
@@ -151,6 +153,14 @@ static void test_switching(void)
         switch_and_check(A1, false, "a.state", 0x02);
         switch_and_check(LASER, false, "b.state", 0x08);
         CHECK_INT(outputs("a.state"), 0x02);
+
+        /* a relay that does not follow: refused, and the cached state stays */
+        CHECK_INT(sw_open(sw[B3]), 0);
+        CHECK_INT(sw_set(sw[B3], true), -EIO);
+        CHECK_STR_CONTAINS(sw[B3]->last_error, "relay 3 of board FGHIJ reads off after switching "
+                                               "it on");
+        CHECK(!sw[B3]->on);
+        CHECK_INT(outputs("b.state"), 0x08);
 }
 
 /* Waits (up to 5 s) until a board with product is on the bus (present) or gone. */
@@ -227,7 +237,7 @@ int main(int argc, char **argv)
 
         CHECK(argc == 2);
         run((char *[]){argv[1], "-n", "relay-a", "-s", "ABCDE", "2", "a.state", NULL});
-        run((char *[]){argv[1], "-n", "relay-b", "-s", "FGHIJ", "4", "b.state", NULL});
+        run((char *[]){argv[1], "-n", "relay-b", "-s", "FGHIJ", "-k", "3", "4", "b.state", NULL});
         write_file("usbrelay-rig.yaml", rig);
         if (rigconf_load("usbrelay-rig.yaml", registry_backends, &rc, err, sizeof(err)) < 0)
                 fprintf(stderr, "%s\n", err);
