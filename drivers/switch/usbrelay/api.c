@@ -50,7 +50,8 @@ static int board(struct sw *s, struct usbrelay_board **b)
 {
         *b = s->priv;
         if (!*b)
-                return sw_set_cause(s, SYNTHETIC_ERRNO(ENODEV), "board not open");
+                return sw_set_cause(s, SYNTHETIC_ERRNO(ENODEV),
+                                    "board not open (fault.clear opens it)");
         return 0;
 }
 
