@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "drivers/axis/modbus/proto.h"
+#include "drivers/camera/libcamera/api.h"
 #include "drivers/camera/sim/api.h"
 #include "drivers/registry.h"
 #include "drivers/switch/modbus/proto.h"
@@ -15,6 +16,7 @@ const struct rig_backend *const registry_backends[] = {
         &mbax_backend,
         &mbsw_backend,
         &cam_sim_backend,
+        &cam_lc_backend,
 #ifdef GONIO_USBRELAY
         &usbrelay_backend,
 #endif

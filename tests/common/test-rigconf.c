@@ -178,6 +178,10 @@ static const struct {
         {"modbus-coil", BUS "laser:\n  name: x\n  modbus-coil:\n    bus: b\n    cooil: 7\n", 9,
          "cooil"},
         {"sim", BUS "cameras:\n  - name: c\n    sim:\n      bus: f\n      port: /x\n", 9, "port"},
+        {"libcamera",
+         "rig: t\nbuses: [{ name: u, type: local }]\ncameras:\n"
+         "  - { name: c, libcamera: { bus: u, idd: x } }\n",
+         4, "idd"},
         {"usbrelay",
          "rig: t\nbuses: [{ name: u, type: local }]\nlamps:\n"
          "  - { name: l, elevation: 1, usbrelay: { bus: u, rely: 2 } }\n",
@@ -389,7 +393,7 @@ static void case_backend_maps(void)
         expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b }\n", 6, "backend",
                   "go in one map named after the backend (modbus: { bus: ... })");
         expect_at(BUS "cameras:\n  - { name: c, bus: f }\n", 6, "bus",
-                  "go in one map named after the backend (sim: { bus: ... })");
+                  "go in one map named after the backend (sim");
         expect_at(BUS "axes:\n  - { name: a, modbus: b }\n", 6, "modbus",
                   "expected the backend's settings as a mapping");
         expect_at(BUS "axes:\n  - { name: a, modbus: { unit: 2 } }\n", 6, "bus",
