@@ -207,6 +207,8 @@ static void test_unplug(void)
         CHECK(f && fgets(udc, sizeof(udc), f));
         write_file(GADGET_A, "\n"); /* unplugged */
         wait_board("USBRelay2", false);
+        for (int i = 0; i < 40 && outputs("a.state") != 0; i++) /* the emulator's own pace */
+                nanosleep(&(struct timespec){.tv_nsec = 50 * 1000 * 1000}, NULL);
         CHECK_INT(outputs("a.state"), 0); /* its relays dropped with the power */
         CHECK_INT(sw_set(sw[A2], false), -ENODEV);
         CHECK_STR_CONTAINS(sw[A2]->last_error, "Failed to switch off: USB relay board ABCDE is "
