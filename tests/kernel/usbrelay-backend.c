@@ -145,6 +145,8 @@ static void test_switching(void)
         CHECK(sw[A1]->priv == sw[A2]->priv); /* one handle per board */
         CHECK(sw[B4]->priv == sw[LASER]->priv && sw[B4]->priv != sw[A1]->priv);
         expect_open_fails(A3, -EINVAL, "relay 3, but board ABCDE has 2 (USBRelay2)");
+        /* again, now that the board is open */
+        expect_open_fails(A3, -EINVAL, "relay 3, but board ABCDE has 2 (USBRelay2)");
 
         switch_and_check(A1, true, "a.state", 0x01);
         switch_and_check(A2, true, "a.state", 0x03);
