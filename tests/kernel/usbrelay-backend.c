@@ -3,11 +3,11 @@
  * lamps and a laser on two boards told apart by serial, switched through the switch class and
  * checked in each emulator's state file (what the relays do, seen by something other than
  * the driver); usbhid detached while the backend holds a board and back after; the switches
- * of one board share one handle; a relay that does not follow its command is an error and
- * leaves the cached state alone; a relay the board lacks, a serial no board has and several
- * boards without a serial are clear errors; a board unplugged (its gadget unbound) gives
- * -ENODEV with a clear message while the other board works on, and once plugged back in
- * sw_open (what fault.clear calls) reopens it.
+ * of one board share one handle; a board another process holds is -EBUSY; a relay that does not
+ * follow its command is an error and leaves the cached state alone; a relay the board lacks, a
+ * serial no board has and several boards without a serial are clear errors; a board unplugged (its
+ * gadget unbound) gives -ENODEV with a clear message while the other board works on, and once
+ * plugged back in sw_open (what fault.clear calls) reopens it.
  *
  * Usage: kl-usbrelay-backend EMULATOR (the path of kl-usbrelay-emu); run as root in the lane. */
 #include <glob.h>
@@ -131,6 +131,38 @@ static void test_choice(void)
 {
         expect_open_fails(ANY, -ENOTUNIQ, "several USB relay boards (");
         expect_open_fails(ZZ, -ENODEV, "no USB relay board (16c0:05df) with serial ZZZZZ (found: ");
+}
+
+/* A board held by another process: a child opens the laser's board (FGHIJ) and holds it
+ * until told; the board's other switches cannot have it meanwhile. */
+static void test_busy(void)
+{
+        int ready[2], done[2], status;
+        char c = 0;
+        pid_t pid;
+
+        CHECK(pipe(ready) == 0 && pipe(done) == 0);
+        pid = fork();
+        CHECK(pid >= 0);
+        if (pid == 0) {
+                bool held = sw_open(sw[LASER]) == 0;
+
+                if (write(ready[1], held ? "y" : "n", 1) == 1)
+                        (void)!read(done[0], &c, 1);
+                sw[LASER] = sw_free(sw[LASER]); /* usbhid gets it back */
+                _exit(0);
+        }
+        CHECK(read(ready[0], &c, 1) == 1 && c == 'y');
+        expect_open_fails(B4, -EBUSY,
+                          "no USB relay board (16c0:05df) with serial FGHIJ (found: ABCDE; USB "
+                          "relay board ");
+        CHECK_STR_CONTAINS(sw[B4]->last_error, ": in use by another program)");
+        CHECK(write(done[1], "x", 1) == 1);
+        CHECK(waitpid(pid, &status, 0) == pid && WIFEXITED(status) && WEXITSTATUS(status) == 0);
+        for (int i = 0; i < 2; i++) {
+                close(ready[i]);
+                close(done[i]);
+        }
 }
 
 static void test_switching(void)
@@ -257,6 +289,7 @@ int main(int argc, char **argv)
         expect_driver("USBRelay2", "usbhid");
         expect_driver("USBRelay4", "usbhid");
         test_choice();
+        test_busy();
         test_switching();
         test_unplug();
 
