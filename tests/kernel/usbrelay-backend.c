@@ -3,10 +3,11 @@
  * lamps and a laser on two boards told apart by serial, switched through the switch class and
  * checked in each emulator's state file (what the relays do, seen by something other than
  * the driver); usbhid detached while the backend holds a board and back after; the switches
- * of one board share one handle; a relay the board lacks, a serial no board has and several
- * boards without a serial are clear errors; a board unplugged (its gadget unbound) gives
- * -ENODEV with a clear message while the other board works on, and once plugged back in
- * sw_open (what fault.clear calls) reopens it.
+ * of one board share one handle; a board another process holds is -EBUSY; a relay that does not
+ * follow its command is an error and leaves the cached state alone; a relay the board lacks, a
+ * serial no board has and several boards without a serial are clear errors; a board unplugged (its
+ * gadget unbound) gives -ENODEV with a clear message while the other board works on, and once
+ * plugged back in sw_open (what fault.clear calls) reopens it.
  *
  * Usage: kl-usbrelay-backend EMULATOR (the path of kl-usbrelay-emu); run as root in the lane. */
 #include <glob.h>
@@ -22,7 +23,7 @@
 
 #define GADGET_A "/sys/kernel/config/usb_gadget/relay-a/UDC"
 
-/* Board A: 2 relays, serial ABCDE; board B: 4 relays, serial FGHIJ. */
+/* Board A: 2 relays, serial ABCDE; board B: 4 relays, serial FGHIJ, relay 3 stuck. */
 static const char rig[] =
         "rig: usbrelay\n"
         "buses:\n"
@@ -35,9 +36,10 @@ static const char rig[] =
         "  - { name: a3, elevation: 1, usbrelay: { bus: usb, serial: ABCDE, relay: 3 } }\n"
         "  - { name: zz, elevation: 1, usbrelay: { bus: usb, serial: ZZZZZ } }\n"
         "  - { name: any, elevation: 1, usbrelay: { bus: usb2 } }\n"
+        "  - { name: b3, elevation: 1, usbrelay: { bus: usb, serial: FGHIJ, relay: 3 } }\n"
         "laser: { name: laser, usbrelay: { bus: usb, serial: FGHIJ, relay: 1 } }\n";
 
-enum { A1, A2, B4, A3, ZZ, ANY, LASER, N_SW };
+enum { A1, A2, B4, A3, ZZ, ANY, B3, LASER, N_SW };
 
 static struct sw *sw[N_SW];
 
@@ -131,6 +133,38 @@ static void test_choice(void)
         expect_open_fails(ZZ, -ENODEV, "no USB relay board (16c0:05df) with serial ZZZZZ (found: ");
 }
 
+/* A board held by another process: a child opens the laser's board (FGHIJ) and holds it
+ * until told; the board's other switches cannot have it meanwhile. */
+static void test_busy(void)
+{
+        int ready[2], done[2], status;
+        char c = 0;
+        pid_t pid;
+
+        CHECK(pipe(ready) == 0 && pipe(done) == 0);
+        pid = fork();
+        CHECK(pid >= 0);
+        if (pid == 0) {
+                bool held = sw_open(sw[LASER]) == 0;
+
+                if (write(ready[1], held ? "y" : "n", 1) == 1)
+                        (void)!read(done[0], &c, 1);
+                sw[LASER] = sw_free(sw[LASER]); /* usbhid gets it back */
+                _exit(0);
+        }
+        CHECK(read(ready[0], &c, 1) == 1 && c == 'y');
+        expect_open_fails(B4, -EBUSY,
+                          "no USB relay board (16c0:05df) with serial FGHIJ (found: ABCDE; USB "
+                          "relay board ");
+        CHECK_STR_CONTAINS(sw[B4]->last_error, ": in use by another program)");
+        CHECK(write(done[1], "x", 1) == 1);
+        CHECK(waitpid(pid, &status, 0) == pid && WIFEXITED(status) && WEXITSTATUS(status) == 0);
+        for (int i = 0; i < 2; i++) {
+                close(ready[i]);
+                close(done[i]);
+        }
+}
+
 static void test_switching(void)
 {
         expect_driver("USBRelay2", "usbhid");
@@ -143,6 +177,8 @@ static void test_switching(void)
         CHECK(sw[A1]->priv == sw[A2]->priv); /* one handle per board */
         CHECK(sw[B4]->priv == sw[LASER]->priv && sw[B4]->priv != sw[A1]->priv);
         expect_open_fails(A3, -EINVAL, "relay 3, but board ABCDE has 2 (USBRelay2)");
+        /* again, now that the board is open */
+        expect_open_fails(A3, -EINVAL, "relay 3, but board ABCDE has 2 (USBRelay2)");
 
         switch_and_check(A1, true, "a.state", 0x01);
         switch_and_check(A2, true, "a.state", 0x03);
@@ -151,6 +187,14 @@ static void test_switching(void)
         switch_and_check(A1, false, "a.state", 0x02);
         switch_and_check(LASER, false, "b.state", 0x08);
         CHECK_INT(outputs("a.state"), 0x02);
+
+        /* a relay that does not follow: refused, and the cached state stays */
+        CHECK_INT(sw_open(sw[B3]), 0);
+        CHECK_INT(sw_set(sw[B3], true), -EIO);
+        CHECK_STR_CONTAINS(sw[B3]->last_error, "relay 3 of board FGHIJ reads off after switching "
+                                               "it on");
+        CHECK(!sw[B3]->on);
+        CHECK_INT(outputs("b.state"), 0x08);
 }
 
 /* Waits (up to 5 s) until a board with product is on the bus (present) or gone. */
@@ -197,6 +241,8 @@ static void test_unplug(void)
         CHECK(f && fgets(udc, sizeof(udc), f));
         write_file(GADGET_A, "\n"); /* unplugged */
         wait_board("USBRelay2", false);
+        for (int i = 0; i < 40 && outputs("a.state") != 0; i++) /* the emulator's own pace */
+                nanosleep(&(struct timespec){.tv_nsec = 50 * 1000 * 1000}, NULL);
         CHECK_INT(outputs("a.state"), 0); /* its relays dropped with the power */
         CHECK_INT(sw_set(sw[A2], false), -ENODEV);
         CHECK_STR_CONTAINS(sw[A2]->last_error, "Failed to switch off: USB relay board ABCDE is "
@@ -227,7 +273,7 @@ int main(int argc, char **argv)
 
         CHECK(argc == 2);
         run((char *[]){argv[1], "-n", "relay-a", "-s", "ABCDE", "2", "a.state", NULL});
-        run((char *[]){argv[1], "-n", "relay-b", "-s", "FGHIJ", "4", "b.state", NULL});
+        run((char *[]){argv[1], "-n", "relay-b", "-s", "FGHIJ", "-k", "3", "4", "b.state", NULL});
         write_file("usbrelay-rig.yaml", rig);
         if (rigconf_load("usbrelay-rig.yaml", registry_backends, &rc, err, sizeof(err)) < 0)
                 fprintf(stderr, "%s\n", err);
@@ -243,6 +289,7 @@ int main(int argc, char **argv)
         expect_driver("USBRelay2", "usbhid");
         expect_driver("USBRelay4", "usbhid");
         test_choice();
+        test_busy();
         test_switching();
         test_unplug();
 

@@ -12,8 +12,9 @@
  * unplugs the board: its relays drop (the real board loses power), its serial stays (EEPROM);
  * binding it again plugs it back in, served by the same process.
  *
- * Usage: kl-usbrelay-emu [-n NAME] [-s SERIAL] [RELAYS [STATEFILE]] (default: gadget and
- * FunctionFS instance "usbrelay", serial KLANE, 2 relays). Returns once the gadget, bound to
+ * Usage: kl-usbrelay-emu [-n NAME] [-s SERIAL] [-k RELAY]... [RELAYS [STATEFILE]] (default:
+ * gadget and FunctionFS instance "usbrelay", serial KLANE, 2 relays; -k injects a fault: that
+ * relay is stuck, it ignores every command). Returns once the gadget, bound to
  * the first UDC no other gadget holds, is configured by the host; a child process serves the
  * board until its FunctionFS instance goes away. */
 #include <endian.h> /* le16toh */
@@ -112,6 +113,7 @@ struct board {
         char serial[SERIAL_LEN];
         const char *state_file;
         const char *name; /* gadget and FunctionFS instance */
+        uint8_t stuck;    /* fault injection: relays that ignore every command */
 };
 
 static int write_file(const char *path, const char *value)
@@ -136,7 +138,7 @@ static void board_publish(const struct board *b)
 /* Applies one SET_REPORT feature report, as the firmware does. */
 static void board_command(struct board *b, const uint8_t *r)
 {
-        uint8_t all = (uint8_t)((1u << b->relays) - 1);
+        uint8_t all = (uint8_t)((1u << b->relays) - 1), old = b->state;
 
         switch (r[0]) {
         case RELAY_CMD_ON:
@@ -160,6 +162,7 @@ static void board_command(struct board *b, const uint8_t *r)
         default:
                 return;
         }
+        b->state = (uint8_t)((b->state & ~b->stuck) | (old & b->stuck));
         board_publish(b);
 }
 
@@ -321,12 +324,14 @@ static void parse_args(int argc, char **argv, struct board *b)
 {
         int c;
 
-        while ((c = getopt(argc, argv, "n:s:")) >= 0) {
-                CHECK(c == 'n' || (c == 's' && strlen(optarg) == SERIAL_LEN));
+        while ((c = getopt(argc, argv, "n:s:k:")) >= 0) {
+                CHECK(c == 'n' || c == 'k' || (c == 's' && strlen(optarg) == SERIAL_LEN));
                 if (c == 'n')
                         b->name = optarg;
-                else
+                else if (c == 's')
                         memcpy(b->serial, optarg, SERIAL_LEN);
+                else
+                        b->stuck |= (uint8_t)(1u << (atoi(optarg) - 1));
         }
         b->relays = optind < argc ? (unsigned)atoi(argv[optind]) : 2;
         b->state_file = optind + 1 < argc ? argv[optind + 1] : NULL;

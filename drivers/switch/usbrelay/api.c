@@ -20,18 +20,19 @@ static const struct usbrelay_conf *conf(const struct sw *s)
 /* Opens the board, or reopens it after an unplug (fault.clear), and checks the relay. */
 static int usbrelay_open(struct sw *s)
 {
-        struct usbrelay_board *b = NULL;
+        struct usbrelay_board *b;
         int r;
 
         if (!conf(s))
                 return sw_set_cause(s, SYNTHETIC_ERRNO(EINVAL), "no relay in the rig file");
-        if (s->priv && !usbrelay_board_lost(s->priv))
-                return 0;
-        r = usbrelay_board_get(s, &b);
-        if (r < 0)
-                return r;
-        usbrelay_board_put(s->priv);
-        s->priv = b;
+        if (!s->priv || usbrelay_board_lost(s->priv)) {
+                r = usbrelay_board_get(s, &b);
+                if (r < 0)
+                        return r;
+                usbrelay_board_put(s->priv);
+                s->priv = b;
+        }
+        b = s->priv;
         if (conf(s)->relay > usbrelay_board_relays(b))
                 return sw_set_cause(s, SYNTHETIC_ERRNO(EINVAL),
                                     "relay %d, but board %s has %d (USBRelay%d)", conf(s)->relay,
@@ -50,7 +51,8 @@ static int board(struct sw *s, struct usbrelay_board **b)
 {
         *b = s->priv;
         if (!*b)
-                return sw_set_cause(s, SYNTHETIC_ERRNO(ENODEV), "board not open");
+                return sw_set_cause(s, SYNTHETIC_ERRNO(ENODEV),
+                                    "board not open (fault.clear opens it)");
         return 0;
 }
 

@@ -169,15 +169,22 @@ static int probe(struct sw *s, libusb_device *dev, struct found *f)
         return r;
 }
 
-/* After a scan found no board: why, on s. Returns -errno. */
+/* After a scan found no board: why, on s, with the cause of a board that could not be
+ * identified (err < 0: on s already). Returns that err (-EBUSY: the board wanted may be the
+ * one in use), else -ENODEV. */
 static int not_found(struct sw *s, const char *want, const char *seen, int err)
 {
+        char other[DEV_ERROR_MAX] = "";
+
         if (err < 0 && !seen[0])
-                return err; /* the cause of the one failure is on s already */
+                return err; /* the one failure says it */
+        if (err < 0)
+                snprintf(other, sizeof(other), "; %s", s->cause);
         if (want[0])
-                return sw_set_cause(s, SYNTHETIC_ERRNO(ENODEV),
-                                    "no USB relay board (%04x:%04x) with serial %s (found: %s)",
-                                    USBRELAY_VID, USBRELAY_PID, want, seen[0] ? seen : "none");
+                return sw_set_cause(s, err < 0 ? err : SYNTHETIC_ERRNO(ENODEV),
+                                    "no USB relay board (%04x:%04x) with serial %s (found: %s%s)",
+                                    USBRELAY_VID, USBRELAY_PID, want, seen[0] ? seen : "none",
+                                    other);
         return sw_set_cause(s, SYNTHETIC_ERRNO(ENODEV), "no USB relay board (%04x:%04x) found",
                             USBRELAY_VID, USBRELAY_PID);
 }
