@@ -460,7 +460,7 @@ static int word(const struct ge_bus *b, struct ge_words *w, char letter, double 
                 if (w->seen & bit)
                         return ST_MODAL_VIOLATION;
                 *(letter == 'G' ? &w->g : &w->m) = (int)v;
-        } else if (letter == 'F' || (letter == 'T' && !is_grbl(b))) {
+        } else if (letter == 'F' || letter == 'T') { /* GRBL keeps T and ignores it */
                 if (w->seen & bit)
                         return ST_WORD_REPEATED;
                 if (v < 0)
@@ -634,9 +634,13 @@ static size_t step(struct ge_bus *b, const unsigned char *in, size_t n, char *ou
 
         pthread_mutex_lock(&b->lock);
         now = ge_now(b->g);
-        for (size_t i = 0; i < n && b->fault != SIM_FAULT_TIMEOUT; i++)
-                if (!realtime(b, in[i], now) && b->n_raw < sizeof(b->raw))
-                        b->raw[b->n_raw++] = (char)in[i];
+        for (size_t i = 0; i < n && b->fault != SIM_FAULT_TIMEOUT; i++) {
+                if (realtime(b, in[i], now) || b->n_raw >= sizeof(b->raw))
+                        continue;
+                b->raw[b->n_raw++] = (char)in[i];
+                if (in[i] == '\n' || in[i] == '\r')
+                        run_lines(b, now); /* before a realtime byte that came after it */
+        }
         tick_lasers(b, now);
         tick_motion(b, now);
         run_lines(b, now);

@@ -136,14 +136,14 @@ static void test_horus_stop(struct fixture *f)
         bool on;
 
         CHECK_INT(sw_set(f->right, true), 0);
-        CHECK_INT(axis_move_abs(f->tt, 250.0), 0);
+        CHECK_INT(axis_move_abs(f->tt, 190.0), 0); /* back 160 deg: 0.29 s */
         testrig_sleep(0.05);
         CHECK_INT(axis_stop(f->tt), 0);
         CHECK_INT(axis_poll(f->tt), 0);
         CHECK(!f->tt->state.moving && !f->tt->state.in_position && !f->tt->state.fault);
         CHECK(f->tt->state.homed);
         double stopped = f->tt->state.position_deg;
-        CHECK(stopped < 350.0 - 1.0 && stopped > 250.0 + 1.0); /* part of the way */
+        CHECK(stopped < 350.0 - 1.0 && stopped > 190.0 + 1.0); /* part of the way */
         testrig_sleep(0.1);
         CHECK_INT(axis_poll(f->tt), 0);
         CHECK_NEAR(f->tt->state.position_deg, stopped, POS_TOL);
@@ -152,6 +152,10 @@ static void test_horus_stop(struct fixture *f)
         CHECK_INT(axis_move_abs(f->tt, 0.0), 0); /* unlocked: moves again */
         wait_stopped(f->tt, 5.0);
         CHECK(f->tt->state.in_position);
+        CHECK_INT(axis_stop(f->tt), 0); /* at rest: no alarm, still in position */
+        CHECK_INT(axis_poll(f->tt), 0);
+        CHECK(f->tt->state.in_position && !f->tt->state.fault);
+        CHECK_NEAR(f->tt->state.position_deg, 0.0, POS_TOL);
 }
 
 /* GRBL: locked until homed; a move is answered at once and done by status; stop is a
@@ -179,10 +183,15 @@ static void test_grbl(struct fixture *f)
         CHECK_INT(axis_stop(f->arm), 0);
         CHECK_INT(axis_poll(f->arm), 0);
         CHECK(!f->arm->state.moving && !f->arm->state.fault && f->arm->state.homed);
+        CHECK(!f->arm->state.in_position); /* stopped short of its target */
         CHECK(f->arm->state.position_deg > -44.0 && f->arm->state.position_deg < 159.0);
         CHECK_INT(axis_move_abs(f->arm, 20.0), 0); /* no alarm: moves at once */
         wait_stopped(f->arm, 5.0);
         CHECK(f->arm->state.in_position);
+        CHECK_NEAR(f->arm->state.position_deg, 20.0, POS_TOL);
+        CHECK_INT(axis_stop(f->arm), 0); /* at rest: still in position, still homed */
+        CHECK_INT(axis_poll(f->arm), 0);
+        CHECK(f->arm->state.in_position && f->arm->state.homed);
         CHECK_NEAR(f->arm->state.position_deg, 20.0, POS_TOL);
 }
 

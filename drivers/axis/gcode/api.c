@@ -161,8 +161,8 @@ static int gcax_move_abs(struct axis *ax, double deg)
 }
 
 /* GRBL: waits for the feed hold to complete (Hold:0) or the axis to be idle, within the
- * time to brake from full speed plus the reply timeout. */
-static int wait_held(struct axis *ax)
+ * time to brake from full speed plus the reply timeout; *held: motion was stopped. */
+static int wait_held(struct axis *ax, bool *held)
 {
         double brake_s = ax->conf->accel > 0 ? ax->conf->max_speed / ax->conf->accel : 1.0;
         int64_t deadline = transport_deadline((int)(brake_s * 1000.0) + 1000);
@@ -171,9 +171,11 @@ static int wait_held(struct axis *ax)
 
         do {
                 r = link_result(ax, gclink_status(priv(ax)->link, &st));
-                if (r < 0 || st.state == GC_ST_HELD || st.state == GC_ST_IDLE ||
-                    st.state == GC_ST_ALARM)
+                if (r < 0)
                         return r;
+                *held = *held || st.state == GC_ST_HELD || st.state == GC_ST_HOLD;
+                if (st.state == GC_ST_HELD || st.state == GC_ST_IDLE || st.state == GC_ST_ALARM)
+                        return 0;
         } while (transport_deadline(0) < deadline);
         return 0; /* the reset below stops it anyway, in alarm */
 }
@@ -184,17 +186,20 @@ static int wait_held(struct axis *ax)
 static int gcax_stop(struct axis *ax)
 {
         struct gclink *l;
+        bool held;
         int r = 0;
 
         if (!ax->priv)
                 return -ENOTCONN;
         l = priv(ax)->link;
-        priv(ax)->stopped = true;
+        /* a stop at rest leaves the axis in position */
+        held = ax->state.moving || l->owed > 0;
         if (!is_horus(ax)) {
                 r = link_result(ax, gclink_realtime(l, GC_RT_HOLD));
                 if (r >= 0)
-                        r = wait_held(ax);
+                        r = wait_held(ax, &held);
         }
+        priv(ax)->stopped = priv(ax)->stopped || held;
         if (r >= 0)
                 r = link_result(ax, gclink_reset(l));
         if (r >= 0 && is_horus(ax) && l->alarm)
