@@ -5,6 +5,9 @@
 
 #include "drivers/axis/modbus/proto.h"
 #include "drivers/camera/sim/api.h"
+#ifdef GN_HAVE_V4L2
+#include "drivers/camera/v4l2/api.h"
+#endif
 #include "drivers/registry.h"
 #include "drivers/switch/modbus/proto.h"
 
@@ -12,6 +15,9 @@ const struct rig_backend *const registry_backends[] = {
         &mbax_backend,
         &mbsw_backend,
         &cam_sim_backend,
+#ifdef GN_HAVE_V4L2
+        &cam_v4l2_backend,
+#endif
         NULL,
 };
 

@@ -178,6 +178,12 @@ static const struct {
         {"modbus-coil", BUS "laser:\n  name: x\n  modbus-coil:\n    bus: b\n    cooil: 7\n", 9,
          "cooil"},
         {"sim", BUS "cameras:\n  - name: c\n    sim:\n      bus: f\n      port: /x\n", 9, "port"},
+#ifdef GN_HAVE_V4L2
+        {"v4l2",
+         "rig: t\nbuses:\n  - { name: l, type: local }\ncameras:\n  - name: c\n    v4l2:\n"
+         "      bus: l\n      devce: /dev/video0\n",
+         8, "devce"},
+#endif
 };
 
 /* Whether unknown_keys has a row of kind. */
@@ -387,7 +393,7 @@ static void case_backend_maps(void)
         expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b }\n", 6, "backend",
                   "go in one map named after the backend (modbus: { bus: ... })");
         expect_at(BUS "cameras:\n  - { name: c, bus: f }\n", 6, "bus",
-                  "go in one map named after the backend (sim: { bus: ... })");
+                  "go in one map named after the backend (sim"); /* camera backends follow */
         expect_at(BUS "lamps:\n  - { name: l, elevation: 1, modbus: { bus: b } }\n", 6, "modbus",
                   "'modbus' is a backend for axes, not for lamps and lasers (modbus-coil)");
         expect_at(BUS "axes:\n  - { name: a, modbus: b }\n", 6, "modbus",
