@@ -194,6 +194,7 @@ static void t_conf(void)
         char err[512];
 
         CHECK_INT(load("{ bus: cams, bus_info: 'usb-0000:00:14.0-1', format: UYVY, buffers: 6, "
+                       "skip: 3, "
                        "controls: { exposure_absolute: 250, brightness: -3, auto_exposure: 1 } }",
                        &rc, err, sizeof(err)),
                   0);
@@ -201,6 +202,7 @@ static void t_conf(void)
         CHECK_STR(c->bus_info, "usb-0000:00:14.0-1");
         CHECK_INT(c->fourcc, V4L2_PIX_FMT_UYVY);
         CHECK_INT(c->buffers, 6);
+        CHECK_INT(c->skip, 3);
         CHECK_INT(c->n_ctrls, 3);
         CHECK_STR(c->ctrls[0].name, "exposure_time_absolute");
         CHECK_INT(c->ctrls[0].value, 250);
@@ -217,6 +219,7 @@ static void t_conf(void)
         expect_error("{ bus: cams, device: /dev/video0, card: Cam }", "exactly one of");
         expect_error("{ bus: cams, device: /dev/video0, format: MJPG }", "'MJPG' is not one of");
         expect_error("{ bus: cams, device: /dev/video0, buffers: 1 }", "key 'buffers'");
+        expect_error("{ bus: cams, device: /dev/video0, skip: 31 }", "key 'skip'");
         expect_error("{ bus: cams, device: /dev/video0, unit: 1 }", "key 'unit': unknown key");
         expect_error("{ bus: cams, device: /dev/video0, controls: { gain: high } }",
                      "key 'gain': 'high' is not an integer");

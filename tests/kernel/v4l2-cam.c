@@ -31,7 +31,7 @@ static const char rig_yaml[] =
         "  - { name: cams1, type: local }\n"
         "cameras:\n"
         "  - name: cam0\n"
-        "    v4l2: { bus: cams0, bus_info: 'platform:vivid-000', format: YUYV }\n"
+        "    v4l2: { bus: cams0, bus_info: 'platform:vivid-000', format: YUYV, skip: 2 }\n"
         "    elevation: 20\n"
         "    distance: 500\n"
         "    target: [0, 0, 0]\n"
@@ -224,6 +224,8 @@ static void t_two_at_once(void)
         CHECK_INT(j[0].r, 0);
         CHECK_INT(j[1].r, 0);
         CHECK(j[0].t0 < j[1].t1 && j[1].t0 < j[0].t1); /* the two captures overlapped */
+        CHECK_INT(j[0].fr.seq, 2);                     /* cam0 skips two frames after each start */
+        CHECK_INT(j[1].fr.seq, 0);
         CHECK_INT(j[0].fr.width, 640);
         CHECK_INT(j[0].fr.height, 480);
         CHECK_STR(gn_frame_format(&j[0].fr), "rgb8");

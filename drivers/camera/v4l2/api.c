@@ -45,6 +45,7 @@ struct cam_v4l2 {
         unsigned n_bufs;
         bool on;        /* VIDIOC_STREAMON in effect */
         bool streaming; /* between stream_start and stream_stop */
+        int to_skip;    /* frames still to drop since the start (the map's skip) */
         struct v4l2_ctl exposure, gain;
         long def_exposure, def_gain; /* device units: what a request's 0 means */
         int exposure_us;             /* read back when the last request was applied */
@@ -464,6 +465,7 @@ static int stream_on(struct cam *c, struct cam_v4l2 *s)
         int type = CAP_TYPE, r;
 
         s->on = true; /* so that stream_off() takes back buffers queued before a failure */
+        s->to_skip = ((const struct cam_v4l2_conf *)c->conf->backend.conf)->skip;
         for (unsigned i = 0; i < s->n_bufs; i++) {
                 struct v4l2_buffer b = {.index = i, .type = CAP_TYPE, .memory = V4L2_MEMORY_MMAP};
 
@@ -496,7 +498,8 @@ static int to_frame(struct cam *c, struct cam_v4l2 *s, const struct v4l2_buffer 
 }
 
 /* Dequeues one done buffer into out and queues it again: 0; -EAGAIN when none is done, or
- * the buffer was marked bad, or (fresh) its exposure began before the request was applied. */
+ * the buffer was marked bad, or (fresh) its exposure began before the request was applied,
+ * or it is one of the first skip frames since the start. */
 static int take(struct cam *c, struct cam_v4l2 *s, struct gn_frame *out, bool fresh)
 {
         struct v4l2_buffer b = {.type = CAP_TYPE, .memory = V4L2_MEMORY_MMAP};
@@ -514,6 +517,8 @@ static int take(struct cam *c, struct cam_v4l2 *s, struct gn_frame *out, bool fr
         ts = v4l2p_timestamp_ns(&b.timestamp, b.flags, off, s->exposure_us);
         if ((b.flags & V4L2_BUF_FLAG_ERROR) || (fresh && ts && (int64_t)ts - off < s->applied_ns))
                 r = -EAGAIN;
+        else if (s->to_skip > 0 && s->to_skip-- > 0)
+                r = -EAGAIN; /* one of the first skip frames since the start */
         else
                 r = to_frame(c, s, &b, ts ? ts : (uint64_t)clock_ns(CLOCK_REALTIME), out);
         q = IOC(c, s, VIDIOC_QBUF, &b);

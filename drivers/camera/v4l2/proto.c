@@ -209,10 +209,10 @@ static int parse_format(struct yconf *yc, struct fy_node *m, struct cam_v4l2_con
 int cam_v4l2_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_config *rc,
                         void *conf, struct rig_addr *addr)
 {
-        static const char *const keys[] = {"bus",    "device",  "card",     "bus_info",
-                                           "format", "buffers", "controls", NULL};
+        static const char *const keys[] = {"bus",     "device",   "card", "bus_info", "format",
+                                           "buffers", "controls", "skip", NULL};
         struct cam_v4l2_conf *c = conf;
-        long buffers = V4L2P_BUFFERS_DEF;
+        long buffers = V4L2P_BUFFERS_DEF, skip = 0;
         int r;
 
         if ((r = yconf_check_keys(yc, m, keys)) < 0 ||
@@ -220,6 +220,7 @@ int cam_v4l2_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_co
             (r = yconf_str(yc, m, "card", c->card, sizeof(c->card))) < 0 ||
             (r = yconf_str(yc, m, "bus_info", c->bus_info, sizeof(c->bus_info))) < 0 ||
             (r = yconf_int(yc, m, "buffers", 2, V4L2P_BUFFERS_MAX, &buffers)) < 0 ||
+            (r = yconf_int(yc, m, "skip", 0, V4L2P_SKIP_MAX, &skip)) < 0 ||
             (r = parse_format(yc, m, c)) < 0 ||
             (r = parse_ctrls(yc, yconf_get(m, "controls"), c)) < 0)
                 return r;
@@ -227,5 +228,6 @@ int cam_v4l2_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_co
                 return yconf_error(yc, m, "device",
                                    "name the node by exactly one of device, card, bus_info");
         c->buffers = (int)buffers;
+        c->skip = (int)skip;
         return 0;
 }

@@ -16,6 +16,7 @@
 #define V4L2P_CTRL_NAME        32 /* longest control name, NUL included (the kernel's bound) */
 #define V4L2P_BUFFERS_MAX      32
 #define V4L2P_BUFFERS_DEF      4
+#define V4L2P_SKIP_MAX         30
 #define V4L2P_EXPOSURE_UNIT_US 100 /* V4L2_CID_EXPOSURE_ABSOLUTE counts 100 us */
 
 struct v4l2p_ctrl {
@@ -24,13 +25,14 @@ struct v4l2p_ctrl {
 };
 
 /* What the backend reads from "v4l2: { bus, device | card | bus_info, format, controls,
- * buffers }": exactly one of device, card and bus_info names the node. */
+ * buffers, skip }": exactly one of device, card and bus_info names the node. */
 struct cam_v4l2_conf {
         char device[RIG_PATH_MAX]; /* "/dev/video0" */
         char card[32];             /* VIDIOC_QUERYCAP card, e.g. "HD Pro Webcam C920" */
         char bus_info[32];         /* VIDIOC_QUERYCAP bus_info, e.g. "usb-0000:00:14.0-1" */
         uint32_t fourcc;           /* 0: the first format the driver lists that we convert */
         int buffers;               /* mmap buffers, 2..V4L2P_BUFFERS_MAX */
+        int skip;                  /* frames dropped after each start, 0..V4L2P_SKIP_MAX */
         struct v4l2p_ctrl ctrls[V4L2P_CTRLS_MAX];
         int n_ctrls;
 };
