@@ -411,7 +411,9 @@ static void t_vanish(void)
         sysfs_write(VIVID_SYSFS "unbind", "vivid.0");
         j.op = J_DEQUEUE;
         CHECK_INT(run1(&j), -ENODEV);
-        CHECK_STR_CONTAINS(F.cam[0]->last_error, "VIDIOC_DQBUF: No such device");
+        CHECK_STR_CONTAINS(F.cam[0]->last_error,
+                           "camera 'cam0' [v4l2@cams0]: Failed to dequeue a frame: /dev/video");
+        CHECK_STR_CONTAINS(F.cam[0]->last_error, ": VIDIOC_DQBUF: No such device");
         CHECK_INT(run1(&j), -ENOTCONN);
         j.op = J_CAPTURE;
         CHECK_INT(run1(&j), -ENOENT);
