@@ -243,24 +243,39 @@ static int set_ctl(struct cam *c, struct cam_v4l2 *s, uint32_t id, const char *n
         return 0;
 }
 
+static bool opts_equal(const struct opt_desc *a, const struct opt_desc *b, int n)
+{
+        for (int i = 0; i < n; i++)
+                if (a[i].key != b[i].key || a[i].flags != b[i].flags || a[i].unit != b[i].unit ||
+                    a[i].min != b[i].min || a[i].max != b[i].max)
+                        return false;
+        return true;
+}
+
 /* Fills the camera's option table from the device: its exposure and gain ranges. */
 static void learn_ranges(struct cam *c, struct cam_v4l2 *s)
 {
+        struct opt_desc opts[ELEMENTSOF(s->opts)];
         int n = 0;
 
         s->exposure = query_ctl(s, V4L2_CID_EXPOSURE_ABSOLUTE);
         s->gain = query_ctl(s, V4L2_CID_GAIN);
-        s->opts[n++] = (struct opt_desc){OPT_BITS, OPT_GET | OPT_SET | OPT_LIST,
-                                         .min = s->fmt->bits, .max = s->fmt->bits};
+        opts[n++] = (struct opt_desc){OPT_BITS, OPT_GET | OPT_SET | OPT_LIST, .min = s->fmt->bits,
+                                      .max = s->fmt->bits};
         if (s->exposure.present)
-                s->opts[n++] = (struct opt_desc){OPT_EXPOSURE, OPT_GET | OPT_SET, .unit = "us",
-                                                 .min = v4l2p_exposure_from_dev(s->exposure.min),
-                                                 .max = v4l2p_exposure_from_dev(s->exposure.max)};
+                opts[n++] = (struct opt_desc){OPT_EXPOSURE, OPT_GET | OPT_SET, .unit = "us",
+                                              .min = v4l2p_exposure_from_dev(s->exposure.min),
+                                              .max = v4l2p_exposure_from_dev(s->exposure.max)};
         if (s->gain.present)
-                s->opts[n++] = (struct opt_desc){OPT_GAIN, OPT_GET | OPT_SET, .min = s->gain.min,
-                                                 .max = s->gain.max};
-        c->opts = s->opts;
-        c->n_opts = n;
+                opts[n++] = (struct opt_desc){OPT_GAIN, OPT_GET | OPT_SET, .min = s->gain.min,
+                                              .max = s->gain.max};
+        /* written only when they change (a reopen finds the same device), since other
+         * threads read the table (cam_check_request) */
+        if (c->opts != s->opts || c->n_opts != n || !opts_equal(s->opts, opts, n)) {
+                memcpy(s->opts, opts, sizeof(*opts) * n);
+                c->opts = s->opts;
+                c->n_opts = n;
+        }
 }
 
 /* Sets id to v when the device has it and v is in its range; else keeps the device's. */
@@ -421,6 +436,9 @@ static int dev_open(struct cam *c, struct cam_v4l2 *s)
         }
         if (r < 0)
                 dev_close(s);
+        else
+                log_info("camera '%s': %s, %dx%d %s, %u buffers", c->conf->name, s->path, s->width,
+                         s->height, v4l2p_fourcc_str(s->fmt->fourcc, (char[5]){0}), s->n_bufs);
         return r;
 }
 
