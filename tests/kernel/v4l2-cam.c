@@ -1,9 +1,10 @@
 /* v4l2-cam.c - kernel lane test of gonio's "v4l2" camera backend on vivid's two capture
  * nodes (platform:vivid-000 and -001), through the camera class on one bus worker per
  * camera, as goniod drives it: formats negotiated (and refused), vivid's colour bars through
- * the YUYV and UYVY conversions, both cameras capturing at once, controls set and read back
- * (also by this program's own ioctls), timestamps in CLOCK_REALTIME, streaming through the
- * fd, and a node that vanishes (the vivid device unbound) and returns (bound again).
+ * the YUYV and UYVY conversions, GREY and Y16 levels, both cameras capturing at once,
+ * controls set and read back (also by this program's own ioctls), timestamps in
+ * CLOCK_REALTIME, streaming through the fd, and a node that vanishes (the vivid device
+ * unbound) and returns (bound again).
  *
  * Usage: kl-v4l2-cam [CASE] (every case, in order, without one). Needs root in the guest. */
 #include <fcntl.h>
@@ -322,9 +323,10 @@ static void t_stream(void)
         gn_frame_free_data(&j.fr);
 }
 
-/* Opens a camera built from cam0's entry changed by fn; returns its result, last_error in err. */
+/* Opens a camera built from cam0's entry changed by fn, and captures into fr (unless NULL)
+ * when it opened; returns the first failure or 0, last_error in err. */
 static int open_variant(void (*fn)(struct rig_camera_conf *, struct cam_v4l2_conf *), char *err,
-                        size_t len)
+                        size_t len, struct gn_frame *fr)
 {
         struct rig_camera_conf cc = F.rc->cameras[0];
         struct cam_v4l2_conf vc = *(const struct cam_v4l2_conf *)cc.backend.conf;
@@ -335,7 +337,11 @@ static int open_variant(void (*fn)(struct rig_camera_conf *, struct cam_v4l2_con
         cc.backend.conf = &vc;
         CHECK_INT(cam_new(&cc, F.bus[0], &c), 0);
         j.cam = c;
-        run1(&j);
+        if (run1(&j) == 0 && fr) {
+                j.op = J_CAPTURE;
+                run1(&j);
+                *fr = j.fr;
+        }
         snprintf(err, len, "%s", c->last_error);
         fprintf(stderr, "%s\n", err);
         cam_free(c);
@@ -370,27 +376,82 @@ static void by_path(struct rig_camera_conf *cc, struct cam_v4l2_conf *vc)
         vc->fourcc = 0; /* the first 8-bit format vivid lists that gonio converts */
 }
 
-/* What open refuses, each with node, ioctl or control and cause in the message; cam0 is
- * closed meanwhile (a node whose buffers another fd holds refuses VIDIOC_S_FMT: EBUSY). */
-static void t_refusals(void)
+static void sixteen_bits(struct rig_camera_conf *cc, struct cam_v4l2_conf *vc)
+{
+        cc->bits = 16;
+        vc->fourcc = 0; /* the first 16-bit one: Y16 */
+}
+
+static void grey(struct rig_camera_conf *cc, struct cam_v4l2_conf *vc)
+{
+        v4l2p_fourcc_parse("GREY", &vc->fourcc);
+}
+
+static void yuyv_16(struct rig_camera_conf *cc, struct cam_v4l2_conf *vc)
+{
+        cc->bits = 16; /* with format YUYV */
+}
+
+/* cam0 closed for variants of its entry (a node whose buffers another fd holds refuses
+ * VIDIOC_S_FMT: EBUSY), and opened again. */
+static void cam0_close(void)
+{
+        F.cam[0] = cam_free(F.cam[0]);
+}
+
+static void cam0_reopen(void)
 {
         struct job j = {.op = J_OPEN};
-        char e[DEV_ERROR_MAX];
 
-        F.cam[0] = cam_free(F.cam[0]);
-
-        CHECK_INT(open_variant(odd_size, e, sizeof(e)), -EINVAL);
-        CHECK_STR_CONTAINS(e, "VIDIOC_S_FMT: asked 123x480 YUYV, the driver chose");
-        CHECK_INT(open_variant(bad_name, e, sizeof(e)), -ENOENT);
-        CHECK_STR_CONTAINS(e, "has no control 'no_such_control'");
-        CHECK_INT(open_variant(bad_value, e, sizeof(e)), -ERANGE);
-        CHECK_STR_CONTAINS(e, "control brightness=999 outside [0, 255]");
-        CHECK_INT(open_variant(by_card, e, sizeof(e)), -ENOTUNIQ);
-        CHECK_STR_CONTAINS(e, "card 'vivid' names both /dev/video");
-        CHECK_INT(open_variant(by_path, e, sizeof(e)), 0);
         CHECK_INT(cam_new(&F.rc->cameras[0], F.bus[0], &F.cam[0]), 0);
         j.cam = F.cam[0];
         CHECK_INT(run1(&j), 0);
+}
+
+/* Other formats: 16 bits picks Y16 (mono16), GREY gives mono8, both with the bars' levels
+ * (white above, black below); YUYV with 16 bits refused. */
+static void t_formats(void)
+{
+        struct gn_frame f = {0};
+        char e[DEV_ERROR_MAX];
+
+        cam0_close();
+        CHECK_INT(open_variant(sixteen_bits, e, sizeof(e), &f), 0);
+        CHECK_STR(gn_frame_format(&f), "mono16");
+        const uint16_t *w = (const uint16_t *)(f.data + f.stride * 240) + 40;
+        const uint16_t *k = (const uint16_t *)(f.data + f.stride * 240) + 600;
+        fprintf(stderr, "Y16: white %u black %u\n", w[0], k[0]);
+        CHECK(w[0] > 150 * 256 && k[0] < 40 * 256);
+        gn_frame_free_data(&f);
+        CHECK_INT(open_variant(grey, e, sizeof(e), &f), 0);
+        CHECK_STR(gn_frame_format(&f), "mono8");
+        fprintf(stderr, "GREY: white %u black %u\n", f.data[f.stride * 240 + 40],
+                f.data[f.stride * 240 + 600]);
+        CHECK(f.data[f.stride * 240 + 40] > 150 && f.data[f.stride * 240 + 600] < 40);
+        gn_frame_free_data(&f);
+        CHECK_INT(open_variant(yuyv_16, e, sizeof(e), NULL), -EINVAL);
+        CHECK_STR_CONTAINS(e, "format YUYV gives 8-bit samples, not 16");
+        cam0_reopen();
+}
+
+/* What open refuses, each with node, ioctl or control and cause in the message (cam0
+ * closed meanwhile); the node by path opens. */
+static void t_refusals(void)
+{
+        char e[DEV_ERROR_MAX];
+
+        cam0_close();
+
+        CHECK_INT(open_variant(odd_size, e, sizeof(e), NULL), -EINVAL);
+        CHECK_STR_CONTAINS(e, "VIDIOC_S_FMT: asked 123x480 YUYV, the driver chose");
+        CHECK_INT(open_variant(bad_name, e, sizeof(e), NULL), -ENOENT);
+        CHECK_STR_CONTAINS(e, "has no control 'no_such_control'");
+        CHECK_INT(open_variant(bad_value, e, sizeof(e), NULL), -ERANGE);
+        CHECK_STR_CONTAINS(e, "control brightness=999 outside [0, 255]");
+        CHECK_INT(open_variant(by_card, e, sizeof(e), NULL), -ENOTUNIQ);
+        CHECK_STR_CONTAINS(e, "card 'vivid' names both /dev/video");
+        CHECK_INT(open_variant(by_path, e, sizeof(e), NULL), 0);
+        cam0_reopen();
 }
 
 static void sysfs_write(const char *file, const char *text)
@@ -451,8 +512,8 @@ int main(int argc, char **argv)
         static const struct test_case cases[] = {
                 {"negotiate", t_negotiate}, {"two-at-once", t_two_at_once},
                 {"controls", t_controls},   {"timestamps", t_timestamps},
-                {"stream", t_stream},       {"refusals", t_refusals},
-                {"vanish", t_vanish},
+                {"stream", t_stream},       {"formats", t_formats},
+                {"refusals", t_refusals},   {"vanish", t_vanish},
         };
 
         setup();
