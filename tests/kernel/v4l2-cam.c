@@ -3,8 +3,9 @@
  * camera, as goniod drives it: formats negotiated (and refused), vivid's colour bars through
  * the YUYV and UYVY conversions, GREY and Y16 levels, both cameras capturing at once,
  * controls set and read back (also by this program's own ioctls), timestamps in
- * CLOCK_REALTIME, streaming through the fd, and a node that vanishes (the vivid device
- * unbound) and returns (bound again).
+ * CLOCK_REALTIME, streaming through the fd, faults vivid injects (dropped frames, a buffer
+ * flagged bad), and a node that vanishes (the vivid device unbound) and returns (bound
+ * again).
  *
  * Usage: kl-v4l2-cam [CASE] (every case, in order, without one). Needs root in the guest. */
 #include <fcntl.h>
@@ -24,6 +25,9 @@
 #include "tests/test.h"
 
 #define VIVID_SYSFS "/sys/bus/platform/drivers/vivid/"
+/* vivid's fault injection controls (drivers/media/test-drivers/vivid/vivid-ctrls.c) */
+#define VIVID_CID_PERCENTAGE_DROPPED 0x00f0f040 /* percentage_of_dropped_buffers */
+#define VIVID_CID_BUF_FLAG_ERROR     0x00f0f042 /* inject_v4l2_buf_flag_error (button) */
 
 static const char rig_yaml[] =
         "rig: klane-v4l2\n"
@@ -170,6 +174,18 @@ static long read_ctrl(const char *bus_info, uint32_t id)
         CHECK(fd >= 0);
         CHECK_INT(ioctl(fd, VIDIOC_G_CTRL, &c), 0);
         return c.value;
+}
+
+/* Sets a control on the node by this program's own ioctl (vivid's fault injection). */
+static void write_ctrl(const char *bus_info, uint32_t id, int value)
+{
+        char path[64];
+        struct v4l2_control c = {.id = id, .value = value};
+
+        node_of(bus_info, path, sizeof(path));
+        _cleanup_close_ int fd = open(path, O_RDWR | O_NONBLOCK);
+        CHECK(fd >= 0);
+        CHECK_INT(ioctl(fd, VIDIOC_S_CTRL, &c), 0);
 }
 
 /* The pixel at x, y of an rgb8 frame, near rgb (each channel within tol). */
@@ -320,6 +336,28 @@ static void t_stream(void)
         CHECK_INT(cam_stream_fd(F.cam[1]), -ENOTCONN);
         j.op = J_CAPTURE;
         CHECK_INT(run1(&j), 0);
+        gn_frame_free_data(&j.fr);
+}
+
+/* Faults vivid injects: every frame dropped (a bounded wait, -ETIMEDOUT naming the node,
+ * capture fine again once frames flow); a buffer flagged V4L2_BUF_FLAG_ERROR (skipped: the
+ * capture returns the next frame). */
+static void t_faults(void)
+{
+        struct job j = {.cam = F.cam[1], .op = J_CAPTURE};
+
+        write_ctrl("platform:vivid-001", VIVID_CID_PERCENTAGE_DROPPED, 100);
+        CHECK_INT(run1(&j), -ETIMEDOUT);
+        CHECK(j.t1 - j.t0 < 4000000000LL);
+        CHECK_STR_CONTAINS(F.cam[1]->last_error, "[v4l2@cams1]: Failed to capture: /dev/video");
+        CHECK_STR_CONTAINS(F.cam[1]->last_error, ": no frame within 3000 ms");
+        write_ctrl("platform:vivid-001", VIVID_CID_PERCENTAGE_DROPPED, 0);
+        CHECK_INT(run1(&j), 0);
+        CHECK_INT(j.fr.seq, 0);
+        gn_frame_free_data(&j.fr);
+        write_ctrl("platform:vivid-001", VIVID_CID_BUF_FLAG_ERROR, 1);
+        CHECK_INT(run1(&j), 0);
+        CHECK_INT(j.fr.seq, 1); /* frame 0 came flagged bad */
         gn_frame_free_data(&j.fr);
 }
 
@@ -513,7 +551,8 @@ int main(int argc, char **argv)
                 {"negotiate", t_negotiate}, {"two-at-once", t_two_at_once},
                 {"controls", t_controls},   {"timestamps", t_timestamps},
                 {"stream", t_stream},       {"formats", t_formats},
-                {"refusals", t_refusals},   {"vanish", t_vanish},
+                {"faults", t_faults},       {"refusals", t_refusals},
+                {"vanish", t_vanish},
         };
 
         setup();
