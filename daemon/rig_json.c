@@ -84,9 +84,11 @@ json_t *rig_describe(const struct rig *rig)
         }
         for (size_t i = 0; i < rc->n_cameras; i++) {
                 const struct cam *c = rig->cams[i];
-                json_array_append_new(devs,
-                                      device_json("camera", c->conf->name, c->ops->name,
-                                                  c->conf->bus, c->ops->opts, c->ops->n_opts));
+                int n;
+                const struct opt_desc *opts = cam_opts(c, &n);
+
+                json_array_append_new(devs, device_json("camera", c->conf->name, c->ops->name,
+                                                        c->conf->bus, opts, n));
         }
         return json_pack("{ssso}", "rig", rc->name, "devices", devs);
 }

@@ -8,6 +8,9 @@
 #include "drivers/axis/modbus/proto.h"
 #include "drivers/camera/libcamera/api.h"
 #include "drivers/camera/sim/api.h"
+#ifdef GN_HAVE_V4L2
+#include "drivers/camera/v4l2/api.h"
+#endif
 #include "drivers/registry.h"
 #include "drivers/switch/gpio/proto.h"
 #include "drivers/switch/gcode/proto.h"
@@ -31,6 +34,9 @@ const struct rig_backend *const registry_backends[] = {
 #ifdef GONIO_HAVE_GPIOD /* libgpiod found (-Dgpio) */
         &gpst_backend,
         &gpsw_backend,
+#endif
+#ifdef GN_HAVE_V4L2
+        &cam_v4l2_backend,
 #endif
         NULL,
 };

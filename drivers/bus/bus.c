@@ -149,6 +149,8 @@ static void where(const struct bus *b, const struct rig_addr *addr, char *buf, s
 
         if (c->type == RIG_BUS_MODBUS_TCP)
                 k = snprintf(buf, len, "%s:%d", c->host, c->tcp_port);
+        else if (c->type == RIG_BUS_LOCAL) /* no port: its name */
+                k = snprintf(buf, len, "%s", c->name);
         else
                 k = snprintf(buf, len, "%s", slash ? slash + 1 : c->port);
         if (addr && addr->key && k >= 0 && (size_t)k < len)

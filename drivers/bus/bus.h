@@ -61,10 +61,10 @@ struct bus_dev_ref {
 };
 
 /* Logs "KIND 'NAME' [BACKEND@PORT#ADDR]: message" (PORT: last component of the bus's
- * port, or host:port for TCP; ADDR: the address's value, "#ADDR" left out without one) for the
- * device class wrappers; a message at warning level or worse is also copied, whole, into
- * dev->last_error. errno is err while formatting, for %m. Returns -abs(err). Thread of
- * the device's ops. */
+ * port, host:port for TCP, the bus's name for a local bus; ADDR: the address's value, "#ADDR" left
+ * out without one) for the device class wrappers; a message at warning level or worse is also
+ * copied, whole, into dev->last_error. errno is err while formatting, for %m. Returns -abs(err).
+ * Thread of the device's ops. */
 int bus_log_dev(const struct bus *b, const struct bus_dev_ref *dev, int level, int err,
                 const char *fmt, va_list ap);
 

@@ -89,15 +89,23 @@ int cam_open(struct cam *c)
         return 0;
 }
 
+const struct opt_desc *cam_opts(const struct cam *c, int *n)
+{
+        *n = c->opts ? c->n_opts : c->ops->n_opts;
+        return c->opts ? c->opts : c->ops->opts;
+}
+
 /* Checks a requested control (0 = default, always fine) against the option table:
  * -EOPNOTSUPP when not settable, -ERANGE outside [min, max] (when max > min). */
 static int check_control(const struct cam *c, enum opt_key key, double v, char *msg, size_t len)
 {
-        const struct opt_desc *o;
+        const struct opt_desc *o, *opts;
+        int n;
 
         if (v == 0)
                 return 0;
-        o = opt_find(c->ops->opts, c->ops->n_opts, key);
+        opts = cam_opts(c, &n);
+        o = opt_find(opts, n, key);
         if (!o || !(o->flags & OPT_SET)) {
                 snprintf(msg, len, "cannot set %s", opt_key_name(key));
                 return -EOPNOTSUPP;

@@ -4,8 +4,10 @@
  * with the controls actually applied.
  *
  * The backend's option table (ops->opts: OPT_EXPOSURE, OPT_GAIN, OPT_BITS with min and
- * max) is the one source of a camera's control ranges: cam_check_request() checks a
- * request against it, for the daemon before it queues a capture as for cam_capture().
+ * max; or the camera's own, c->opts, when the backend learns the ranges from the device at
+ * open, as V4L2 does) is the one source of a camera's control ranges: cam_check_request()
+ * checks a request against it, for the daemon before it queues a capture as for
+ * cam_capture().
  *
  * Streaming (optional ops, for V4L2 mmap streaming and libcamera requests): start with a
  * request, poll the fd stream_fd() returns on the event loop (POLLIN: a frame is ready),
@@ -57,6 +59,11 @@ struct cam {
          * operators; "" when none. Written by the ops' thread (see axis.h). */
         char last_error[DEV_ERROR_MAX];
         char cause[DEV_ERROR_MAX]; /* detail of the op in progress, see cam_set_cause() */
+        /* This camera's option table, set by open when the device gives the ranges (owned
+         * by the backend; read by other threads once the open job completed); NULL:
+         * ops->opts. See cam_opts(). */
+        const struct opt_desc *opts;
+        int n_opts;
 };
 
 /* Creates the camera for conf (drivers/registry.c). Returns 0, -ENOENT or -errno. No I/O. */
@@ -64,6 +71,9 @@ int cam_new(const struct rig_camera_conf *conf, struct bus *bus, struct cam **re
 
 /* Closes (stopping a stream) and frees; NULL is a no-op. Returns NULL. */
 struct cam *cam_free(struct cam *c);
+
+/* The camera's option table: c->opts when its backend set one at open, else ops->opts. */
+const struct opt_desc *cam_opts(const struct cam *c, int *n);
 
 /* Checks req (NULL: all defaults) against the backend's option table, without I/O and
  * without logging. Returns 0; -ERANGE with "gain 100 outside [0.1, 64]" in msg; -EOPNOTSUPP

@@ -202,12 +202,17 @@ static const struct {
          "rig: t\nbuses:\n  - { name: s, type: serial, port: /dev/null }\n"
          "laser:\n  name: x\n  gcode-laser: { bus: s, tol: 2 }\n",
          6, "tol"},
+        {"v4l2",
+         "rig: t\nbuses:\n  - { name: l, type: local }\ncameras:\n  - name: c\n    v4l2:\n"
+         "      bus: l\n      devce: /dev/video0\n",
+         8, "devce"},
 };
 
 /* Whether kind names a backend this build has not (one on an optional library). */
 static bool optional_and_absent(const char *kind)
 {
-        static const char *const optional[] = {"gpio-stepper", "gpio", "libcamera", "usbrelay"};
+        static const char *const optional[] = {"gpio-stepper", "gpio", "libcamera", "usbrelay",
+                                               "v4l2"};
 
         for (size_t i = 0; i < ELEMENTSOF(optional); i++)
                 if (strcmp(kind, optional[i]) == 0) {
