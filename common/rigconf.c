@@ -665,7 +665,7 @@ static int check_ports(struct yconf *yc, const struct rig_config *rc)
                                 return yconf_error(yc, entry_key(yc, "buses", j, "tcp_port"),
                                                    "tcp_port", "buses '%s' and '%s' both use %s:%d",
                                                    a->name, b->name, b->host, b->tcp_port);
-                        if (!tcp && strcmp(a->port, b->port) == 0)
+                        if (!tcp && a->port[0] && strcmp(a->port, b->port) == 0) /* local: none */
                                 return yconf_error(yc, entry_key(yc, "buses", j, "port"), "port",
                                                    "buses '%s' and '%s' both use port '%s'",
                                                    a->name, b->name, b->port);

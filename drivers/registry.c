@@ -5,10 +5,14 @@
 
 #include "drivers/axis/gpio/proto.h"
 #include "drivers/axis/modbus/proto.h"
+#include "drivers/camera/libcamera/api.h"
 #include "drivers/camera/sim/api.h"
 #include "drivers/registry.h"
 #include "drivers/switch/gpio/proto.h"
 #include "drivers/switch/modbus/proto.h"
+#ifdef GONIO_USBRELAY
+#include "drivers/switch/usbrelay/proto.h"
+#endif
 
 /* One backend a line; some only with their library. */
 /* clang-format off */
@@ -16,6 +20,10 @@ const struct rig_backend *const registry_backends[] = {
         &mbax_backend,
         &mbsw_backend,
         &cam_sim_backend,
+        &cam_lc_backend,
+#ifdef GONIO_USBRELAY
+        &usbrelay_backend,
+#endif
 #ifdef GONIO_HAVE_GPIOD /* libgpiod found (-Dgpio) */
         &gpst_backend,
         &gpsw_backend,

@@ -71,7 +71,6 @@ static void expect_at(const char *text, int line, const char *key, const char *m
 #define BUS                                                                                        \
         "rig: t\nbuses:\n  - { name: b, type: modbus-rtu, port: /dev/null }\n"                     \
         "  - { name: f, type: sim, port: /tmp/f.sock }\n"
-#define LOCAL_BUS        "rig: t\nbuses:\n  - { name: io, type: local }\n"
 #define AXIS(name, unit) "  - { name: " name ", modbus: { bus: b, unit: " unit " } }\n"
 #define LAMP(name, unit, coil)                                                                     \
         "  - { name: " name ", elevation: 1, modbus-coil: { bus: b, unit: " unit ", coil: " coil   \
@@ -179,14 +178,24 @@ static const struct {
         {"modbus-coil", BUS "laser:\n  name: x\n  modbus-coil:\n    bus: b\n    cooil: 7\n", 9,
          "cooil"},
         {"sim", BUS "cameras:\n  - name: c\n    sim:\n      bus: f\n      port: /x\n", 9, "port"},
-#ifdef GONIO_HAVE_GPIOD
+#ifdef GONIO_HAVE_GPIOD /* registered only when built with libgpiod */
         {"gpio-stepper",
-         LOCAL_BUS "axes:\n  - name: a\n    gpio-stepper: { bus: io, chip: c, step: 0, stpe: 2 }\n",
-         6, "stpe"},
+         "rig: t\nbuses: [{ name: g, type: local }]\naxes:\n"
+         "  - { name: a, gpio-stepper: { bus: g, chip: c, step: 0, dir: 1, stpe: 2 } }\n",
+         4, "stpe"},
         {"gpio",
-         LOCAL_BUS "lamps:\n  - { name: l, elevation: 1, gpio: { bus: io, chip: c, lin: 3 } }\n", 5,
-         "lin"},
+         "rig: t\nbuses: [{ name: g, type: local }]\nlamps:\n"
+         "  - { name: l, elevation: 1, gpio: { bus: g, chip: c, lien: 3 } }\n",
+         4, "lien"},
 #endif
+        {"libcamera",
+         "rig: t\nbuses: [{ name: u, type: local }]\ncameras:\n"
+         "  - { name: c, libcamera: { bus: u, idd: x } }\n",
+         4, "idd"},
+        {"usbrelay",
+         "rig: t\nbuses: [{ name: u, type: local }]\nlamps:\n"
+         "  - { name: l, elevation: 1, usbrelay: { bus: u, rely: 2 } }\n",
+         4, "rely"},
 };
 
 /* Whether unknown_keys has a row of kind. */
@@ -378,12 +387,7 @@ static void case_backend_maps(void)
 {
         static const struct rig_backend *const with_spare[] = {&mbax_backend, &mbsw_backend,
                                                                &cam_sim_backend, &spare_axis, NULL};
-        /* the messages list the backends of a class: those of a build without options */
-        static const struct rig_backend *const core[] = {&mbax_backend, &mbsw_backend,
-                                                         &cam_sim_backend, NULL};
         struct rig_config *rc;
-
-        backends = core;
 
         expect_at(BUS
                   "axes:\n  - name: a\n    modbus:\n      bus: b\n      profile: gonio-defualt\n",
@@ -394,21 +398,19 @@ static void case_backend_maps(void)
         CHECK(((const struct mbax_conf *)rc->axes[0].backend.conf)->profile == &rc->profiles[1]);
         CHECK_NEAR(((const struct mbax_conf *)rc->axes[0].backend.conf)->profile->scale, 2, 0);
         rigconf_free(rc);
-        expect_at(BUS "axes:\n  - { name: a, max_speed: 5 }\n", 6, "modbus",
-                  "no backend map in this entry (one of: modbus)");
-        expect_at(BUS "laser:\n  name: x\n  power: 1\n", 6, "modbus-coil",
-                  "no backend map in this entry (one of: modbus-coil)");
         expect_at(BUS "axes:\n  - { name: a, backend: modbus, bus: b }\n", 6, "backend",
-                  "go in one map named after the backend (modbus: { bus: ... })");
+                  "go in one map named after the backend (modbus");
         expect_at(BUS "cameras:\n  - { name: c, bus: f }\n", 6, "bus",
-                  "go in one map named after the backend (sim: { bus: ... })");
-        expect_at(BUS "lamps:\n  - { name: l, elevation: 1, modbus: { bus: b } }\n", 6, "modbus",
-                  "'modbus' is a backend for axes, not for lamps and lasers (modbus-coil)");
+                  "go in one map named after the backend (sim");
         expect_at(BUS "axes:\n  - { name: a, modbus: b }\n", 6, "modbus",
                   "expected the backend's settings as a mapping");
         expect_at(BUS "axes:\n  - { name: a, modbus: { unit: 2 } }\n", 6, "bus",
                   "required key is missing");
-        backends = with_spare;
+        backends = with_spare; /* messages listing the backends: a fixed table */
+        expect_at(BUS "laser:\n  name: x\n  power: 1\n", 6, "modbus-coil",
+                  "no backend map in this entry (one of: modbus-coil)");
+        expect_at(BUS "lamps:\n  - { name: l, elevation: 1, modbus: { bus: b } }\n", 6, "modbus",
+                  "'modbus' is a backend for axes, not for lamps and lasers (modbus-coil)");
         expect_at(BUS "axes:\n  - name: a\n    modbus: { bus: b }\n    spare: { bus: b }\n", 8,
                   "spare", "a second backend map (after 'modbus'): a device has exactly one");
         expect_at(BUS "axes:\n  - { name: a }\n", 6, "modbus, spare",
