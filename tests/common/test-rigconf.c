@@ -414,12 +414,7 @@ static void case_backend_maps(void)
 {
         static const struct rig_backend *const with_spare[] = {&mbax_backend, &mbsw_backend,
                                                                &cam_sim_backend, &spare_axis, NULL};
-        /* the messages list the backends of a class: those of a build without options */
-        static const struct rig_backend *const core[] = {&mbax_backend, &mbsw_backend,
-                                                         &cam_sim_backend, NULL};
         struct rig_config *rc;
-
-        backends = core;
 
         expect_at(BUS
                   "axes:\n  - name: a\n    modbus:\n      bus: b\n      profile: gonio-defualt\n",
