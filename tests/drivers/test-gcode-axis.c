@@ -167,6 +167,11 @@ static void test_grbl(struct fixture *f)
         CHECK(!f->arm->state.homed && !f->arm->state.fault);
         CHECK_INT(axis_move_abs(f->arm, 10.0), -EPROTO);
         CHECK_STR_CONTAINS(f->arm->last_error, "error:9");
+        CHECK_INT(axis_home(f->arm), 0); /* ~78 deg to the switch: 0.15 s */
+        testrig_sleep(0.03);
+        CHECK_INT(axis_stop(f->arm), 0); /* a hold does not stop homing: the reset does */
+        CHECK_INT(axis_poll(f->arm), 0);
+        CHECK(!f->arm->state.moving && !f->arm->state.homed && !f->arm->state.in_position);
         CHECK_INT(axis_home(f->arm), 0);
         CHECK_INT(axis_poll(f->arm), 0);
         CHECK(f->arm->state.moving);
