@@ -81,7 +81,7 @@ struct ge_bus {
         struct ge_axis axes[GC_N_AXES];
         bool laser[GCSW_TOOL_MAX];
         double laser_on_at[GCSW_TOOL_MAX];
-        bool alarm, hold, homing, motor_on;
+        bool alarm, hold, homing;
         int owed;    /* lines answered when their motion ends */
         double feed; /* deg/min; 0 after a reset: undefined */
         bool linear; /* modal motion G1 (else G0) */
@@ -495,14 +495,13 @@ static int parse_words(const struct ge_bus *b, const char *line, struct ge_words
 
 #define SEEN(w, c) ((w)->seen & 1u << ((c) - 'A'))
 
-/* Horus M codes: motor power, lasers, the light sensor. */
+/* Horus M codes: lasers and the light sensor. M17/M18 (stepper power) change nothing the
+ * emulation shows: the firmware powers the stepper for every move anyway. */
 static void m_code(struct ge_bus *b, const struct ge_words *w, double now)
 {
         int tool = SEEN(w, 'T') ? (int)w->t : 0;
         int lit = 0;
 
-        if (w->m == 17 || w->m == 18)
-                b->motor_on = w->m == 17;
         if ((w->m == 70 || w->m == 71) && tool >= 1 && tool <= GCSW_TOOL_MAX) {
                 b->laser[tool - 1] = w->m == 71;
                 b->laser_on_at[tool - 1] = now;

@@ -13,6 +13,7 @@
 #include "drivers/axis/axis.h"
 #include "drivers/axis/gcode/link.h"
 #include "drivers/switch/switch.h"
+#include "drivers/transport/transport.h"
 #include "sim/gcode_emu.h"
 #include "tests/drivers/testrig.h"
 #include "tests/test.h"
@@ -166,6 +167,11 @@ static void test_grbl(struct fixture *f)
         CHECK(!f->arm->state.homed && !f->arm->state.fault);
         CHECK_INT(axis_move_abs(f->arm, 10.0), -EPROTO);
         CHECK_STR_CONTAINS(f->arm->last_error, "error:9");
+        CHECK_INT(axis_home(f->arm), 0); /* ~78 deg to the switch: 0.15 s */
+        testrig_sleep(0.03);
+        CHECK_INT(axis_stop(f->arm), 0); /* a hold does not stop homing: the reset does */
+        CHECK_INT(axis_poll(f->arm), 0);
+        CHECK(!f->arm->state.moving && !f->arm->state.homed && !f->arm->state.in_position);
         CHECK_INT(axis_home(f->arm), 0);
         CHECK_INT(axis_poll(f->arm), 0);
         CHECK(f->arm->state.moving);
@@ -196,8 +202,8 @@ static void test_grbl(struct fixture *f)
 }
 
 /* No reply, a late reply: the poll times out naming what it waited for; once the board
- * answers again the next poll resets it and goes on, unhomed. Error replies fail the
- * command with the board's words. */
+ * answers again the next poll resets it and goes on, still homed (unhomed after a reopen). Error
+ * replies fail the command with the board's words. */
 static void test_faults(struct fixture *f)
 {
         CHECK_INT(sim_emu_inject(f->rig.emu, "ciclop", 0, SIM_FAULT_TIMEOUT), 0);
@@ -207,6 +213,9 @@ static void test_faults(struct fixture *f)
         CHECK_INT(axis_poll(f->tt), -ETIMEDOUT);
         CHECK_INT(sim_emu_inject(f->rig.emu, "ciclop", 0, SIM_FAULT_NONE), 0);
         testrig_sleep(2.0 * SIM_GCODE_LATE_MS / 1000.0); /* let the late bytes arrive */
+        CHECK_INT(axis_poll(f->tt), 0); /* a soft reset on the open line: still homed */
+        CHECK(f->tt->state.homed && !f->tt->state.fault);
+        transport_close(bus_transport(f->ciclop)); /* a reopened port may have rebooted it */
         CHECK_INT(axis_poll(f->tt), 0);
         CHECK(!f->tt->state.homed && !f->tt->state.fault);
 

@@ -2,7 +2,8 @@
  * its Horus G-code board (turntable + laser on one serial line) and renders its webcam;
  * goniod drives it through the gcode and gcode-laser backends; gonioctl homes, turns the
  * table, switches the laser and captures; every stored row matches what gonio-sim
- * rendered (the render log), and the emulated table ends where goniod says it is. */
+ * rendered (the render log), and the emulated table ends where goniod says it is; a board
+ * that stops answering is a fault goniod clears once it answers again. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,6 +23,32 @@ static double sim_turntable(struct rigenv *e)
 
         json_decref(sim);
         return deg;
+}
+
+/* The board stops answering: goniod latches a fault naming a device of the board and the
+ * cause, switches the laser off, refuses to clear while the board is silent, and clears
+ * once it answers again. */
+static void silent_board(struct rigenv *e)
+{
+        json_t *st, *fault;
+        const char *device;
+
+        json_decref(ctl_ok(e, "laser", "on", NULL));
+        sim_request(e,
+                    "{\"cmd\":\"inject\",\"bus\":\"ciclop\",\"unit\":0,\"fault\":\"timeout\"}\n");
+        st = wait_state(e, "fault", 10);
+        fault = json_object_get(st, "fault");
+        device = json_string_value(json_object_get(fault, "device"));
+        CHECK(device && (strcmp(device, "turntable") == 0 || strcmp(device, "laser_left") == 0));
+        CHECK_STR_CONTAINS(json_dumps(fault, JSON_COMPACT), "within 300 ms");
+        json_decref(st);
+        CHECK(ctl(e, NULL, "fault", "clear", NULL) != 0);
+        sim_request(e, "{\"cmd\":\"inject\",\"bus\":\"ciclop\",\"unit\":0,\"fault\":\"none\"}\n");
+        json_decref(ctl_ok(e, "fault", "clear", NULL));
+        json_decref(wait_state(e, "idle", 5));
+        st = sim_query(e, "{\"cmd\":\"state\"}\n"); /* the resync's reset put it off */
+        CHECK(json_is_false(json_object_get(json_object_get(st, "state"), "laser")));
+        json_decref(st);
 }
 
 static char *read_rig(const char *path)
@@ -58,6 +85,11 @@ int main(int argc, char **argv)
         json_decref(ctl_ok(&e, "laser", "off", NULL));
         json_decref(ctl_ok(&e, "capture", NULL));
         CHECK_INT(check_dataset_roles(&e, "scan", 1u << GN_ROLE_TURNTABLE), 3);
+        silent_board(&e);
+        json_decref(ctl_ok(&e, "move", "turntable", "45", NULL)); /* still homed */
+        CHECK_NEAR(sim_turntable(&e), 45.0, STEP_TOL_DEG);
+        json_decref(ctl_ok(&e, "capture", NULL));
+        CHECK_INT(check_dataset_roles(&e, "scan", 1u << GN_ROLE_TURNTABLE), 4);
         rigenv_stop(&e);
         free(rig);
         return 0;

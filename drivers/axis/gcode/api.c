@@ -173,8 +173,11 @@ static int wait_held(struct axis *ax, bool *held)
                 r = link_result(ax, gclink_status(priv(ax)->link, &st));
                 if (r < 0)
                         return r;
-                *held = *held || st.state == GC_ST_HELD || st.state == GC_ST_HOLD;
-                if (st.state == GC_ST_HELD || st.state == GC_ST_IDLE || st.state == GC_ST_ALARM)
+                *held = *held || st.state == GC_ST_HELD || st.state == GC_ST_HOLD ||
+                        st.state == GC_ST_HOME;
+                /* a hold does not stop homing: the reset below does (in alarm) */
+                if (st.state == GC_ST_HELD || st.state == GC_ST_IDLE || st.state == GC_ST_ALARM ||
+                    st.state == GC_ST_HOME)
                         return 0;
         } while (transport_deadline(0) < deadline);
         return 0; /* the reset below stops it anyway, in alarm */

@@ -206,7 +206,7 @@ int gclink_reset(struct gclink *l)
         r = gclink_status(l, &st); /* the alarm lock message comes before it */
         /* Both firmwares keep their step count over a soft reset; GRBL says the position is
          * lost (alarm) when the reset stopped motion, Horus does not (docs/gcode.md). */
-        l->homed = r >= 0 && homed && !(l->flavor == GC_FLAVOR_GRBL && l->alarm);
+        l->homed = homed && !(l->flavor == GC_FLAVOR_GRBL && l->alarm);
         return r;
 }
 
@@ -217,12 +217,15 @@ int gclink_sync(struct gclink *l)
 
         if (l->synced && t->is_open)
                 return 0;
+        /* Opening the port may reset the board (an Arduino reboots on DTR), which forgets the
+         * position; a resync on an open line is a soft reset, which keeps it. */
+        if (!t->is_open)
+                l->homed = false;
         r = transport_open(t);
         if (r < 0)
                 return r;
         transport_flush(t);
         l->alarm = false;
-        l->homed = false; /* a new session: whatever happened before is unknown */
         return gclink_reset(l);
 }
 

@@ -15,10 +15,11 @@
  *   move ends).
  * - The link belongs to the line: it lives in the serial transport's priv slot and is freed
  *   with the transport, so devices closed before or after their bus never touch a freed
- *   link or bus (they only drop their pointer). All calls run on the bus worker. The first use
- * after the port opens resets the controller (Ctrl-X) and waits for its greeting; any timeout or
- * unexpected reply desynchronises the session, and the next use resets again (docs/gcode.md:
- *   "Resets and position loss"). */
+ *   link or bus (they only drop their pointer). All calls run on the bus worker.
+ * - The first use after the port opens resets the controller (Ctrl-X) and waits for its
+ *   greeting; any timeout or unexpected reply desynchronises the session, and the next use
+ *   resets again. Homing survives a resync on an open line, not a reopened port
+ *   (docs/gcode.md: "Resets and position loss"). */
 #pragma once
 
 #include <stdbool.h>
