@@ -8,6 +8,7 @@
 #include <sys/signalfd.h>
 #include <unistd.h>
 
+#include "drivers/discover.h"
 #include "client/cmd.h"
 #include "client/conn.h"
 #include "client/output.h"
@@ -40,6 +41,7 @@ struct cmd {
         const char *done;   /* human output when print is NULL */
         bool watch;
         bool stops; /* waits for motion: an interrupted wait stops the rig (not --no-wait) */
+        json_t *(*local)(void); /* runs here, without goniod: its result is printed */
 };
 
 /* "move", "dataset open": the words naming c, for messages. */
@@ -169,6 +171,14 @@ static int p_call(const struct cmd *c, const struct args *a, char **argv, int ar
         return 0;
 }
 
+/* The devices of this machine, from $GONIO_SYSFS (for tests) or /sys. */
+static json_t *discover_here(void)
+{
+        const char *sysfs = getenv("GONIO_SYSFS");
+
+        return discover_all(sysfs && *sysfs ? sysfs : "/sys");
+}
+
 static const struct cmd commands[] = {
         {NULL, "status", "", "rig state, axes, lamps, laser, cameras, dataset", "status", 0, 0, 0,
          TIMEOUT_S, NULL, out_print_status},
@@ -201,6 +211,8 @@ static const struct cmd commands[] = {
          NULL, "fault cleared"},
         {NULL, "watch", "[--count N]", "print notifications until interrupted", NULL, 0, 0,
          ARG_COUNT, TIMEOUT_S, NULL, NULL, NULL, true},
+        {NULL, "devices", "", "serial ports, V4L2 nodes, gpiochips, USB devices here (no goniod)",
+         NULL, 0, 0, 0, TIMEOUT_S, NULL, out_print_devices, .local = discover_here},
         {NULL, "call", "METHOD [JSON-PARAMS]", "send any request, print its result", NULL, 1, 2, 0,
          TIMEOUT_S, p_call, out_print_pretty},
 };
@@ -536,6 +548,21 @@ static int run_method(const struct cmd *c, const struct args *a, struct out *o, 
         return EXIT_OK;
 }
 
+/* Runs a command that needs no goniod and prints its result. */
+static int run_local(const struct cmd *c, struct out *o, json_t *params)
+{
+        json_t *res = c->local();
+
+        json_decref(params);
+        if (!res) {
+                out_error(o, c->name, "out of memory");
+                return EXIT_PROTOCOL;
+        }
+        out_result(o, c->print, c->done, res);
+        json_decref(res);
+        return EXIT_OK;
+}
+
 int cmd_run(const struct args *a)
 {
         _cleanup_(conn_freep) struct conn *conn = NULL;
@@ -557,6 +584,8 @@ int cmd_run(const struct args *a)
                 return r == -EINVAL ? EXIT_USAGE : EXIT_PROTOCOL;
         }
         out_init(&o, a->json, a->quiet);
+        if (c->local)
+                return run_local(c, &o, params);
         r = connect_hello(a, &o, &conn);
         if (r != EXIT_OK) {
                 json_decref(params);

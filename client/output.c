@@ -371,6 +371,41 @@ static void describe_option(struct table *t, json_t *opt)
                 table_addf(t, "-");
 }
 
+/* One row per device found: family, path, and what identifies it. */
+void out_print_devices(json_t *r)
+{
+        static const char *const families[] = {"serial", "v4l2", "gpio", "usb"};
+        struct table t = {.ncols = 3, .align = "lll"};
+        json_t *d;
+        size_t i;
+
+        table_cells(&t, "KIND", "PATH", "WHAT", NULL);
+        for (size_t f = 0; f < ELEMENTSOF(families); f++)
+                json_array_foreach(json_object_get(r, families[f]), i, d)
+                {
+                        table_addf(&t, "%s", families[f]);
+                        table_addf(&t, "%s",
+                                   get_str(d, json_object_get(d, "path") ? "path" : "bus_path"));
+                        if (json_object_get(d, "relays"))
+                                table_addf(&t, "%s %s, HID relay board, %lld relays",
+                                           get_str(d, "id"), get_str(d, "product"),
+                                           (long long)json_integer_value(
+                                                   json_object_get(d, "relays")));
+                        else if (json_object_get(d, "id"))
+                                table_addf(&t, "%s %s %s", get_str(d, "id"),
+                                           get_str(d, "manufacturer"), get_str(d, "product"));
+                        else if (json_object_get(d, "name"))
+                                table_addf(&t, "%s", get_str(d, "name"));
+                        else
+                                table_addf(&t, "%s%s%s", get_str(d, "driver"),
+                                           json_is_string(json_object_get(d, "usb")) ? " usb " : "",
+                                           json_is_string(json_object_get(d, "usb"))
+                                                   ? get_str(d, "usb")
+                                                   : "");
+                }
+        table_print(&t);
+}
+
 void out_print_describe(json_t *r)
 {
         struct table t = {.ncols = 7, .align = "lllllll"};

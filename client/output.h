@@ -52,3 +52,4 @@ void out_print_dataset(json_t *r);
 void out_print_dataset_list(json_t *r);
 void out_print_dataset_info(json_t *r);
 void out_print_pretty(json_t *r); /* indented JSON, for `call` */
+void out_print_devices(json_t *r);

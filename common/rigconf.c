@@ -659,13 +659,13 @@ static int check_ports(struct yconf *yc, const struct rig_config *rc)
                         const struct rig_bus_conf *a = &rc->buses[i], *b = &rc->buses[j];
                         bool tcp = b->type == RIG_BUS_MODBUS_TCP;
 
-                        if ((a->type == RIG_BUS_MODBUS_TCP) != tcp || b->type == RIG_BUS_LOCAL)
-                                continue; /* local buses have no port */
+                        if ((a->type == RIG_BUS_MODBUS_TCP) != tcp)
+                                continue;
                         if (tcp && strcmp(a->host, b->host) == 0 && a->tcp_port == b->tcp_port)
                                 return yconf_error(yc, entry_key(yc, "buses", j, "tcp_port"),
                                                    "tcp_port", "buses '%s' and '%s' both use %s:%d",
                                                    a->name, b->name, b->host, b->tcp_port);
-                        if (!tcp && strcmp(a->port, b->port) == 0)
+                        if (!tcp && a->port[0] && strcmp(a->port, b->port) == 0) /* local: none */
                                 return yconf_error(yc, entry_key(yc, "buses", j, "port"), "port",
                                                    "buses '%s' and '%s' both use port '%s'",
                                                    a->name, b->name, b->port);

@@ -146,6 +146,7 @@ static int inject_modbus(struct sim_control *c, struct sim_req *rq, const char *
                 [SIM_FAULT_NONE] = "none",   [SIM_FAULT_TIMEOUT] = "timeout",
                 [SIM_FAULT_CRC] = "crc",     [SIM_FAULT_EXCEPTION] = "exception",
                 [SIM_FAULT_STALL] = "stall", [SIM_FAULT_SHORT] = "short",
+                [SIM_FAULT_LATE] = "late",   [SIM_FAULT_ERROR] = "error",
         };
         const char *bus = json_string_value(json_object_get(rq->req, "bus"));
         long unit = -1;
@@ -161,13 +162,15 @@ static int inject_modbus(struct sim_control *c, struct sim_req *rq, const char *
         if (f == ELEMENTSOF(names))
                 return sim_req_fail(
                         rq, EINVAL,
-                        "Modbus faults are none, timeout, crc, exception, stall, short");
+                        "device faults are none, timeout, crc, exception, stall, short (Modbus), "
+                        "late, error (G-code)");
         r = sim_emu_inject(c->emu, bus, (int)unit, (enum sim_fault)f);
         if (r == -ENOENT)
                 return sim_req_fail(rq, ENOENT, "no emulated device at bus '%s' unit %ld", bus,
                                     unit);
         if (r < 0)
-                return sim_req_fail(rq, -r, "bus '%s' unit %ld is no axis drive", bus, unit);
+                return sim_req_fail(rq, -r, "fault '%s' does not apply to bus '%s' unit %ld", fault,
+                                    bus, unit);
         return 0;
 }
 

@@ -26,15 +26,20 @@ static double start_position(const struct rig_axis_conf *c)
         return 0.5 * (c->min_deg + f * (c->max_deg - c->min_deg));
 }
 
-void sim_drive_init(struct sim_drive *d, const struct rig_axis_conf *c)
+void sim_drive_init_at(struct sim_drive *d, const struct rig_axis_conf *c, double physical)
 {
         *d = (struct sim_drive){
                 .conf = c,
-                .offset = start_position(c),
+                .offset = physical,
                 .settle_s = c->settle_ms / 1000.0,
                 .halt_at = NAN,
         };
         motion_rest(&d->mo, 0.0, d->offset);
+}
+
+void sim_drive_init(struct sim_drive *d, const struct rig_axis_conf *c)
+{
+        sim_drive_init_at(d, c, start_position(c));
 }
 
 /* Applies what happened up to now: a scheduled halt, the end of homing. */
@@ -154,6 +159,12 @@ void sim_drive_stop(struct sim_drive *d, double now)
 void sim_drive_reset(struct sim_drive *d)
 {
         d->fault_code = 0;
+}
+
+void sim_drive_set_origin(struct sim_drive *d, double now)
+{
+        update(d, now);
+        d->offset = sim_drive_physical(d, now);
 }
 
 void sim_drive_inject(struct sim_drive *d, double now, enum sim_drive_fault fault)

@@ -53,6 +53,10 @@ struct sim_drive_status {
  * position (derived from the axis name), unhomed. c must outlive d. Never fails. */
 void sim_drive_init(struct sim_drive *d, const struct rig_axis_conf *c);
 
+/* Like sim_drive_init() but at rest at physical angle physical: an axis with no reference
+ * whose power-on position defines the world's zero (a Ciclop turntable). */
+void sim_drive_init_at(struct sim_drive *d, const struct rig_axis_conf *c, double physical);
+
 /* The physical angle at time now (not wrapped). */
 double sim_drive_physical(struct sim_drive *d, double now);
 
@@ -80,6 +84,10 @@ int sim_drive_home(struct sim_drive *d, double now, double vmax, double accel);
 
 /* Halts at once (emergency stop); a scheduled fault halt is cancelled. Never fails. */
 void sim_drive_stop(struct sim_drive *d, double now);
+
+/* Makes the position at time now drive position 0, homed or not (a G-code controller's
+ * G50: "this is the origin"). Never fails. */
+void sim_drive_set_origin(struct sim_drive *d, double now);
 
 /* Clears the latched fault code. Never fails. */
 void sim_drive_reset(struct sim_drive *d);

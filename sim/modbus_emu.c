@@ -40,6 +40,7 @@
 #include "drivers/axis/modbus/proto.h"
 #include "drivers/switch/modbus/proto.h"
 #include "sim/drive.h"
+#include "sim/gcode_emu.h"
 #include "sim/modbus_emu.h"
 #include "sim/pty.h"
 
@@ -89,6 +90,7 @@ struct sim_emu {
         size_t n_units;
         struct emu_bus buses[RIG_MAX_BUSES];
         size_t n_buses;
+        struct sim_gcode *gcode; /* the serial G-code controllers (gcode_emu.c) */
 };
 
 /* ---- time, encoding ---- */
@@ -683,6 +685,8 @@ int sim_emu_new(const struct rig_config *rc, double time_scale, struct sim_emu *
         for (size_t i = 0; r >= 0 && i < rc->n_buses; i++)
                 if (is_modbus(rc->buses[i].type))
                         r = bus_start(e, (int)i);
+        if (r >= 0)
+                r = sim_gcode_new(rc, time_scale, &e->gcode);
         if (r < 0)
                 return r;
         *ret = TAKE_PTR(e);
@@ -694,6 +698,7 @@ struct sim_emu *sim_emu_free(struct sim_emu *e)
         if (!e)
                 return NULL;
         atomic_store(&e->stop, true);
+        sim_gcode_free(e->gcode);
         for (size_t i = 0; i < e->n_buses; i++)
                 bus_stop(&e->buses[i]);
         for (size_t i = 0; i < e->n_units; i++)
@@ -738,12 +743,16 @@ void sim_emu_snapshot(struct sim_emu *e, struct gn_pose *st)
                 st->lamps |= (uint32_t)coil_state(e, &rc->lamps[i]) << i;
         st->laser = rc->has_laser && coil_state(e, &rc->laser);
         pthread_mutex_unlock(&e->lock);
+        if (e->gcode)
+                sim_gcode_snapshot(e->gcode, st);
 }
 
 const char *sim_emu_pty(struct sim_emu *e, const char *bus)
 {
         const struct emu_bus *b = find_bus(e, bus);
-        return b && b->conf->type == RIG_BUS_MODBUS_RTU ? b->pty.path : NULL;
+        if (!b)
+                return e->gcode ? sim_gcode_pty(e->gcode, bus) : NULL;
+        return b->conf->type == RIG_BUS_MODBUS_RTU ? b->pty.path : NULL;
 }
 
 int sim_emu_tcp_port(struct sim_emu *e, const char *bus)
@@ -755,6 +764,11 @@ int sim_emu_tcp_port(struct sim_emu *e, const char *bus)
 int sim_emu_inject(struct sim_emu *e, const char *bus, int unit, enum sim_fault fault)
 {
         int bi = bus_index(e, bus), r = -ENOENT;
+
+        if (e->gcode && sim_gcode_pty(e->gcode, bus))
+                return sim_gcode_inject(e->gcode, bus, fault); /* one controller: no unit */
+        if (fault == SIM_FAULT_LATE || fault == SIM_FAULT_ERROR)
+                return -EINVAL; /* G-code faults */
 
         pthread_mutex_lock(&e->lock);
         struct emu_unit *u = bi >= 0 ? find_unit(e, bi, unit) : NULL;

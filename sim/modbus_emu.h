@@ -23,9 +23,12 @@ enum sim_fault {
         SIM_FAULT_STALL,     /* the axis stalls mid-move and reports fault code 1 */
         SIM_FAULT_SHORT,     /* the axis stops a few degrees short of its target: not moving,
                               * not in position, no fault code (sim/drive.h) */
+        SIM_FAULT_LATE,      /* G-code controllers: every reply comes late (sim/gcode_emu.h) */
+        SIM_FAULT_ERROR,     /* G-code controllers: every command line gets an error reply */
 };
 
-/* Creates the servers for every Modbus bus of rc. For modbus-rtu buses a pty is
+/* Creates the servers for every Modbus bus of rc, and the G-code controllers of its serial
+ * buses (sim/gcode_emu.h). For modbus-rtu buses a pty is
  * opened and a symlink made at the bus's port path (its directory must exist);
  * for modbus-tcp a server listens on 127.0.0.1 at the bus's tcp_port (0 = any free
  * port, see sim_emu_tcp_port). time_scale > 1 runs motion faster than real time.
@@ -40,14 +43,15 @@ struct sim_emu *sim_emu_free(struct sim_emu *e);
  * lamps and laser from their coils. Any thread. */
 void sim_emu_snapshot(struct sim_emu *e, struct gn_pose *st);
 
-/* The pty slave path of bus name (RTU), or NULL. Valid for the emulator's lifetime. */
+/* The pty slave path of bus name (RTU or G-code), or NULL. Valid for the emulator's lifetime. */
 const char *sim_emu_pty(struct sim_emu *e, const char *bus);
 
 /* The TCP port of bus name (TCP), or -ENOENT. */
 int sim_emu_tcp_port(struct sim_emu *e, const char *bus);
 
 /* Injects a fault into the device at (bus, unit); SIM_FAULT_NONE clears it (a latched
- * stall stays until the drive's reset command). Stall and short apply to the current move,
- * or the next one when the axis is at rest. Returns 0, -ENOENT for an unknown device,
- * -EINVAL for a stall or short of a device that is no axis. Any thread. */
+ * stall stays until the drive's reset command). On a G-code bus the unit is ignored and
+ * sim_gcode_inject() applies (timeout, late, error, none). Stall and short apply to the current
+ * move, or the next one when the axis is at rest. Returns 0, -ENOENT for an unknown device, -EINVAL
+ * for a stall or short of a device that is no axis. Any thread. */
 int sim_emu_inject(struct sim_emu *e, const char *bus, int unit, enum sim_fault fault);

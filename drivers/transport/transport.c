@@ -55,6 +55,8 @@ struct transport *transport_free(struct transport *t)
         if (!t)
                 return NULL;
         transport_close(t);
+        if (t->priv_free)
+                t->priv_free(t->priv);
         free(t);
         return NULL;
 }

@@ -48,7 +48,8 @@ struct transport {
         const struct transport_ops *ops;
         const struct rig_bus_conf *conf; /* borrowed: the bus's copy */
         int fd;                          /* stream or locked line fd, -1 when closed */
-        void *priv;                      /* backend state (the modbus_t of Modbus links) */
+        void *priv; /* backend state (the modbus_t of Modbus links, a G-code session) */
+        void (*priv_free)(void *priv); /* frees priv in transport_free(); NULL: not owned */
         bool is_open, opened_once;
         bool open_failed; /* the last use failed to open the link: the cause names the port */
         struct transport_stats stats;

@@ -59,3 +59,13 @@ const char *raw_seen(void);
 
 /* Runs a program with args and returns its exit status, stderr into err (may be NULL). */
 int run_capture(char *const argv[], char *out, size_t outlen, char *err, size_t errlen);
+
+/* Tolerance of angles compared with what gonio-sim reports, degrees. */
+#define POSE_TOL_DEG 0.01
+
+/* Checks that every row of dataset name (under e->data) describes the frame gonio-sim
+ * rendered at its exposure timestamp (the render log at DIR/render.log): camera, angles of
+ * the roles in roles (bit r: the rig has an axis of role r; the others must be absent),
+ * lamps and laser, at the exposure's start and end. Exits the test on a mismatch (printing
+ * both poses). Returns the row count. */
+int64_t check_dataset_roles(struct rigenv *e, const char *name, unsigned roles);

@@ -13,8 +13,6 @@
 #include "harness.h"
 #include "tests/test.h"
 
-#define POSE_TOL_DEG 0.01
-
 static const char *rpc(char *buf, size_t len, int id, const char *method, const char *params)
 {
         snprintf(buf, len, "{\"jsonrpc\":\"2.0\",\"id\":%d,\"method\":\"%s\",\"params\":%s}\n", id,
@@ -63,106 +61,6 @@ static void check_refused_busy(json_t *reply, const char *why)
                         json_dumps(reply, JSON_COMPACT));
         CHECK_STR(err_errno(reply), "EBUSY");
         CHECK(strstr(err_message(reply), why));
-}
-
-/* The render-log line of the frame gonio-sim rendered at timestamp ns, or NULL. */
-static json_t *rendered(struct rigenv *e, uint64_t ns)
-{
-        char path[400], line[8192];
-        json_t *found = NULL;
-        FILE *f;
-
-        snprintf(path, sizeof(path), "%s/render.log", e->dir);
-        f = fopen(path, "re");
-        CHECK(f);
-        while (!found && fgets(line, sizeof(line), f)) {
-                json_t *j = json_loads(line, 0, NULL);
-                CHECK(j);
-                if ((uint64_t)json_integer_value(json_object_get(j, "timestamp_ns")) == ns)
-                        found = json_incref(j);
-                json_decref(j);
-        }
-        fclose(f);
-        return found;
-}
-
-/* The pose gonio-sim reports in a render-log state object (lamps in rig-file order). */
-static struct gn_pose sim_pose(json_t *st)
-{
-        struct gn_pose p = gn_pose_none();
-        json_t *v;
-        size_t i;
-
-        for (int r = 0; r < GN_ROLE_COUNT; r++)
-                if (json_is_number(json_object_get(st, gn_role_name(r))))
-                        p.deg[r] = json_number_value(json_object_get(st, gn_role_name(r)));
-        json_array_foreach(json_object_get(st, "lamps"), i, v) if (json_is_true(v)) p.lamps |=
-                UINT32_C(1) << i;
-        p.laser = json_is_true(json_object_get(st, "laser"));
-        return p;
-}
-
-static void print_pose(const char *what, const struct gn_pose *p)
-{
-        fprintf(stderr, "%s: turntable %g light_arm %g camera_arm %g lamps 0x%x laser %d\n", what,
-                p->deg[0], p->deg[1], p->deg[2], p->lamps, p->laser);
-}
-
-struct rows {
-        struct rigenv *e;
-        unsigned roles; /* bit r: the rig has an axis of role r */
-};
-
-/* Angles the rig has no axis for are rendered at 0 and must be absent from the row. */
-static bool same_pose(const struct gn_pose *row, struct gn_pose sim, unsigned roles)
-{
-        for (int r = 0; r < GN_ROLE_COUNT; r++)
-                if (!(roles & (1u << r)))
-                        sim.deg[r] = NAN;
-        return gn_pose_equal(row, &sim, POSE_TOL_DEG);
-}
-
-static int check_row(const struct ds_capture *c, void *userdata)
-{
-        struct rows *rows = userdata;
-        struct rigenv *e = rows->e;
-        json_t *r = rendered(e, c->t_exposure_ns);
-        struct gn_pose start, end;
-
-        if (!r)
-                fprintf(stderr, "row %lld (%s): no frame rendered at %llu\n", (long long)c->id,
-                        c->file, (unsigned long long)c->t_exposure_ns);
-        CHECK(r);
-        CHECK_STR(json_string_value(json_object_get(r, "camera")), c->camera);
-        start = sim_pose(json_object_get(r, "state"));
-        end = sim_pose(json_object_get(r, "state_end"));
-        if (!same_pose(&c->pose, start, rows->roles) || !same_pose(&c->pose, end, rows->roles)) {
-                fprintf(stderr, "row %lld (%s) does not describe its exposure\n", (long long)c->id,
-                        c->file);
-                print_pose("row", &c->pose);
-                print_pose("rendered (start)", &start);
-                print_pose("rendered (end)", &end);
-        }
-        CHECK(same_pose(&c->pose, start, rows->roles) && same_pose(&c->pose, end, rows->roles));
-        json_decref(r);
-        return 0;
-}
-
-/* Every row of dataset name matches what gonio-sim rendered, with an angle for every
- * role in roles (a bit set) and none for the others; returns the row count. */
-static int64_t check_dataset_roles(struct rigenv *e, const char *name, unsigned roles)
-{
-        struct rows rows = {e, roles};
-        char path[400];
-        struct ds *d = NULL;
-        int64_t n;
-
-        snprintf(path, sizeof(path), "%s/%s", e->data, name);
-        CHECK_INT(ds_open(path, &d), 0);
-        n = ds_count(d);
-        CHECK_INT(ds_rows(d, 0, -1, check_row, &rows), n);
-        ds_close(d);
-        return n;
 }
 
 /* check_dataset_roles for the default test rig: all three axes. */

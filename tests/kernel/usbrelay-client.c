@@ -2,17 +2,17 @@
  * (16c0:05df, product "USBRelayN"), as gonio's USB relay backend will talk to one: enumeration by
  * vid:pid, the relay count from the product string, the HID report descriptor, and HID feature
  * reports to switch relays and read them back (and the serial). Each switch is also checked in
- * the emulator's STATEFILE, so the result is seen by something other than the client.
+ * the emulator's STATEFILE, so the result is seen by something other than the client. Reports
+ * are encoded and decoded by the usbrelay backend's proto.c, the transfers are the client's own.
  *
  * Usage: kl-usbrelay-client [STATEFILE] (run kl-usbrelay-emu first). */
 #include <libusb.h>
 #include <time.h>
 
 #include "common/cleanup.h"
+#include "drivers/switch/usbrelay/proto.h"
 #include "tests/test.h"
 
-#define RELAY_VID  0x16c0
-#define RELAY_PID  0x05df
 #define TIMEOUT_MS 1000
 
 static const char *state_file;
@@ -25,7 +25,7 @@ static libusb_device_handle *open_board(libusb_context **ctx)
                 libusb_device_handle *h;
 
                 CHECK_INT(libusb_init(ctx), 0);
-                h = libusb_open_device_with_vid_pid(*ctx, RELAY_VID, RELAY_PID);
+                h = libusb_open_device_with_vid_pid(*ctx, USBRELAY_VID, USBRELAY_PID);
                 if (h)
                         return h;
                 libusb_exit(*ctx);
@@ -37,29 +37,30 @@ static libusb_device_handle *open_board(libusb_context **ctx)
 /* Reads the 8-byte feature report: serial in serial[6], returns the relay state bitmask. */
 static int get_report(libusb_device_handle *h, char serial[6])
 {
-        unsigned char r[8];
+        uint8_t r[USBRELAY_REPORT_LEN];
+        struct usbrelay_status st;
         int n = libusb_control_transfer(
                 h, LIBUSB_ENDPOINT_IN | LIBUSB_REQUEST_TYPE_CLASS | LIBUSB_RECIPIENT_INTERFACE,
-                0x01 /* GET_REPORT */, 0x0300, 0, r, sizeof(r), TIMEOUT_MS);
+                USBRELAY_GET_REPORT, USBRELAY_REPORT_WVALUE, 0, r, sizeof(r), TIMEOUT_MS);
 
-        CHECK_INT(n, 8);
-        memcpy(serial, r, 5);
-        serial[5] = '\0';
-        return r[7];
+        CHECK_INT(n, USBRELAY_REPORT_LEN);
+        CHECK_INT(usbrelay_decode(r, n, &st), 0);
+        memcpy(serial, st.serial, sizeof(st.serial));
+        return st.state;
 }
 
-static void set_report(libusb_device_handle *h, unsigned char cmd, const void *arg, size_t len)
+/* Sends command cmd with relay (ON/OFF) or the serial arg (SET_SERIAL). */
+static void set_report(libusb_device_handle *h, enum usbrelay_cmd cmd, int relay, const char *arg)
 {
-        unsigned char r[8] = {cmd};
+        uint8_t r[USBRELAY_REPORT_LEN];
 
-        if (len)
-                memcpy(r + 1, arg, len);
+        CHECK_INT(usbrelay_encode(r, cmd, relay, arg), 0);
         CHECK_INT(libusb_control_transfer(h,
                                           LIBUSB_ENDPOINT_OUT | LIBUSB_REQUEST_TYPE_CLASS |
                                                   LIBUSB_RECIPIENT_INTERFACE,
-                                          0x09 /* SET_REPORT */, 0x0300, 0, r, sizeof(r),
-                                          TIMEOUT_MS),
-                  8);
+                                          USBRELAY_SET_REPORT, USBRELAY_REPORT_WVALUE, 0, r,
+                                          sizeof(r), TIMEOUT_MS),
+                  USBRELAY_REPORT_LEN);
 }
 
 /* Checks the state both as the board reports it and as the emulator's outputs show it. */
@@ -82,18 +83,20 @@ static void switch_relays(libusb_device_handle *h, unsigned relays)
 
         expect_state(h, 0);
         for (unsigned i = 1; i <= relays; i++) {
-                set_report(h, 0xff, &(unsigned char){(unsigned char)i}, 1);
+                set_report(h, USBRELAY_CMD_ON, (int)i, NULL);
                 expect_state(h, (1 << i) - 1);
         }
-        set_report(h, 0xff, &(unsigned char){(unsigned char)(relays + 1)}, 1); /* ignored */
-        expect_state(h, all);
-        set_report(h, 0xfd, &(unsigned char){1}, 1);
+        if (relays < USBRELAY_RELAYS_MAX) {
+                set_report(h, USBRELAY_CMD_ON, (int)relays + 1, NULL); /* ignored */
+                expect_state(h, all);
+        }
+        set_report(h, USBRELAY_CMD_OFF, 1, NULL);
         expect_state(h, all & ~1);
-        set_report(h, 0xfc, NULL, 0);
+        set_report(h, USBRELAY_CMD_ALL_OFF, 0, NULL);
         expect_state(h, 0);
-        set_report(h, 0xfe, NULL, 0);
+        set_report(h, USBRELAY_CMD_ALL_ON, 0, NULL);
         expect_state(h, all);
-        set_report(h, 0xfc, NULL, 0);
+        set_report(h, USBRELAY_CMD_ALL_OFF, 0, NULL);
         expect_state(h, 0);
 }
 
@@ -105,9 +108,8 @@ static void check_identity(libusb_device_handle *h, unsigned *relays)
 
         CHECK_INT(libusb_get_device_descriptor(libusb_get_device(h), &dd), 0);
         CHECK(libusb_get_string_descriptor_ascii(h, dd.iProduct, product, sizeof(product)) > 0);
-        CHECK(strncmp((char *)product, "USBRelay", 8) == 0);
-        *relays = (unsigned)atoi((char *)product + 8);
-        CHECK(*relays >= 1 && *relays <= 8);
+        CHECK(usbrelay_parse_product((char *)product) > 0);
+        *relays = (unsigned)usbrelay_parse_product((char *)product);
         CHECK_INT(libusb_control_transfer(h, LIBUSB_ENDPOINT_IN | LIBUSB_RECIPIENT_INTERFACE,
                                           LIBUSB_REQUEST_GET_DESCRIPTOR, 0x2200, 0, desc,
                                           sizeof(desc), TIMEOUT_MS),
@@ -115,7 +117,7 @@ static void check_identity(libusb_device_handle *h, unsigned *relays)
         CHECK(desc[0] == 0x06 && desc[1] == 0x00 && desc[2] == 0xff); /* vendor usage page */
         get_report(h, serial);
         CHECK_INT(strlen(serial), 5);
-        set_report(h, 0xfa, "GONIO", 5);
+        set_report(h, USBRELAY_CMD_SET_SERIAL, 0, "GONIO");
         get_report(h, serial);
         CHECK_STR(serial, "GONIO");
         printf("%s: %u relays, serial %s\n", product, *relays, serial);
