@@ -214,6 +214,31 @@ static int negotiate(struct cam *c, struct cam_v4l2 *s)
         return 0;
 }
 
+/* Sets the map's frame rate (VIDIOC_S_PARM); refuses a rate the driver changes. */
+static int set_rate(struct cam *c, struct cam_v4l2 *s, double fps)
+{
+        struct v4l2_streamparm p = {.type = CAP_TYPE};
+        double got;
+        int r;
+
+        if (fps <= 0)
+                return 0;
+        if ((r = IOC(c, s, VIDIOC_G_PARM, &p)) < 0)
+                return r;
+        if (!(p.parm.capture.capability & V4L2_CAP_TIMEPERFRAME))
+                return cam_set_cause(c, -EOPNOTSUPP, "%s sets no frame rate (VIDIOC_S_PARM)",
+                                     s->path);
+        p.parm.capture.timeperframe = v4l2p_interval(fps);
+        if ((r = IOC(c, s, VIDIOC_S_PARM, &p)) < 0)
+                return r;
+        got = v4l2p_fps(&p.parm.capture.timeperframe);
+        if (fabs(got - fps) > fps * 0.005)
+                return cam_set_cause(c, -EINVAL,
+                                     "%s: VIDIOC_S_PARM: asked %g fps, the driver chose %g fps",
+                                     s->path, fps, got);
+        return 0;
+}
+
 /* The control id's range; !present when the device lacks it or has it disabled. */
 static struct v4l2_ctl query_ctl(struct cam_v4l2 *s, uint32_t id)
 {
@@ -428,7 +453,8 @@ static int dev_open(struct cam *c, struct cam_v4l2 *s)
         const struct cam_v4l2_conf *vc = c->conf->backend.conf;
         int r;
 
-        if ((r = open_node(c, s, vc)) >= 0 && (r = negotiate(c, s)) >= 0) {
+        if ((r = open_node(c, s, vc)) >= 0 && (r = negotiate(c, s)) >= 0 &&
+            (r = set_rate(c, s, vc->fps)) >= 0) {
                 learn_ranges(c, s);
                 if ((r = class_defaults(c, s)) >= 0 && (r = map_controls(c, s, vc)) >= 0 &&
                     (r = read_defaults(c, s)) >= 0)
