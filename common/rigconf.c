@@ -659,8 +659,8 @@ static int check_ports(struct yconf *yc, const struct rig_config *rc)
                         const struct rig_bus_conf *a = &rc->buses[i], *b = &rc->buses[j];
                         bool tcp = b->type == RIG_BUS_MODBUS_TCP;
 
-                        if ((a->type == RIG_BUS_MODBUS_TCP) != tcp)
-                                continue;
+                        if ((a->type == RIG_BUS_MODBUS_TCP) != tcp || b->type == RIG_BUS_LOCAL)
+                                continue; /* local buses have no port */
                         if (tcp && strcmp(a->host, b->host) == 0 && a->tcp_port == b->tcp_port)
                                 return yconf_error(yc, entry_key(yc, "buses", j, "tcp_port"),
                                                    "tcp_port", "buses '%s' and '%s' both use %s:%d",

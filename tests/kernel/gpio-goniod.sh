@@ -1,0 +1,67 @@
+#!/bin/sh
+# gpio-goniod.sh GONIOD GONIOCTL - kernel lane: goniod drives the gpio-stepper axis and a gpio
+# lamp on gpio-sim's chip "gonio-gpio" through gonioctl: homing that ends when the home switch
+# is made (its simulated pull written to gpio-sim's sysfs meanwhile), a move, a stop mid-move,
+# the lamp on and off; levels and positions checked in gpio-sim's sysfs and in goniod's replies.
+set -eu
+goniod=$1 gonioctl=$2
+dir=$(mktemp -d /tmp/gonio-gpio-goniod.XXXXXX)
+pid=
+cleanup() { [ -z "$pid" ] || kill "$pid" 2> /dev/null || true; rm -rf "$dir"; }
+trap cleanup EXIT
+fail() { echo "gpio-goniod: $*" >&2; exit 1; }
+
+# gpio-sim's sysfs attribute of a named line: /sys/bus/gpio/devices/gpiochipN/sim_gpioK/ATTR
+sim() { set -- $(gpiofind "$1") "$2"; echo "/sys/bus/gpio/devices/$1/sim_gpio$2/$3"; }
+echo pull-down > "$(sim home pull)"
+
+cat > "$dir/rig.yaml" << EOF
+rig: gpio-goniod
+buses:
+  - { name: io, type: local }
+axes:
+  - { name: arm, limits: [-90, 90], max_speed: 4, accel: 20,
+      gpio-stepper: { bus: io, chip: gonio-gpio, step: step, dir: dir, enable: enable,
+                      home: home, steps_per_deg: 10, home_speed: 3 } }
+lamps:
+  - { name: lamp0, elevation: 10, gpio: { bus: io, chip: gonio-gpio, line: lamp } }
+EOF
+"$goniod" --rig "$dir/rig.yaml" --socket "$dir/sock" --data "$dir/data" 2> "$dir/log" &
+pid=$!
+# gonioctl's stderr to a file: on the guest's console it would draw progress lines
+ctl() {
+        "$gonioctl" --socket "$dir/sock" --timeout 20 "$@" 2> "$dir/ctl.err" ||
+                { cat "$dir/ctl.err" >&2; return 1; }
+}
+i=0
+until ctl --quiet status 2> /dev/null; do
+        i=$((i + 1))
+        [ $i -lt 100 ] || { cat "$dir/log" >&2; fail "goniod did not come up"; }
+        sleep 0.1
+done
+
+# homing: the switch is made a second into it; goniod answers once the axis is homed
+(sleep 1; echo pull-up > "$(sim home pull)") &
+out=$(ctl home arm) || { cat "$dir/log" >&2; fail "home failed"; }
+echo "$out"
+echo "$out" | grep -Eq '^arm +0\.000' || fail "home: $out"
+echo pull-down > "$(sim home pull)"
+
+out=$(ctl move arm 3)
+echo "$out"
+echo "$out" | grep -Eq '^arm +3\.000' || fail "move: $out"
+[ "$(cat "$(sim dir value)")" = 1 ] || fail "dir line not high after a move up"
+
+ctl move arm 60 --no-wait
+sleep 1
+ctl stop
+sleep 0.5
+pos=$(ctl --json status | grep -o '"position": *[0-9.-]*' | head -1 | grep -o '[0-9.-]*$')
+echo "stopped at $pos deg"
+awk "BEGIN { exit !($pos > 3.5 && $pos < 20) }" || fail "stop: at $pos deg"
+
+ctl lamp lamp0 on
+[ "$(cat "$(sim lamp value)")" = 1 ] || fail "lamp on: line low"
+ctl lamp lamp0 off
+[ "$(cat "$(sim lamp value)")" = 0 ] || fail "lamp off: line high"
+echo "gpio-goniod: home, move, stop and lamp through goniod"
