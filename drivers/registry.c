@@ -8,7 +8,7 @@
 #include "drivers/axis/modbus/proto.h"
 #include "drivers/camera/libcamera/api.h"
 #include "drivers/camera/sim/api.h"
-#ifdef GN_HAVE_V4L2
+#ifdef GONIO_HAVE_V4L2
 #include "drivers/camera/v4l2/api.h"
 #endif
 #include "drivers/registry.h"
@@ -35,7 +35,7 @@ const struct rig_backend *const registry_backends[] = {
         &gpst_backend,
         &gpsw_backend,
 #endif
-#ifdef GN_HAVE_V4L2
+#ifdef GONIO_HAVE_V4L2 /* linux/videodev2.h found (-Dv4l2) */
         &cam_v4l2_backend,
 #endif
         NULL,

@@ -133,6 +133,18 @@ static void t_exposure(void)
         CHECK_INT(v4l2p_exposure_from_dev(v4l2p_exposure_to_dev(20000)), 20000);
 }
 
+/* Frame rates as VIDIOC_S_PARM's intervals and back. */
+static void t_fps(void)
+{
+        struct v4l2_fract f = v4l2p_interval(12.5);
+
+        CHECK_INT(f.numerator, 1000);
+        CHECK_INT(f.denominator, 12500);
+        CHECK_NEAR(v4l2p_fps(&f), 12.5, 1e-12);
+        CHECK_NEAR(v4l2p_fps(&(struct v4l2_fract){1, 30}), 30, 1e-12);
+        CHECK_NEAR(v4l2p_fps(&(struct v4l2_fract){0, 30}), 0, 0);
+}
+
 /* Monotonic buffer stamps to CLOCK_REALTIME at exposure start; other clocks unknown. */
 static void t_timestamp(void)
 {
@@ -193,7 +205,8 @@ static void t_conf(void)
         struct rig_config *rc = NULL;
         char err[512];
 
-        CHECK_INT(load("{ bus: cams, bus_info: 'usb-0000:00:14.0-1', format: UYVY, buffers: 6, "
+        CHECK_INT(load("{ bus: cams, bus_info: 'usb-0000:00:14.0-1', format: UYVY, fps: 12.5, "
+                       "buffers: 6, "
                        "skip: 3, "
                        "controls: { exposure_absolute: 250, brightness: -3, auto_exposure: 1 } }",
                        &rc, err, sizeof(err)),
@@ -201,6 +214,7 @@ static void t_conf(void)
         const struct cam_v4l2_conf *c = rc->cameras[0].backend.conf;
         CHECK_STR(c->bus_info, "usb-0000:00:14.0-1");
         CHECK_INT(c->fourcc, V4L2_PIX_FMT_UYVY);
+        CHECK_NEAR(c->fps, 12.5, 0);
         CHECK_INT(c->buffers, 6);
         CHECK_INT(c->skip, 3);
         CHECK_INT(c->n_ctrls, 3);
@@ -220,6 +234,7 @@ static void t_conf(void)
         expect_error("{ bus: cams, device: /dev/video0, format: MJPG }", "'MJPG' is not one of");
         expect_error("{ bus: cams, device: /dev/video0, buffers: 1 }", "key 'buffers'");
         expect_error("{ bus: cams, device: /dev/video0, skip: 31 }", "key 'skip'");
+        expect_error("{ bus: cams, device: /dev/video0, fps: 0 }", "key 'fps'");
         expect_error("{ bus: cams, device: /dev/video0, unit: 1 }", "key 'unit': unknown key");
         expect_error("{ bus: cams, device: /dev/video0, controls: { gain: high } }",
                      "key 'gain': 'high' is not an integer");
@@ -230,10 +245,10 @@ static void t_conf(void)
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
-                {"yuyv", t_yuyv},         {"convert", t_convert},
-                {"fourcc", t_fourcc},     {"ctrl-names", t_ctrl_names},
-                {"exposure", t_exposure}, {"timestamp", t_timestamp},
-                {"conf", t_conf},
+                {"yuyv", t_yuyv},           {"convert", t_convert},
+                {"fourcc", t_fourcc},       {"ctrl-names", t_ctrl_names},
+                {"exposure", t_exposure},   {"fps", t_fps},
+                {"timestamp", t_timestamp}, {"conf", t_conf},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);

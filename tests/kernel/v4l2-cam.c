@@ -36,7 +36,7 @@ static const char rig_yaml[] =
         "  - { name: cams1, type: local }\n"
         "cameras:\n"
         "  - name: cam0\n"
-        "    v4l2: { bus: cams0, bus_info: 'platform:vivid-000', format: YUYV, skip: 2 }\n"
+        "    v4l2: { bus: cams0, bus_info: 'platform:vivid-000', format: YUYV, skip: 2, fps: 25 }\n"
         "    elevation: 20\n"
         "    distance: 500\n"
         "    target: [0, 0, 0]\n"
@@ -46,7 +46,8 @@ static const char rig_yaml[] =
         "    fy: 500\n"
         "    gain: 40\n"
         "  - name: cam1\n"
-        "    v4l2: { bus: cams1, bus_info: 'platform:vivid-001', format: UYVY, buffers: 3,\n"
+        "    v4l2: { bus: cams1, bus_info: 'platform:vivid-001', format: UYVY, buffers: 3, fps: "
+        "30,\n"
         "            controls: { brightness: 200, gain_automatic: 0, timestamp_source: 1 } }\n"
         "    elevation: 20\n"
         "    distance: 500\n"
@@ -210,7 +211,23 @@ static void check_bars(const struct gn_frame *f)
                           bars[i][2], 6);
 }
 
-/* Open: the sizes and formats asked are granted; the option tables are vivid's ranges. */
+/* The frame rate set on the node, read by this program's own VIDIOC_G_PARM. */
+static double read_fps(const char *bus_info)
+{
+        char path[64];
+        struct v4l2_streamparm p = {.type = V4L2_BUF_TYPE_VIDEO_CAPTURE};
+
+        node_of(bus_info, path, sizeof(path));
+        _cleanup_close_ int fd = open(path, O_RDWR | O_NONBLOCK);
+        CHECK(fd >= 0);
+        CHECK_INT(ioctl(fd, VIDIOC_G_PARM, &p), 0);
+        CHECK(p.parm.capture.timeperframe.numerator > 0);
+        return (double)p.parm.capture.timeperframe.denominator /
+               p.parm.capture.timeperframe.numerator;
+}
+
+/* Open: the sizes, formats and rates asked are granted; the option tables are vivid's
+ * ranges. */
 static void t_negotiate(void)
 {
         struct job j[2] = {{.cam = F.cam[0], .op = J_OPEN}, {.cam = F.cam[1], .op = J_OPEN}};
@@ -220,6 +237,8 @@ static void t_negotiate(void)
         run_jobs(j, 2);
         CHECK_INT(j[0].r, 0);
         CHECK_INT(j[1].r, 0);
+        CHECK_NEAR(read_fps("platform:vivid-000"), 25, 1e-9);
+        CHECK_NEAR(read_fps("platform:vivid-001"), 30, 1e-9);
         const struct opt_desc *o = cam_opts(F.cam[0], &n);
         CHECK(opt_find(o, n, OPT_EXPOSURE) == NULL); /* vivid has no exposure control */
         CHECK_NEAR(opt_find(o, n, OPT_GAIN)->max, 255, 0);
@@ -307,7 +326,7 @@ static void t_timestamps(void)
 static void t_stream(void)
 {
         struct job j = {.cam = F.cam[1], .op = J_START, .req = {.gain = 7}};
-        uint64_t last_ts = 0, last_seq = 0;
+        uint64_t first_ts = 0, first_seq = 0, last_ts = 0, last_seq = 0;
         int got = 0, fd;
 
         CHECK_INT(cam_stream_fd(F.cam[1]), -ENOTCONN);
@@ -326,11 +345,17 @@ static void t_stream(void)
                 CHECK_INT(j.r, 0);
                 CHECK_NEAR(j.fr.gain, 7, 0);
                 CHECK(j.fr.timestamp_ns > last_ts && (got == 0 || j.fr.seq > last_seq));
+                if (got == 0) {
+                        first_ts = j.fr.timestamp_ns;
+                        first_seq = j.fr.seq;
+                }
                 last_ts = j.fr.timestamp_ns;
                 last_seq = j.fr.seq;
                 got++;
                 gn_frame_free_data(&j.fr);
         }
+        /* 30 fps: frames 33.3 ms apart (those of vivid are stamped by its own clock) */
+        CHECK_NEAR((double)(last_ts - first_ts) / (double)(last_seq - first_seq), 1e9 / 30, 1e6);
         j.op = J_STOP;
         run1(&j);
         CHECK_INT(cam_stream_fd(F.cam[1]), -ENOTCONN);
@@ -389,6 +414,11 @@ static int open_variant(void (*fn)(struct rig_camera_conf *, struct cam_v4l2_con
 static void odd_size(struct rig_camera_conf *cc, struct cam_v4l2_conf *vc)
 {
         cc->width = 123;
+}
+
+static void odd_rate(struct rig_camera_conf *cc, struct cam_v4l2_conf *vc)
+{
+        vc->fps = 7;
 }
 
 static void bad_name(struct rig_camera_conf *cc, struct cam_v4l2_conf *vc)
@@ -482,6 +512,8 @@ static void t_refusals(void)
 
         CHECK_INT(open_variant(odd_size, e, sizeof(e), NULL), -EINVAL);
         CHECK_STR_CONTAINS(e, "VIDIOC_S_FMT: asked 123x480 YUYV, the driver chose");
+        CHECK_INT(open_variant(odd_rate, e, sizeof(e), NULL), -EINVAL);
+        CHECK_STR_CONTAINS(e, "VIDIOC_S_PARM: asked 7 fps, the driver chose");
         CHECK_INT(open_variant(bad_name, e, sizeof(e), NULL), -ENOENT);
         CHECK_STR_CONTAINS(e, "has no control 'no_such_control'");
         CHECK_INT(open_variant(bad_value, e, sizeof(e), NULL), -ERANGE);

@@ -1,6 +1,7 @@
 /* v4l2-goniod.c - kernel lane end to end: goniod on a rig of two v4l2 cameras (vivid's two
  * nodes, one local bus each), driven by gonioctl as an operator would: a dataset created,
- * one capture storing a frame of each camera, one of cam1 alone at a requested gain; then
+ * describe listing each camera's own ranges (vivid's gain 0..255, no exposure control), one
+ * capture storing a frame of each camera, one of cam1 alone at a requested gain; then
  * the dataset read back: files match their rows (ds_verify), each row names its camera
  * with the size, format, gain and a timestamp within its gonioctl call, and the stored
  * images decode to vivid's colour bars. vivid stamps the start of each frame
@@ -12,6 +13,8 @@
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
+
+#include <jansson.h>
 
 #include "dataset/ds.h"
 #include "tests/test.h"
@@ -85,6 +88,45 @@ static pid_t start_goniod(const char *goniod)
         return -1;
 }
 
+/* gonioctl --json describe: the cameras' options are the devices' (vivid: gain 0..255, no
+ * exposure). */
+static void check_describe(void)
+{
+        char cmd[512], out[8192] = "";
+        json_error_t jerr;
+        size_t n, i;
+        json_t *dev;
+        FILE *p;
+
+        snprintf(cmd, sizeof(cmd), "%s --socket %s --json describe", gonioctl, sock);
+        p = popen(cmd, "r");
+        CHECK(p);
+        n = fread(out, 1, sizeof(out) - 1, p);
+        CHECK_INT(pclose(p), 0);
+        out[n] = '\0';
+        json_t *o = json_loads(out, 0, &jerr);
+        CHECK(o);
+        json_array_foreach(json_object_get(o, "devices"), i, dev)
+        {
+                json_t *opt;
+                size_t k;
+                bool gain = false;
+
+                CHECK_STR(json_string_value(json_object_get(dev, "backend")), "v4l2");
+                json_array_foreach(json_object_get(dev, "options"), k, opt)
+                {
+                        const char *name = json_string_value(json_object_get(opt, "name"));
+
+                        CHECK(strcmp(name, "exposure") != 0);
+                        if (strcmp(name, "gain") == 0)
+                                gain = json_real_value(json_object_get(opt, "max")) == 255;
+                }
+                CHECK(gain);
+        }
+        CHECK_INT(i, 2);
+        json_decref(o);
+}
+
 struct expect {
         int64_t t0[3], t1[3]; /* around the gonioctl call that stored row i + 1 */
         int rows;
@@ -144,6 +186,7 @@ int main(int argc, char **argv)
         CHECK(mkdir(data, 0755) == 0);
         pid = start_goniod(argv[1]);
 
+        check_describe();
         CHECK_INT(ctl("dataset create v"), 0);
         x.t0[0] = x.t0[1] = realtime_ns();
         CHECK_INT(ctl("capture"), 0);

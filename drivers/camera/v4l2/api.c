@@ -14,10 +14,10 @@
 #include <string.h>
 #include <sys/ioctl.h>
 #include <sys/mman.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "common/cleanup.h"
+#include "common/clock.h"
 #include "common/log.h"
 #include "drivers/camera/v4l2/api.h"
 #include "drivers/camera/v4l2/proto.h"
@@ -54,19 +54,11 @@ struct cam_v4l2 {
         struct opt_desc opts[3];
 };
 
-static int64_t clock_ns(clockid_t id)
-{
-        struct timespec t;
-
-        clock_gettime(id, &t);
-        return (int64_t)t.tv_sec * 1000000000 + t.tv_nsec;
-}
-
 /* CLOCK_REALTIME - CLOCK_MONOTONIC now, in ns (realtime read between two monotonic reads). */
 static int64_t mono_to_real_ns(void)
 {
-        int64_t m0 = clock_ns(CLOCK_MONOTONIC), r = clock_ns(CLOCK_REALTIME);
-        int64_t m1 = clock_ns(CLOCK_MONOTONIC);
+        int64_t m0 = (int64_t)gn_monotonic_ns(), r = (int64_t)gn_realtime_ns();
+        int64_t m1 = (int64_t)gn_monotonic_ns();
 
         return r - (m0 + m1) / 2;
 }
@@ -211,6 +203,31 @@ static int negotiate(struct cam *c, struct cam_v4l2 *s)
         s->height = c->conf->height;
         s->stride = f.fmt.pix.bytesperline ? f.fmt.pix.bytesperline
                                            : (size_t)s->width * (size_t)s->fmt->bytes_pp;
+        return 0;
+}
+
+/* Sets the map's frame rate (VIDIOC_S_PARM); refuses a rate the driver changes. */
+static int set_rate(struct cam *c, struct cam_v4l2 *s, double fps)
+{
+        struct v4l2_streamparm p = {.type = CAP_TYPE};
+        double got;
+        int r;
+
+        if (fps <= 0)
+                return 0;
+        if ((r = IOC(c, s, VIDIOC_G_PARM, &p)) < 0)
+                return r;
+        if (!(p.parm.capture.capability & V4L2_CAP_TIMEPERFRAME))
+                return cam_set_cause(c, -EOPNOTSUPP, "%s sets no frame rate (VIDIOC_S_PARM)",
+                                     s->path);
+        p.parm.capture.timeperframe = v4l2p_interval(fps);
+        if ((r = IOC(c, s, VIDIOC_S_PARM, &p)) < 0)
+                return r;
+        got = v4l2p_fps(&p.parm.capture.timeperframe);
+        if (fabs(got - fps) > fps * 0.005)
+                return cam_set_cause(c, -EINVAL,
+                                     "%s: VIDIOC_S_PARM: asked %g fps, the driver chose %g fps",
+                                     s->path, fps, got);
         return 0;
 }
 
@@ -428,7 +445,8 @@ static int dev_open(struct cam *c, struct cam_v4l2 *s)
         const struct cam_v4l2_conf *vc = c->conf->backend.conf;
         int r;
 
-        if ((r = open_node(c, s, vc)) >= 0 && (r = negotiate(c, s)) >= 0) {
+        if ((r = open_node(c, s, vc)) >= 0 && (r = negotiate(c, s)) >= 0 &&
+            (r = set_rate(c, s, vc->fps)) >= 0) {
                 learn_ranges(c, s);
                 if ((r = class_defaults(c, s)) >= 0 && (r = map_controls(c, s, vc)) >= 0 &&
                     (r = read_defaults(c, s)) >= 0)
@@ -474,7 +492,7 @@ static int apply_request(struct cam *c, struct cam_v4l2 *s, const struct cam_req
                             req->gain > 0 ? lround(req->gain) : s->def_gain, &g);
         s->exposure_us = v4l2p_exposure_from_dev(e);
         s->gain_applied = (double)g;
-        s->applied_ns = clock_ns(CLOCK_MONOTONIC);
+        s->applied_ns = (int64_t)gn_monotonic_ns();
         return r;
 }
 
@@ -538,7 +556,7 @@ static int take(struct cam *c, struct cam_v4l2 *s, struct gn_frame *out, bool fr
         else if (s->to_skip > 0 && s->to_skip-- > 0)
                 r = -EAGAIN; /* one of the first skip frames since the start */
         else
-                r = to_frame(c, s, &b, ts ? ts : (uint64_t)clock_ns(CLOCK_REALTIME), out);
+                r = to_frame(c, s, &b, ts ? ts : gn_realtime_ns(), out);
         q = IOC(c, s, VIDIOC_QBUF, &b);
         if (q < 0 && r >= 0)
                 gn_frame_free_data(out);
@@ -549,10 +567,10 @@ static int take(struct cam *c, struct cam_v4l2 *s, struct gn_frame *out, bool fr
 static int wait_frame(struct cam *c, struct cam_v4l2 *s, struct gn_frame *out)
 {
         int64_t ms = CAM_V4L2_TIMEOUT_MS + s->exposure_us / 1000;
-        int64_t deadline = clock_ns(CLOCK_MONOTONIC) + ms * 1000000;
+        int64_t deadline = (int64_t)gn_monotonic_ns() + ms * 1000000;
 
         for (;;) {
-                int64_t left = (deadline - clock_ns(CLOCK_MONOTONIC)) / 1000000;
+                int64_t left = (deadline - (int64_t)gn_monotonic_ns()) / 1000000;
                 struct pollfd p = {.fd = s->fd, .events = POLLIN};
                 int r = poll(&p, 1, left > 0 ? (int)left : 0);
 

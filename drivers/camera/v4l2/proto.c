@@ -6,6 +6,7 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <linux/videodev2.h>
+#include <math.h>
 #include <stdbool.h>
 #include <string.h>
 
@@ -138,6 +139,16 @@ const char *v4l2p_ctrl_canonical(const char *name)
         return name;
 }
 
+struct v4l2_fract v4l2p_interval(double fps)
+{
+        return (struct v4l2_fract){1000, (uint32_t)lround(fps * 1000)};
+}
+
+double v4l2p_fps(const struct v4l2_fract *interval)
+{
+        return interval->numerator ? (double)interval->denominator / interval->numerator : 0;
+}
+
 long v4l2p_exposure_to_dev(int us)
 {
         long v = (us + V4L2P_EXPOSURE_UNIT_US / 2) / V4L2P_EXPOSURE_UNIT_US;
@@ -210,7 +221,7 @@ int cam_v4l2_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_co
                         void *conf, struct rig_addr *addr)
 {
         static const char *const keys[] = {"bus",     "device",   "card", "bus_info", "format",
-                                           "buffers", "controls", "skip", NULL};
+                                           "buffers", "controls", "skip", "fps",      NULL};
         struct cam_v4l2_conf *c = conf;
         long buffers = V4L2P_BUFFERS_DEF, skip = 0;
         int r;
@@ -222,6 +233,7 @@ int cam_v4l2_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_co
             (r = yconf_int(yc, m, "buffers", 2, V4L2P_BUFFERS_MAX, &buffers)) < 0 ||
             (r = yconf_int(yc, m, "skip", 0, V4L2P_SKIP_MAX, &skip)) < 0 ||
             (r = parse_format(yc, m, c)) < 0 ||
+            (r = yconf_double(yc, m, "fps", 0.01, 1000, &c->fps)) < 0 ||
             (r = parse_ctrls(yc, yconf_get(m, "controls"), c)) < 0)
                 return r;
         if (!!c->device[0] + !!c->card[0] + !!c->bus_info[0] != 1)

@@ -7,6 +7,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <linux/videodev2.h>
 #include <sys/time.h>
 
 #include "common/frame.h"
@@ -24,13 +25,14 @@ struct v4l2p_ctrl {
         long value;
 };
 
-/* What the backend reads from "v4l2: { bus, device | card | bus_info, format, controls,
+/* What the backend reads from "v4l2: { bus, device | card | bus_info, format, fps, controls,
  * buffers, skip }": exactly one of device, card and bus_info names the node. */
 struct cam_v4l2_conf {
         char device[RIG_PATH_MAX]; /* "/dev/video0" */
         char card[32];             /* VIDIOC_QUERYCAP card, e.g. "HD Pro Webcam C920" */
         char bus_info[32];         /* VIDIOC_QUERYCAP bus_info, e.g. "usb-0000:00:14.0-1" */
         uint32_t fourcc;           /* 0: the first format the driver lists that we convert */
+        double fps;                /* frame rate to set; 0: the driver's */
         int buffers;               /* mmap buffers, 2..V4L2P_BUFFERS_MAX */
         int skip;                  /* frames dropped after each start, 0..V4L2P_SKIP_MAX */
         struct v4l2p_ctrl ctrls[V4L2P_CTRLS_MAX];
@@ -75,6 +77,11 @@ void v4l2p_ctrl_name(const char *kernel_name, char *out, size_t len);
 /* The current name of a control for an older spelling still in use
  * ("exposure_absolute" -> "exposure_time_absolute"); name itself otherwise. */
 const char *v4l2p_ctrl_canonical(const char *name);
+
+/* A frame rate as the frame interval VIDIOC_S_PARM takes (in ms: 1000 / (fps * 1000)), and
+ * an interval num/den back as a rate (0 for a zero numerator). */
+struct v4l2_fract v4l2p_interval(double fps);
+double v4l2p_fps(const struct v4l2_fract *interval);
 
 /* Exposure in us to V4L2_CID_EXPOSURE_ABSOLUTE's 100 us units (nearest, at least 1), and
  * back. */
