@@ -32,6 +32,7 @@ static void silent_board(struct rigenv *e)
 {
         json_t *st, *fault;
         const char *device;
+        char *text;
 
         json_decref(ctl_ok(e, "laser", "on", NULL));
         sim_request(e,
@@ -40,7 +41,9 @@ static void silent_board(struct rigenv *e)
         fault = json_object_get(st, "fault");
         device = json_string_value(json_object_get(fault, "device"));
         CHECK(device && (strcmp(device, "turntable") == 0 || strcmp(device, "laser_left") == 0));
-        CHECK_STR_CONTAINS(json_dumps(fault, JSON_COMPACT), "within 300 ms");
+        text = json_dumps(fault, JSON_COMPACT);
+        CHECK_STR_CONTAINS(text, "within 300 ms");
+        free(text);
         json_decref(st);
         CHECK(ctl(e, NULL, "fault", "clear", NULL) != 0);
         sim_request(e, "{\"cmd\":\"inject\",\"bus\":\"ciclop\",\"unit\":0,\"fault\":\"none\"}\n");
