@@ -16,6 +16,7 @@
 #pragma once
 
 #include <stdbool.h>
+#include <stdint.h>
 #include <stddef.h>
 
 #include "common/frame.h"
@@ -102,3 +103,8 @@ void cam_stream_stop(struct cam *c);
  * axis_set_cause()). Returns -abs(err). */
 int cam_set_cause(struct cam *c, int err, const char *fmt, ...)
         __attribute__((format(printf, 3, 4)));
+
+/* Converts one row of width pixels of packed 4:2:2 Y'CbCr (YUYV, or UYVY when uyvy) with
+ * BT.601 limited range (what UVC cameras send) to rgb8 (3 bytes a pixel). Pure; for the
+ * backends whose devices deliver it. */
+void cam_yuv422_row_to_rgb8(const uint8_t *src, uint8_t *rgb, int width, bool uyvy);

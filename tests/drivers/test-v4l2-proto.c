@@ -7,6 +7,7 @@
 #include <linux/videodev2.h>
 
 #include "common/cleanup.h"
+#include "drivers/camera/camera.h"
 #include "drivers/camera/v4l2/proto.h"
 #include "drivers/registry.h"
 #include "tests/test.h"
@@ -33,23 +34,23 @@ static void t_yuyv(void)
                 const uint8_t yuyv[4] = {y, u, y, v}, uyvy[4] = {u, y, v, y};
                 uint8_t out[6], out2[6];
 
-                v4l2p_yuyv_row_to_rgb(yuyv, out, 2, 0);
-                v4l2p_yuyv_row_to_rgb(uyvy, out2, 2, 1);
+                cam_yuv422_row_to_rgb8(yuyv, out, 2, 0);
+                cam_yuv422_row_to_rgb8(uyvy, out2, 2, 1);
                 check_px(out, rgb[i][0], rgb[i][1], rgb[i][2], 2);
                 check_px(out + 3, rgb[i][0], rgb[i][1], rgb[i][2], 2);
                 CHECK(memcmp(out, out2, 6) == 0);
         }
         /* nominal white and black, and clipping beyond them */
         uint8_t w[6], k[6];
-        v4l2p_yuyv_row_to_rgb((const uint8_t[]){235, 128, 255, 128}, w, 2, 0);
+        cam_yuv422_row_to_rgb8((const uint8_t[]){235, 128, 255, 128}, w, 2, 0);
         check_px(w, 255, 255, 255, 0);
         check_px(w + 3, 255, 255, 255, 0);
-        v4l2p_yuyv_row_to_rgb((const uint8_t[]){16, 128, 0, 128}, k, 2, 0);
+        cam_yuv422_row_to_rgb8((const uint8_t[]){16, 128, 0, 128}, k, 2, 0);
         check_px(k, 0, 0, 0, 0);
         check_px(k + 3, 0, 0, 0, 0);
         /* each pixel of a pair keeps its own luma; an odd width converts the last one */
         uint8_t three[9] = {0};
-        v4l2p_yuyv_row_to_rgb((const uint8_t[]){16, 128, 235, 128, 126, 128, 0, 128}, three, 3, 0);
+        cam_yuv422_row_to_rgb8((const uint8_t[]){16, 128, 235, 128, 126, 128, 0, 128}, three, 3, 0);
         check_px(three, 0, 0, 0, 0);
         check_px(three + 3, 255, 255, 255, 0);
         check_px(three + 6, 128, 128, 128, 1);

@@ -5,6 +5,7 @@
 
 #include "common/cleanup.h"
 #include "common/yconf.h"
+#include "drivers/camera/camera.h"
 #include "drivers/camera/libcamera/proto.h"
 
 int lcproto_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_config *rc, void *conf,
@@ -53,29 +54,9 @@ static void grey_row(const struct fmt *f, const uint8_t *src, uint8_t *dst, int 
         memcpy(dst, src, (size_t)width);
 }
 
-static uint8_t clamp8(int v)
-{
-        return v < 0 ? 0 : v > 255 ? 255 : (uint8_t)v;
-}
-
-/* BT.601 limited range (what UVC cameras send), in 8.8 fixed point. */
-static void yuv_to_rgb(int y, int u, int v, uint8_t *dst)
-{
-        int c = 298 * (y - 16), d = u - 128, e = v - 128;
-
-        dst[0] = clamp8((c + 409 * e + 128) >> 8);
-        dst[1] = clamp8((c - 100 * d - 208 * e + 128) >> 8);
-        dst[2] = clamp8((c + 516 * d + 128) >> 8);
-}
-
-/* Y0 U Y1 V: two pixels share U and V; an odd last pixel uses its pair's. */
 static void yuyv_row(const struct fmt *f, const uint8_t *src, uint8_t *dst, int width)
 {
-        for (int x = 0; x < width; x++, dst += 3) {
-                const uint8_t *pair = src + (x / 2) * 4;
-
-                yuv_to_rgb(pair[(x % 2) * 2], pair[1], pair[3], dst);
-        }
+        cam_yuv422_row_to_rgb8(src, dst, width, false);
 }
 
 static const struct fmt fmts[] = {

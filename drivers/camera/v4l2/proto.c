@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "common/cleanup.h"
+#include "drivers/camera/camera.h"
 #include "drivers/camera/v4l2/proto.h"
 
 static const struct v4l2p_format formats[] = {
@@ -48,38 +49,11 @@ const char *v4l2p_fourcc_str(uint32_t fourcc, char buf[static 5])
         return buf;
 }
 
-static uint8_t clip8(int v)
-{
-        return v < 0 ? 0 : v > 255 ? 255 : (uint8_t)v;
-}
-
-/* One pixel of BT.601 limited-range Y'CbCr to R'G'B' (integer form, 8 fractional bits). */
-static void yuv_to_rgb(int y, int u, int v, uint8_t *rgb)
-{
-        int c = 298 * (y - 16), d = u - 128, e = v - 128;
-
-        rgb[0] = clip8((c + 409 * e + 128) >> 8);
-        rgb[1] = clip8((c - 100 * d - 208 * e + 128) >> 8);
-        rgb[2] = clip8((c + 516 * d + 128) >> 8);
-}
-
-void v4l2p_yuyv_row_to_rgb(const uint8_t *src, uint8_t *rgb, int width, int uyvy)
-{
-        const int y0 = uyvy ? 1 : 0, u = uyvy ? 0 : 1, y1 = uyvy ? 3 : 2, v = uyvy ? 2 : 3;
-
-        for (int x = 0; x + 1 < width; x += 2, src += 4, rgb += 6) {
-                yuv_to_rgb(src[y0], src[u], src[v], rgb);
-                yuv_to_rgb(src[y1], src[u], src[v], rgb + 3);
-        }
-        if (width % 2)
-                yuv_to_rgb(src[y0], src[u], src[v], rgb);
-}
-
 /* One row of another format than YUYV/UYVY into the frame's row. */
 static void convert_row(const struct v4l2p_format *fmt, const uint8_t *src, uint8_t *dst, int width)
 {
         if (fmt->fourcc == V4L2_PIX_FMT_YUYV || fmt->fourcc == V4L2_PIX_FMT_UYVY) {
-                v4l2p_yuyv_row_to_rgb(src, dst, width, fmt->fourcc == V4L2_PIX_FMT_UYVY);
+                cam_yuv422_row_to_rgb8(src, dst, width, fmt->fourcc == V4L2_PIX_FMT_UYVY);
         } else if (fmt->fourcc == V4L2_PIX_FMT_Y16) {
                 uint16_t *d = (uint16_t *)dst; /* Y16 is little-endian; frames host order */
                 for (int x = 0; x < width; x++)

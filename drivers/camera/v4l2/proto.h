@@ -66,9 +66,6 @@ const char *v4l2p_fourcc_str(uint32_t fourcc, char buf[static 5]);
 int v4l2p_convert(const struct v4l2p_format *fmt, const uint8_t *src, size_t used, size_t stride,
                   struct gn_frame *out);
 
-/* YUYV (Y0 U Y1 V) / UYVY (U Y0 V Y1) pixel pairs of one row to RGB, BT.601 limited range. */
-void v4l2p_yuyv_row_to_rgb(const uint8_t *src, uint8_t *rgb, int width, int uyvy);
-
 /* The name v4l2-ctl gives a control: the kernel's name in lower case, each run of other
  * characters than letters and digits one '_', none at the ends ("Exposure Time, Absolute"
  * -> "exposure_time_absolute"). out gets at most len - 1 characters. */
