@@ -174,6 +174,26 @@ static int inject_modbus(struct sim_control *c, struct sim_req *rq, const char *
         return 0;
 }
 
+/* {"cmd": "unplug", "bus": NAME, "ms": N}: a Modbus RTU line pulled out and put back. */
+static int do_unplug(struct sim_control *c, struct sim_req *rq, json_t **reply)
+{
+        const char *bus = json_string_value(json_object_get(rq->req, "bus"));
+        long ms = 0;
+        int r = sim_req_int(rq, "ms", 1, 600000, &ms);
+
+        if (r < 0)
+                return r;
+        if (!bus || ms <= 0)
+                return sim_req_fail(rq, EINVAL, "unplug needs 'bus' and 'ms' (1..600000)");
+        r = sim_emu_unplug(c->emu, bus, (int)ms);
+        if (r == -ENOENT)
+                return sim_req_fail(rq, ENOENT, "no emulated Modbus RTU line '%s'", bus);
+        if (r < 0)
+                return sim_req_fail(rq, -r, "line '%s' is unplugged already", bus);
+        *reply = json_pack("{s:b}", "ok", 1);
+        return 0;
+}
+
 static int do_inject(struct sim_control *c, struct sim_req *rq, json_t **reply)
 {
         const char *fault = json_string_value(json_object_get(rq->req, "fault"));
@@ -196,6 +216,7 @@ int sim_control_handle(struct sim_control *c, struct sim_req *rq, const char *cm
                 {"state", do_state},
                 {"geometry", do_geometry},
                 {"inject", do_inject},
+                {"unplug", do_unplug},
         };
 
         *reply = NULL;

@@ -76,6 +76,7 @@ struct emu_bus {
         int listen_fd;      /* TCP */
         int tcp_port;
         int conns[EMU_MAX_CONNS];
+        atomic_int unplug_ms; /* > 0: the thread unplugs the line for that long */
         pthread_t thread;
         bool started;
 };
@@ -481,15 +482,40 @@ static void tcp_serve(struct emu_bus *b)
         }
 }
 
+/* The line is pulled out for ms: its pty and symlink go, then come back at the same path
+ * (a new pty, as a replugged adapter gets a new tty). The bus thread does it, so no request
+ * is being served meanwhile. */
+static void rtu_unplug(struct emu_bus *b, int ms)
+{
+        char who[RIG_NAME_MAX + 8];
+        uint64_t end = gn_monotonic_ns() + (uint64_t)ms * 1000000u;
+
+        log_info("bus '%s': unplugged for %d ms", b->conf->name, ms);
+        sim_pty_close(&b->pty);
+        while (gn_monotonic_ns() < end && !atomic_load(&b->emu->stop))
+                usleep(10 * 1000);
+        snprintf(who, sizeof who, "bus '%s'", b->conf->name);
+        if (sim_pty_open(&b->pty, b->conf->port, who) < 0)
+                log_error("bus '%s': cannot plug the line back in", b->conf->name);
+        else
+                log_info("bus '%s': plugged back in at %s", b->conf->name, b->pty.path);
+        atomic_store(&b->unplug_ms, 0);
+}
+
 static void *bus_thread(void *userdata)
 {
         struct emu_bus *b = userdata;
 
         while (!atomic_load(&b->emu->stop)) {
-                if (b->conf->type == RIG_BUS_MODBUS_TCP)
+                int ms = atomic_load(&b->unplug_ms);
+                if (ms > 0)
+                        rtu_unplug(b, ms);
+                else if (b->conf->type == RIG_BUS_MODBUS_TCP)
                         tcp_serve(b);
-                else
+                else if (b->pty.master >= 0)
                         rtu_serve(b);
+                else
+                        usleep(EMU_POLL_MS * 1000);
         }
         return NULL;
 }
@@ -759,6 +785,17 @@ int sim_emu_tcp_port(struct sim_emu *e, const char *bus)
 {
         const struct emu_bus *b = find_bus(e, bus);
         return b && b->conf->type == RIG_BUS_MODBUS_TCP ? b->tcp_port : -ENOENT;
+}
+
+int sim_emu_unplug(struct sim_emu *e, const char *bus, int ms)
+{
+        int bi = bus_index(e, bus), none = 0;
+
+        if (bi < 0 || e->buses[bi].conf->type != RIG_BUS_MODBUS_RTU)
+                return -ENOENT;
+        if (ms <= 0)
+                return -EINVAL;
+        return atomic_compare_exchange_strong(&e->buses[bi].unplug_ms, &none, ms) ? 0 : -EBUSY;
 }
 
 int sim_emu_inject(struct sim_emu *e, const char *bus, int unit, enum sim_fault fault)

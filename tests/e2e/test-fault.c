@@ -125,6 +125,29 @@ static int test_full_disk(struct rigenv *e)
         return 0;
 }
 
+/* The drives' RS-485 adapter is pulled out during a move and put back: goniod faults
+ * naming the line, stops nothing it cannot reach but marks the drives closed, refuses to
+ * clear while the port is gone, and reopens the new port once it is back. */
+static void test_unplug(struct rigenv *e)
+{
+        json_t *st;
+
+        json_decref(ctl_ok(e, "move", "--no-wait", "turntable", "170", NULL));
+        sim_request(e, "{\"cmd\":\"unplug\",\"bus\":\"drives\",\"ms\":1500}\n");
+        st = wait_state(e, "fault", 10);
+        CHECK(!json_is_true(
+                json_object_get(json_array_get(json_object_get(st, "axes"), 0), "open")));
+        json_decref(st);
+        CHECK(ctl(e, NULL, "fault", "clear", NULL) != 0); /* the port is still gone */
+        usleep(1600 * 1000);
+        json_decref(ctl_ok(e, "fault", "clear", NULL));
+        st = wait_state(e, "idle", 5);
+        CHECK(json_is_true(
+                json_object_get(json_array_get(json_object_get(st, "axes"), 0), "open")));
+        json_decref(st);
+        json_decref(ctl_ok(e, "move", "turntable", "20", NULL));
+}
+
 int main(int argc, char **argv)
 {
         struct rigenv e;
@@ -141,6 +164,7 @@ int main(int argc, char **argv)
         } else {
                 test_stall(&e);
                 test_relay_timeout(&e);
+                test_unplug(&e);
         }
         rigenv_stop(&e);
         return r;
