@@ -330,6 +330,25 @@ static int parse_backend(struct rig_config *rc, struct fy_node *m, enum rig_clas
         return 0;
 }
 
+/* A continuous axis's way round: "shortest" (default), "positive" or "negative" (a
+ * cable or a hose that must not wind up the other way). */
+static int read_direction(struct yconf *yc, struct fy_node *m, struct rig_axis_conf *a)
+{
+        char dir[16] = "shortest";
+        int r = yconf_str(yc, m, "direction", dir, sizeof(dir));
+
+        if (r < 0)
+                return r;
+        a->direction = strcmp(dir, "positive") == 0 ? 1 : strcmp(dir, "negative") == 0 ? -1 : 0;
+        if (a->direction == 0 && strcmp(dir, "shortest") != 0)
+                return yconf_error(yc, yconf_get(m, "direction"), "direction",
+                                   "'%s': shortest, positive or negative", dir);
+        if (yconf_get(m, "direction") && !a->continuous)
+                return yconf_error(yc, yconf_get(m, "direction"), "direction",
+                                   "only a continuous axis has a way round");
+        return 0;
+}
+
 /* The motion semantics keys of an axis (docs/rig-file.md, "Motion"). */
 static int read_motion(struct yconf *yc, struct fy_node *m, struct rig_axis_conf *a)
 {
@@ -340,6 +359,8 @@ static int read_motion(struct yconf *yc, struct fy_node *m, struct rig_axis_conf
             (r = read_int(yc, m, "move_retries", 0, 10, &a->move_retries)) < 0 ||
             (r = yconf_bool(yc, m, "absolute_encoder", &a->absolute_encoder)) < 0)
                 return r;
+        if ((r = read_direction(yc, m, a)) < 0)
+                return r;
         if (a->move_retries > 0 && a->deadband_deg <= 0)
                 return yconf_error(yc, yconf_get(m, "move_retries"), "move_retries",
                                    "retries need a deadband > 0 to aim for");
@@ -349,9 +370,9 @@ static int read_motion(struct yconf *yc, struct fy_node *m, struct rig_axis_conf
 static int parse_axis(struct rig_config *rc, struct fy_node *m, struct rig_axis_conf *a)
 {
         static const char *const keys[] = {
-                "name",         "continuous",       "limits", "max_speed", "accel",
-                "settle_ms",    "move_timeout_ms",  "role",   "backlash",  "deadband",
-                "move_retries", "absolute_encoder", NULL};
+                "name",         "continuous",       "limits",    "max_speed", "accel",
+                "settle_ms",    "move_timeout_ms",  "role",      "backlash",  "deadband",
+                "move_retries", "absolute_encoder", "direction", NULL};
         struct yconf *yc = &rc->yc;
         double lim[2] = {-180, 180};
         int r;

@@ -130,6 +130,7 @@ struct rig_axis_conf {
         double deadband_deg;   /* a move ends within this of its target; 0: in-position only */
         int move_retries;      /* extra moves to get within the deadband before "missed" */
         bool absolute_encoder; /* the position means something without homing */
+        int direction;         /* continuous axes: 0 the shortest way, +1 always up, -1 down */
 };
 
 enum rig_switch_kind { RIG_SWITCH_LAMP, RIG_SWITCH_LASER };

@@ -163,15 +163,25 @@ int axis_poll(struct axis *ax)
         return 0;
 }
 
-/* Signed travel from pos to target: the shortest way round on continuous axes. */
-static double travel(const struct rig_axis_conf *c, double pos, double target)
+double axis_travel(const struct rig_axis_conf *c, double pos, double target)
 {
-        return c->continuous ? remainder(target - pos, 360.0) : target - pos;
+        double d;
+
+        if (!c->continuous)
+                return target - pos;
+        d = remainder(target - pos, 360.0); /* [-180, 180] */
+        if (d <= -180.0)
+                d += 360.0;
+        if (c->direction > 0 && d < 0)
+                d += 360.0;
+        else if (c->direction < 0 && d > 0)
+                d -= 360.0;
+        return d;
 }
 
 double axis_takeup_target(const struct rig_axis_conf *c, double pos, double target)
 {
-        double d = travel(c, pos, target), t;
+        double d = axis_travel(c, pos, target), t;
 
         if (c->backlash_deg == 0 || (d > 0) == (c->backlash_deg > 0) || d == 0)
                 return target;
@@ -183,7 +193,7 @@ double axis_takeup_target(const struct rig_axis_conf *c, double pos, double targ
 
 bool axis_within_deadband(const struct rig_axis_conf *c, double pos, double target)
 {
-        return c->deadband_deg <= 0 || fabs(travel(c, pos, target)) <= c->deadband_deg;
+        return c->deadband_deg <= 0 || fabs(axis_travel(c, pos, target)) <= c->deadband_deg;
 }
 
 double axis_move_time(double delta_deg, double max_speed, double accel)

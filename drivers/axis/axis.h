@@ -84,6 +84,12 @@ int axis_log_full(struct axis *ax, int level, int err, const char *fmt, ...)
 int axis_set_cause(struct axis *ax, int err, const char *fmt, ...)
         __attribute__((format(printf, 3, 4)));
 
+/* The signed travel in degrees from pos to target, decided once for every backend: on a
+ * continuous axis the way round the rig file allows (the shortest, a tie going up, or
+ * always up or always down: direction), else target - pos. Backends add it to their own
+ * raw position. Pure. */
+double axis_travel(const struct rig_axis_conf *c, double pos, double target);
+
 /* Where to command a move from pos to target first, with the backlash of c: target when the
  * move already ends in the direction of the backlash (or there is none), else the point
  * backlash short of target, so the final approach always comes from the same side.

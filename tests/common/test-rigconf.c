@@ -139,6 +139,11 @@ static void case_errors(void)
                   "move_retries", "retries need a deadband > 0");
         expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b }, backlash: 45 }\n", 6, "backlash",
                   "");
+        expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b }, continuous: true,\n"
+                      "      direction: sideways }\n",
+                  7, "direction", "'sideways': shortest, positive or negative");
+        expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b }, direction: positive }\n", 6,
+                  "direction", "only a continuous axis");
         expect_at("rig: t\nbuses:\n  - { name: b, type: can }\n", 3, "type",
                   "'can' is not a bus type");
         expect_at(BUS "cameras:\n  - { name: c, sim: { bus: b } }\n", 6, "bus",
@@ -245,8 +250,8 @@ static void case_unknown_keys(void)
                 CHECK(covered((*b)->name)); /* every backend's map, new ones too */
         for (size_t i = 0; i < ELEMENTSOF(unknown_keys); i++)
                 if (!optional_and_absent(unknown_keys[i].kind))
-                        expect_at(unknown_keys[i].text, unknown_keys[i].line,
-                                  unknown_keys[i].key, "unknown key");
+                        expect_at(unknown_keys[i].text, unknown_keys[i].line, unknown_keys[i].key,
+                                  "unknown key");
         /* a list key given as a mapping is not silently ignored either */
         expect_at(BUS "axes:\n  - name: a\n    modbus: { bus: b }\n"
                       "    limits: { min: -9, max: 9 }\n",

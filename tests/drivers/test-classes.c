@@ -50,6 +50,28 @@ static void test_move_time(void)
         CHECK(isinf(axis_move_time(30, 0, 10)));
 }
 
+/* The travel of a move, decided once above the backends: the shortest way round (a tie
+ * going up) unless the rig file fixes the direction; a limited axis goes straight. */
+static void test_travel(void)
+{
+        struct rig_axis_conf c = {.continuous = true};
+
+        CHECK_NEAR(axis_travel(&c, 350, 10), 20, 1e-12); /* up across 360 */
+        CHECK_NEAR(axis_travel(&c, 10, 350), -20, 1e-12);
+        CHECK_NEAR(axis_travel(&c, 370, 5), -5, 1e-12);
+        CHECK_NEAR(axis_travel(&c, 0, 180), 180, 1e-12); /* a tie goes up */
+        CHECK_NEAR(axis_travel(&c, 180, 0), 180, 1e-12);
+        CHECK_NEAR(axis_travel(&c, 90, 90), 0, 1e-12);
+        c.direction = 1; /* only up */
+        CHECK_NEAR(axis_travel(&c, 10, 350), 340, 1e-12);
+        CHECK_NEAR(axis_travel(&c, 350, 10), 20, 1e-12);
+        c.direction = -1; /* only down */
+        CHECK_NEAR(axis_travel(&c, 350, 10), -340, 1e-12);
+        CHECK_NEAR(axis_travel(&c, 10, 350), -20, 1e-12);
+        c = (struct rig_axis_conf){.continuous = false, .min_deg = -170, .max_deg = 170};
+        CHECK_NEAR(axis_travel(&c, 160, -160), -320, 1e-12); /* no wrap on a limited axis */
+}
+
 static void test_registry(void)
 {
         const struct axis_ops *ax = registry_axis("modbus");
@@ -136,6 +158,7 @@ int main(void)
 {
         test_limits();
         test_move_time();
+        test_travel();
         test_registry();
         test_new_unknown();
         test_errno_map();

@@ -97,10 +97,6 @@ static void test_commands(void)
         CHECK_STR(buf, "M70 T1");
         CHECK_NEAR(gc_wrap(-10.0), 350.0, 1e-12);
         CHECK_NEAR(gc_wrap(720.0), 0.0, 0);
-        CHECK_NEAR(gc_shortest(90.0, 350.0), -10.0, 1e-12);
-        CHECK_NEAR(gc_shortest(370.0, 0.0), 360.0, 1e-12);
-        CHECK_NEAR(gc_shortest(0.0, 180.0), 180.0, 1e-12);
-        CHECK_NEAR(gc_shortest(0.0, -180.0), 180.0, 1e-12);
 }
 
 /* Loads text as a rig file; returns the result, the message in err. */

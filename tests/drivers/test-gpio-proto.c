@@ -81,17 +81,12 @@ static void test_steps(void)
         CHECK_NEAR(gpst_steps_to_deg(100, -100, false), -1.0, 1e-12);
         CHECK_NEAR(gpst_steps_to_deg(100, -100, true), 359.0, 1e-9);
         CHECK_NEAR(gpst_steps_to_deg(100, 72000 + 50, true), 0.5, 1e-9);
-        /* from 359 deg to 1 deg: 2 deg up, across the wrap; from 1 to 359: 2 down */
-        CHECK_INT(gpst_target_steps(100, 35900, 1.0, true, &s), 0);
+        /* a travel the axis class chose, from the step counter: across the wrap and back */
+        CHECK_INT(gpst_travel_steps(100, 35900, 2.0, &s), 0);
         CHECK_INT(s, 36100);
-        CHECK_INT(gpst_target_steps(100, 100, 359.0, true, &s), 0);
+        CHECK_INT(gpst_travel_steps(100, 100, -2.0, &s), 0);
         CHECK_INT(s, -100);
-        CHECK_INT(gpst_target_steps(100, 100, 359.0, false, &s), 0);
-        CHECK_INT(s, 35900);
-        CHECK_INT(gpst_target_steps(100, 0, 180.0, true, &s), 0); /* (-180, 180]: up */
-        CHECK_INT(s, 18000);
-        CHECK_INT(gpst_target_steps(100, 18000, 0.0, true, &s), 0); /* half a turn: up too */
-        CHECK_INT(s, 36000);
+        CHECK_INT(gpst_travel_steps(100, 0, 1e18, &s), -ERANGE);
 }
 
 /* Parses text (one map) with parse; returns its result, the error in err. */

@@ -121,8 +121,8 @@ static int gcax_home(struct axis *ax)
         return r;
 }
 
-/* The target in the controller's linear coordinate: the shortest way round for a
- * continuous axis, from where it is. */
+/* The target in the controller's linear coordinate: for a continuous axis, where it is
+ * plus the travel the axis class chose. */
 static int target_of(struct axis *ax, double deg, double *ret)
 {
         struct gc_status st;
@@ -133,7 +133,8 @@ static int target_of(struct axis *ax, double deg, double *ret)
                 return 0;
         r = link_result(ax, gclink_status(priv(ax)->link, &st));
         if (r >= 0)
-                *ret = gc_shortest(st.mpos[priv(ax)->conf->axis], deg);
+                *ret = st.mpos[priv(ax)->conf->axis] +
+                       axis_travel(ax->conf, st.mpos[priv(ax)->conf->axis], deg);
         return r;
 }
 

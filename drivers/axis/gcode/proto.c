@@ -151,15 +151,6 @@ double gc_wrap(double deg)
         return w >= 360.0 ? 0.0 : w;
 }
 
-double gc_shortest(double cur, double target_deg)
-{
-        double delta = remainder(target_deg - cur, 360.0);
-
-        if (delta <= -180.0)
-                delta += 360.0;
-        return cur + delta;
-}
-
 int gcax_parse_conf(struct yconf *yc, struct fy_node *m, const struct rig_config *rc, void *conf,
                     struct rig_addr *addr)
 {

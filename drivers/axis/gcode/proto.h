@@ -100,7 +100,3 @@ int gc_format_move(char *buf, size_t len, int axis, double deg, double feed_deg_
 
 /* deg modulo 360 into [0, 360). */
 double gc_wrap(double deg);
-
-/* The target, in the controller's linear coordinate, that reaches target_deg (taken modulo
- * 360) from cur the shortest way round: a move of (-180, +180] degrees. */
-double gc_shortest(double cur, double target_deg);

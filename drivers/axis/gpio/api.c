@@ -243,7 +243,11 @@ static int gpst_move_abs(struct axis *ax, double deg)
         pthread_mutex_lock(&g->lock);
         cur = g->pos;
         pthread_mutex_unlock(&g->lock);
-        r = gpst_target_steps(g->conf->steps_per_deg, cur, deg, ax->conf->continuous, &target);
+        r = ax->conf->continuous
+                    ? gpst_travel_steps(g->conf->steps_per_deg, cur,
+                                        axis_travel(ax->conf, cur / g->conf->steps_per_deg, deg),
+                                        &target)
+                    : gpst_deg_to_steps(g->conf->steps_per_deg, deg, &target);
         if (r < 0)
                 return axis_set_cause(ax, r, "%.3f deg is beyond the step counter", deg);
         return start(ax, (target > cur) - (target < cur), (long)llabs(target - cur),

@@ -152,20 +152,11 @@ double gpst_steps_to_deg(double steps_per_deg, int64_t steps, bool continuous)
         return deg >= 360.0 ? 0.0 : deg;
 }
 
-int gpst_target_steps(double steps_per_deg, int64_t cur, double deg, bool continuous, int64_t *ret)
+int gpst_travel_steps(double steps_per_deg, int64_t cur, double delta_deg, int64_t *ret)
 {
-        double delta;
         int64_t d;
-        int r;
+        int r = gpst_deg_to_steps(steps_per_deg, delta_deg, &d);
 
-        if (!continuous)
-                return gpst_deg_to_steps(steps_per_deg, deg, ret);
-        if (!isfinite(deg))
-                return -ERANGE;
-        delta = remainder(deg - (double)cur / steps_per_deg, 360.0);
-        if (delta <= -180.0)
-                delta += 360.0;
-        r = gpst_deg_to_steps(steps_per_deg, delta, &d);
         if (r < 0)
                 return r;
         *ret = cur + d;

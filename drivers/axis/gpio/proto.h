@@ -78,6 +78,6 @@ int gpst_deg_to_steps(double steps_per_deg, double deg, int64_t *ret);
 /* Steps to degrees; modulo 360 into [0, 360) when continuous. */
 double gpst_steps_to_deg(double steps_per_deg, int64_t steps, bool continuous);
 
-/* The step count that reaches deg from cur: the shortest way round (a move of (-180, 180]
- * degrees) when continuous, else deg itself. Returns 0 or -ERANGE. */
-int gpst_target_steps(double steps_per_deg, int64_t cur, double deg, bool continuous, int64_t *ret);
+/* The step target delta_deg away from the step counter cur (continuous axes: the travel
+ * the axis class chose). Returns 0 or -ERANGE beyond the counter. */
+int gpst_travel_steps(double steps_per_deg, int64_t cur, double delta_deg, int64_t *ret);

@@ -156,7 +156,7 @@ static int mbax_move_abs(struct axis *ax, double deg)
                 r = read_position(ax, &cur);
                 if (r < 0)
                         return r;
-                r = mbax_shortest_target(p, cur, deg, &target);
+                r = mbax_count_target(p, cur, axis_travel(ax->conf, cur / p->scale, deg), &target);
         } else
                 r = mbax_deg_to_counts(p, deg, &target);
         if (r < 0)

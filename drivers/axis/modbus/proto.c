@@ -50,17 +50,12 @@ double mbax_counts_to_deg(const struct rig_modbus_profile *p, int32_t counts, bo
         return deg >= 360.0 ? 0.0 : deg; /* -tiny + 360 rounds to 360 */
 }
 
-int mbax_shortest_target(const struct rig_modbus_profile *p, int32_t cur, double target_deg,
-                         int32_t *ret)
+int mbax_count_target(const struct rig_modbus_profile *p, int32_t cur, double delta_deg,
+                      int32_t *ret)
 {
-        double delta;
-
-        if (!(p->scale > 0) || !isfinite(target_deg))
+        if (!(p->scale > 0) || !isfinite(delta_deg))
                 return -ERANGE;
-        delta = remainder(target_deg - (double)cur / p->scale, 360.0); /* [-180, 180] */
-        if (delta <= -180.0)
-                delta += 360.0;
-        return to_i32((double)cur + delta * p->scale, ret);
+        return to_i32((double)cur + delta_deg * p->scale, ret);
 }
 
 uint16_t mbax_rate_reg(double value)

@@ -58,10 +58,10 @@ int mbax_deg_to_counts(const struct rig_modbus_profile *p, double deg, int32_t *
 /* Position counts to degrees; modulo 360 into [0, 360) when continuous. */
 double mbax_counts_to_deg(const struct rig_modbus_profile *p, int32_t counts, bool continuous);
 
-/* The target in counts that reaches target_deg (any value, taken modulo 360) from cur
- * counts the shortest way round: a move of (-180, +180] degrees. Returns 0 or -ERANGE. */
-int mbax_shortest_target(const struct rig_modbus_profile *p, int32_t cur, double target_deg,
-                         int32_t *ret);
+/* The count target delta_deg away from the raw count cur (continuous axes: the travel the
+ * axis class chose). Returns 0 or -ERANGE beyond the int32 counter. */
+int mbax_count_target(const struct rig_modbus_profile *p, int32_t cur, double delta_deg,
+                      int32_t *ret);
 
 /* Encodes a speed or acceleration (deg/s, deg/s^2) as the uint16 register in units of
  * 0.1, clamped to 1..65535. */
