@@ -25,11 +25,8 @@
 #define RATELIMIT_INTERVAL_NS (5 * 1000000000ULL)
 
 static const struct transport_ops *const transports[] = {
-        &transport_modbus_rtu_ops,
-        &transport_modbus_tcp_ops,
-        &transport_sim_ops,
-        &transport_serial_ops,
-        &transport_local_ops,
+        &transport_modbus_rtu_ops, &transport_modbus_tcp_ops, &transport_sim_ops,
+        &transport_serial_ops,     &transport_local_ops,
 };
 
 int transport_new(const struct rig_bus_conf *conf, struct transport **ret)
