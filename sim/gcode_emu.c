@@ -77,6 +77,7 @@ struct ge_bus {
         struct sim_pty pty;
         pthread_t thread;
         bool started;
+        atomic_int unplug_ms; /* > 0: the thread unplugs the board for that long */
         pthread_mutex_t lock; /* guards everything below */
         struct ge_axis axes[GC_N_AXES];
         bool laser[GCSW_TOOL_MAX];
@@ -667,6 +668,51 @@ static void write_out(struct ge_bus *b, const char *p, size_t n)
         }
 }
 
+/* The board loses power: the drives stop where they are, the firmware forgets everything,
+ * its position counter starts again at 0 there (a Horus board has no reference; GRBL wants
+ * homing again: alarm), the lasers go off. Lock held. */
+static void power_cycle(struct ge_bus *b, double now)
+{
+        for (int i = 0; i < GC_N_AXES; i++)
+                if (b->axes[i].conf) {
+                        sim_drive_stop(&b->axes[i].drive, now);
+                        sim_drive_set_origin(&b->axes[i].drive, now);
+                }
+        memset(b->laser, 0, sizeof(b->laser));
+        b->alarm = is_grbl(b);
+        b->hold = b->homing = b->running = b->overflow = false;
+        b->comment = COMMENT_NONE;
+        b->owed = b->n_plan = b->wco_count = b->ovr_count = 0;
+        b->n_raw = b->n_line = b->n_out = 0;
+        b->feed = 0;
+        b->linear = false;
+}
+
+/* The USB cable is pulled for ms: the pty and its symlink go, the board powers down; then
+ * a new pty appears at the same path and the board boots and greets. */
+static void unplug(struct ge_bus *b, int ms)
+{
+        uint64_t end = gn_monotonic_ns() + (uint64_t)ms * 1000000u;
+
+        log_info("G-code bus '%s': unplugged for %d ms", b->conf->name, ms);
+        pthread_mutex_lock(&b->lock);
+        power_cycle(b, ge_now(b->g));
+        pthread_mutex_unlock(&b->lock);
+        sim_pty_close(&b->pty);
+        while (gn_monotonic_ns() < end && !atomic_load(&b->g->stop))
+                usleep(10 * 1000);
+        if (sim_pty_open(&b->pty, b->conf->port, b->conf->name) < 0) {
+                log_error("G-code bus '%s': cannot plug the board back in", b->conf->name);
+        } else {
+                pthread_mutex_lock(&b->lock);
+                greet(b);
+                write_out(b, b->out, b->n_out);
+                b->n_out = 0;
+                pthread_mutex_unlock(&b->lock);
+        }
+        atomic_store(&b->unplug_ms, 0);
+}
+
 static void *bus_thread(void *userdata)
 {
         struct ge_bus *b = userdata;
@@ -674,6 +720,11 @@ static void *bus_thread(void *userdata)
         bool late;
 
         while (buf && !atomic_load(&b->g->stop)) {
+                int ms = atomic_load(&b->unplug_ms);
+                if (ms > 0) {
+                        unplug(b, ms);
+                        continue;
+                }
                 struct pollfd pf = {.fd = b->pty.master, .events = POLLIN};
                 unsigned char in[256];
                 ssize_t n = 0;
@@ -852,6 +903,18 @@ const char *sim_gcode_pty(struct sim_gcode *g, const char *bus)
         struct ge_bus *b = find_bus(g, bus);
 
         return b ? b->pty.path : NULL;
+}
+
+int sim_gcode_unplug(struct sim_gcode *g, const char *bus, int ms)
+{
+        struct ge_bus *b = find_bus(g, bus);
+        int none = 0;
+
+        if (!b)
+                return -ENOENT;
+        if (ms <= 0)
+                return -EINVAL;
+        return atomic_compare_exchange_strong(&b->unplug_ms, &none, ms) ? 0 : -EBUSY;
 }
 
 int sim_gcode_inject(struct sim_gcode *g, const char *bus, enum sim_fault fault)

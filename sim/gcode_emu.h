@@ -43,3 +43,8 @@ const char *sim_gcode_pty(struct sim_gcode *g, const char *bus);
  * Returns 0, -ENOENT for no G-code bus of that name, -EINVAL for another fault (open-loop
  * steppers cannot stall for the controller). Any thread. */
 int sim_gcode_inject(struct sim_gcode *g, const char *bus, enum sim_fault fault);
+
+/* Unplugs the board on bus for ms milliseconds: its pty and symlink go, the board powers
+ * down (drives stop, position counter restarts at 0 where they are, lasers off, GRBL in
+ * alarm), then a new pty appears and the board greets. 0, -ENOENT, -EBUSY (unplugged). */
+int sim_gcode_unplug(struct sim_gcode *g, const char *bus, int ms);

@@ -791,6 +791,8 @@ int sim_emu_unplug(struct sim_emu *e, const char *bus, int ms)
 {
         int bi = bus_index(e, bus), none = 0;
 
+        if (e->gcode && sim_gcode_pty(e->gcode, bus))
+                return sim_gcode_unplug(e->gcode, bus, ms);
         if (bi < 0 || e->buses[bi].conf->type != RIG_BUS_MODBUS_RTU)
                 return -ENOENT;
         if (ms <= 0)

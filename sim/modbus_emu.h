@@ -49,10 +49,10 @@ const char *sim_emu_pty(struct sim_emu *e, const char *bus);
 /* The TCP port of bus name (TCP), or -ENOENT. */
 int sim_emu_tcp_port(struct sim_emu *e, const char *bus);
 
-/* Unplugs the Modbus RTU line bus for ms milliseconds, as a USB-RS485 adapter pulled out and
- * put back: its pty closes (a client holding it sees a hangup) and its symlink goes away,
- * then a new pty appears at the same path. Returns 0, -ENOENT for no such RTU bus, -EBUSY
- * while it is unplugged. Any thread. */
+/* Unplugs the Modbus RTU line (or the G-code board, sim_gcode_unplug) bus for ms milliseconds, as a
+ * USB-RS485 adapter pulled out and put back: its pty closes (a client holding it sees a hangup) and
+ * its symlink goes away, then a new pty appears at the same path. Returns 0, -ENOENT for no such
+ * RTU bus, -EBUSY while it is unplugged. Any thread. */
 int sim_emu_unplug(struct sim_emu *e, const char *bus, int ms);
 
 /* Injects a fault into the device at (bus, unit); SIM_FAULT_NONE clears it (a latched

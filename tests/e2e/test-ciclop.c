@@ -6,6 +6,7 @@
  * that stops answering is a fault goniod clears once it answers again. */
 #include <stdio.h>
 #include <stdlib.h>
+#include <unistd.h>
 #include <string.h>
 
 #include "common/fileio.h"
@@ -54,6 +55,26 @@ static void silent_board(struct rigenv *e)
         json_decref(st);
 }
 
+/* The board's USB cable is pulled and put back: the board reboots and forgets its zero.
+ * goniod faults, clears once the port is back, and then knows no turntable angle: rows
+ * stored before homing again have none (never the stale one). */
+static void unplugged_board(struct rigenv *e)
+{
+        json_t *st;
+
+        sim_request(e, "{\"cmd\":\"unplug\",\"bus\":\"ciclop\",\"ms\":1500}\n");
+        json_decref(wait_state(e, "fault", 10));
+        usleep(1700 * 1000);
+        json_decref(ctl_ok(e, "fault", "clear", NULL));
+        st = ctl_ok(e, "status", NULL);
+        CHECK(!json_is_true(
+                json_object_get(json_array_get(json_object_get(st, "axes"), 0), "homed")));
+        json_decref(st);
+        json_decref(ctl_ok(e, "dataset", "create", "after", NULL));
+        json_decref(ctl_ok(e, "capture", NULL));
+        CHECK_INT(check_dataset_roles(e, "after", 0), 1); /* no angle */
+}
+
 static char *read_rig(const char *path)
 {
         FILE *f = fopen(path, "re");
@@ -93,6 +114,7 @@ int main(int argc, char **argv)
         CHECK_NEAR(sim_turntable(&e), 45.0, STEP_TOL_DEG);
         json_decref(ctl_ok(&e, "capture", NULL));
         CHECK_INT(check_dataset_roles(&e, "scan", 1u << GN_ROLE_TURNTABLE), 4);
+        unplugged_board(&e);
         rigenv_stop(&e);
         free(rig);
         return 0;
