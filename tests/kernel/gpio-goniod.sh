@@ -7,7 +7,11 @@ set -eu
 goniod=$1 gonioctl=$2
 dir=$(mktemp -d /tmp/gonio-gpio-goniod.XXXXXX)
 pid=
-cleanup() { [ -z "$pid" ] || kill "$pid" 2> /dev/null || true; rm -rf "$dir"; }
+# goniod is stopped and waited for before its files go (it closes its dataset on the way out)
+cleanup() {
+        [ -z "$pid" ] || { kill "$pid" 2> /dev/null || true; wait "$pid" 2> /dev/null || true; }
+        rm -rf "$dir" || true
+}
 trap cleanup EXIT
 fail() { echo "gpio-goniod: $*" >&2; exit 1; }
 

@@ -9,7 +9,13 @@ set -eu
 sim=$1 goniod=$2 gonioctl=$3 emu=$4 rig=$5
 dir=$(mktemp -d /tmp/gonio-lab.XXXXXX)
 pids=
-cleanup() { for p in $pids; do kill "$p" 2> /dev/null || true; done; rm -rf "$dir"; }
+# goniod and gonio-sim are stopped and waited for before their files go (goniod closes its
+# dataset on the way out)
+cleanup() {
+        for p in $pids; do kill "$p" 2> /dev/null || true; done
+        for p in $pids; do wait "$p" 2> /dev/null || true; done
+        rm -rf "$dir" || true
+}
 trap cleanup EXIT
 fail() { echo "lab-goniod: $*" >&2; cat "$dir/log" >&2 2> /dev/null || true; exit 1; }
 ctl() {
