@@ -35,7 +35,6 @@ struct capture {
         char ds_name[DS_NAME_MAX];
         int64_t ds_count;
         struct take *exposing; /* takes whose exposure has not come back */
-        unsigned storing;      /* takes waiting for stores */
         capture_stored_fn stored;
         void *stored_ud;
 };
@@ -78,7 +77,7 @@ struct capture *capture_free(struct capture *cp)
 
 unsigned capture_in_flight(const struct capture *cp)
 {
-        return cp->storing + (cp->exposing != NULL) + (cp->pool ? ds_pool_in_flight(cp->pool) : 0);
+        return (cp->exposing != NULL) + ds_pool_in_flight(cp->pool); /* stores: the pool's */
 }
 
 struct ds *capture_detach(struct capture *cp)
@@ -129,7 +128,6 @@ static void take_part_done(struct take *t)
 
         if (--t->pending > 0)
                 return;
-        cp->storing--;
         t->done(cp, &t->res, t->ud);
         free(t);
 }
@@ -221,7 +219,6 @@ static void on_exposed(struct rig *rig, struct rig_exposure *e, void *userdata)
 
         unlink_exposing(cp, t);
         t->pending = 1; /* held until every shot is handed over */
-        cp->storing++;
         for (size_t i = 0; i < e->n_shots; i++)
                 store_shot(t, e, i);
         take_part_done(t);
