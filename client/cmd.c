@@ -12,6 +12,7 @@
 #include "client/cmd.h"
 #include "client/conn.h"
 #include "client/output.h"
+#include "client/session.h"
 #include "common/cleanup.h"
 #include "protocol/proto.h"
 
@@ -41,6 +42,7 @@ struct cmd {
         const char *done;   /* human output when print is NULL */
         bool watch;
         bool stops; /* waits for motion: an interrupted wait stops the rig (not --no-wait) */
+        bool follows; /* follows the session its result describes until it ends or pauses */
         json_t *(*local)(void); /* runs here, without goniod: its result is printed */
 };
 
@@ -154,6 +156,18 @@ static int p_dataset(const struct cmd *c, const struct args *a, char **argv, int
         return 0;
 }
 
+static int p_session_file(const struct cmd *c, const struct args *a, char **argv, int argc,
+                          json_t **ret)
+{
+        return csession_file_params(argv[0], *ret);
+}
+
+static int p_session_resume(const struct cmd *c, const struct args *a, char **argv, int argc,
+                            json_t **ret)
+{
+        return argc > 0 ? set(*ret, "dataset", json_string(argv[0])) : 0;
+}
+
 static int p_call(const struct cmd *c, const struct args *a, char **argv, int argc, json_t **ret)
 {
         json_error_t jerr;
@@ -209,6 +223,20 @@ static const struct cmd commands[] = {
          NULL, NULL, "dataset closed"},
         {"fault", "clear", "", "clear a latched fault", "fault.clear", 0, 0, 0, TIMEOUT_S, NULL,
          NULL, "fault cleared"},
+        {"session", "plan", "FILE", "what a session file will do and how long it takes",
+         "session.plan", 1, 1, 0, TIMEOUT_S, p_session_file, out_print_session_plan},
+        {"session", "run", "FILE", "run a session file (Ctrl-C pauses it)", "session.run", 1, 1, 0,
+         TIMEOUT_LONG_S, p_session_file, NULL, .follows = true},
+        {"session", "resume", "[DATASET]", "resume the paused or interrupted session",
+         "session.resume", 0, 1, 0, TIMEOUT_LONG_S, p_session_resume, NULL, .follows = true},
+        {"session", "pause", "", "pause the session at the next capture", "session.pause", 0, 0,
+         0, TIMEOUT_S, NULL, out_print_session_status},
+        {"session", "abort", "", "end the session now", "session.abort", 0, 0, 0, TIMEOUT_S, NULL,
+         out_print_session_status},
+        {"session", "status", "", "the session's state and progress", "session.status", 0, 0, 0,
+         TIMEOUT_S, NULL, out_print_session_status},
+        {"session", "watch", "", "follow the session until it ends or pauses", "session.status",
+         0, 0, 0, TIMEOUT_S, NULL, NULL, .follows = true},
         {NULL, "watch", "[--count N]", "print notifications until interrupted", NULL, 0, 0,
          ARG_COUNT, TIMEOUT_S, NULL, NULL, NULL, true},
         {NULL, "devices", "", "serial ports, V4L2 nodes, gpiochips, USB devices here (no goniod)",
@@ -527,7 +555,7 @@ static int run_method(const struct cmd *c, const struct args *a, struct out *o, 
                       const char *method, json_t *params)
 {
         double timeout_s = a->timeout_s > 0 ? a->timeout_s : c->timeout_s;
-        bool stops = c->stops && !(a->given & ARG_NO_WAIT);
+        bool stops = (c->stops && !(a->given & ARG_NO_WAIT)) || c->follows;
         _cleanup_close_ int sfd = stops ? open_intr_fd() : -EBADF;
         _cleanup_(json_decrefp) json_t *sent = json_incref(params);
         struct interruption why;
@@ -543,6 +571,13 @@ static int run_method(const struct cmd *c, const struct args *a, struct out *o, 
         }
         if (r < 0)
                 return call_failed(o, method, r, &e);
+        if (c->follows) {
+                if (o->json)
+                        out_notification(o, "session.state", res);
+                r = csession_follow(o, conn, sfd, res);
+                json_decref(res);
+                return r;
+        }
         out_result(o, c->print, c->done, res);
         json_decref(res);
         return EXIT_OK;

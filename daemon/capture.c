@@ -22,6 +22,8 @@ struct take {
         struct capture_result res;
         unsigned pending; /* stores not answered yet */
         char session[DS_NAME_MAX];
+        char kind[8];
+        struct capture_tag tag; /* session and kind point into the take */
         capture_done_fn done;
         void *ud;
         struct take *next;
@@ -174,6 +176,10 @@ static void fill_row(struct capture *cp, const struct take *t, const struct rig_
         row->pose = e->pose;
         (void)gn_pose_lamp_list(&e->pose, names, rc->n_lamps, row->lamps, sizeof(row->lamps));
         snprintf(row->session, sizeof(row->session), "%s", t->session);
+        snprintf(row->kind, sizeof(row->kind), "%s", t->kind);
+        row->bracket = t->tag.bracket;
+        row->plan_seq = t->tag.plan_seq[s - e->shots];
+        row->dark_id = t->tag.dark_id[s - e->shots];
         row->exposure_us = s->frame.exposure_us;
         row->gain = s->frame.gain;
         row->t_request_ns = e->t_request_ns;
@@ -221,11 +227,22 @@ static void on_exposed(struct rig *rig, struct rig_exposure *e, void *userdata)
         t->pending = 1; /* held until every shot is handed over */
         for (size_t i = 0; i < e->n_shots; i++)
                 store_shot(t, e, i);
+        if (t->tag.exposed)
+                t->tag.exposed(cp, t->ud);
         take_part_done(t);
 }
 
+size_t capture_store_room(const struct capture *cp)
+{
+        size_t used = ds_pool_in_flight(cp->pool);
+
+        for (const struct take *t = cp->exposing; t; t = t->next)
+                used += t->res.n_shots; /* frames on their way to the pool */
+        return cp->pool && used < POOL_CAPACITY ? POOL_CAPACITY - used : 0;
+}
+
 int capture_take(struct capture *cp, const int *cams, size_t n, const struct cam_request *req,
-                 const char *session, capture_done_fn done, void *userdata)
+                 const struct capture_tag *tag, capture_done_fn done, void *userdata)
 {
         const struct rig_config *rc = rig_config(cp->rig);
         struct take *t;
@@ -235,10 +252,15 @@ int capture_take(struct capture *cp, const int *cams, size_t n, const struct cam
                 return -ESTALE;
         if (n == 0 || n > RIG_MAX_CAMERAS)
                 return -EINVAL;
+        if (capture_store_room(cp) < n)
+                return -EAGAIN;
         if (!(t = calloc(1, sizeof(*t))))
                 return -ENOMEM;
         *t = (struct take){.cp = cp, .done = done, .ud = userdata, .next = cp->exposing};
-        snprintf(t->session, sizeof(t->session), "%s", session ? session : "");
+        if (tag)
+                t->tag = *tag;
+        snprintf(t->session, sizeof(t->session), "%s", tag && tag->session ? tag->session : "");
+        snprintf(t->kind, sizeof(t->kind), "%s", tag && tag->kind ? tag->kind : "image");
         t->res.n_shots = n;
         for (size_t i = 0; i < n; i++)
                 snprintf(t->res.shots[i].row.camera, sizeof(t->res.shots[i].row.camera), "%s",

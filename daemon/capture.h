@@ -29,6 +29,20 @@ struct capture_result {
 typedef void (*capture_done_fn)(struct capture *cp, const struct capture_result *res,
                                 void *userdata);
 
+/* Called on the loop thread when the frames of a take are back from the cameras and handed to
+ * the storage pool (before they are stored): the rig may move on. */
+typedef void (*capture_exposed_fn)(struct capture *cp, void *userdata);
+
+/* What the rows of a take record beyond pose and controls: the session runner's labels. */
+struct capture_tag {
+        const char *session;               /* NULL: none */
+        const char *kind;                  /* "image" (NULL), "dark", "flat", "laser" */
+        int bracket;                       /* index in the HDR bracket */
+        int64_t plan_seq[RIG_MAX_CAMERAS]; /* per camera of the take; 0: none */
+        int64_t dark_id[RIG_MAX_CAMERAS];  /* the dark frame's row per camera; 0: none */
+        capture_exposed_fn exposed;        /* may be NULL */
+};
+
 /* Called on the loop thread for every row committed (capture.stored). */
 typedef void (*capture_stored_fn)(void *userdata, const struct ds_capture *row);
 
@@ -59,11 +73,15 @@ const char *capture_dataset_name(const struct capture *cp);
 int64_t capture_dataset_count(const struct capture *cp);
 
 /* Exposes cams[0..n) (camera indices) with req and stores the frames in the open dataset,
- * with session (may be NULL) on every row; done gets each camera's outcome. Returns 0,
- * -ESTALE (no dataset open, or the rig is faulted), or rig_expose's refusal (-EBUSY:
+ * labelled by tag (may be NULL; copied); done gets each camera's outcome once every frame is
+ * stored or failed. Returns 0, -ESTALE (no dataset open, or the rig is faulted), -EAGAIN (the
+ * storage queue has no room for n frames: wait for stores), or rig_expose's refusal (-EBUSY:
  * rig_busy_reason() says why). */
 int capture_take(struct capture *cp, const int *cams, size_t n, const struct cam_request *req,
-                 const char *session, capture_done_fn done, void *userdata);
+                 const struct capture_tag *tag, capture_done_fn done, void *userdata);
+
+/* Frames the storage queue can take now. */
+size_t capture_store_room(const struct capture *cp);
 
 /* Exposures and stores in flight (0: the dataset may change). */
 unsigned capture_in_flight(const struct capture *cp);

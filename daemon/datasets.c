@@ -191,17 +191,21 @@ static void job_free(struct ds_job *j)
         free(j);
 }
 
-/* Queues j on the dataset worker (started on first use). */
-static int push(struct ds_job *j, workq_fn fn, workq_done_fn done)
+int datasets_push(struct manager *m, workq_fn fn, workq_done_fn done, void *userdata)
 {
-        struct manager *m = j->m;
         int r = 0;
 
         if (!m->ds_worker)
                 r = workq_new(m->event, "ds-ops", DS_OPS_QUEUE, &m->ds_worker);
         if (r == 0)
-                r = workq_push(m->ds_worker, fn, done, j, false);
+                r = workq_push(m->ds_worker, fn, done, userdata, false);
         return r;
+}
+
+/* Queues j on the dataset worker. */
+static int push(struct ds_job *j, workq_fn fn, workq_done_fn done)
+{
+        return datasets_push(j->m, fn, done, j);
 }
 
 static void closed_done(int result, void *userdata)
@@ -232,9 +236,7 @@ static void close_later(struct manager *m, struct ds *d)
         log_error("Cannot close dataset '%s' off the event loop; leaving it open", ds_path(d));
 }
 
-/* Makes d (named name) the capture pipeline's dataset. On failure d is handed to a close
- * job. */
-static int attach(struct manager *m, struct ds *d, const char *name, int64_t count)
+int datasets_attach(struct manager *m, struct ds *d, const char *name, int64_t count)
 {
         int r = capture_attach(m->capture, d, name, count);
 
@@ -251,13 +253,13 @@ static void opened_done(int result, void *userdata)
 
         m->ds_busy = false;
         if (result < 0 && j->old)
-                (void)attach(m, TAKE_PTR(j->old), j->old_name, j->old_count);
+                (void)datasets_attach(m, TAKE_PTR(j->old), j->old_name, j->old_count);
         if (result == -ECANCELED) {
                 j->d = ds_close(j->d);
                 srv_fail(j->req, result, "goniod is shutting down");
         } else if (result < 0) {
                 srv_fail(j->req, result, "%s", j->msg);
-        } else if ((r = attach(m, TAKE_PTR(j->d), j->name, j->count)) < 0) {
+        } else if ((r = datasets_attach(m, TAKE_PTR(j->d), j->name, j->count)) < 0) {
                 srv_fail(j->req, r, "cannot start the storage pool: %s", strerror(-r));
         } else {
                 srv_reply(j->req,
@@ -280,24 +282,37 @@ static void read_done(int result, void *userdata)
         job_free(j);
 }
 
-/* A dataset name is one path component of [A-Za-z0-9._-], not starting with '.'. */
-static int dataset_path(struct srv_req *req, struct manager *m, const char *name, char *path,
-                        size_t len)
+int datasets_path(const struct manager *m, const char *name, char *path, size_t len)
 {
         if (!name || !name[0] || name[0] == '.' || strlen(name) >= DS_NAME_MAX ||
             strspn(name, DS_NAME_ALPHABET) != strlen(name))
-                return srv_req_errmsg(req, -EINVAL,
+                return -EINVAL;
+        if ((size_t)snprintf(path, len, "%s/%s", m->data_dir, name) >= len)
+                return -ENAMETOOLONG;
+        return 0;
+}
+
+/* datasets_path, answering req with why a name is refused. */
+static int dataset_path(struct srv_req *req, struct manager *m, const char *name, char *path,
+                        size_t len)
+{
+        int r = datasets_path(m, name, path, len);
+
+        if (r == -EINVAL)
+                return srv_req_errmsg(req, r,
                                       "param 'name': '%s' is not a valid dataset name "
                                       "(letters, digits, '.', '_', '-')",
                                       name ? name : "");
-        if ((size_t)snprintf(path, len, "%s/%s", m->data_dir, name) >= len)
-                return srv_req_errmsg(req, -ENAMETOOLONG, "dataset path too long");
+        if (r < 0)
+                return srv_req_errmsg(req, r, "dataset path too long");
         return 0;
 }
 
 /* Why the open dataset cannot change now (0: it can). */
 static int busy(struct srv_req *req, const struct manager *m)
 {
+        if (session_active(m->session))
+                return srv_req_errmsg(req, -EBUSY, "%s", session_busy_reason(m->session));
         if (m->ds_busy)
                 return srv_req_errmsg(req, -EBUSY, "another dataset.open or close is running");
         if (capture_in_flight(m->capture) > 0)
@@ -332,7 +347,7 @@ static int push_change(struct ds_job *j, workq_fn fn, workq_done_fn done)
                 struct srv_req *req = j->req;
 
                 if (j->old)
-                        (void)attach(m, j->old, j->old_name, j->old_count);
+                        (void)datasets_attach(m, j->old, j->old_name, j->old_count);
                 free(j);
                 return srv_req_errmsg(req, r, "the dataset worker is busy");
         }

@@ -135,6 +135,9 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
         r = capture_new(m->event, m->rig, on_stored_row, m, &m->capture);
         if (r < 0)
                 goto fail;
+        r = session_runner_new(m, &m->session);
+        if (r < 0)
+                goto fail;
         if (strcmp(rig_state(m->rig), "fault") == 0)
                 log_warning("rig starts in fault state; fix it and call fault.clear");
         r = server_start(m->server);
@@ -167,6 +170,7 @@ struct manager *manager_free(struct manager *m)
         m->server = server_free(m->server);
         m->capture = capture_free(m->capture); /* completes pending stores */
         m->rig = rig_free(m->rig);             /* safe state */
+        m->session = session_runner_free(m->session); /* last: the above may call it back */
         rigconf_free(m->rc);
         sd_event_unref(m->event);
         free(m);

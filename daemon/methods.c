@@ -107,6 +107,14 @@ static json_t *axes_result(struct op *o)
         return json_pack("{so}", "axes", out);
 }
 
+/* Refuses a request that would move, switch or capture while a session owns the rig. */
+static int session_refuses(struct srv_req *req, struct manager *m)
+{
+        const char *why = session_busy_reason(m->session);
+
+        return why ? srv_req_errmsg(req, -EBUSY, "%s", why) : 0;
+}
+
 static int m_hello(struct srv_req *req, json_t *params, void *userdata)
 {
         struct manager *m = userdata;
@@ -161,7 +169,8 @@ static int m_home(struct srv_req *req, json_t *params, void *userdata)
         struct op *o;
         int r;
 
-        if ((r = srv_params_check(req, params, KEYS("axes"))) < 0)
+        if ((r = srv_params_check(req, params, KEYS("axes"))) < 0 ||
+            (r = session_refuses(req, m)) < 0)
                 return r;
         if (axes && (!json_is_array(axes) || n > RIG_MAX_AXES))
                 return srv_req_errmsg(req, -EINVAL, "param 'axes': expected a list of names");
@@ -226,7 +235,8 @@ static int m_move(struct srv_req *req, json_t *params, void *userdata)
             (r = srv_param_str(req, params, "axis", &axis)) < 0 ||
             (r = srv_param_double(req, params, "position", &pos)) < 0 ||
             (r = srv_param_bool(req, params, "relative", &relative)) < 0 ||
-            (r = srv_param_bool(req, params, "wait", &wait)) < 0)
+            (r = srv_param_bool(req, params, "wait", &wait)) < 0 ||
+            (r = session_refuses(req, m)) < 0)
                 return r;
         if (!axis || isnan(pos))
                 return srv_req_errmsg(req, -EINVAL, "params 'axis' and 'position' are required");
@@ -269,10 +279,12 @@ static int m_stop(struct srv_req *req, json_t *params, void *userdata)
 static int switch_and_reply(struct srv_req *req, struct manager *m, int i, bool on, const char *key,
                             const char *name)
 {
-        struct op *o = op_new(req, json_pack("{sssb}", key, name, "on", on));
+        struct op *o;
         int r;
 
-        if (!o)
+        if ((r = session_refuses(req, m)) < 0)
+                return r;
+        if (!(o = op_new(req, json_pack("{sssb}", key, name, "on", on))))
                 return -ENOMEM;
         o->pending = 1;
         r = rig_switch(m->rig, i, on, on_rig_done, o);
@@ -413,7 +425,7 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
         if ((r = srv_params_check(req, params, KEYS("camera", "exposure_us", "gain", "bits"))) <
                     0 ||
             (r = srv_param_str(req, params, "camera", &camera)) < 0 ||
-            (r = read_cam_request(req, params, &cr)) < 0)
+            (r = read_cam_request(req, params, &cr)) < 0 || (r = session_refuses(req, m)) < 0)
                 return r;
         if (camera && (cams[n++] = rig_camera_index(m->rig, camera)) < 0)
                 return srv_req_errmsg(req, -ENOENT, "no camera named '%s'", camera);
@@ -428,6 +440,116 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
         r = capture_take(m->capture, cams, n, &cr, NULL, on_captured, req);
         if (r < 0)
                 return srv_req_errmsg(req, r, "capture refused: %s", refusal(m, r));
+        return 0;
+}
+
+/* ---- session.* ---- */
+
+/* Reads the session file's name and text (gonioctl sends the file's bytes). */
+static int read_session_file(struct srv_req *req, json_t *params, const char **file,
+                             const char **text)
+{
+        int r;
+
+        if ((r = srv_params_check(req, params, KEYS("file", "text"))) < 0 ||
+            (r = srv_param_str(req, params, "file", file)) < 0 ||
+            (r = srv_param_str(req, params, "text", text)) < 0)
+                return r;
+        if (!*text)
+                return srv_req_errmsg(req, -EINVAL, "param 'text' (the session file) is required");
+        if (!*file)
+                *file = "session";
+        return 0;
+}
+
+static int m_session_plan(struct srv_req *req, json_t *params, void *userdata)
+{
+        struct manager *m = userdata;
+        const char *file = NULL, *text = NULL;
+        char msg[512];
+        json_t *plan;
+        int r;
+
+        if ((r = read_session_file(req, params, &file, &text)) < 0)
+                return r;
+        plan = session_plan(m->session, file, text, &r, msg, sizeof(msg));
+        if (!plan)
+                return srv_req_errmsg(req, r, "%s", msg);
+        srv_reply(req, plan);
+        return 0;
+}
+
+/* Answers session.run or session.resume once the session runs (or could not). */
+static void on_session_started(struct manager *m, int result, const char *msg, json_t *info,
+                               void *userdata)
+{
+        if (result < 0) {
+                json_decref(info);
+                return srv_fail(userdata, result, "%s", msg);
+        }
+        srv_reply(userdata, info);
+}
+
+static int m_session_run(struct srv_req *req, json_t *params, void *userdata)
+{
+        struct manager *m = userdata;
+        const char *file = NULL, *text = NULL;
+        char msg[512];
+        int r;
+
+        if ((r = read_session_file(req, params, &file, &text)) < 0)
+                return r;
+        r = session_start(m->session, file, text, on_session_started, req, msg, sizeof(msg));
+        return r < 0 ? srv_req_errmsg(req, r, "%s", msg) : 0;
+}
+
+static int m_session_resume(struct srv_req *req, json_t *params, void *userdata)
+{
+        struct manager *m = userdata;
+        const char *dataset = NULL;
+        char msg[512];
+        int r;
+
+        if ((r = srv_params_check(req, params, KEYS("dataset"))) < 0 ||
+            (r = srv_param_str(req, params, "dataset", &dataset)) < 0)
+                return r;
+        r = session_resume(m->session, dataset, on_session_started, req, msg, sizeof(msg));
+        return r < 0 ? srv_req_errmsg(req, r, "%s", msg) : 0;
+}
+
+/* session.pause and session.abort: answered with the status at once. */
+static int session_control(struct srv_req *req, json_t *params, struct manager *m,
+                           int (*fn)(struct session_runner *, char *, size_t))
+{
+        char msg[256];
+        int r;
+
+        if ((r = srv_params_check(req, params, KEYS(NULL))) < 0)
+                return r;
+        if ((r = fn(m->session, msg, sizeof(msg))) < 0)
+                return srv_req_errmsg(req, r, "%s", msg);
+        srv_reply(req, session_status(m->session));
+        return 0;
+}
+
+static int m_session_pause(struct srv_req *req, json_t *params, void *userdata)
+{
+        return session_control(req, params, userdata, session_pause);
+}
+
+static int m_session_abort(struct srv_req *req, json_t *params, void *userdata)
+{
+        return session_control(req, params, userdata, session_abort);
+}
+
+static int m_session_status(struct srv_req *req, json_t *params, void *userdata)
+{
+        struct manager *m = userdata;
+        int r;
+
+        if ((r = srv_params_check(req, params, KEYS(NULL))) < 0)
+                return r;
+        srv_reply(req, session_status(m->session));
         return 0;
 }
 
@@ -446,5 +568,11 @@ const struct srv_method manager_methods[] = {
         {"dataset.list", datasets_list},
         {"dataset.info", datasets_info},
         {"fault.clear", m_fault_clear},
+        {"session.plan", m_session_plan},
+        {"session.run", m_session_run},
+        {"session.resume", m_session_resume},
+        {"session.pause", m_session_pause},
+        {"session.abort", m_session_abort},
+        {"session.status", m_session_status},
         {NULL, NULL},
 };
