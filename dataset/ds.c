@@ -56,7 +56,21 @@ static json_t *names_json(const struct ds_name_count *names, size_t n)
         return a;
 }
 
-static int write_json(struct ds *d)
+/* The sessions of a summary as a JSON array of {name, state, planned, captured}. */
+static json_t *sessions_json(const struct ds_session_count *s, size_t n)
+{
+        json_t *a = json_array();
+
+        for (size_t i = 0; a && i < n; i++)
+                if (json_array_append_new(a, json_pack("{s:s, s:s, s:I, s:I}", "name", s[i].name,
+                                                       "state", s[i].state, "planned",
+                                                       (json_int_t)s[i].planned, "captured",
+                                                       (json_int_t)s[i].captured)) < 0)
+                        return json_decref(a), NULL;
+        return a;
+}
+
+int ds_write_json(struct ds *d)
 {
         _cleanup_(json_decrefp) json_t *j = NULL;
         _cleanup_free_ char *text = NULL;
@@ -66,11 +80,12 @@ static int write_json(struct ds *d)
         r = ds_summary(d, &sum);
         if (r < 0)
                 return r;
-        j = json_pack("{s:s, s:s, s:s, s:I, s:o?, s:o?, s:s, s:s, s:i}", "name", sum.name,
+        j = json_pack("{s:s, s:s, s:s, s:I, s:o?, s:o?, s:o?, s:s, s:s, s:i}", "name", sum.name,
                       "created", sum.created, "rig", sum.rig, "captures", (json_int_t)sum.captures,
                       "cameras", names_json(sum.cameras, sum.n_cameras), "lamps",
-                      names_json(sum.lamps, sum.n_lamps), "format", "png", "index", DS_INDEX,
-                      "schema_version", sum.schema_version);
+                      names_json(sum.lamps, sum.n_lamps), "sessions",
+                      sessions_json(sum.sessions, sum.n_sessions), "format", "png", "index",
+                      DS_INDEX, "schema_version", sum.schema_version);
         text = j ? json_dumps(j, JSON_INDENT(2)) : NULL;
         if (!text)
                 return -ENOMEM;
@@ -88,6 +103,7 @@ static struct ds *ds_free(struct ds *d)
                 return NULL;
         sqlite3_finalize(d->insert);
         sqlite3_finalize(d->add_name);
+        sqlite3_finalize(d->count_captured);
         if (sqlite3_close(d->db) != SQLITE_OK)
                 log_warning("dataset '%s': index not closed cleanly: %s", d->path,
                             sqlite3_errmsg(d->db));
@@ -117,7 +133,7 @@ static int ds_alloc(const char *path, struct ds **ret)
         return 0;
 }
 
-static void iso8601_now(char *buf, size_t len)
+void ds_iso8601_now(char *buf, size_t len)
 {
         time_t t = time(NULL);
         struct tm tm;
@@ -149,7 +165,7 @@ static int create_contents(const char *path, const char *name, const char *rig_t
         if (r < 0)
                 return r;
         snprintf(d->name, sizeof(d->name), "%s", name);
-        iso8601_now(d->created, sizeof(d->created));
+        ds_iso8601_now(d->created, sizeof(d->created));
         if (rig_text)
                 rig_name(rig_text, d->rig, sizeof(d->rig));
         if (mkdirat(d->dir_fd, DS_IMAGES, 0755) < 0)
@@ -162,7 +178,7 @@ static int create_contents(const char *path, const char *name, const char *rig_t
                 return r;
         r = ds_db_open(d, true);
         if (r == 0)
-                r = write_json(d);
+                r = ds_write_json(d);
         if (r == 0 && fsync(d->dir_fd) < 0)
                 r = -errno;
         if (r == 0)
@@ -251,7 +267,7 @@ struct ds *ds_close(struct ds *d)
         if (d)
                 DS_ASSERT_THREAD_ALLOWED();
         if (d && d->writer)
-                (void)write_json(d);
+                (void)ds_write_json(d);
         return ds_free(d);
 }
 
@@ -285,8 +301,7 @@ const char *ds_last_error(const struct ds *d)
 
 /* ---- storing ---- */
 
-/* An image name's id prefix ("000042_..."), or -1 if it has none. */
-static int64_t image_id(const char *name)
+int64_t ds_image_id(const char *name)
 {
         char *end = NULL;
         long long id;
@@ -297,14 +312,14 @@ static int64_t image_id(const char *name)
         return *end == '_' ? id : -1;
 }
 
-/* Removes *.tmp and images without a row (id >= next_id) left by a crash. */
-static int remove_orphans(struct ds *d)
+int ds_walk_dir(int dir_fd, const char *rel, int (*fn)(const char *name, void *userdata),
+                void *userdata)
 {
         _cleanup_(closedirp) DIR *dir = NULL;
         struct dirent *de;
-        int fd, removed = 0;
+        int fd, r;
 
-        fd = openat(d->img_fd, ".", O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+        fd = openat(dir_fd, rel, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
         if (fd < 0)
                 return -errno;
         dir = fdopendir(fd);
@@ -312,19 +327,49 @@ static int remove_orphans(struct ds *d)
                 close(fd);
                 return -errno;
         }
-        while ((de = readdir(dir))) {
-                size_t n = strlen(de->d_name);
-                bool tmp = n > 4 && strcmp(de->d_name + n - 4, ".tmp") == 0;
+        while ((errno = 0, de = readdir(dir)))
+                if (strcmp(de->d_name, ".") != 0 && strcmp(de->d_name, "..") != 0 &&
+                    (r = fn(de->d_name, userdata)) < 0)
+                        return r;
+        return errno > 0 ? -errno : 0;
+}
 
-                if (!tmp && image_id(de->d_name) < d->next_id)
-                        continue;
-                log_notice("dataset '%s': removing %s/%s left by an interrupted store", d->path,
-                           DS_IMAGES, de->d_name);
-                if (unlinkat(d->img_fd, de->d_name, 0) < 0)
-                        return -errno;
-                removed++;
-        }
-        return removed > 0 && fsync(d->img_fd) < 0 ? -errno : 0;
+bool ds_tmp_name(const char *name)
+{
+        size_t n = strlen(name);
+
+        return n > 4 && strcmp(name + n - 4, ".tmp") == 0;
+}
+
+struct orphans {
+        struct ds *d;
+        int removed;
+};
+
+/* Removes the image name if it is a *.tmp or has no row (id >= next_id). */
+static int remove_orphan(const char *name, void *userdata)
+{
+        struct orphans *o = userdata;
+        if (!ds_tmp_name(name) && ds_image_id(name) < o->d->next_id)
+                return 0;
+        log_notice("dataset '%s': removing %s/%s left by an interrupted store", o->d->path,
+                   DS_IMAGES, name);
+        if (unlinkat(o->d->img_fd, name, 0) < 0)
+                return -errno;
+        o->removed++;
+        return 0;
+}
+
+/* Removes *.tmp and images without a row (id >= next_id) left by a crash. */
+static int remove_orphans(struct ds *d)
+{
+        struct orphans o = {.d = d};
+        int r;
+
+        r = ds_walk_dir(d->img_fd, ".", remove_orphan, &o);
+        if (r == 0 && o.removed > 0 && fsync(d->img_fd) < 0)
+                r = -errno;
+        return r;
 }
 
 /* Makes this handle the dataset's only writer (first ds_store). */
@@ -350,8 +395,7 @@ static int become_writer(struct ds *d)
         return 0;
 }
 
-/* Copies a name into a file-name part: ',' -> '+', other unsafe bytes -> '-'. */
-static void name_part(char *out, size_t outlen, const char *in, const char *empty)
+void ds_name_part(char *out, size_t outlen, const char *in, const char *empty)
 {
         size_t n = 0;
 
@@ -372,8 +416,8 @@ static const char *image_name(struct ds_capture *c)
         char cam[DS_NAME_MAX], lamps[128];
         bool laser = c->pose.laser;
 
-        name_part(cam, sizeof(cam), c->camera, "camera");
-        name_part(lamps, sizeof(lamps), c->lamps, laser ? "" : "dark");
+        ds_name_part(cam, sizeof(cam), c->camera, "camera");
+        ds_name_part(lamps, sizeof(lamps), c->lamps, laser ? "" : "dark");
         snprintf(c->file, sizeof(c->file), "%s/%06lld_%s%s%s%s.png", DS_IMAGES, (long long)c->id,
                  cam, lamps[0] ? "_" : "", lamps, laser ? "_laser" : "");
         return c->file + strlen(DS_IMAGES "/");
@@ -421,10 +465,17 @@ int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_fram
         d->error[0] = 0;
         if (!c->camera[0])
                 return ds_fail(d, -EINVAL, "a capture needs a camera name");
+        row = *c;
+        if (!row.kind[0])
+                snprintf(row.kind, sizeof(row.kind), "image");
+        if (!ds_kind_ok(row.kind))
+                return ds_fail(d, -EINVAL, "unknown capture kind '%.*s'", (int)sizeof(row.kind),
+                               row.kind);
         r = become_writer(d);
+        if (r == 0)
+                r = ds_db_check_plan_item(d, &row);
         if (r < 0)
                 return r;
-        row = *c;
         row.id = d->next_id;
         row.width = shape->width;
         row.height = shape->height;

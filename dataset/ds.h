@@ -4,10 +4,11 @@
  * It never touches devices.
  *
  * Layout of a dataset directory:
- *   dataset.json          summary (name, created, rig, counts), rewritten on close
- *   index.sqlite          captures and names tables (+ WAL files while open)
+ *   dataset.json          summary (name, created, rig, counts, sessions), rewritten on close
+ *   index.sqlite          captures, names, sessions and plan tables (+ WAL files while open)
  *   rig.yaml              the rig file the captures were taken with
  *   images/NNNNNN_<camera>_<lamp>.png
+ *   lp/<session>/<view>.lp  light directions per view (ds_session.h)
  *
  * Every image is written to a temporary name, fsynced, renamed and its directory
  * fsynced before its row is committed, so a crash leaves no torn file and no row
@@ -45,7 +46,12 @@ struct ds_capture {
         char file[256];         /* relative to the dataset dir, set by ds_store */
         char sha256[65];        /* hex, set by ds_store */
         int width, height;
-        char pixfmt[16]; /* "rgb8", "rgb16", "mono8", "mono16" */
+        char pixfmt[16];          /* "rgb8", "rgb16", "mono8", "mono16" */
+        int64_t plan_seq;         /* the session's plan item this row captures; 0: none (a capture
+                                   * outside sessions). At most one row per (session, plan_seq). */
+        char kind[8];             /* "image", "dark", "flat", "laser"; "" is stored as "image" */
+        int bracket;              /* HDR bracket index, 0 for the base exposure */
+        int64_t dark_id, flat_id; /* row ids of the dark and flat frames to apply; 0: none */
 };
 
 /* Creates a new dataset directory at path (must not exist, parent must) and stores
@@ -54,10 +60,9 @@ struct ds_capture {
 int ds_create(const char *path, const char *name, const char *rig_text, struct ds **ret);
 
 /* Opens an existing dataset for appending or reading. An index of an older schema (1:
- * angles NOT NULL, no lamp bits; 2: no names table) is migrated to the current one in
- * one transaction (docs/dataset.md).
- * Returns 0, -ENOENT, -EBADMSG (not a dataset / corrupt index / unknown schema) or
- * -errno. */
+ * angles NOT NULL, no lamp bits; 2: no names table; 3: no sessions) is migrated to the current one
+ * in one transaction (docs/dataset.md). Returns 0, -ENOENT, -EBADMSG (not a dataset / corrupt index
+ * / unknown schema) or -errno. */
 int ds_open(const char *path, struct ds **ret);
 
 /* Rewrites dataset.json (when this handle stored captures), closes the index. NULL is a
@@ -72,10 +77,14 @@ int ds_set_compression(struct ds *d, int level);
 int ds_get_compression(const struct ds *d);
 
 /* Encodes frame as PNG, writes it atomically, computes its SHA-256 and commits the
- * row. Fills c->id, c->file, c->sha256, c->width, c->height, c->pixfmt, c->t_stored_ns.
- * Returns 0, -ENOSPC (nothing recorded, no file left behind), -EBUSY (another handle
- * is the dataset's writer), -EINVAL (the index refused the row: a constraint), or the
- * -errno of the failing call (-EFBIG, -EDQUOT...); ds_last_error() tells why. */
+ * row. Fills c->id, c->file, c->sha256, c->width, c->height, c->pixfmt, c->t_stored_ns
+ * (and c->kind "image" when empty). A row of a plan item (c->plan_seq > 0) is stored
+ * exactly once: -EEXIST when (c->session, c->plan_seq) has its row already, checked
+ * before any file is written. Returns 0, -EEXIST, -ENOSPC (nothing recorded, no file left
+ * behind), -EBUSY (another handle is the dataset's writer), -EINVAL (an unknown kind, a
+ * plan item the session does not have, or the index refused the row: a constraint), or
+ * the -errno of the failing call (-EFBIG, -EDQUOT...); ds_last_error() tells why. Nothing
+ * is recorded and no file is left behind on any failure. */
 int ds_store(struct ds *d, const struct gn_frame *frame, struct ds_capture *c);
 
 /* Like ds_store for an image already encoded with ds_png_encode (dataset/ds_png.h):
@@ -108,6 +117,13 @@ struct ds_name_count {
         int64_t captures;
 };
 
+/* A session of the dataset and how far it got (ds_session.h). */
+struct ds_session_count {
+        char name[DS_NAME_MAX];
+        char state[16];
+        int64_t planned, captured; /* plan items; plan items with a capture row */
+};
+
 /* What a dataset holds, read from its index (never from dataset.json). */
 struct ds_summary {
         char name[DS_NAME_MAX];
@@ -119,6 +135,8 @@ struct ds_summary {
         size_t n_cameras, n_lamps;
         struct ds_name_count cameras[DS_SUMMARY_MAX_NAMES]; /* by name; the first 32 */
         struct ds_name_count lamps[DS_SUMMARY_MAX_NAMES];
+        size_t n_sessions;
+        struct ds_session_count sessions[DS_SUMMARY_MAX_NAMES]; /* the 32 newest, oldest first */
 };
 
 /* Fills out from the index with a few indexed queries (cost independent of the number
@@ -149,6 +167,20 @@ int ds_load_image(struct ds *d, const char *file, struct gn_frame *out);
 /* Re-hashes every file and checks it against its row; returns the number of
  * mismatching or missing files (0 = consistent) or -errno. */
 int ds_verify(struct ds *d);
+
+/* Called by ds_check with one sentence describing one problem (naming its file, row or
+ * plan item); valid during the call only. */
+typedef void (*ds_problem_fn)(const char *problem, void *userdata);
+
+/* Checks the whole dataset and calls fn (may be NULL) for each problem found: a row's
+ * file missing or not matching its checksum (ds_verify), an image without a row, a
+ * temporary file left, a plan item with several rows, a row disagreeing with its plan
+ * item (camera, kind, bracket, lamps, laser, or an angle the plan has off by more than
+ * 0.05 degrees) or naming none, a dark or flat reference to no such frame, a session's
+ * counts not matching its rows, SQLite's integrity_check. Reads only: works on a
+ * second handle while another process writes (a store in flight there is not a problem).
+ * Returns the number of problems (0 = consistent) or -errno. */
+int ds_check(struct ds *d, ds_problem_fn fn, void *userdata);
 
 /* The dataset's absolute directory and name; valid until ds_close. */
 const char *ds_path(const struct ds *d);

@@ -13,9 +13,9 @@
 
 static const char schema_sql[] =
         "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);" DS_CAPTURES_TABLE(
-                "captures") DS_CAPTURES_POSE_INDEX DS_NAMES_TABLE
-        "PRAGMA user_version = 3;"
-        "INSERT INTO meta (key, value) VALUES ('schema_version', '3');";
+                "captures") DS_CAPTURES_POSE_INDEX DS_NAMES_TABLE DS_V4_SQL
+        "PRAGMA user_version = 4;"
+        "INSERT INTO meta (key, value) VALUES ('schema_version', '4');";
 
 /* ---- errors ---- */
 
@@ -239,11 +239,71 @@ int ds_db_prepare_writer(struct ds *d)
         if (!d->insert)
                 r = ds_db_prepare(d,
                                   "INSERT INTO captures (" DS_ROW_COLUMNS ") VALUES "
-                                  "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+                                  "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
                                   &d->insert);
         if (r == 0 && !d->add_name)
                 r = ds_db_prepare(d, DS_ADD_NAME_SQL, &d->add_name);
+        if (r == 0 && !d->count_captured)
+                r = ds_db_prepare(d, "UPDATE sessions SET captured = captured + 1 WHERE name = ?",
+                                  &d->count_captured);
         return r;
+}
+
+bool ds_kind_ok(const char *kind)
+{
+        static const char *const kinds[] = {"image", "dark", "flat", "laser"};
+
+        for (size_t i = 0; i < ELEMENTSOF(kinds); i++)
+                if (strcmp(kind, kinds[i]) == 0)
+                        return true;
+        return false;
+}
+
+int ds_db_check_plan_item(struct ds *d, const struct ds_capture *c)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        int r, rc;
+
+        if (c->plan_seq == 0)
+                return 0;
+        if (c->plan_seq < 0 || !c->session[0])
+                return ds_fail(d, -EINVAL, "plan item %lld needs a session",
+                               (long long)c->plan_seq);
+        r = ds_db_prepare(d,
+                          "SELECT (SELECT id FROM captures WHERE session = ?1 AND plan_seq = ?2),"
+                          " EXISTS (SELECT 1 FROM plan WHERE session = ?1 AND seq = ?2)",
+                          &s);
+        if (r < 0)
+                return r;
+        sqlite3_bind_text(s, 1, c->session, -1, SQLITE_STATIC);
+        sqlite3_bind_int64(s, 2, c->plan_seq);
+        rc = sqlite3_step(s);
+        if (rc != SQLITE_ROW)
+                return ds_db_fail(d, rc, "Failed to look up a plan item");
+        if (sqlite3_column_type(s, 0) != SQLITE_NULL)
+                return ds_fail(d, -EEXIST, "plan item %lld of session '%s' is row %lld already",
+                               (long long)c->plan_seq, c->session,
+                               (long long)sqlite3_column_int64(s, 0));
+        if (!sqlite3_column_int(s, 1))
+                return ds_fail(d, -EINVAL, "session '%s' has no plan item %lld", c->session,
+                               (long long)c->plan_seq);
+        return 0;
+}
+
+/* Binds v, or NULL for 0 (no plan item, no dark or flat frame). */
+static int bind_id(sqlite3_stmt *s, int i, int64_t v)
+{
+        return v ? sqlite3_bind_int64(s, i, v) : sqlite3_bind_null(s, i);
+}
+
+int ds_db_bind_angles(sqlite3_stmt *s, int first, const struct gn_pose *p)
+{
+        int rc = 0;
+
+        for (int k = 0; k < GN_ROLE_COUNT; k++)
+                rc |= gn_pose_has(p, k) ? sqlite3_bind_double(s, first + k, p->deg[k])
+                                        : sqlite3_bind_null(s, first + k);
+        return rc;
 }
 
 static int bind_capture(sqlite3_stmt *s, const struct ds_capture *c)
@@ -252,9 +312,8 @@ static int bind_capture(sqlite3_stmt *s, const struct ds_capture *c)
 
         rc |= sqlite3_bind_int64(s, i++, c->id);
         rc |= sqlite3_bind_text(s, i++, c->session, -1, SQLITE_STATIC);
-        for (int k = 0; k < GN_ROLE_COUNT; k++, i++)
-                rc |= gn_pose_has(&c->pose, k) ? sqlite3_bind_double(s, i, c->pose.deg[k])
-                                               : sqlite3_bind_null(s, i);
+        rc |= ds_db_bind_angles(s, i, &c->pose);
+        i += GN_ROLE_COUNT;
         rc |= sqlite3_bind_text(s, i++, c->camera, -1, SQLITE_STATIC);
         rc |= sqlite3_bind_text(s, i++, c->lamps, -1, SQLITE_STATIC);
         rc |= sqlite3_bind_int64(s, i++, c->pose.lamps);
@@ -269,6 +328,11 @@ static int bind_capture(sqlite3_stmt *s, const struct ds_capture *c)
         rc |= sqlite3_bind_int(s, i++, c->width);
         rc |= sqlite3_bind_int(s, i++, c->height);
         rc |= sqlite3_bind_text(s, i++, c->pixfmt, -1, SQLITE_STATIC);
+        rc |= bind_id(s, i++, c->plan_seq);
+        rc |= sqlite3_bind_text(s, i++, c->kind[0] ? c->kind : "image", -1, SQLITE_STATIC);
+        rc |= sqlite3_bind_int(s, i++, c->bracket);
+        rc |= bind_id(s, i++, c->dark_id);
+        rc |= bind_id(s, i++, c->flat_id);
         return rc == SQLITE_OK ? 0 : -ENOMEM;
 }
 
@@ -285,6 +349,17 @@ static int insert_row(struct ds *d, const struct ds_capture *c)
         return r;
 }
 
+/* Adds the row of a plan item to its session's captured count. */
+static int count_captured(struct ds *d, const char *session)
+{
+        int rc;
+
+        sqlite3_bind_text(d->count_captured, 1, session, -1, SQLITE_STATIC);
+        rc = sqlite3_step(d->count_captured);
+        sqlite3_reset(d->count_captured);
+        return rc == SQLITE_DONE ? 0 : ds_db_fail(d, rc, "Failed to count a session's capture");
+}
+
 int ds_db_insert(struct ds *d, const struct ds_capture *c)
 {
         int r;
@@ -296,6 +371,8 @@ int ds_db_insert(struct ds *d, const struct ds_capture *c)
                 r = ds_db_add_names(d, d->add_name, "camera", c->camera, 1);
         if (r == 0)
                 r = ds_db_add_names(d, d->add_name, "lamp", c->lamps, 1);
+        if (r == 0 && c->plan_seq > 0)
+                r = count_captured(d, c->session);
         if (r == 0)
                 r = ds_db_exec(d, "COMMIT");
         if (r < 0 && !sqlite3_get_autocommit(d->db))
@@ -303,11 +380,19 @@ int ds_db_insert(struct ds *d, const struct ds_capture *c)
         return r;
 }
 
-static void column_text(sqlite3_stmt *s, int col, char *out, size_t outlen)
+void ds_db_column_text(sqlite3_stmt *s, int col, char *out, size_t outlen)
 {
         const unsigned char *t = sqlite3_column_text(s, col);
 
         snprintf(out, outlen, "%s", t ? (const char *)t : "");
+}
+
+void ds_db_column_angles(sqlite3_stmt *s, int first, struct gn_pose *p)
+{
+        for (int k = 0; k < GN_ROLE_COUNT; k++)
+                p->deg[k] = sqlite3_column_type(s, first + k) == SQLITE_NULL
+                                    ? NAN
+                                    : sqlite3_column_double(s, first + k);
 }
 
 void ds_db_read_row(sqlite3_stmt *s, struct ds_capture *c)
@@ -316,13 +401,11 @@ void ds_db_read_row(sqlite3_stmt *s, struct ds_capture *c)
 
         memset(c, 0, sizeof(*c));
         c->id = sqlite3_column_int64(s, i++);
-        column_text(s, i++, c->session, sizeof(c->session));
-        for (int k = 0; k < GN_ROLE_COUNT; k++, i++)
-                c->pose.deg[k] = sqlite3_column_type(s, i) == SQLITE_NULL
-                                         ? NAN
-                                         : sqlite3_column_double(s, i);
-        column_text(s, i++, c->camera, sizeof(c->camera));
-        column_text(s, i++, c->lamps, sizeof(c->lamps));
+        ds_db_column_text(s, i++, c->session, sizeof(c->session));
+        ds_db_column_angles(s, i, &c->pose);
+        i += GN_ROLE_COUNT;
+        ds_db_column_text(s, i++, c->camera, sizeof(c->camera));
+        ds_db_column_text(s, i++, c->lamps, sizeof(c->lamps));
         c->pose.lamps = (uint32_t)sqlite3_column_int64(s, i++);
         c->pose.laser = sqlite3_column_int(s, i++) != 0;
         c->exposure_us = sqlite3_column_int(s, i++);
@@ -330,9 +413,14 @@ void ds_db_read_row(sqlite3_stmt *s, struct ds_capture *c)
         c->t_request_ns = (uint64_t)sqlite3_column_int64(s, i++);
         c->t_exposure_ns = (uint64_t)sqlite3_column_int64(s, i++);
         c->t_stored_ns = (uint64_t)sqlite3_column_int64(s, i++);
-        column_text(s, i++, c->file, sizeof(c->file));
-        column_text(s, i++, c->sha256, sizeof(c->sha256));
+        ds_db_column_text(s, i++, c->file, sizeof(c->file));
+        ds_db_column_text(s, i++, c->sha256, sizeof(c->sha256));
         c->width = sqlite3_column_int(s, i++);
         c->height = sqlite3_column_int(s, i++);
-        column_text(s, i++, c->pixfmt, sizeof(c->pixfmt));
+        ds_db_column_text(s, i++, c->pixfmt, sizeof(c->pixfmt));
+        c->plan_seq = sqlite3_column_int64(s, i++);
+        ds_db_column_text(s, i++, c->kind, sizeof(c->kind));
+        c->bracket = sqlite3_column_int(s, i++);
+        c->dark_id = sqlite3_column_int64(s, i++);
+        c->flat_id = sqlite3_column_int64(s, i++);
 }

@@ -7,6 +7,10 @@
  *   2: angles nullable (NULL = the rig has no axis of that role), lamp_bits added.
  *   3: the names table: each camera and lamp name with its number of captures, kept in
  *      the transaction of each row, so a summary never scans the captures.
+ *   4: sessions: captures gain plan_seq (unique per session), kind, bracket, dark_id and
+ *      flat_id (old rows: no plan item, kind 'image', bracket 0, no dark or flat); the
+ *      sessions and plan tables are created empty (DS_V4_SQL, the same statements that
+ *      create a new index).
  * An older index is brought to DS_SCHEMA_VERSION step by step in one BEGIN IMMEDIATE
  * transaction (SQLite's write lock: two openers cannot both migrate, and a failure
  * leaves the index as it was). */
@@ -149,9 +153,11 @@ static int migrate_from(struct ds *d, int64_t v)
         }
         if (r == 0 && v <= 2)
                 r = migrate_v2(d);
+        if (r == 0 && v <= 3)
+                r = ds_db_exec(d, DS_V4_SQL);
         if (r == 0)
-                r = ds_db_exec(d, "PRAGMA user_version = 3;"
-                                  "UPDATE meta SET value = '3' WHERE key = 'schema_version';");
+                r = ds_db_exec(d, "PRAGMA user_version = 4;"
+                                  "UPDATE meta SET value = '4' WHERE key = 'schema_version';");
         return r;
 }
 

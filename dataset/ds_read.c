@@ -1,13 +1,13 @@
 /* ds_read.c - the read API of the dataset library: summary, rows by range and by pose,
- * images and verification (see ds.h). Every query is bounded by its result: the
- * summary reads the names table and the primary key, rows use LIMIT on the key. */
+ * images (see ds.h; verification: ds_check.c). Every query is bounded by its result:
+ * the summary reads the names and sessions tables and the primary key, rows use LIMIT
+ * on the key. */
 #include <fcntl.h>
 #include <math.h>
 #include <string.h>
 
 #include "common/fileio.h"
 #include "common/log.h"
-#include "common/sha256.h"
 #include "ds_internal.h"
 #include "ds_png.h"
 
@@ -46,6 +46,31 @@ static int read_names(struct ds *d, const char *kind, struct ds_name_count *name
         return rc == SQLITE_DONE ? 0 : ds_db_fail(d, rc, "Failed to read names");
 }
 
+/* Fills out->sessions with the DS_SUMMARY_MAX_NAMES newest sessions, oldest first. */
+static int read_sessions(struct ds *d, struct ds_summary *out)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        int r, rc = SQLITE_DONE;
+
+        r = ds_db_prepare(d,
+                          "SELECT name, state, planned, captured FROM (SELECT rowid AS r, *"
+                          " FROM sessions ORDER BY started_ns DESC, rowid DESC LIMIT ?)"
+                          " ORDER BY started_ns, r",
+                          &s);
+        if (r < 0)
+                return r;
+        sqlite3_bind_int(s, 1, DS_SUMMARY_MAX_NAMES);
+        while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+                struct ds_session_count *c = &out->sessions[out->n_sessions++];
+
+                snprintf(c->name, sizeof(c->name), "%s", (const char *)sqlite3_column_text(s, 0));
+                snprintf(c->state, sizeof(c->state), "%s", (const char *)sqlite3_column_text(s, 1));
+                c->planned = sqlite3_column_int64(s, 2);
+                c->captured = sqlite3_column_int64(s, 3);
+        }
+        return rc == SQLITE_DONE ? 0 : ds_db_fail(d, rc, "Failed to read sessions");
+}
+
 int ds_summary(struct ds *d, struct ds_summary *out)
 {
         int64_t n;
@@ -69,6 +94,8 @@ int ds_summary(struct ds *d, struct ds_summary *out)
                 r = read_names(d, "camera", out->cameras, &out->n_cameras);
         if (r == 0)
                 r = read_names(d, "lamp", out->lamps, &out->n_lamps);
+        if (r == 0)
+                r = read_sessions(d, out);
         return r;
 }
 
@@ -133,8 +160,7 @@ int ds_rows_by_pose(struct ds *d, const struct gn_pose *p, double tol_deg, ds_ro
         return run_rows(d, s, fn, userdata);
 }
 
-/* A file name of the dataset must be relative and stay inside it. */
-static bool file_name_ok(const char *file)
+bool ds_file_name_ok(const char *file)
 {
         return file && *file && file[0] != '/' && !strstr(file, "..");
 }
@@ -147,7 +173,7 @@ int ds_load_image(struct ds *d, const char *file, struct gn_frame *out)
 
         DS_ASSERT_THREAD_ALLOWED();
 
-        if (!d || !file_name_ok(file) || !out)
+        if (!d || !ds_file_name_ok(file) || !out)
                 return -EINVAL;
         r = gn_read_file_at(d->dir_fd, file, DS_FILE_MAX, &buf, &len);
         if (r == 0)
@@ -155,39 +181,4 @@ int ds_load_image(struct ds *d, const char *file, struct gn_frame *out)
         if (r < 0)
                 return ds_fail(d, r, "Failed to load %s: %s", file, strerror(-r));
         return 0;
-}
-
-struct verify_ctx {
-        struct ds *d;
-        int bad;
-};
-
-static int verify_one(const struct ds_capture *c, void *ud)
-{
-        struct verify_ctx *v = ud;
-        char hex[GN_SHA256_HEX];
-        int r;
-
-        r = file_name_ok(c->file) ? gn_sha256_file_at(v->d->dir_fd, c->file, hex) : -ENOENT;
-        if (r < 0 && r != -ENOENT)
-                return ds_fail(v->d, r, "Failed to hash %s: %s", c->file, strerror(-r));
-        if (r == 0 && strcmp(hex, c->sha256) == 0)
-                return 0;
-        log_warning("dataset '%s': capture %lld: %s %s", v->d->path, (long long)c->id, c->file,
-                    r < 0 ? "is missing" : "does not match its checksum");
-        v->bad++;
-        return 0;
-}
-
-int ds_verify(struct ds *d)
-{
-        struct verify_ctx v = {.d = d};
-        int r;
-
-        DS_ASSERT_THREAD_ALLOWED();
-
-        if (!d)
-                return -EINVAL;
-        r = ds_rows(d, 0, -1, verify_one, &v);
-        return r < 0 ? r : v.bad;
 }

@@ -117,7 +117,8 @@ void tu_make_schema1(const char *path, const char *extra_sql)
         snprintf(index, sizeof(index), "%s/index.sqlite", path);
         CHECK(sqlite3_open_v2(index, &db, SQLITE_OPEN_READWRITE, NULL) == SQLITE_OK);
         CHECK(sqlite3_exec(db,
-                           "DROP TABLE captures; DROP TABLE names;"
+                           "DROP TABLE captures; DROP TABLE names; DROP TABLE sessions;"
+                           "DROP TABLE plan;"
                            "CREATE TABLE captures (id INTEGER PRIMARY KEY,"
                            " session TEXT NOT NULL DEFAULT '',"
                            " turntable_deg REAL NOT NULL, light_arm_deg REAL NOT NULL,"

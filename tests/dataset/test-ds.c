@@ -470,7 +470,7 @@ static void test_migrate(void)
         gn_frame_free_data(&f);
         /* a schema from the future is refused */
         fx.d = ds_close(fx.d);
-        raw_sql(&fx, "PRAGMA user_version = 4");
+        raw_sql(&fx, "PRAGMA user_version = 5");
         CHECK_INT(ds_open(fx.path, &fx.d), -EBADMSG);
         teardown(&fx);
 }

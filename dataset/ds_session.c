@@ -1,0 +1,344 @@
+/* ds_session.c - sessions in the index: start record and plan in one transaction, state
+ * and stop record, the plan items still to capture, and the dark library (see
+ * ds_session.h, docs/dataset.md).
+ *
+ * DESIGN
+ * The plan lives in the index (table plan, one row per item) so that resume needs
+ * nothing but the dataset: the items still to capture are those without a capture row
+ * (NOT EXISTS on the unique (session, plan_seq) index of captures). Each session keeps
+ * its count of captured items, updated in the transaction of each row (ds_index.c), so
+ * a summary never counts rows; ds_check recounts. */
+#include <math.h>
+#include <string.h>
+
+#include "common/clock.h"
+#include "common/log.h"
+#include "ds_internal.h"
+#include "ds_session.h"
+
+static bool session_name_ok(const char *name)
+{
+        return name && *name && strlen(name) < DS_NAME_MAX;
+}
+
+static bool state_ended(const char *state)
+{
+        return strcmp(state, "done") == 0 || strcmp(state, "aborted") == 0 ||
+               strcmp(state, "failed") == 0;
+}
+
+static bool state_ok(const char *state)
+{
+        return state && (state_ended(state) || strcmp(state, "running") == 0 ||
+                         strcmp(state, "paused") == 0);
+}
+
+/* Inserts the start record of session name with n planned items. */
+static int insert_session(struct ds *d, const char *name, const char *const text[4], size_t n)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        char now[32];
+        int r, rc;
+
+        r = ds_db_prepare(d,
+                          "INSERT INTO sessions (name, state, started, started_ns, file_text,"
+                          " rig_text, plan_json, metadata_json, planned)"
+                          " VALUES (?, 'running', ?, ?, ?, ?, ?, ?, ?)",
+                          &s);
+        if (r < 0)
+                return r;
+        ds_iso8601_now(now, sizeof(now));
+        sqlite3_bind_text(s, 1, name, -1, SQLITE_STATIC);
+        sqlite3_bind_text(s, 2, now, -1, SQLITE_STATIC);
+        sqlite3_bind_int64(s, 3, (sqlite3_int64)gn_realtime_ns());
+        for (int i = 0; i < 4; i++)
+                sqlite3_bind_text(s, 4 + i, text[i] ? text[i] : "", -1, SQLITE_STATIC);
+        sqlite3_bind_int64(s, 8, (sqlite3_int64)n);
+        rc = sqlite3_step(s);
+        if (rc == SQLITE_CONSTRAINT_PRIMARYKEY)
+                return ds_fail(d, -EEXIST, "session '%s' exists already", name);
+        return rc == SQLITE_DONE ? 0 : ds_db_fail(d, rc, "Failed to record the session");
+}
+
+/* Inserts one plan item of session with the prepared statement s. */
+static int insert_item(struct ds *d, sqlite3_stmt *s, const char *session,
+                       const struct ds_plan_item *it)
+{
+        const char *kind = it->kind[0] ? it->kind : "image";
+        int rc = 0;
+
+        if (it->seq < 1 || !it->camera[0] || !ds_kind_ok(kind))
+                return ds_fail(d, -EINVAL, "plan item %lld: bad seq, camera or kind",
+                               (long long)it->seq);
+        rc |= sqlite3_bind_text(s, 1, session, -1, SQLITE_STATIC);
+        rc |= sqlite3_bind_int64(s, 2, it->seq);
+        rc |= sqlite3_bind_int64(s, 3, it->shot);
+        rc |= sqlite3_bind_text(s, 4, it->camera, -1, SQLITE_STATIC);
+        rc |= sqlite3_bind_text(s, 5, kind, -1, SQLITE_STATIC);
+        rc |= sqlite3_bind_int(s, 6, it->bracket);
+        rc |= ds_db_bind_angles(s, 7, &it->pose);
+        rc |= sqlite3_bind_int64(s, 10, it->pose.lamps);
+        rc |= sqlite3_bind_int(s, 11, it->pose.laser);
+        rc |= sqlite3_bind_int(s, 12, it->exposure_us);
+        rc |= sqlite3_bind_double(s, 13, it->gain);
+        if (rc == SQLITE_OK)
+                rc = sqlite3_step(s);
+        sqlite3_reset(s);
+        if (rc != SQLITE_DONE)
+                return ds_db_fail(d, rc, "Failed to record a plan item");
+        return 0;
+}
+
+/* The start record and every plan item (caller's transaction). */
+static int record_session(struct ds *d, const char *name, const char *const text[4],
+                          const struct ds_plan_item *items, size_t n)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        int r;
+
+        r = insert_session(d, name, text, n);
+        if (r == 0)
+                r = ds_db_prepare(d,
+                                  "INSERT INTO plan (session, seq, shot, camera, kind, bracket,"
+                                  " turntable_deg, light_arm_deg, camera_arm_deg, lamp_bits,"
+                                  " laser, exposure_us, gain)"
+                                  " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                                  &s);
+        for (size_t i = 0; r == 0 && i < n; i++)
+                r = insert_item(d, s, name, &items[i]);
+        return r;
+}
+
+int ds_session_begin(struct ds *d, const char *name, const char *file_text, const char *rig_text,
+                     const char *plan_json, const char *metadata_json,
+                     const struct ds_plan_item *items, size_t n)
+{
+        const char *const text[4] = {file_text, rig_text, plan_json, metadata_json};
+        int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d || !session_name_ok(name) || (n > 0 && !items))
+                return -EINVAL;
+        d->error[0] = 0;
+        r = ds_db_exec(d, "BEGIN IMMEDIATE");
+        if (r < 0)
+                return r;
+        r = record_session(d, name, text, items, n);
+        if (r == 0)
+                r = ds_db_exec(d, "COMMIT");
+        if (r < 0 && !sqlite3_get_autocommit(d->db))
+                (void)sqlite3_exec(d->db, "ROLLBACK", NULL, NULL, NULL);
+        if (r == 0)
+                log_info("dataset '%s': session '%s' begins, %zu captures planned", d->path, name,
+                         n);
+        return r;
+}
+
+int ds_session_set_state(struct ds *d, const char *name, const char *state, const char *reason)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        char now[32] = "";
+        int r, rc;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d || !session_name_ok(name) || !state_ok(state))
+                return -EINVAL;
+        d->error[0] = 0;
+        r = ds_db_prepare(
+                d, "UPDATE sessions SET state = ?, reason = ?, stopped = ? WHERE name = ?", &s);
+        if (r < 0)
+                return r;
+        if (state_ended(state))
+                ds_iso8601_now(now, sizeof(now));
+        sqlite3_bind_text(s, 1, state, -1, SQLITE_STATIC);
+        sqlite3_bind_text(s, 2, reason ? reason : "", -1, SQLITE_STATIC);
+        sqlite3_bind_text(s, 3, now, -1, SQLITE_STATIC);
+        sqlite3_bind_text(s, 4, name, -1, SQLITE_STATIC);
+        rc = sqlite3_step(s);
+        if (rc != SQLITE_DONE)
+                return ds_db_fail(d, rc, "Failed to record the session's state");
+        if (sqlite3_changes(d->db) == 0)
+                return ds_fail(d, -ENOENT, "no session '%s'", name);
+        log_info("dataset '%s': session '%s' %s%s%s", d->path, name, state, reason ? ": " : "",
+                 reason ? reason : "");
+        return state_ended(state) && d->writer ? ds_write_json(d) : 0;
+}
+
+void ds_session_info_clear(struct ds_session_info *s)
+{
+        if (!s)
+                return;
+        free(s->file_text);
+        free(s->rig_text);
+        free(s->plan_json);
+        free(s->metadata_json);
+        memset(s, 0, sizeof(*s));
+}
+
+/* Copies the texts of columns first.. into out's malloc'd strings. */
+static int read_texts(sqlite3_stmt *s, int first, struct ds_session_info *out)
+{
+        char **texts[] = {&out->file_text, &out->rig_text, &out->plan_json, &out->metadata_json};
+
+        for (size_t i = 0; i < ELEMENTSOF(texts); i++) {
+                const unsigned char *t = sqlite3_column_text(s, first + (int)i);
+
+                *texts[i] = strdup(t ? (const char *)t : "");
+                if (!*texts[i])
+                        return -ENOMEM;
+        }
+        return 0;
+}
+
+int ds_session_get(struct ds *d, const char *name, struct ds_session_info *out)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        int r, rc;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d || !name || !out)
+                return -EINVAL;
+        memset(out, 0, sizeof(*out));
+        r = ds_db_prepare(d,
+                          "SELECT name, state, started, stopped, reason, planned, captured,"
+                          " file_text, rig_text, plan_json, metadata_json"
+                          " FROM sessions WHERE name = ?",
+                          &s);
+        if (r < 0)
+                return r;
+        sqlite3_bind_text(s, 1, name, -1, SQLITE_STATIC);
+        rc = sqlite3_step(s);
+        if (rc == SQLITE_DONE)
+                return -ENOENT;
+        if (rc != SQLITE_ROW)
+                return ds_db_fail(d, rc, "Failed to read the session");
+        ds_db_column_text(s, 0, out->name, sizeof(out->name));
+        ds_db_column_text(s, 1, out->state, sizeof(out->state));
+        ds_db_column_text(s, 2, out->started, sizeof(out->started));
+        ds_db_column_text(s, 3, out->stopped, sizeof(out->stopped));
+        ds_db_column_text(s, 4, out->reason, sizeof(out->reason));
+        out->planned = sqlite3_column_int64(s, 5);
+        out->captured = sqlite3_column_int64(s, 6);
+        r = read_texts(s, 7, out);
+        if (r < 0)
+                ds_session_info_clear(out);
+        return r;
+}
+
+int ds_session_unfinished(struct ds *d, char *name, size_t len)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        int r, rc;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d || !name || len == 0)
+                return -EINVAL;
+        r = ds_db_prepare(d,
+                          "SELECT name FROM sessions WHERE state IN ('running', 'paused')"
+                          " ORDER BY started_ns DESC, rowid DESC LIMIT 1",
+                          &s);
+        if (r < 0)
+                return r;
+        rc = sqlite3_step(s);
+        if (rc == SQLITE_DONE)
+                return -ENOENT;
+        if (rc != SQLITE_ROW)
+                return ds_db_fail(d, rc, "Failed to read sessions");
+        ds_db_column_text(s, 0, name, len);
+        return 0;
+}
+
+/* Fills it from a row of the pending query. */
+static void read_item(sqlite3_stmt *s, struct ds_plan_item *it)
+{
+        memset(it, 0, sizeof(*it));
+        it->seq = sqlite3_column_int64(s, 0);
+        it->shot = sqlite3_column_int64(s, 1);
+        ds_db_column_text(s, 2, it->camera, sizeof(it->camera));
+        ds_db_column_text(s, 3, it->kind, sizeof(it->kind));
+        it->bracket = sqlite3_column_int(s, 4);
+        ds_db_column_angles(s, 5, &it->pose);
+        it->pose.lamps = (uint32_t)sqlite3_column_int64(s, 8);
+        it->pose.laser = sqlite3_column_int(s, 9) != 0;
+        it->exposure_us = sqlite3_column_int(s, 10);
+        it->gain = sqlite3_column_double(s, 11);
+}
+
+/* -ENOENT unless session exists. */
+static int session_exists(struct ds *d, const char *session)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        int r, rc;
+
+        r = ds_db_prepare(d, "SELECT 1 FROM sessions WHERE name = ?", &s);
+        if (r < 0)
+                return r;
+        sqlite3_bind_text(s, 1, session, -1, SQLITE_STATIC);
+        rc = sqlite3_step(s);
+        if (rc == SQLITE_ROW)
+                return 0;
+        return rc == SQLITE_DONE ? -ENOENT : ds_db_fail(d, rc, "Failed to read sessions");
+}
+
+int ds_plan_pending(struct ds *d, const char *session, ds_plan_fn fn, void *userdata)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        struct ds_plan_item it;
+        int n = 0, r, rc;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d || !session || !fn)
+                return -EINVAL;
+        r = session_exists(d, session);
+        if (r == 0)
+                r = ds_db_prepare(
+                        d,
+                        "SELECT seq, shot, camera, kind, bracket, turntable_deg, light_arm_deg,"
+                        " camera_arm_deg, lamp_bits, laser, exposure_us, gain FROM plan p"
+                        " WHERE p.session = ?1 AND NOT EXISTS (SELECT 1 FROM captures c"
+                        " WHERE c.session = ?1 AND c.plan_seq = p.seq) ORDER BY p.seq",
+                        &s);
+        if (r < 0)
+                return r;
+        sqlite3_bind_text(s, 1, session, -1, SQLITE_STATIC);
+        while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+                read_item(s, &it);
+                r = fn(&it, userdata);
+                if (r < 0)
+                        return r;
+                n++;
+        }
+        return rc == SQLITE_DONE ? n : ds_db_fail(d, rc, "Failed to read the plan");
+}
+
+int64_t ds_find_dark(struct ds *d, const char *camera, int exposure_us, double gain,
+                     uint64_t not_before_ns)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        int r, rc;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d || !camera)
+                return -EINVAL;
+        r = ds_db_prepare(d,
+                          "SELECT id FROM captures WHERE kind = 'dark' AND camera = ?"
+                          " AND exposure_us = ? AND abs(gain - ?) <= 1e-6 AND t_exposure_ns >= ?"
+                          " ORDER BY t_exposure_ns DESC, id DESC LIMIT 1",
+                          &s);
+        if (r < 0)
+                return r;
+        sqlite3_bind_text(s, 1, camera, -1, SQLITE_STATIC);
+        sqlite3_bind_int(s, 2, exposure_us);
+        sqlite3_bind_double(s, 3, gain);
+        sqlite3_bind_int64(s, 4, (sqlite3_int64)MIN(not_before_ns, (uint64_t)INT64_MAX));
+        rc = sqlite3_step(s);
+        if (rc == SQLITE_ROW)
+                return sqlite3_column_int64(s, 0);
+        return rc == SQLITE_DONE ? 0 : ds_db_fail(d, rc, "Failed to look up a dark frame");
+}
