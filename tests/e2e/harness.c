@@ -203,11 +203,22 @@ static void start_daemon(struct rigenv *e)
         wait_socket(e, 30);
 }
 
-void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
+/* Starts gonio-sim on e's rig and directories and waits for "ready". */
+static void start_sim(struct rigenv *e)
 {
-        char scale[32], log[320];
+        char log[320];
         int fd;
 
+        snprintf(log, sizeof(log), "%s/render.log", e->dir);
+        e->sim = spawn((char *[]){(char *)e->gonio_sim, "--rig", e->rig, "--dir", e->simdir,
+                                  "--time-scale", e->time_scale, "--render-log", log, NULL},
+                       &fd);
+        CHECK(wait_word(fd, "ready", 30));
+        close(fd);
+}
+
+void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
+{
         memset(e, 0, sizeof(*e));
         running = e;
         atexit(kill_children);
@@ -222,13 +233,8 @@ void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const ch
         snprintf(e->data, sizeof(e->data), "%s/data", e->dir);
         write_file(e->rig, rig_text ? rig_text : test_rig);
         setenv("GONIO_SIM_DIR", e->simdir, 1);
-        snprintf(scale, sizeof(scale), "%g", time_scale);
-        snprintf(log, sizeof(log), "%s/render.log", e->dir);
-        e->sim = spawn((char *[]){(char *)e->gonio_sim, "--rig", e->rig, "--dir", e->simdir,
-                                  "--time-scale", scale, "--render-log", log, NULL},
-                       &fd);
-        CHECK(wait_word(fd, "ready", 30));
-        close(fd);
+        snprintf(e->time_scale, sizeof(e->time_scale), "%g", time_scale);
+        start_sim(e);
         start_daemon(e);
 }
 
@@ -242,6 +248,13 @@ void rigenv_crash_daemon(struct rigenv *e)
         CHECK(kill(e->daemon, SIGKILL) == 0);
         CHECK(waitpid(e->daemon, NULL, 0) == e->daemon);
         start_daemon(e);
+}
+
+void rigenv_crash_sim(struct rigenv *e)
+{
+        CHECK(kill(e->sim, SIGKILL) == 0);
+        CHECK(waitpid(e->sim, NULL, 0) == e->sim);
+        start_sim(e);
 }
 
 /* SIGTERMs pid and checks it exits cleanly (under ASan a leak makes the status non-zero). */

@@ -12,6 +12,7 @@ struct rigenv {
         char rig[300];    /* rig file */
         char sock[300];   /* goniod's control socket */
         char data[300];   /* datasets */
+        char time_scale[32];
         pid_t sim, daemon;
         const char *goniod, *gonioctl, *gonio_sim;
 };
@@ -26,6 +27,10 @@ void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const ch
 /* Kills goniod with SIGKILL (as a crash would) and starts it again on the same rig,
  * socket and data. */
 void rigenv_crash_daemon(struct rigenv *e);
+
+/* Kills gonio-sim with SIGKILL (every emulated device vanishes at once) and starts it
+ * again: its drives come back unhomed at 0. */
+void rigenv_crash_sim(struct rigenv *e);
 
 /* SIGTERMs both processes, waits, and removes the temp dir. */
 void rigenv_stop(struct rigenv *e);
