@@ -370,14 +370,15 @@ static int read_motion(struct yconf *yc, struct fy_node *m, struct rig_axis_conf
 static int parse_axis(struct rig_config *rc, struct fy_node *m, struct rig_axis_conf *a)
 {
         static const char *const keys[] = {
-                "name",         "continuous",       "limits",    "max_speed", "accel",
-                "settle_ms",    "move_timeout_ms",  "role",      "backlash",  "deadband",
-                "move_retries", "absolute_encoder", "direction", NULL};
+                "name",         "continuous",       "limits",    "max_speed",        "accel",
+                "settle_ms",    "move_timeout_ms",  "role",      "backlash",         "deadband",
+                "move_retries", "absolute_encoder", "direction", "move_overhead_ms", NULL};
         struct yconf *yc = &rc->yc;
         double lim[2] = {-180, 180};
         int r;
 
-        *a = (struct rig_axis_conf){.max_speed = 30, .accel = 60, .settle_ms = 50};
+        *a = (struct rig_axis_conf){
+                .max_speed = 30, .accel = 60, .settle_ms = 50, .move_overhead_ms = 35};
         if ((r = parse_backend(rc, m, RIG_CLASS_AXIS, keys, a->bus, &a->backend)) < 0 ||
             (r = read_name(yc, m, a->name, sizeof(a->name))) < 0 ||
             (r = yconf_bool(yc, m, "continuous", &a->continuous)) < 0 ||
@@ -386,6 +387,7 @@ static int parse_axis(struct rig_config *rc, struct fy_node *m, struct rig_axis_
             (r = yconf_double(yc, m, "accel", 0.1, 6553.5, &a->accel)) < 0 ||
             (r = read_int(yc, m, "settle_ms", 0, 60000, &a->settle_ms)) < 0 ||
             (r = read_int(yc, m, "move_timeout_ms", 0, 3600000, &a->move_timeout_ms)) < 0 ||
+            (r = read_int(yc, m, "move_overhead_ms", 0, 10000, &a->move_overhead_ms)) < 0 ||
             (r = read_role(yc, m, a)) < 0 || (r = read_motion(yc, m, a)) < 0)
                 return r;
         if (a->continuous && yconf_get(m, "limits"))
@@ -480,10 +482,11 @@ static int parse_camera_geometry(struct yconf *yc, struct fy_node *m, struct rig
 
 static int parse_camera(struct rig_config *rc, struct fy_node *m, struct rig_camera_conf *c)
 {
-        static const char *const keys[] = {"name",        "elevation", "distance", "azimuth",
-                                           "target",      "width",     "height",   "fx",
-                                           "fy",          "cx",        "cy",       "distortion",
-                                           "exposure_us", "gain",      "bits",     NULL};
+        static const char *const keys[] = {
+                "name",       "elevation",     "distance",    "azimuth", "target",
+                "width",      "height",        "fx",          "fy",      "cx",
+                "cy",         "distortion",    "exposure_us", "gain",    "bits",
+                "readout_ms", "occlusion_deg", NULL};
         struct yconf *yc = &rc->yc;
         int r;
 
@@ -494,14 +497,18 @@ static int parse_camera(struct rig_config *rc, struct fy_node *m, struct rig_cam
                                       .fy = 1000,
                                       .exposure_us = 10000,
                                       .gain = 1,
-                                      .bits = 8};
+                                      .bits = 8,
+                                      .readout_ms = 30,
+                                      .occlusion_deg = 5};
         if ((r = parse_backend(rc, m, RIG_CLASS_CAMERA, keys, c->bus, &c->backend)) < 0 ||
             (r = read_name(yc, m, c->name, sizeof(c->name))) < 0 ||
             (r = parse_camera_geometry(yc, m, c)) < 0 ||
             (r = read_int(yc, m, "exposure_us", RIG_EXPOSURE_US_MIN, RIG_EXPOSURE_US_MAX,
                           &c->exposure_us)) < 0 ||
             (r = yconf_double(yc, m, "gain", RIG_GAIN_MIN, RIG_GAIN_MAX, &c->gain)) < 0 ||
-            (r = read_int(yc, m, "bits", 8, 16, &c->bits)) < 0)
+            (r = read_int(yc, m, "bits", 8, 16, &c->bits)) < 0 ||
+            (r = read_int(yc, m, "readout_ms", 0, 10000, &c->readout_ms)) < 0 ||
+            (r = yconf_double(yc, m, "occlusion_deg", 0, 90, &c->occlusion_deg)) < 0)
                 return r;
         if (c->bits != 8 && c->bits != 16)
                 return yconf_error(yc, yconf_get(m, "bits"), "bits", "must be 8 or 16");

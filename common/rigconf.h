@@ -124,6 +124,7 @@ struct rig_axis_conf {
         double max_speed;        /* deg/s */
         double accel;            /* deg/s^2 */
         int settle_ms;           /* extra wait after in-position */
+        int move_overhead_ms;    /* planning: command and poll latency per leg (default 35) */
         int move_timeout_ms;     /* 0 = derived from distance, speed and accel */
         /* motion semantics of the EPICS motor record, applied above every backend */
         double backlash_deg;   /* > 0: final approach upwards by this much, < 0 downwards */
@@ -162,7 +163,11 @@ struct rig_camera_conf {
         double dist[5]; /* k1 k2 p1 p2 k3, OpenCV convention */
         int exposure_us;
         double gain;
-        int bits; /* 8 or 16 */
+        int bits;             /* 8 or 16 */
+        int readout_ms;       /* planning: time per frame beyond the exposure (default 30) */
+        double occlusion_deg; /* planning: angular radius of the camera and its mount seen
+                               * from the turntable centre; a lamp within it and farther away
+                               * is hidden (default 5) */
 };
 
 struct rig_config {

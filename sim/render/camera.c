@@ -80,35 +80,6 @@ double pose_deg(const struct gn_pose *p, enum gn_role role)
         return gn_pose_has(p, role) ? p->deg[role] : 0.0;
 }
 
-void camera_pose(const struct rig_camera_conf *cc, double camera_arm_deg, double R[9], double t[3])
-{
-        double a = (camera_arm_deg + cc->azimuth_deg) * M_PI / 180;
-        double e = cc->elevation_deg * M_PI / 180;
-        double C[3] = {cc->target[0] + cc->distance_mm * cos(e) * cos(a),
-                       cc->target[1] + cc->distance_mm * cos(e) * sin(a),
-                       cc->target[2] + cc->distance_mm * sin(e)};
-        double f[3] = {-cos(e) * cos(a), -cos(e) * sin(a), -sin(e)};
-        double r[3] = {f[1], -f[0], 0}; /* f x z */
-        double rl = hypot(r[0], r[1]);
-
-        if (rl < 1e-9) { /* looking straight up or down: keep the arm's azimuth as right */
-                r[0] = sin(a);
-                r[1] = -cos(a);
-                rl = 1;
-        }
-        r[0] /= rl;
-        r[1] /= rl;
-        double dn[3] = {f[1] * r[2] - f[2] * r[1], f[2] * r[0] - f[0] * r[2],
-                        f[0] * r[1] - f[1] * r[0]}; /* f x r: image down */
-        for (int i = 0; i < 3; i++) {
-                R[i] = r[i];
-                R[3 + i] = dn[i];
-                R[6 + i] = f[i];
-        }
-        for (int i = 0; i < 3; i++)
-                t[i] = -(R[i * 3] * C[0] + R[i * 3 + 1] * C[1] + R[i * 3 + 2] * C[2]);
-}
-
 int sim_cam_project(const struct sim_cam_geom *g, const double p[3], double uv[2])
 {
         double c[3], xd, yd;
@@ -140,6 +111,6 @@ int sim_camera_geom(const struct sim_scene *s, const struct gn_pose *st, int cam
         out->cy = cc->cy;
         for (int i = 0; i < 5; i++)
                 out->dist[i] = cc->dist[i];
-        camera_pose(cc, pose_deg(st, GN_ROLE_CAMERA_ARM), out->R, out->t);
+        riggeom_camera_pose(cc, pose_deg(st, GN_ROLE_CAMERA_ARM), out->R, out->t);
         return 0;
 }

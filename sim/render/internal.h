@@ -12,6 +12,7 @@
 #include <stdint.h>
 
 #include "common/cleanup.h"
+#include "common/riggeom.h"
 #include "render.h"
 #include "vec.h"
 
@@ -171,10 +172,8 @@ int board_marker_bits(int id, uint16_t *bits);
 double pose_deg(const struct gn_pose *p, enum gn_role role);
 int camera_build(struct camera *c, const struct rig_camera_conf *cc);
 void camera_free(struct camera *c);
-void camera_pose(const struct rig_camera_conf *cc, double camera_arm_deg, double R[9], double t[3]);
 
 /* --- light.c --- */
-void lamp_position(const struct rig_switch_conf *l, double light_arm_deg, double p[3]);
 /* Sample point k of n of a lamp of radius r at p: a disc facing the origin. */
 void lamp_sample(const double p[3], double r, int k, int n, double out[3]);
 int dome_build(const struct dome *d, struct dome_el **ret, int *n);

@@ -8,16 +8,6 @@
 #include "common/cleanup.h"
 #include "internal.h"
 
-void lamp_position(const struct rig_switch_conf *l, double light_arm_deg, double p[3])
-{
-        double a = (light_arm_deg + l->azimuth_deg) * M_PI / 180;
-        double e = l->elevation_deg * M_PI / 180;
-
-        p[0] = l->radius_mm * cos(e) * cos(a);
-        p[1] = l->radius_mm * cos(e) * sin(a);
-        p[2] = l->radius_mm * sin(e);
-}
-
 void lamp_sample(const double p[3], double r, int k, int n, double out[3])
 {
         double len = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
@@ -55,7 +45,7 @@ int sim_lamp_position(const struct sim_scene *s, const struct gn_pose *st, int l
 {
         if (!s || !st || !out || lamp < 0 || (size_t)lamp >= s->rc->n_lamps)
                 return -EINVAL;
-        lamp_position(&s->rc->lamps[lamp], pose_deg(st, GN_ROLE_LIGHT_ARM), out);
+        riggeom_lamp_position(&s->rc->lamps[lamp], pose_deg(st, GN_ROLE_LIGHT_ARM), out);
         return 0;
 }
 

@@ -546,7 +546,7 @@ static void setup_camera(struct fctx *c, const struct gn_pose *st)
 {
         double R[9], t[3], Rz[9], Rzi[9], Rt[9], M[9], C[3], Co[3];
 
-        camera_pose(c->cc, pose_deg(st, GN_ROLE_CAMERA_ARM), R, t);
+        riggeom_camera_pose(c->cc, pose_deg(st, GN_ROLE_CAMERA_ARM), R, t);
         m3d_rot_z(pose_deg(st, GN_ROLE_TURNTABLE), Rz);
         m3d_rot_z(-pose_deg(st, GN_ROLE_TURNTABLE), Rzi);
         for (int i = 0; i < 3; i++)
@@ -580,7 +580,7 @@ static void setup_lights(struct fctx *c, const struct gn_pose *st)
         for (size_t l = 0; l < s->rc->n_lamps; l++) {
                 if (!(st->lamps & (UINT32_C(1) << l)))
                         continue;
-                lamp_position(&s->rc->lamps[l], pose_deg(st, GN_ROLE_LIGHT_ARM), p);
+                riggeom_lamp_position(&s->rc->lamps[l], pose_deg(st, GN_ROLE_LIGHT_ARM), p);
                 for (int k = 0; k < ns; k++) {
                         struct light_pt *lp = &c->lights[c->n_lights++];
                         lamp_sample(p, s->lamp_radius, k, ns, q);
