@@ -857,13 +857,14 @@ static void prepare(struct session_runner *s)
 
 /* ---- running: position, expose ---- */
 
-static void on_settled(sd_event_source *es, uint64_t usec, void *userdata)
+static int on_settled(sd_event_source *es, uint64_t usec, void *userdata)
 {
         struct session_runner *s = userdata;
 
         s->settle_timer = sd_event_source_disable_unref(s->settle_timer);
         s->ops--;
         step(s);
+        return 0;
 }
 
 /* Waits the session's extra settle time of the axes just moved, as one more operation. */
