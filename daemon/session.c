@@ -452,30 +452,6 @@ static int find_unfinished(struct load_job *j)
         return j->dataset[0] ? 0 : -ENOENT;
 }
 
-/* Records the new session and its plan, or finds the session to resume. */
-static int begin_or_find(struct load_job *j, const char *rig_text)
-{
-        int r;
-
-        if (j->begin) {
-                reuse_darks(j);
-                r = ds_session_begin(j->d, j->name, j->file_text, rig_text, j->plan_json,
-                                     j->meta_json, j->items, j->n_items);
-                if (r == -EEXIST)
-                        snprintf(j->msg, sizeof(j->msg),
-                                 "dataset '%s' has a session '%s' already (gonioctl session "
-                                 "resume, or name this one differently)",
-                                 j->dataset, j->name);
-                return r;
-        }
-        if (!j->name[0] && ds_session_unfinished(j->d, j->name, sizeof(j->name)) < 0) {
-                snprintf(j->msg, sizeof(j->msg), "dataset '%s' has no unfinished session",
-                         j->dataset);
-                return -ENOENT;
-        }
-        return 0;
-}
-
 /* Records why a job failed (the first reason only) and returns r. */
 static int job_fail(struct load_job *j, int r, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 static int job_fail(struct load_job *j, int r, const char *fmt, ...)
@@ -488,6 +464,30 @@ static int job_fail(struct load_job *j, int r, const char *fmt, ...)
                 va_end(ap);
         }
         return r;
+}
+
+/* Records the new session and its plan, or finds the session to resume. */
+static int begin_or_find(struct load_job *j, const char *rig_text)
+{
+        int r;
+
+        if (j->begin) {
+                reuse_darks(j);
+                r = ds_session_begin(j->d, j->name, j->file_text, rig_text, j->plan_json,
+                                     j->meta_json, j->items, j->n_items);
+                if (r == -EEXIST)
+                        return job_fail(j, -EBUSY,
+                                        "dataset '%s' has a session '%s' already (gonioctl "
+                                        "session resume, or name this one differently)",
+                                        j->dataset, j->name);
+                return r;
+        }
+        if (!j->name[0] && ds_session_unfinished(j->d, j->name, sizeof(j->name)) < 0) {
+                snprintf(j->msg, sizeof(j->msg), "dataset '%s' has no unfinished session",
+                         j->dataset);
+                return -ENOENT;
+        }
+        return 0;
 }
 
 /* Opens the target (or takes the open dataset when it is the target). */
@@ -792,16 +792,8 @@ static void on_op_done(struct rig *rig, int result, const char *msg, void *userd
         step(s);
 }
 
-/* True when some shot still to take moves the axis of role. */
-static bool role_swept(const struct session_runner *s, enum gn_role role)
-{
-        for (size_t i = s->next; i < s->n_shots; i++)
-                if (!isnan(s->shots[i].pose.deg[role]))
-                        return true;
-        return false;
-}
-
-/* Homes the swept axes that have no home (a drive restarted, goniod restarted). */
+/* Homes the axes that have no home (a drive restarted, goniod restarted), swept or not, so
+ * that every row records the whole pose. */
 static void home_lost_axes(struct session_runner *s)
 {
         struct gn_pose now = rig_pose(s->m->rig);
@@ -810,7 +802,7 @@ static void home_lost_axes(struct session_runner *s)
                 int ax = rigconf_axis_of_role(rc_of(s), role);
                 int r;
 
-                if (ax < 0 || !isnan(now.deg[role]) || !role_swept(s, role))
+                if (ax < 0 || !isnan(now.deg[role]))
                         continue;
                 r = rig_home(s->m->rig, ax, on_op_done, s);
                 if (r < 0)
@@ -839,6 +831,8 @@ static void prepare(struct session_runner *s)
         int r;
 
         s->positioned = false;
+        s->pos_phase = 0;
+        s->settle_pending_ms = 0;
         s->captured_run = 0;
         s->t_run_ns = gn_monotonic_ns();
         s->estimate_s = estimate_rest(s);

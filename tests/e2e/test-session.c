@@ -182,6 +182,8 @@ static void wait_session(struct rigenv *e, const char *want, double timeout)
         for (double t = 0; t < timeout; t += 0.05) {
                 if (strcmp(session_state(e, state, sizeof(state)), want) == 0)
                         return;
+                if (strcmp(state, "none") == 0)
+                        break; /* it ended: waiting longer will not help */
                 usleep(50000);
         }
         fprintf(stderr, "session state %s, expected %s\n", state, want);
@@ -224,13 +226,13 @@ static void test_fault(struct rigenv *e)
         session_file(e, "s1.yaml", session_text, file, sizeof(file));
         n = planned_captures(e, file);
         fd = start_raw(e, file);
-        usleep(400000);
-        sim_request(e, "{\"cmd\":\"unplug\",\"port\":\"drives\",\"ms\":500}");
+        usleep(200000);
+        sim_request(e, "{\"cmd\":\"unplug\",\"bus\":\"drives\",\"ms\":1500}\n");
         wait_session(e, "paused", 30);
         st = ctl_ok(e, "session", "status", NULL);
         CHECK(strlen(json_string_value(json_object_get(st, "reason"))) > 0);
         json_decref(st);
-        usleep(800000); /* the drives are back */
+        usleep(1600000); /* the drives are back */
         CHECK_INT(ctl(e, NULL, "session", "resume", NULL), 0);
         close(fd);
         check_complete(e, "ds1", "s1", n);
