@@ -8,11 +8,13 @@
  * stay and are reported as stored, so a retry never duplicates them. */
 #include <assert.h>
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "common/log.h"
 #include "capture.h"
+#include "dataset/ds_session.h"
 
 #define POOL_ENCODERS 2
 #define POOL_CAPACITY 16
@@ -23,7 +25,8 @@ struct take {
         unsigned pending; /* stores not answered yet */
         char session[DS_NAME_MAX];
         char kind[8];
-        struct capture_tag tag; /* session and kind point into the take */
+        struct gn_pose planned;
+        struct capture_tag tag; /* session, kind and planned point into the take */
         capture_done_fn done;
         void *ud;
         struct take *next;
@@ -186,6 +189,17 @@ static void fill_row(struct capture *cp, const struct take *t, const struct rig_
         row->t_exposure_ns = s->frame.timestamp_ns;
 }
 
+/* True when the exposure's pose is the planned one (see struct capture_tag). */
+static bool as_planned(const struct gn_pose *got, const struct gn_pose *want)
+{
+        for (int r = 0; r < GN_ROLE_COUNT; r++)
+                if (!isnan(want->deg[r]) &&
+                    (isnan(got->deg[r]) ||
+                     gn_angle_distance(got->deg[r], want->deg[r]) > DS_PLAN_POSE_TOL_DEG))
+                        return false;
+        return got->lamps == want->lamps && got->laser == want->laser;
+}
+
 /* Hands shot i's frame to the storage pool, or records why it cannot be stored. */
 static void store_shot(struct take *t, struct rig_exposure *e, size_t i)
 {
@@ -198,6 +212,13 @@ static void store_shot(struct take *t, struct rig_exposure *e, size_t i)
         out->result = s->result;
         if (s->result < 0)
                 return (void)snprintf(out->msg, sizeof(out->msg), "%s", s->msg);
+        if (t->tag.planned && !as_planned(&e->pose, t->tag.planned)) {
+                out->result = -EIO;
+                return (void)snprintf(out->msg, sizeof(out->msg),
+                                      "camera '%s': not stored: the rig was not in the planned "
+                                      "pose (an axis or a switch changed behind goniod's back)",
+                                      rig_config(cp->rig)->cameras[s->cam].name);
+        }
         if (!cp->pool)
                 r = -ESTALE;
         else if (!(ref = malloc(sizeof(*ref))))
@@ -259,6 +280,10 @@ int capture_take(struct capture *cp, const int *cams, size_t n, const struct cam
         *t = (struct take){.cp = cp, .done = done, .ud = userdata, .next = cp->exposing};
         if (tag)
                 t->tag = *tag;
+        if (tag && tag->planned) {
+                t->planned = *tag->planned;
+                t->tag.planned = &t->planned;
+        }
         snprintf(t->session, sizeof(t->session), "%s", tag && tag->session ? tag->session : "");
         snprintf(t->kind, sizeof(t->kind), "%s", tag && tag->kind ? tag->kind : "image");
         t->res.n_shots = n;

@@ -41,6 +41,10 @@ struct capture_tag {
         int64_t plan_seq[RIG_MAX_CAMERAS]; /* per camera of the take; 0: none */
         int64_t dark_id[RIG_MAX_CAMERAS];  /* the dark frame's row per camera; 0: none */
         capture_exposed_fn exposed;        /* may be NULL */
+        /* The pose the frames must have been exposed in (angles where not NAN, within
+         * DS_PLAN_POSE_TOL_DEG; lamps and laser exactly), or NULL: a frame exposed elsewhere
+         * is not stored (its shot fails with -EIO). */
+        const struct gn_pose *planned;
 };
 
 /* Called on the loop thread for every row committed (capture.stored). */

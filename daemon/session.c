@@ -994,7 +994,7 @@ static void expose(struct session_runner *s)
 {
         const struct run_shot *sh = &s->shots[s->next];
         struct capture_tag tag = {.session = s->name, .kind = sh->kind, .bracket = sh->bracket,
-                                  .exposed = on_exposed};
+                                  .exposed = on_exposed, .planned = &sh->pose};
         struct cam_request req = {.exposure_us = sh->exposure_us, .gain = sh->gain};
         bool dark = strcmp(sh->kind, "dark") == 0;
         int r;

@@ -17,9 +17,9 @@
 #include "common/log.h"
 #include "common/sha256.h"
 #include "ds_internal.h"
+#include "ds_session.h"
 
 /* The largest distance in degrees between a row's angle and its plan item's. */
-#define CHECK_POSE_TOL_DEG "0.05"
 
 struct check {
         struct ds *d;
@@ -265,7 +265,7 @@ static void session_msg(struct check *ck, sqlite3_stmt *s)
 /* clang-format off */
 #define ANGLE_DIFF(col, word)                                                                      \
         "(CASE WHEN p." col " IS NOT NULL AND coalesce(gn_angle_dist(c." col ", p." col ") > "     \
-        CHECK_POSE_TOL_DEG ", 1) THEN ' " word "' ELSE '' END)"
+        DS_PLAN_POSE_TOL_DEG_SQL ", 1) THEN ' " word "' ELSE '' END)"
 #define FIELD_DIFF(col, word) "(CASE WHEN c." col " <> p." col " THEN ' " word "' ELSE '' END)"
 
 /* Rows disagreeing with their plan item, with the list of what differs. */

@@ -14,6 +14,11 @@
 #include "ds.h"
 
 /* One planned capture: what ds_plan_pending hands back for each item not yet captured. */
+/* How far a row's angle may be from its plan item's (ds_check; the session runner refuses to
+ * store a frame further away). Degrees; a string for SQL, a number for C. */
+#define DS_PLAN_POSE_TOL_DEG_SQL "0.05"
+#define DS_PLAN_POSE_TOL_DEG     0.05
+
 struct ds_plan_item {
         int64_t seq;  /* >= 1, unique in the session */
         int64_t shot; /* items of one shot are exposed together */
