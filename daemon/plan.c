@@ -175,15 +175,28 @@ double plan_estimate(const struct rig_config *rc, const struct plan_shot *shots,
 
 /* ---- building ---- */
 
-/* One mechanical loop: its role's angles sorted, and the cost of each step between
- * neighbours on the cycle: up[i] from sorted i to i + 1, down[i] back (the last wraps
- * round to the first: a real move on a limited axis too). */
+/* One mechanical loop: its role's angles sorted, and the costs of the steps between
+ * neighbours on the cycle of sorted angles, summed twice round so that a stretch of it
+ * costs one subtraction: up[k] is the cost of the steps from sorted 0 up to sorted k
+ * (indices modulo n; from the last the cycle wraps round to the first, a real move on a
+ * limited axis too), down[k] that of the same steps taken downwards. */
 struct loop {
         size_t n;
-        size_t *sorted; /* indices into the sweep */
-        double *up, *down;
-        double tot_up, tot_down;
+        size_t *sorted;    /* indices into the sweep */
+        double *up, *down; /* 2n + 1 each */
 };
+
+/* A way through a loop's angles for one pass: the cycle of sorted angles cut before sorted
+ * index cut into a line, entered at its s-th angle, one way (dir) to the line's end, then
+ * back past s to the other end (a plain pass when s is an end). */
+struct way {
+        size_t cut, s;
+        int dir; /* +1: up first, -1: down first */
+};
+
+/* Up to this many angles, a pass may start inside the line (O(n^2) choices per pass);
+ * beyond, only at its ends. */
+#define PLAN_ZIGZAG_MAX 64
 
 struct builder {
         const struct rig_config *rc;
@@ -465,20 +478,18 @@ static int loop_init(struct builder *b, enum gn_role role)
 
         l->n = n;
         l->sorted = calloc(n, sizeof(size_t));
-        l->up = calloc(n, sizeof(double));
-        l->down = calloc(n, sizeof(double));
+        l->up = calloc(2 * n + 1, sizeof(double));
+        l->down = calloc(2 * n + 1, sizeof(double));
         if (!l->sorted || !l->up || !l->down)
                 return -ENOMEM;
         for (size_t i = 0; i < n; i++)
                 l->sorted[i] = i;
         qsort_r(l->sorted, n, sizeof(size_t), by_angle, sw->deg);
-        for (size_t i = 0; i < n; i++) {
-                double a = sw->deg[l->sorted[i]], c = sw->deg[l->sorted[(i + 1) % n]];
+        for (size_t k = 0; k < 2 * n; k++) {
+                double a = sw->deg[l->sorted[k % n]], c = sw->deg[l->sorted[(k + 1) % n]];
 
-                l->up[i] = role_move(b, role, a, c);
-                l->down[i] = role_move(b, role, c, a);
-                l->tot_up += l->up[i];
-                l->tot_down += l->down[i];
+                l->up[k + 1] = l->up[k] + role_move(b, role, a, c);
+                l->down[k + 1] = l->down[k] + role_move(b, role, c, a);
         }
         return 0;
 }
@@ -492,33 +503,88 @@ static void loops_free(struct builder *b)
         }
 }
 
+/* The angle at position j of the line of way w through loop l of role. */
+static double line_deg(const struct builder *b, enum gn_role role, const struct way *w, size_t j)
+{
+        const struct loop *l = &b->loops[role];
+
+        return b->sc->sweep[role].deg[l->sorted[(w->cut + j) % l->n]];
+}
+
+/* Seconds for the pass w of role's loop from where its axis is (unknown: from its first
+ * angle). */
+static double way_cost(const struct builder *b, enum gn_role role, const struct way *w)
+{
+        const struct loop *l = &b->loops[role];
+        size_t n = l->n, c = w->cut, s = w->s;
+        double t =
+                isnan(b->at[role]) ? 0 : role_move(b, role, b->at[role], line_deg(b, role, w, s));
+
+        if (w->dir > 0) { /* up to the end, then from the end down past s */
+                t += l->up[c + n - 1] - l->up[c + s];
+                if (s > 0)
+                        t += role_move(b, role, line_deg(b, role, w, n - 1),
+                                       line_deg(b, role, w, s - 1)) +
+                             l->down[c + s - 1] - l->down[c];
+        } else { /* down to the start, then from there up past s */
+                t += l->down[c + s] - l->down[c];
+                if (s + 1 < n)
+                        t += role_move(b, role, line_deg(b, role, w, 0),
+                                       line_deg(b, role, w, s + 1)) +
+                             l->up[c + n - 1] - l->up[c + s + 1];
+        }
+        return t;
+}
+
+/* The way of least cost for role's next pass (a tie keeps the first found: upwards from
+ * the lowest angle). */
+static struct way best_way(const struct builder *b, enum gn_role role)
+{
+        size_t n = b->loops[role].n;
+        struct way best = {.dir = 1}, w;
+        double least = INFINITY;
+
+        for (w.cut = 0; w.cut < n; w.cut++)
+                for (w.s = 0; w.s < n; w.s++) {
+                        if (n > PLAN_ZIGZAG_MAX && w.s != 0 && w.s != n - 1)
+                                continue;
+                        for (w.dir = 1; w.dir >= -1; w.dir -= 2) {
+                                double t = way_cost(b, role, &w);
+
+                                if (t < least - 1e-9) {
+                                        least = t;
+                                        best = w;
+                                }
+                        }
+                }
+        return best;
+}
+
 /* The order of role's angles for its next pass into seq (indices into the sweep): the
- * naive plan's file order, else the start and direction round the cycle of sorted angles
- * that costs least from where the axis is (a tie keeps the first found: upwards from the
- * lowest). */
+ * naive plan's file order, else its best way. */
 static void pass_order(const struct builder *b, enum gn_role role, size_t *seq)
 {
         const struct loop *l = &b->loops[role];
-        const double *deg = b->sc->sweep[role].deg;
-        double best = INFINITY, cur = b->at[role];
-        size_t n = l->n, s0 = 0;
-        int d0 = 1;
+        size_t n = l->n, k = 0;
+        struct way w;
 
-        for (size_t s = 0; s < n && !b->naive; s++)
-                for (int d = 1; d >= -1; d -= 2) {
-                        double c = isnan(cur) ? 0 : role_move(b, role, cur, deg[l->sorted[s]]);
-
-                        if (n > 1)
-                                c += d > 0 ? l->tot_up - l->up[(s + n - 1) % n]
-                                           : l->tot_down - l->down[s];
-                        if (c < best - 1e-9) {
-                                best = c;
-                                s0 = s;
-                                d0 = d;
-                        }
-                }
-        for (size_t i = 0; i < n; i++)
-                seq[i] = b->naive ? i : l->sorted[d0 > 0 ? (s0 + i) % n : (s0 + n - i) % n];
+        if (b->naive) {
+                for (size_t i = 0; i < n; i++)
+                        seq[i] = i;
+                return;
+        }
+        w = best_way(b, role);
+        if (w.dir > 0) {
+                for (size_t j = w.s; j < n; j++)
+                        seq[k++] = l->sorted[(w.cut + j) % n];
+                for (size_t j = w.s; j-- > 0;)
+                        seq[k++] = l->sorted[(w.cut + j) % n];
+        } else {
+                for (size_t j = w.s + 1; j-- > 0;)
+                        seq[k++] = l->sorted[(w.cut + j) % n];
+                for (size_t j = w.s + 1; j < n; j++)
+                        seq[k++] = l->sorted[(w.cut + j) % n];
+        }
 }
 
 /* The mechanical loops from level on (order: roles, outermost first) at pose. */
