@@ -829,6 +829,19 @@ static bool fits(const struct rig_config *rc, const struct session_conf *sc)
                (!sc->laser || rc->has_laser);
 }
 
+/* Whether the plan of sc, one camera per shot when naive, fits PLAN_MAX_SHOTS (counted
+ * before skips, in floating point: a product of sweeps may not fit an integer). */
+static bool small_enough(const struct rig_config *rc, const struct session_conf *sc, bool naive)
+{
+        double poses = 1, per_pose, calib;
+
+        for (int r = 0; r < GN_ROLE_COUNT; r++)
+                poses *= sc->sweep[r].n ? (double)sc->sweep[r].n : 1;
+        per_pose = (double)__builtin_popcount(sc->lamps) * sc->n_brackets + sc->laser;
+        calib = (double)sc->dark_frames * (sc->n_brackets + 1) + sc->flat_frames;
+        return (poses * per_pose + calib) * (naive ? rc->n_cameras : 1) <= PLAN_MAX_SHOTS;
+}
+
 /* Steps a to the next permutation in lexicographic order; false after the last. */
 static bool next_permutation(int *a, int n)
 {
@@ -854,6 +867,8 @@ int plan_build(const struct rig_config *rc, const struct session_conf *sc,
 
         if (!rc || !sc || !ret || !fits(rc, sc))
                 return -EINVAL;
+        if (!small_enough(rc, sc, false))
+                return -E2BIG;
         for (int i = 0; i < GN_ROLE_COUNT; i++)
                 if (sc->sweep[i].n)
                         order[n++] = i;
@@ -882,6 +897,8 @@ int plan_build_naive(const struct rig_config *rc, const struct session_conf *sc,
 
         if (!rc || !sc || !ret || !fits(rc, sc))
                 return -EINVAL;
+        if (!small_enough(rc, sc, true))
+                return -E2BIG;
         for (size_t i = 0; i < rc->n_axes; i++)
                 if (rc->axes[i].role >= 0 && sc->sweep[rc->axes[i].role].n)
                         order[n++] = rc->axes[i].role;

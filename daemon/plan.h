@@ -17,6 +17,9 @@
 
 enum plan_kind { PLAN_IMAGE, PLAN_DARK, PLAN_FLAT, PLAN_LASER };
 
+/* Most shots of one plan (about 100 MB of them). */
+#define PLAN_MAX_SHOTS 1000000
+
 /* One exposure of several cameras at once. */
 struct plan_shot {
         /* target angles by role (NAN: that axis is not moved, or the rig has none), the lamps
@@ -70,7 +73,8 @@ struct plan {
  * cameras, then a laser shot (the light order reversed where that keeps the lit lamp lit);
  * the mechanical loops nested in the order, of all, that gives the least estimate,
  * serpentine, continuous axes the shortest way round. Returns 0 and *ret (free with
- * plan_free()), -EINVAL for bad arguments or -ENOMEM. */
+ * plan_free()), -EINVAL for bad arguments (sc not of rc), -E2BIG when the session would
+ * take more than PLAN_MAX_SHOTS shots, or -ENOMEM. */
 int plan_build(const struct rig_config *rc, const struct session_conf *sc,
                const struct gn_pose *start, struct plan **ret);
 

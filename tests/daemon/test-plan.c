@@ -121,6 +121,37 @@ static bool same_angles(const struct gn_pose *a, const struct gn_pose *b)
         return true;
 }
 
+/* Brackets without 0 EV: darks at each, and at 0 EV for the laser and the flats; then each
+ * lamp's brackets in order. */
+static void check_calibration(const struct rig_config *rc)
+{
+        struct session_conf *sc;
+        struct plan *p;
+
+        sc = session(rc, "dataset: d\nsweep: { turntable: [0, 90] }\ncameras: [cam1]\n"
+                         "lamps: [lamp0, lamp1]\nbrackets: [-1, 1]\nlaser: true\n"
+                         "dark_frames: 2\nflat_frames: 3\nexposure_us: 8000\n");
+        p = build(rc, sc, NULL);
+        check_invariants(rc, p, NULL);
+        CHECK_INT(p->n_shots, 6 + 3 + 2 * (2 * 2 + 1));
+        for (size_t i = 0; i < 6; i++) {
+                CHECK_INT(p->shots[i].kind, PLAN_DARK);
+                CHECK_INT(p->shots[i].bracket, i < 4 ? (int)i / 2 : -1);
+                CHECK_NEAR(p->shots[i].ev, i < 4 ? (i < 2 ? -1 : 1) : 0, 0);
+        }
+        CHECK_INT(plan_shot_exposure_us(rc, &p->shots[0], 1), 4000);
+        for (size_t i = 6; i < 9; i++) {
+                CHECK_INT(p->shots[i].kind, PLAN_FLAT);
+                CHECK_INT(p->shots[i].pose.lamps, 0x3);
+        }
+        CHECK_INT(p->shots[9].bracket, 0);
+        CHECK_INT(p->shots[10].bracket, 1);
+        CHECK_INT(p->shots[9].pose.lamps, p->shots[10].pose.lamps);
+        CHECK_NEAR(plan_shot_gain(rc, &p->shots[9], 1), rc->cameras[1].gain, 0);
+        plan_free(p);
+        sessconf_free(sc);
+}
+
 static void case_expansion(void)
 {
         struct rig_config *rc = rig_load(sim_rig_path);
@@ -152,29 +183,15 @@ static void case_expansion(void)
         CHECK_INT(kinds[PLAN_IMAGE], 32);
         plan_free(p);
         sessconf_free(sc);
+        check_calibration(rc);
 
-        /* brackets without 0 EV: darks at each, and at 0 EV for the laser and the flats */
-        sc = session(rc, "dataset: d\nsweep: { turntable: [0, 90] }\ncameras: [cam1]\n"
-                         "lamps: [lamp0, lamp1]\nbrackets: [-1, 1]\nlaser: true\n"
-                         "dark_frames: 2\nflat_frames: 3\nexposure_us: 8000\n");
-        p = build(rc, sc, NULL);
-        check_invariants(rc, p, NULL);
-        CHECK_INT(p->n_shots, 6 + 3 + 2 * (2 * 2 + 1));
-        for (size_t i = 0; i < 6; i++) {
-                CHECK_INT(p->shots[i].kind, PLAN_DARK);
-                CHECK_INT(p->shots[i].bracket, i < 4 ? (int)i / 2 : -1);
-                CHECK_NEAR(p->shots[i].ev, i < 4 ? (i < 2 ? -1 : 1) : 0, 0);
-        }
-        CHECK_INT(plan_shot_exposure_us(rc, &p->shots[0], 1), 4000);
-        for (size_t i = 6; i < 9; i++) {
-                CHECK_INT(p->shots[i].kind, PLAN_FLAT);
-                CHECK_INT(p->shots[i].pose.lamps, 0x3);
-        }
-        CHECK_INT(p->shots[9].bracket, 0);
-        CHECK_INT(p->shots[10].bracket, 1);
-        CHECK_INT(p->shots[9].pose.lamps, p->shots[10].pose.lamps);
-        CHECK_NEAR(plan_shot_gain(rc, &p->shots[9], 1), rc->cameras[1].gain, 0);
-        plan_free(p);
+        /* 3600 x 3600 poses: refused before anything is built */
+        sc = session(rc, "dataset: d\nsweep:\n  turntable: { from: 0, to: 359.9, step: 0.1 }\n"
+                         "  light_arm: { from: 0, to: 359.9, step: 0.1 }\n");
+        p = NULL;
+        CHECK_INT(plan_build(rc, sc, NULL, &p), -E2BIG);
+        CHECK_INT(plan_build_naive(rc, sc, NULL, &p), -E2BIG);
+        CHECK(p == NULL);
         sessconf_free(sc);
         rigconf_free(rc);
 }
