@@ -28,7 +28,8 @@ void riggeom_camera_pose(const struct rig_camera_conf *c, double camera_arm_deg,
                          double t[3]);
 
 /* Unit vector dir from the turntable centre (the object's origin) to lamp number lamp of rc
- * in the object frame for pose p (light arm and turntable angles; NAN counts as 0). */
+ * (a valid index) in the object frame for pose p (light arm and turntable angles; NAN counts as 0).
+ */
 void riggeom_lamp_dir_object(const struct rig_config *rc, int lamp, const struct gn_pose *p,
                              double dir[3]);
 

@@ -35,6 +35,17 @@ int sessconf_exposure_us(const struct rig_camera_conf *c, int exposure_us, doubl
         return (int)lround((exposure_us > 0 ? exposure_us : c->exposure_us) * exp2(ev));
 }
 
+/* Where an error about key of map points: its value, or the key itself when the value has
+ * no line of its own (an empty list or mapping). */
+static struct fy_node *at(struct fy_node *map, const char *key)
+{
+        struct fy_node *v = yconf_get(map, key);
+
+        if (v && yconf_line(v) > 0)
+                return v;
+        return fy_node_mapping_lookup_key_by_string(map, key, FY_NT) ?: map;
+}
+
 /* The number in scalar node n (key names it in messages). Returns 0 or -EINVAL. */
 static int read_number(struct yconf *yc, struct fy_node *n, const char *key, double *out)
 {
@@ -121,8 +132,6 @@ static int sweep_list(struct yconf *yc, struct fy_node *v, const char *key,
         int n = yconf_seq_len(yc, v, key), r;
         double deg;
 
-        if (n == 0)
-                return yconf_error(yc, v, key, "an empty sweep (leave the role out)");
         for (int i = 0; i < n; i++) {
                 struct fy_node *item = yconf_seq_item(v, i);
 
@@ -189,11 +198,16 @@ static int parse_sweeps(struct sparse *p, struct fy_node *root)
         if (fy_node_get_type(m) != FYNT_MAPPING)
                 return yconf_error(&p->yc, m, "sweep", "expected a mapping of roles to angles");
         while ((pair = fy_node_mapping_iterate(m, &iter))) {
-                int role = role_key(&p->yc, fy_node_pair_key(pair), "sweep");
+                struct fy_node *k = fy_node_pair_key(pair), *v = fy_node_pair_value(pair);
+                int role = role_key(&p->yc, k, "sweep");
+                char key[48];
 
                 if (role < 0)
                         return role;
-                if ((r = sweep_role(p, fy_node_pair_value(pair), role)) < 0)
+                snprintf(key, sizeof(key), "sweep.%s", gn_role_name(role));
+                if (fy_node_get_type(v) == FYNT_SEQUENCE && fy_node_sequence_item_count(v) == 0)
+                        return yconf_error(&p->yc, k, key, "an empty sweep (leave the role out)");
+                if ((r = sweep_role(p, v, role)) < 0)
                         return r;
         }
         return 0;
@@ -285,13 +299,13 @@ static int parse_devices(struct sparse *p, struct fy_node *root)
         if ((r = parse_names(p, root, "flat_lamps", &lamps, &sc->flat_lamps)) < 0)
                 return r;
         if (!sc->cameras)
-                return yconf_error(&p->yc, yconf_get(root, "cameras") ?: root, "cameras",
+                return yconf_error(&p->yc, at(root, "cameras"), "cameras",
                                    "no camera to capture with");
         if (sc->laser && !p->rc->has_laser)
                 return yconf_error(&p->yc, yconf_get(root, "laser"), "laser",
                                    "rig '%s' has no laser", p->rc->name);
         if (!sc->lamps && !sc->laser)
-                return yconf_error(&p->yc, yconf_get(root, "lamps") ?: root, "lamps",
+                return yconf_error(&p->yc, at(root, "lamps"), "lamps",
                                    "nothing to capture: no lamp and no laser");
         return 0;
 }
@@ -356,8 +370,8 @@ static int parse_brackets(struct sparse *p, struct fy_node *root)
         if ((n = yconf_seq_len(&p->yc, v, "brackets")) < 0)
                 return n;
         if (n < 1 || n > SESS_MAX_BRACKETS)
-                return yconf_error(&p->yc, v, "brackets", "expected 1 to %d EVs, got %d",
-                                   SESS_MAX_BRACKETS, n);
+                return yconf_error(&p->yc, at(root, "brackets"), "brackets",
+                                   "expected 1 to %d EVs, got %d", SESS_MAX_BRACKETS, n);
         for (int i = 0; i < n; i++) {
                 struct fy_node *item = yconf_seq_item(v, i);
                 double ev;
@@ -433,7 +447,7 @@ static int parse_frames(struct sparse *p, struct fy_node *root)
             (r = read_int(yc, root, "flat_frames", 0, SESS_MAX_FRAMES, &sc->flat_frames)) < 0)
                 return r;
         if (sc->flat_frames > 0 && !sc->flat_lamps)
-                return yconf_error(yc, yconf_get(root, "flat_lamps") ?: root, "flat_lamps",
+                return yconf_error(yc, at(root, "flat_lamps"), "flat_lamps",
                                    "flat frames need a lamp");
         return 0;
 }
@@ -506,7 +520,7 @@ static int parse_root(struct sparse *p)
         struct fy_node *root = yconf_root(&p->yc);
         int r;
 
-        if (!root)
+        if (!root || (fy_node_get_type(root) == FYNT_SCALAR && !*fy_node_get_scalar0(root)))
                 return yconf_error(&p->yc, NULL, NULL, "the session file is empty");
         if ((r = yconf_check_keys(&p->yc, root, keys)) < 0 ||
             (r = parse_names_of_session(p, root)) < 0 || (r = parse_sweeps(p, root)) < 0 ||
@@ -531,7 +545,9 @@ int sessconf_load_string(const char *path, const char *text, const struct rig_co
                 return -ENOMEM;
         }
         snprintf(p.sc->path, sizeof(p.sc->path), "%s", path);
-        r = yconf_open_string(&p.yc, p.sc->path, p.sc->text, err, errlen);
+        /* libfyaml builds no document from nothing: say what is wrong */
+        r = yconf_open_string(&p.yc, p.sc->path, text[strspn(text, " \t\r\n")] ? text : "---", err,
+                              errlen);
         if (r >= 0)
                 r = parse_root(&p);
         yconf_close(&p.yc);

@@ -53,10 +53,10 @@ struct session_conf {
         char *text;           /* the file's bytes */
 };
 
-/* Parses a session file given as text (path names it in messages and gives the default
- * name) against the rig rc, which must outlive nothing: the result keeps no pointer into
- * it. Returns 0 and *ret (free with sessconf_free), or -EINVAL with "FILE:LINE: key 'x':
- * reason" in err, or -ENOMEM. */
+/* Parses a session file given as text against the rig rc; path names it in messages and
+ * gives the default name. The result keeps no pointer into rc or text. Returns 0 and *ret
+ * (free with sessconf_free()), -EINVAL with "FILE:LINE: key 'x': reason" in err (also for
+ * NULL arguments, without a message), or -ENOMEM. */
 int sessconf_load_string(const char *path, const char *text, const struct rig_config *rc,
                          struct session_conf **ret, char *err, size_t errlen);
 

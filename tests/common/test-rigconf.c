@@ -384,7 +384,13 @@ static void case_camera_ranges(void)
                 {"gain", RIG_GAIN_MAX, true},
                 {"gain", RIG_GAIN_MIN * 0.99, false},
                 {"gain", RIG_GAIN_MAX * 1.01, false},
+                {"readout_ms", 0, true},
+                {"readout_ms", 10000, true},
+                {"readout_ms", -1, false},
+                {"occlusion_deg", 90, true},
+                {"occlusion_deg", 91, false},
         };
+        struct rig_config *rc;
 
         for (size_t i = 0; i < ELEMENTSOF(rows); i++) {
                 snprintf(text, sizeof(text),
@@ -395,6 +401,18 @@ static void case_camera_ranges(void)
                 else
                         expect_at(text, 6, rows[i].key, "is out of range");
         }
+        /* the planner's timing keys and their defaults */
+        rc = expect_ok(BUS "cameras:\n  - { name: c, sim: { bus: f } }\n"
+                           "axes:\n  - { name: a, modbus: { bus: b } }\n");
+        CHECK_INT(rc->cameras[0].readout_ms, 30);
+        CHECK_NEAR(rc->cameras[0].occlusion_deg, 5, 0);
+        CHECK_INT(rc->axes[0].move_overhead_ms, 35);
+        rigconf_free(rc);
+        rc = expect_ok(BUS "axes:\n  - { name: a, modbus: { bus: b }, move_overhead_ms: 0 }\n");
+        CHECK_INT(rc->axes[0].move_overhead_ms, 0);
+        rigconf_free(rc);
+        expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b }, move_overhead_ms: -5 }\n", 6,
+                  "move_overhead_ms", "is out of range");
 }
 
 /* A second axis backend, for the rule of one backend map per device (gonio has one). */
