@@ -107,7 +107,8 @@ int ds_verify(struct ds *d)
 static void check_tmp(struct check *ck, const char *rel, const char *name)
 {
         if (!ck->live)
-                problem(ck, "%s/%s is a temporary file left by an interrupted write.", rel, name);
+                problem(ck, "%s%s%s is a temporary file left by an interrupted write.",
+                        strcmp(rel, ".") == 0 ? "" : rel, strcmp(rel, ".") == 0 ? "" : "/", name);
 }
 
 /* 1 when the index has a row of file, 0 when not. */
