@@ -428,8 +428,9 @@ static void test_crash(void)
         CHECK_INT(ds_session_begin(fx.d, "s", NULL, NULL, NULL, NULL, items, 10), 0);
         fx.d = ds_close(fx.d);
         crash_child(fx.path, items, 5);
-        touch(&fx, "images/000006_cam1_l2.png");
-        touch(&fx, "images/000007_cam0_l0.png.tmp");
+        /* the items the dead writer was storing (another order than the resume's) */
+        touch(&fx, "images/000006_cam0_l0.png");
+        touch(&fx, "images/000007_cam1_l1.png.tmp");
 
         CHECK_INT(ds_open(fx.path, &fx.d), 0);
         CHECK_INT(ds_plan_pending(fx.d, "s", collect_item, &pending), 5);
