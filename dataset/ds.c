@@ -9,6 +9,10 @@
  * commit leaves an image whose id is above the last row: the first writer to open the dataset again
  * removes such orphans and any *.tmp before storing.
  *
+ * A row of a session's plan item is stored exactly once: (session, plan_seq) is looked
+ * up before the image is written (-EEXIST, nothing written), and the unique index
+ * captures_plan refuses a second row from anyone.
+ *
  * Row ids come from the store's own sequence (max(id) + 1 when the writer starts),
  * so the file name is known before the row exists. One process writes a dataset at
  * a time (flock on the dataset directory, taken by the first ds_store); readers
