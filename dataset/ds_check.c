@@ -146,7 +146,10 @@ static int check_image(const char *name, void *userdata)
         if (ck->live) {
                 r = ds_db_int64(ck->d, "SELECT coalesce(max(id), 0) FROM captures", &last);
                 if (r < 0 || ds_image_id(name) > last)
-                        return r; /* renamed, its row not committed yet */
+                        return r;         /* renamed, its row not committed yet */
+                r = has_row(ck->d, file); /* committed since the first look? */
+                if (r != 0)
+                        return r < 0 ? r : 0;
         }
         problem(ck, "%s has no row (left by an interrupted store, or not the store's).", file);
         return 0;
