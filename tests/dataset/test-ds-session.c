@@ -10,6 +10,7 @@
 #include <sqlite3.h>
 #include <stdint.h>
 #include <string.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -452,6 +453,66 @@ static void test_crash(void)
         teardown(&fx);
 }
 
+/* A child stores the 40 items of session "s" of the closed dataset at path, telling the
+ * parent through fd after its first `after` stores; SIGKILLed somewhere after that. */
+static pid_t kill_child(const char *path, const struct ds_plan_item *items, int after, int fd)
+{
+        struct ds *d = NULL;
+        pid_t pid = fork();
+
+        CHECK(pid >= 0);
+        if (pid > 0)
+                return pid;
+        CHECK_INT(ds_open(path, &d), 0);
+        for (int i = 0; i < 40; i++) {
+                if (i == after)
+                        CHECK(write(fd, "k", 1) == 1);
+                CHECK_INT(store_item(d, "s", &items[i]), 0);
+        }
+        pause(); /* the kill comes */
+        _exit(1);
+}
+
+/* kill -9 of the writer at seeded random moments (after a random number of stores, a
+ * random fraction of a store later): the resumed session is complete, each plan item
+ * exactly once, ds_check clean. */
+static void test_kill(void)
+{
+        struct ds_plan_item items[40];
+
+        make_plan(items, 40);
+        for (unsigned seed = 1; seed <= 10; seed++) {
+                struct fixture fx = {};
+                struct items pending = {};
+                int status, problems = 0, pipefd[2];
+                unsigned state = seed;
+                pid_t pid;
+                char k;
+
+                setup(&fx);
+                CHECK_INT(ds_session_begin(fx.d, "s", NULL, NULL, NULL, NULL, items, 40), 0);
+                fx.d = ds_close(fx.d);
+                CHECK(pipe(pipefd) == 0);
+                pid = kill_child(fx.path, items, rand_r(&state) % 40, pipefd[1]);
+                CHECK(read(pipefd[0], &k, 1) == 1);
+                usleep((useconds_t)(rand_r(&state) % 10000));
+                CHECK(kill(pid, SIGKILL) == 0 && waitpid(pid, &status, 0) == pid);
+                CHECK(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL);
+                close(pipefd[0]);
+                close(pipefd[1]);
+                CHECK_INT(ds_open(fx.path, &fx.d), 0);
+                CHECK(ds_plan_pending(fx.d, "s", collect_item, &pending) >= 0);
+                for (size_t i = 0; i < pending.n; i++)
+                        CHECK_INT(store_item(fx.d, "s", &pending.it[i]), 0);
+                CHECK_INT(tu_sql_int(fx.path, "SELECT count(DISTINCT plan_seq) FROM captures"), 40);
+                CHECK_INT(ds_count(fx.d), 40);
+                CHECK_INT(images(&fx), 40);
+                CHECK_INT(ds_check(fx.d, count_problem, &problems), 0);
+                fprintf(stderr, "seed %u: killed with %zu of 40 to resume\n", seed, pending.n);
+                teardown(&fx);
+        }
+}
+
 /* ---- check ---- */
 
 #define CHECK_ITEMS 6
@@ -623,12 +684,24 @@ static void damage_counts(struct fixture *fx, const char *file)
                                               "refers to flat frame 999", NULL});
 }
 
+/* An index that no longer matches its table: SQLite's integrity check says so. */
+static void damage_integrity(struct fixture *fx, const char *file)
+{
+        tu_sql(fx->path, "PRAGMA writable_schema = ON;"
+                         "UPDATE sqlite_master SET sql = 'CREATE INDEX captures_pose ON captures"
+                         " (camera)' WHERE name = 'captures_pose'");
+        expect_problems(fx, 1 + CHECK_ITEMS,
+                        (const char *const[]){"SQLite's integrity check of index.sqlite: row 1 "
+                                              "missing from index captures_pose.",
+                                              NULL});
+}
+
 /* ds_check is clean on a good dataset and finds each kind of damage done to one. */
 static void test_check(void)
 {
         static void (*const damages[])(struct fixture * fx, const char *file) = {
                 damage_missing,   damage_byte, damage_orphan, damage_tmp,
-                damage_duplicate, damage_plan, damage_counts,
+                damage_duplicate, damage_plan, damage_counts, damage_integrity,
         };
 
         for (size_t i = 0; i < sizeof(damages) / sizeof(damages[0]); i++) {
@@ -811,14 +884,9 @@ static void test_lp(void)
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
-                {"migrate-v3", test_migrate_v3},
-                {"begin", test_begin},
-                {"once", test_once},
-                {"crash", test_crash},
-                {"check", test_check},
-                {"check-live", test_check_live},
-                {"dark", test_dark},
-                {"lp", test_lp},
+                {"migrate-v3", test_migrate_v3}, {"begin", test_begin}, {"once", test_once},
+                {"crash", test_crash},           {"kill", test_kill},   {"check", test_check},
+                {"check-live", test_check_live}, {"dark", test_dark},   {"lp", test_lp},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
