@@ -481,6 +481,7 @@ int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_fram
         if (r < 0)
                 return r;
         row.id = d->next_id;
+        row.size = (int64_t)len;
         row.width = shape->width;
         row.height = shape->height;
         snprintf(row.pixfmt, sizeof(row.pixfmt), "%s", gn_frame_format(shape));

@@ -13,6 +13,7 @@
 #include <stdarg.h>
 #include <string.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 
 #include "common/log.h"
 #include "common/sha256.h"
@@ -61,11 +62,20 @@ static int check_row_file(const struct ds_capture *c, void *userdata)
 {
         struct check *ck = userdata;
         char hex[GN_SHA256_HEX];
-        int r;
+        struct stat st;
+        int r = 0;
 
-        r = ds_file_name_ok(c->file) ? gn_sha256_file_at(ck->d->dir_fd, c->file, hex) : -ENOENT;
+        if (!ds_file_name_ok(c->file) || fstatat(ck->d->dir_fd, c->file, &st, 0) < 0)
+                r = ds_file_name_ok(c->file) ? -errno : -ENOENT;
+        if (r == 0 && c->size > 0 && st.st_size != c->size) {
+                problem(ck, "Row %lld: %s is %lld bytes, its row says %lld.", (long long)c->id,
+                        c->file, (long long)st.st_size, (long long)c->size);
+                return 0;
+        }
+        if (r == 0)
+                r = gn_sha256_file_at(ck->d->dir_fd, c->file, hex);
         if (r < 0 && r != -ENOENT)
-                return ds_fail(ck->d, r, "Failed to hash %s: %s", c->file, strerror(-r));
+                return ds_fail(ck->d, r, "Failed to read %s: %s", c->file, strerror(-r));
         if (r == -ENOENT)
                 problem(ck, "Row %lld: %s is missing.", (long long)c->id, c->file);
         else if (strcmp(hex, c->sha256) != 0)

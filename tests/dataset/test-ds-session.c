@@ -183,6 +183,8 @@ static void test_migrate_v3(void)
         struct rows rows = {};
         struct ds_plan_item it = plan_item(1);
         struct gn_frame f;
+        struct stat st;
+        char p[4400];
 
         setup(&fx);
         for (int i = 0; i < 3; i++) {
@@ -214,11 +216,16 @@ static void test_migrate_v3(void)
                 CHECK_INT(rows.c[i].plan_seq, 0);
                 CHECK_INT(rows.c[i].bracket, 0);
                 CHECK_INT(rows.c[i].dark_id + rows.c[i].flat_id, 0);
+                CHECK_INT(rows.c[i].size, 0); /* not recorded before schema 4 */
         }
         CHECK_INT(ds_check(fx.d, NULL, NULL), 0);
         CHECK_INT(ds_session_begin(fx.d, "after", NULL, NULL, NULL, NULL, &it, 1), 0);
         CHECK_INT(store_item(fx.d, "after", &it), 0);
         CHECK_INT(ds_count(fx.d), 4);
+        rows.n = 0;
+        CHECK_INT(ds_rows(fx.d, 3, -1, collect_row, &rows), 1);
+        path_of(&fx, rows.c[0].file, p, sizeof(p));
+        CHECK(stat(p, &st) == 0 && rows.c[0].size == st.st_size); /* recorded from now on */
         teardown(&fx);
 }
 
@@ -598,6 +605,15 @@ static void damage_byte(struct fixture *fx, const char *file)
         expect_problems(fx, 1, (const char *const[]){file, "does not match its checksum", NULL});
 }
 
+static void damage_truncate(struct fixture *fx, const char *file)
+{
+        char p[4400];
+
+        path_of(fx, file, p, sizeof(p));
+        CHECK(truncate(p, 50) == 0);
+        expect_problems(fx, 1, (const char *const[]){file, "is 50 bytes, its row says", NULL});
+}
+
 static void damage_orphan(struct fixture *fx, const char *file)
 {
         touch(fx, "images/000099_cam0_l1.png");
@@ -700,8 +716,8 @@ static void damage_integrity(struct fixture *fx, const char *file)
 static void test_check(void)
 {
         static void (*const damages[])(struct fixture * fx, const char *file) = {
-                damage_missing,   damage_byte, damage_orphan, damage_tmp,
-                damage_duplicate, damage_plan, damage_counts, damage_integrity,
+                damage_missing,   damage_byte, damage_truncate, damage_orphan,    damage_tmp,
+                damage_duplicate, damage_plan, damage_counts,   damage_integrity,
         };
 
         for (size_t i = 0; i < sizeof(damages) / sizeof(damages[0]); i++) {
