@@ -354,6 +354,7 @@ struct orphans {
 static int remove_orphan(const char *name, void *userdata)
 {
         struct orphans *o = userdata;
+
         if (!ds_tmp_name(name) && ds_image_id(name) < o->d->next_id)
                 return 0;
         log_notice("dataset '%s': removing %s/%s left by an interrupted store", o->d->path,

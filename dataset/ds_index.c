@@ -290,7 +290,7 @@ int ds_db_check_plan_item(struct ds *d, const struct ds_capture *c)
         return 0;
 }
 
-/* Binds v, or NULL for 0 (no plan item, no dark or flat frame). */
+/* Binds v, or NULL for 0 (no plan item, no dark or flat frame, size unknown). */
 static int bind_id(sqlite3_stmt *s, int i, int64_t v)
 {
         return v ? sqlite3_bind_int64(s, i, v) : sqlite3_bind_null(s, i);
