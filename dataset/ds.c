@@ -9,6 +9,10 @@
  * commit leaves an image whose id is above the last row: the first writer to open the dataset again
  * removes such orphans and any *.tmp before storing.
  *
+ * A row of a session's plan item is stored exactly once: (session, plan_seq) is looked
+ * up before the image is written (-EEXIST, nothing written), and the unique index
+ * captures_plan refuses a second row from anyone.
+ *
  * Row ids come from the store's own sequence (max(id) + 1 when the writer starts),
  * so the file name is known before the row exists. One process writes a dataset at
  * a time (flock on the dataset directory, taken by the first ds_store); readers
@@ -350,6 +354,7 @@ struct orphans {
 static int remove_orphan(const char *name, void *userdata)
 {
         struct orphans *o = userdata;
+
         if (!ds_tmp_name(name) && ds_image_id(name) < o->d->next_id)
                 return 0;
         log_notice("dataset '%s': removing %s/%s left by an interrupted store", o->d->path,
@@ -477,6 +482,7 @@ int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_fram
         if (r < 0)
                 return r;
         row.id = d->next_id;
+        row.size = (int64_t)len;
         row.width = shape->width;
         row.height = shape->height;
         snprintf(row.pixfmt, sizeof(row.pixfmt), "%s", gn_frame_format(shape));

@@ -52,6 +52,8 @@ struct ds_capture {
         char kind[8];             /* "image", "dark", "flat", "laser"; "" is stored as "image" */
         int bracket;              /* HDR bracket index, 0 for the base exposure */
         int64_t dark_id, flat_id; /* row ids of the dark and flat frames to apply; 0: none */
+        int64_t size;             /* bytes of the file, set by ds_store; 0: not recorded
+                                   * (rows older than schema 4) */
 };
 
 /* Creates a new dataset directory at path (must not exist, parent must) and stores
@@ -77,7 +79,7 @@ int ds_set_compression(struct ds *d, int level);
 int ds_get_compression(const struct ds *d);
 
 /* Encodes frame as PNG, writes it atomically, computes its SHA-256 and commits the
- * row. Fills c->id, c->file, c->sha256, c->width, c->height, c->pixfmt, c->t_stored_ns
+ * row. Fills c->id, c->file, c->sha256, c->size, c->width, c->height, c->pixfmt, c->t_stored_ns
  * (and c->kind "image" when empty). A row of a plan item (c->plan_seq > 0) is stored
  * exactly once: -EEXIST when (c->session, c->plan_seq) has its row already, checked
  * before any file is written. Returns 0, -EEXIST, -ENOSPC (nothing recorded, no file left
@@ -164,8 +166,8 @@ int ds_rows_by_pose(struct ds *d, const struct gn_pose *p, double tol_deg, ds_ro
 /* Reads an image of the dataset back (PNG decode) into out. Returns 0 or -errno. */
 int ds_load_image(struct ds *d, const char *file, struct gn_frame *out);
 
-/* Re-hashes every file and checks it against its row; returns the number of
- * mismatching or missing files (0 = consistent) or -errno. */
+/* Checks every row's file: its size (when recorded) and its re-hashed checksum; returns
+ * the number of mismatching or missing files (0 = consistent) or -errno. */
 int ds_verify(struct ds *d);
 
 /* Called by ds_check with one sentence describing one problem (naming its file, row or
@@ -173,7 +175,7 @@ int ds_verify(struct ds *d);
 typedef void (*ds_problem_fn)(const char *problem, void *userdata);
 
 /* Checks the whole dataset and calls fn (may be NULL) for each problem found: a row's
- * file missing or not matching its checksum (ds_verify), an image without a row, a
+ * file missing, of another size or not matching its checksum (ds_verify), an image without a row, a
  * temporary file left, a plan item with several rows, a row disagreeing with its plan
  * item (camera, kind, bracket, lamps, laser, or an angle the plan has off by more than
  * 0.05 degrees) or naming none, a dark or flat reference to no such frame, a session's

@@ -13,6 +13,7 @@
 #include <stdarg.h>
 #include <string.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 
 #include "common/log.h"
 #include "common/sha256.h"
@@ -61,11 +62,20 @@ static int check_row_file(const struct ds_capture *c, void *userdata)
 {
         struct check *ck = userdata;
         char hex[GN_SHA256_HEX];
-        int r;
+        struct stat st;
+        int r = 0;
 
-        r = ds_file_name_ok(c->file) ? gn_sha256_file_at(ck->d->dir_fd, c->file, hex) : -ENOENT;
+        if (!ds_file_name_ok(c->file) || fstatat(ck->d->dir_fd, c->file, &st, 0) < 0)
+                r = ds_file_name_ok(c->file) ? -errno : -ENOENT;
+        if (r == 0 && c->size > 0 && st.st_size != c->size) {
+                problem(ck, "Row %lld: %s is %lld bytes, its row says %lld.", (long long)c->id,
+                        c->file, (long long)st.st_size, (long long)c->size);
+                return 0;
+        }
+        if (r == 0)
+                r = gn_sha256_file_at(ck->d->dir_fd, c->file, hex);
         if (r < 0 && r != -ENOENT)
-                return ds_fail(ck->d, r, "Failed to hash %s: %s", c->file, strerror(-r));
+                return ds_fail(ck->d, r, "Failed to read %s: %s", c->file, strerror(-r));
         if (r == -ENOENT)
                 problem(ck, "Row %lld: %s is missing.", (long long)c->id, c->file);
         else if (strcmp(hex, c->sha256) != 0)
@@ -107,7 +117,8 @@ int ds_verify(struct ds *d)
 static void check_tmp(struct check *ck, const char *rel, const char *name)
 {
         if (!ck->live)
-                problem(ck, "%s/%s is a temporary file left by an interrupted write.", rel, name);
+                problem(ck, "%s%s%s is a temporary file left by an interrupted write.",
+                        strcmp(rel, ".") == 0 ? "" : rel, strcmp(rel, ".") == 0 ? "" : "/", name);
 }
 
 /* 1 when the index has a row of file, 0 when not. */
@@ -145,7 +156,10 @@ static int check_image(const char *name, void *userdata)
         if (ck->live) {
                 r = ds_db_int64(ck->d, "SELECT coalesce(max(id), 0) FROM captures", &last);
                 if (r < 0 || ds_image_id(name) > last)
-                        return r; /* renamed, its row not committed yet */
+                        return r;         /* renamed, its row not committed yet */
+                r = has_row(ck->d, file); /* committed since the first look? */
+                if (r != 0)
+                        return r < 0 ? r : 0;
         }
         problem(ck, "%s has no row (left by an interrupted store, or not the store's).", file);
         return 0;

@@ -239,7 +239,7 @@ int ds_db_prepare_writer(struct ds *d)
         if (!d->insert)
                 r = ds_db_prepare(d,
                                   "INSERT INTO captures (" DS_ROW_COLUMNS ") VALUES "
-                                  "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+                                  "(?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
                                   &d->insert);
         if (r == 0 && !d->add_name)
                 r = ds_db_prepare(d, DS_ADD_NAME_SQL, &d->add_name);
@@ -290,7 +290,7 @@ int ds_db_check_plan_item(struct ds *d, const struct ds_capture *c)
         return 0;
 }
 
-/* Binds v, or NULL for 0 (no plan item, no dark or flat frame). */
+/* Binds v, or NULL for 0 (no plan item, no dark or flat frame, size unknown). */
 static int bind_id(sqlite3_stmt *s, int i, int64_t v)
 {
         return v ? sqlite3_bind_int64(s, i, v) : sqlite3_bind_null(s, i);
@@ -333,6 +333,7 @@ static int bind_capture(sqlite3_stmt *s, const struct ds_capture *c)
         rc |= sqlite3_bind_int(s, i++, c->bracket);
         rc |= bind_id(s, i++, c->dark_id);
         rc |= bind_id(s, i++, c->flat_id);
+        rc |= bind_id(s, i++, c->size);
         return rc == SQLITE_OK ? 0 : -ENOMEM;
 }
 
@@ -423,4 +424,5 @@ void ds_db_read_row(sqlite3_stmt *s, struct ds_capture *c)
         c->bracket = sqlite3_column_int(s, i++);
         c->dark_id = sqlite3_column_int64(s, i++);
         c->flat_id = sqlite3_column_int64(s, i++);
+        c->size = sqlite3_column_int64(s, i++);
 }

@@ -92,8 +92,8 @@ int ds_db_open(struct ds *d, bool create);
         " ON CONFLICT (kind, name) DO UPDATE SET captures = captures + ?3"
 
 /* Schema 3 -> 4: the session columns of captures (plan_seq NULL outside sessions; at
- * most one row per plan item), the sessions (start and stop records, captured counted
- * in the transaction of each row) and their plans. */
+ * most one row per plan item), the file's size (NULL in older rows), the sessions (start and stop
+ * records, captured counted in the transaction of each row) and their plans. */
 #define DS_V4_SQL                                                                                  \
         "ALTER TABLE captures ADD COLUMN plan_seq INTEGER;"                                        \
         "ALTER TABLE captures ADD COLUMN kind TEXT NOT NULL DEFAULT 'image'"                       \
@@ -101,6 +101,7 @@ int ds_db_open(struct ds *d, bool create);
         "ALTER TABLE captures ADD COLUMN bracket INTEGER NOT NULL DEFAULT 0;"                      \
         "ALTER TABLE captures ADD COLUMN dark_id INTEGER;"                                         \
         "ALTER TABLE captures ADD COLUMN flat_id INTEGER;"                                         \
+        "ALTER TABLE captures ADD COLUMN size INTEGER;"                                            \
         "CREATE UNIQUE INDEX captures_plan ON captures (session, plan_seq)"                        \
         " WHERE plan_seq IS NOT NULL;"                                                             \
         "CREATE TABLE sessions (name TEXT PRIMARY KEY,"                                            \
@@ -139,7 +140,7 @@ int ds_db_prepare_writer(struct ds *d);
 #define DS_ROW_COLUMNS                                                                             \
         "id, session, turntable_deg, light_arm_deg, camera_arm_deg, camera, lamps, lamp_bits, "    \
         "laser, exposure_us, gain, t_request_ns, t_exposure_ns, t_stored_ns, file, sha256, "       \
-        "width, height, pixfmt, plan_seq, kind, bracket, dark_id, flat_id"
+        "width, height, pixfmt, plan_seq, kind, bracket, dark_id, flat_id, size"
 
 /* Binds the angles of p to parameters first.. (turntable, light arm, camera arm), NULL
  * where p has no axis. Returns SQLITE_OK or an SQLite error code. */

@@ -27,7 +27,7 @@
         " AND (lamp_bits & (lamp_bits - 1)) = 0 ORDER BY camera, vt, vc, id"
 /* clang-format on */
 #define LP_COL_CAMERA 5  /* in DS_ROW_COLUMNS */
-#define LP_COL_VT     24 /* the column of vt (after DS_ROW_COLUMNS); vc follows */
+#define LP_COL_VT     25 /* the column of vt (after DS_ROW_COLUMNS); vc follows */
 
 /* One view being written. */
 struct lp_view {

@@ -135,3 +135,60 @@ void tu_make_schema1(const char *path, const char *extra_sql)
         CHECK(!extra_sql || sqlite3_exec(db, extra_sql, NULL, NULL, NULL) == SQLITE_OK);
         CHECK(sqlite3_close(db) == SQLITE_OK);
 }
+
+void tu_sql(const char *path, const char *sql)
+{
+        char index[4200];
+        sqlite3 *db;
+
+        snprintf(index, sizeof(index), "%s/index.sqlite", path);
+        CHECK_INT(sqlite3_open_v2(index, &db, SQLITE_OPEN_READWRITE, NULL), SQLITE_OK);
+        if (sqlite3_exec(db, sql, NULL, NULL, NULL) != SQLITE_OK) {
+                fprintf(stderr, "%s: %s\n", sql, sqlite3_errmsg(db));
+                exit(1);
+        }
+        CHECK_INT(sqlite3_close(db), SQLITE_OK);
+}
+
+int64_t tu_sql_int(const char *path, const char *sql)
+{
+        char index[4200];
+        sqlite3 *db;
+        sqlite3_stmt *s;
+        int64_t v;
+
+        snprintf(index, sizeof(index), "%s/index.sqlite", path);
+        CHECK_INT(sqlite3_open_v2(index, &db, SQLITE_OPEN_READONLY, NULL), SQLITE_OK);
+        CHECK_INT(sqlite3_prepare_v2(db, sql, -1, &s, NULL), SQLITE_OK);
+        CHECK_INT(sqlite3_step(s), SQLITE_ROW);
+        v = sqlite3_column_int64(s, 0);
+        sqlite3_finalize(s);
+        CHECK_INT(sqlite3_close(db), SQLITE_OK);
+        return v;
+}
+
+void tu_make_schema3(const char *path)
+{
+        tu_sql(path, "BEGIN;"
+                     "CREATE TABLE captures_v3 (id INTEGER PRIMARY KEY,"
+                     " session TEXT NOT NULL DEFAULT '',"
+                     " turntable_deg REAL, light_arm_deg REAL, camera_arm_deg REAL,"
+                     " camera TEXT NOT NULL, lamps TEXT NOT NULL,"
+                     " lamp_bits INTEGER NOT NULL DEFAULT 0, laser INTEGER NOT NULL,"
+                     " exposure_us INTEGER NOT NULL, gain REAL NOT NULL,"
+                     " t_request_ns INTEGER NOT NULL, t_exposure_ns INTEGER NOT NULL,"
+                     " t_stored_ns INTEGER NOT NULL, file TEXT NOT NULL UNIQUE,"
+                     " sha256 TEXT NOT NULL, width INTEGER NOT NULL, height INTEGER NOT NULL,"
+                     " pixfmt TEXT NOT NULL);"
+                     "INSERT INTO captures_v3 SELECT id, session, turntable_deg, light_arm_deg,"
+                     " camera_arm_deg, camera, lamps, lamp_bits, laser, exposure_us, gain,"
+                     " t_request_ns, t_exposure_ns, t_stored_ns, file, sha256, width, height,"
+                     " pixfmt FROM captures;"
+                     "DROP TABLE captures; DROP TABLE sessions; DROP TABLE plan;"
+                     "ALTER TABLE captures_v3 RENAME TO captures;"
+                     "CREATE INDEX captures_pose ON captures"
+                     " (session, turntable_deg, light_arm_deg, camera_arm_deg);"
+                     "UPDATE meta SET value = '3' WHERE key = 'schema_version';"
+                     "PRAGMA user_version = 3;"
+                     "COMMIT;");
+}

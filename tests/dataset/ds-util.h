@@ -3,6 +3,7 @@
 #pragma once
 
 #include <stdbool.h>
+#include <stdint.h>
 
 #include "common/frame.h"
 #include "dataset/ds.h"
@@ -33,3 +34,15 @@ void tu_make_schema1(const char *path, const char *extra_sql);
 
 /* Number of files ending in ".tmp" anywhere in the dataset dir (top and images/). */
 int tu_count_tmp(const char *dataset);
+
+/* Runs sql on the index of the dataset at path with a second connection; exits on
+ * failure. */
+void tu_sql(const char *path, const char *sql);
+
+/* The first column of the first row of a query on the index of the dataset at path;
+ * exits on failure. */
+int64_t tu_sql_int(const char *path, const char *sql);
+
+/* Turns the index of the closed dataset at path into schema 3 (no session columns, no
+ * sessions or plan tables, user_version 3), keeping its rows. Exits on failure. */
+void tu_make_schema3(const char *path);
