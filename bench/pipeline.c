@@ -140,10 +140,11 @@ static struct gn_pose pose_of(long k)
         return p;
 }
 
-static int render(struct sim_scene *s, long k, struct gn_frame *out)
+/* Renders frame k with exposure exp (NULL: the rig file's). */
+static int render(struct sim_scene *s, long k, const struct sim_expose *exp, struct gn_frame *out)
 {
         struct gn_pose p = pose_of(k);
-        int r = sim_render(s, &p, 0, NULL, (uint64_t)k, out, 0, NULL);
+        int r = sim_render(s, &p, 0, exp, (uint64_t)k, out, 0, NULL);
 
         out->timestamp_ns = gn_realtime_ns();
         return r;
@@ -226,7 +227,7 @@ static int render_block(struct sim_scene *s, double secs, long n, struct gn_fram
         for (; i < n || now() - t0 < secs; i++) {
                 struct gn_frame f;
 
-                if (render(s, 1000 + t->n + i, &f) < 0)
+                if (render(s, 1000 + t->n + i, NULL, &f) < 0)
                         return -EIO;
                 if (keep && i < n)
                         keep[i] = f;
@@ -315,7 +316,7 @@ static int render_job(void *userdata)
 {
         struct run *p = userdata;
 
-        return render(p->scene, p->rendered, &p->job);
+        return render(p->scene, p->rendered, NULL, &p->job);
 }
 
 static void on_stored(int result, const struct ds_capture *c, const char *error, void *userdata);
@@ -442,7 +443,7 @@ static double codec_size(const struct gn_frame *frames, const struct ds_png_code
         return (double)total / SAMPLE_FRAMES;
 }
 
-static int codec_table(const struct gn_frame *frames, double secs)
+static int codec_rows(const struct gn_frame *frames, double secs)
 {
         static const struct ds_png_codec codecs[] = {
                 {6, DS_PNG_FILTER_ADAPTIVE, DS_PNG_STRATEGY_FILTERED},
@@ -454,18 +455,14 @@ static int codec_table(const struct gn_frame *frames, double secs)
                 {1, DS_PNG_FILTER_UP, DS_PNG_STRATEGY_DEFAULT},
                 {1, DS_PNG_FILTER_NONE, DS_PNG_STRATEGY_HUFFMAN},
                 {1, DS_PNG_FILTER_SUB, DS_PNG_STRATEGY_HUFFMAN},
-                {1, DS_PNG_FILTER_ADAPTIVE, DS_PNG_STRATEGY_HUFFMAN},
                 {1, DS_PNG_FILTER_NONE, DS_PNG_STRATEGY_RLE},
                 {1, DS_PNG_FILTER_SUB, DS_PNG_STRATEGY_RLE},
                 {1, DS_PNG_FILTER_UP, DS_PNG_STRATEGY_RLE},
                 {1, DS_PNG_FILTER_ADAPTIVE, DS_PNG_STRATEGY_RLE},
                 {0, DS_PNG_FILTER_NONE, DS_PNG_STRATEGY_DEFAULT},
         };
-        const struct gn_frame *f = &frames[0];
-        double raw = (double)gn_frame_bytes(f);
+        double raw = (double)gn_frame_bytes(&frames[0]);
 
-        printf("codecs on %d rendered %dx%d %s frames (%.0f KiB raw each), 1 thread:\n\n",
-               SAMPLE_FRAMES, f->width, f->height, gn_frame_format(f), raw / 1024);
         printf("| level | filter | strategy | KiB/frame | size/raw | CPU ms/frame | raw MB/s |\n");
         printf("|---|---|---|---|---|---|---|\n");
         for (size_t i = 0; i < ELEMENTSOF(codecs); i++) {
@@ -480,6 +477,35 @@ static int codec_table(const struct gn_frame *frames, double secs)
                        size / raw, cpu_ms(&t), raw / (1 << 20) / cpu_ms(&t) * 1e3);
         }
         return 0;
+}
+
+/* The codec rows on frames of the rig's exposure, at 16 bits, at gain 8 (noisier) and
+ * without sensor noise (smooth). */
+static int codec_table(struct sim_scene *s, const struct gn_frame *sample, double secs)
+{
+        static const struct sim_expose exps[] = {{.bits = 16}, {.gain = 8}, {.no_noise = true}};
+        static const char *const names[] = {"16 bits", "gain 8", "no noise"};
+        struct gn_frame frames[SAMPLE_FRAMES] = {};
+        int r = 0;
+
+        for (size_t e = 0; e <= ELEMENTSOF(exps) && r >= 0; e++) {
+                const struct gn_frame *f = e == 0 ? sample : frames;
+
+                for (int i = 0; e > 0 && i < SAMPLE_FRAMES && r >= 0; i++) {
+                        gn_frame_free_data(&frames[i]);
+                        r = render(s, 1000 + i, &exps[e - 1], &frames[i]);
+                }
+                if (r < 0)
+                        break;
+                printf("\n%d rendered %dx%d %s frames, %s (%.0f KiB raw each), 1 thread:\n\n",
+                       SAMPLE_FRAMES, f->width, f->height, gn_frame_format(f),
+                       e == 0 ? "the rig's exposure" : names[e - 1],
+                       (double)gn_frame_bytes(f) / 1024);
+                r = codec_rows(f, secs);
+        }
+        for (int i = 0; i < SAMPLE_FRAMES; i++)
+                gn_frame_free_data(&frames[i]);
+        return r;
 }
 
 /* --- the benchmark --- */
@@ -601,7 +627,7 @@ static int bench(const struct opts *o, const struct rig_config *rc, struct sim_s
         struct bench b = {.o = o, .rc = rc, .run = {.o = o, .scene = s}};
         int r;
 
-        b.codec = (struct ds_png_codec){o->level, DS_PNG_FILTER_STORE, DS_PNG_STRATEGY_STORE};
+        b.codec = ds_png_codec_of_level(o->level);
         r = bench_start(&b, sample);
         printf("datasets: %s, %s on %s\n", b.stage_dir, b.run_dir, fs_name(o->dir));
         if (r >= 0) {
@@ -721,7 +747,7 @@ int main(int argc, char **argv)
         if (r >= 0) /* the sample frames; also warms the renderer up */
                 r = render_block(s, 0, SAMPLE_FRAMES, sample, &warm);
         if (r >= 0)
-                r = o.codecs ? codec_table(sample, o.stage_s / 3) : bench(&o, rc, s, sample);
+                r = o.codecs ? codec_table(s, sample, o.stage_s / 3) : bench(&o, rc, s, sample);
         for (int i = 0; i < SAMPLE_FRAMES; i++)
                 gn_frame_free_data(&sample[i]);
         sim_scene_free(s);

@@ -110,9 +110,18 @@ int ds_png_encode_codec(const struct gn_frame *frame, const struct ds_png_codec 
         return 0;
 }
 
+struct ds_png_codec ds_png_codec_of_level(int level)
+{
+        if (level == 0)
+                return (struct ds_png_codec){0, DS_PNG_FILTER_NONE, DS_PNG_STRATEGY_DEFAULT};
+        if (level == 1)
+                return (struct ds_png_codec){1, DS_PNG_FILTER_SUB, DS_PNG_STRATEGY_RLE};
+        return (struct ds_png_codec){level, DS_PNG_FILTER_ADAPTIVE, DS_PNG_STRATEGY_FILTERED};
+}
+
 int ds_png_encode(const struct gn_frame *frame, int level, void **ret_buf, size_t *ret_len)
 {
-        struct ds_png_codec c = {level, DS_PNG_FILTER_STORE, DS_PNG_STRATEGY_STORE};
+        struct ds_png_codec c = ds_png_codec_of_level(level);
 
         return ds_png_encode_codec(frame, &c, ret_buf, ret_len);
 }

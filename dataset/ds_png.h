@@ -9,8 +9,8 @@
 
 #include "common/frame.h"
 
-/* zlib level used by the store unless told otherwise: level 1 encodes noisy camera
- * images about twice as fast as level 6 for a few percent more bytes. */
+/* zlib level used by the store unless told otherwise: level 1, the fast codec (see
+ * ds_png_codec_of_level). */
 #define DS_PNG_LEVEL_DEFAULT 1
 
 /* PNG row filters the encoder may choose from. */
@@ -36,15 +36,18 @@ struct ds_png_codec {
         enum ds_png_strategy strategy;
 };
 
-/* The store's filter and strategy, chosen by measurement (docs/dataset.md, "Image codec"). */
-#define DS_PNG_FILTER_STORE   DS_PNG_FILTER_SUB
-#define DS_PNG_STRATEGY_STORE DS_PNG_STRATEGY_RLE
+/* The codec of a zlib level (docs/dataset.md, "Image codec", measured with bench/pipeline
+ * --codecs). 0: rows stored uncompressed. 1: every row filtered with sub, then Z_RLE; on
+ * noisy camera frames as small as level 6 for a third of the CPU of level 1 with zlib's
+ * usual strategy. 2-9 and -1 (zlib's 6): the best filter of each row and Z_FILTERED,
+ * slower; smaller only on smooth (noise-free) images. Other levels give a codec that
+ * ds_png_encode_codec refuses. */
+struct ds_png_codec ds_png_codec_of_level(int level);
 
 /* Encodes frame (1 or 3 channels, 8 or 16 bits, any stride >= the packed row) as PNG
- * with zlib compression level (0-9, or -1 for zlib's default) and the store's filter
- * and strategy (docs/dataset.md, "Image codec"). On success *ret_buf is a malloc'ed
- * buffer of *ret_len bytes that the caller frees. Returns 0, -EINVAL (bad frame or
- * level), -ENOMEM or -EIO (encoder failure). Any thread. */
+ * with the codec of zlib level (0-9, or -1 for zlib's default; ds_png_codec_of_level).
+ * On success *ret_buf is a malloc'ed buffer of *ret_len bytes that the caller frees.
+ * Returns 0, -EINVAL (bad frame or level), -ENOMEM or -EIO (encoder failure). Any thread. */
 int ds_png_encode(const struct gn_frame *frame, int level, void **ret_buf, size_t *ret_len);
 
 /* Like ds_png_encode with every compression choice given by codec (bench/pipeline
