@@ -20,6 +20,7 @@
 #include <limits.h>
 #include <linux/magic.h>
 #include <pthread.h>
+#include <sqlite3.h>
 #include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -71,7 +72,7 @@ struct run {
         struct gn_frame next; /* rendered, waiting for room in the pool */
         bool rendering, have_next, block_done;
         long rendered, stored, target;
-        double rss_mb[3];
+        double rss_mb[3], sqlite_mb[3]; /* RSS, and SQLite's heap within it (its page cache) */
         int error;
 };
 
@@ -374,8 +375,12 @@ static void on_stored(int result, const struct ds_capture *c, const char *error,
                 return;
         }
         p->stored++;
-        if (p->stored == (n + 9) / 10 || p->stored == (n + 1) / 2 || p->stored == n)
-                p->rss_mb[p->stored == n ? 2 : p->stored == (n + 1) / 2] = rss_mb();
+        if (p->stored == (n + 9) / 10 || p->stored == (n + 1) / 2 || p->stored == n) {
+                int i = p->stored == n ? 2 : p->stored == (n + 1) / 2;
+
+                p->rss_mb[i] = rss_mb();
+                p->sqlite_mb[i] = (double)sqlite3_memory_used() / (1 << 20);
+        }
         feed(p);
 }
 
@@ -615,9 +620,10 @@ static void report(const struct bench *b)
         printf("CPU bound: the stages' CPU add up to %.2f ms/capture: at most %.1f captures/s "
                "on %ld cores\n",
                cpu_ms(&t[0]) + cpu_ms(&t[1]) + cpu_ms(&t[2]), bound, cores);
-        printf("rss: %.1f MB at 10%%, %.1f MB at 50%%, %.1f MB at 100%% of the captures; peak "
-               "%.1f MB\n",
-               b->run.rss_mb[0], b->run.rss_mb[1], b->run.rss_mb[2], peak_rss_mb());
+        printf("rss: %.1f MB at 10%%, %.1f MB at 50%%, %.1f MB at 100%% of the captures (of "
+               "which SQLite's heap: %.1f, %.1f, %.1f MB); peak %.1f MB\n",
+               b->run.rss_mb[0], b->run.rss_mb[1], b->run.rss_mb[2], b->run.sqlite_mb[0],
+               b->run.sqlite_mb[1], b->run.sqlite_mb[2], peak_rss_mb());
         report_json(b, slow, bound);
 }
 
@@ -735,6 +741,7 @@ int main(int argc, char **argv)
         struct tally warm = {};
         int r;
 
+        setvbuf(stdout, NULL, _IOLBF, 0);
         if (parse_opts(argc, argv, &o) < 0) {
                 fprintf(stderr,
                         "usage: %s [--captures N] [--dir DIR] [--encoders N] "
