@@ -4,6 +4,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <zlib.h>
 
 #include "common/cleanup.h"
 #include "ds_png.h"
@@ -31,8 +32,20 @@ static int spng_to_errno(int r)
         return r == SPNG_EMEM ? -ENOMEM : -EIO;
 }
 
-static int encode_setup(spng_ctx *ctx, const struct gn_frame *f, int level)
+static int encode_setup(spng_ctx *ctx, const struct gn_frame *f, const struct ds_png_codec *c)
 {
+        static const int filters[] = {
+                [DS_PNG_FILTER_NONE] = SPNG_FILTER_CHOICE_NONE,
+                [DS_PNG_FILTER_SUB] = SPNG_FILTER_CHOICE_SUB,
+                [DS_PNG_FILTER_UP] = SPNG_FILTER_CHOICE_UP,
+                [DS_PNG_FILTER_ADAPTIVE] = SPNG_FILTER_CHOICE_ALL,
+        };
+        static const int strategies[] = {
+                [DS_PNG_STRATEGY_DEFAULT] = Z_DEFAULT_STRATEGY,
+                [DS_PNG_STRATEGY_FILTERED] = Z_FILTERED,
+                [DS_PNG_STRATEGY_HUFFMAN] = Z_HUFFMAN_ONLY,
+                [DS_PNG_STRATEGY_RLE] = Z_RLE,
+        };
         struct spng_ihdr ihdr = {
                 .width = (uint32_t)f->width,
                 .height = (uint32_t)f->height,
@@ -46,26 +59,38 @@ static int encode_setup(spng_ctx *ctx, const struct gn_frame *f, int level)
         if (r == 0)
                 r = spng_set_option(ctx, SPNG_ENCODE_TO_BUFFER, 1);
         if (r == 0)
-                r = spng_set_option(ctx, SPNG_IMG_COMPRESSION_LEVEL, level);
+                r = spng_set_option(ctx, SPNG_IMG_COMPRESSION_LEVEL, c->level);
+        if (r == 0)
+                r = spng_set_option(ctx, SPNG_FILTER_CHOICE, filters[c->filter]);
+        if (r == 0)
+                r = spng_set_option(ctx, SPNG_IMG_COMPRESSION_STRATEGY, strategies[c->strategy]);
         if (r == 0)
                 r = spng_encode_image(ctx, NULL, 0, SPNG_FMT_PNG,
                                       SPNG_ENCODE_PROGRESSIVE | SPNG_ENCODE_FINALIZE);
         return r;
 }
 
-int ds_png_encode(const struct gn_frame *frame, int level, void **ret_buf, size_t *ret_len)
+static bool codec_valid(const struct ds_png_codec *c)
+{
+        return c && c->level >= -1 && c->level <= 9 && c->filter >= DS_PNG_FILTER_NONE &&
+               c->filter <= DS_PNG_FILTER_ADAPTIVE && c->strategy >= DS_PNG_STRATEGY_DEFAULT &&
+               c->strategy <= DS_PNG_STRATEGY_RLE;
+}
+
+int ds_png_encode_codec(const struct gn_frame *frame, const struct ds_png_codec *codec,
+                        void **ret_buf, size_t *ret_len)
 {
         _cleanup_(spng_ctx_freep) spng_ctx *ctx = NULL;
         size_t row = 0, len = 0;
         void *buf;
         int r;
 
-        if (!frame_valid(frame) || level < -1 || level > 9 || !ret_buf || !ret_len)
+        if (!frame_valid(frame) || !codec_valid(codec) || !ret_buf || !ret_len)
                 return -EINVAL;
         ctx = spng_ctx_new(SPNG_CTX_ENCODER);
         if (!ctx)
                 return -ENOMEM;
-        r = encode_setup(ctx, frame, level);
+        r = encode_setup(ctx, frame, codec);
         if (r != 0)
                 return spng_to_errno(r);
 
@@ -83,6 +108,22 @@ int ds_png_encode(const struct gn_frame *frame, int level, void **ret_buf, size_
         *ret_buf = buf;
         *ret_len = len;
         return 0;
+}
+
+struct ds_png_codec ds_png_codec_of_level(int level)
+{
+        if (level == 0)
+                return (struct ds_png_codec){0, DS_PNG_FILTER_NONE, DS_PNG_STRATEGY_DEFAULT};
+        if (level == 1)
+                return (struct ds_png_codec){1, DS_PNG_FILTER_SUB, DS_PNG_STRATEGY_RLE};
+        return (struct ds_png_codec){level, DS_PNG_FILTER_ADAPTIVE, DS_PNG_STRATEGY_FILTERED};
+}
+
+int ds_png_encode(const struct gn_frame *frame, int level, void **ret_buf, size_t *ret_len)
+{
+        struct ds_png_codec c = ds_png_codec_of_level(level);
+
+        return ds_png_encode_codec(frame, &c, ret_buf, ret_len);
 }
 
 static int channels_of(const struct spng_ihdr *ihdr)
