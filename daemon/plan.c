@@ -909,6 +909,32 @@ int plan_build_naive(const struct rig_config *rc, const struct session_conf *sc,
         return build_one(rc, sc, start, order, n, true, ret);
 }
 
+const struct plan_shot *plan_find_seq(const struct plan *p, int64_t seq, int *camera)
+{
+        size_t lo = 0, hi = p ? p->n_shots : 0;
+        const struct plan_shot *s;
+        int64_t k;
+
+        while (hi - lo > 1) { /* the last shot whose first seq is <= seq */
+                size_t mid = lo + (hi - lo) / 2;
+
+                if (p->shots[mid].seq <= seq)
+                        lo = mid;
+                else
+                        hi = mid;
+        }
+        if (hi == 0 || seq < 1 || (s = &p->shots[lo])->seq > seq)
+                return NULL;
+        k = seq - s->seq;
+        for (int c = 0; c < 32; c++)
+                if ((s->cameras & (1u << c)) && k-- == 0) {
+                        if (camera)
+                                *camera = c;
+                        return s;
+                }
+        return NULL;
+}
+
 struct plan *plan_free(struct plan *p)
 {
         if (!p)
