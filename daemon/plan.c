@@ -7,15 +7,19 @@
  * Lamps and brackets cost milliseconds, moves up to seconds, so they are innermost.
  *
  * Each mechanical loop picks, every time it starts a pass, the way through its angles that
- * costs least from where its axis is: any start and either direction of the cycle of its
- * sorted angles (on a limited axis the cheap ones are up or down, so passes alternate:
- * serpentine; on a continuous axis a full circle can go on round). The cost of a pass is
- * precomputed per role (struct loop), so a choice is O(angles). The nesting order is
- * decided by building the plan for every order of the swept roles (at most 6) and keeping
- * the one of least estimate: the estimate is the truth the choice is judged by.
+ * costs least from where its axis is (best_way()): the cycle of its sorted angles cut at
+ * one gap into a line, entered at one angle, followed one way to the end, then back past
+ * the entry to the other end. Entered at an end that is a plain pass: on a limited axis
+ * the cheap ones go up or down, so passes alternate (serpentine); on a continuous axis a
+ * full circle can as well go on round. The step costs are summed per role once (struct
+ * loop), so a way costs O(1) to price and a pass O(n^2) ways (O(n) beyond PLAN_ZIGZAG_MAX
+ * angles). The nesting order is decided by building the plan for every order of the swept
+ * roles (at most 6) and keeping the one of least estimate: the estimate is the truth the
+ * choice is judged by.
  *
  * The timing model (estimate()) follows the rig along the shot list; the lower bound
- * (lower_bound()) is what any order of the same captures must take in that model. */
+ * (exposure_bound() + transition_bound()) is what any order of the same captures must take
+ * in that model. */
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
@@ -903,6 +907,32 @@ int plan_build_naive(const struct rig_config *rc, const struct session_conf *sc,
                 if (rc->axes[i].role >= 0 && sc->sweep[rc->axes[i].role].n)
                         order[n++] = rc->axes[i].role;
         return build_one(rc, sc, start, order, n, true, ret);
+}
+
+const struct plan_shot *plan_find_seq(const struct plan *p, int64_t seq, int *camera)
+{
+        size_t lo = 0, hi = p ? p->n_shots : 0;
+        const struct plan_shot *s;
+        int64_t k;
+
+        while (hi - lo > 1) { /* the last shot whose first seq is <= seq */
+                size_t mid = lo + (hi - lo) / 2;
+
+                if (p->shots[mid].seq <= seq)
+                        lo = mid;
+                else
+                        hi = mid;
+        }
+        if (hi == 0 || seq < 1 || (s = &p->shots[lo])->seq > seq)
+                return NULL;
+        k = seq - s->seq;
+        for (int c = 0; c < 32; c++)
+                if ((s->cameras & (1u << c)) && k-- == 0) {
+                        if (camera)
+                                *camera = c;
+                        return s;
+                }
+        return NULL;
 }
 
 struct plan *plan_free(struct plan *p)

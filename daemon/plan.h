@@ -4,6 +4,9 @@
  * rig's timing model (docs/sessions.md, "Planning").
  *
  * Pure functions of the rig config and the session config: no I/O, no clock, no device.
+ * Deterministic: the same rig, session and start pose give the same plan, seqs included,
+ * so a session that keeps the three (the rig and session files' text, the pose it started
+ * from) rebuilds its plan on resume.
  * gonioctl session plan prints a plan; the session runner (daemon/session.c) executes its
  * shots in order and re-estimates what remains with plan_estimate(). */
 #pragma once
@@ -85,6 +88,10 @@ int plan_build(const struct rig_config *rc, const struct session_conf *sc,
  * way). Returns like plan_build(). */
 int plan_build_naive(const struct rig_config *rc, const struct session_conf *sc,
                      const struct gn_pose *start, struct plan **ret);
+
+/* The shot of p that takes capture seq, with the rig camera that takes it in *camera (may
+ * be NULL); NULL when p has no such capture. O(log shots). */
+const struct plan_shot *plan_find_seq(const struct plan *p, int64_t seq, int *camera);
 
 /* Frees a plan; NULL is a no-op. Returns NULL. */
 struct plan *plan_free(struct plan *p);

@@ -121,6 +121,23 @@ static bool same_angles(const struct gn_pose *a, const struct gn_pose *b)
         return true;
 }
 
+/* Every capture of p is found by its seq, and nothing else. */
+static void check_seqs(const struct plan *p)
+{
+        int cam = -1;
+
+        for (size_t i = 0; i < p->n_shots; i++)
+                for (int c = 0, k = 0; c < RIG_MAX_CAMERAS; c++)
+                        if (p->shots[i].cameras & (1u << c)) {
+                                CHECK(plan_find_seq(p, p->shots[i].seq + k++, &cam) ==
+                                      &p->shots[i]);
+                                CHECK_INT(cam, c);
+                        }
+        CHECK(plan_find_seq(p, 0, &cam) == NULL);
+        CHECK(plan_find_seq(p, (int64_t)p->n_captures + 1, &cam) == NULL);
+        CHECK(plan_find_seq(NULL, 1, NULL) == NULL);
+}
+
 /* Brackets without 0 EV: darks at each, and at 0 EV for the laser and the flats; then each
  * lamp's brackets in order. */
 static void check_calibration(const struct rig_config *rc)
@@ -181,6 +198,7 @@ static void case_expansion(void)
         CHECK_INT(kinds[PLAN_DARK], 1);
         CHECK_INT(kinds[PLAN_LASER], 8);
         CHECK_INT(kinds[PLAN_IMAGE], 32);
+        check_seqs(p);
         plan_free(p);
         sessconf_free(sc);
         check_calibration(rc);
@@ -406,6 +424,7 @@ static void case_occlusion(void)
         /* at 180 lamp l0 shines into camera c0 only */
         CHECK_INT(count_skips(p, 0, "lamp 'l0' shines into camera 'c0'"), 2);
         CHECK_INT(p->n_skips, 6);
+        check_seqs(p);
         for (size_t i = 0; i < p->n_shots; i++)
                 if (p->shots[i].pose.lamps == 0x1 && p->shots[i].pose.deg[GN_ROLE_LIGHT_ARM] == 180)
                         CHECK_INT(p->shots[i].cameras, 0x2);
@@ -547,12 +566,26 @@ static void case_estimate(void)
         rigconf_free(rc);
 }
 
+/* a and b have the same shots. */
+static void check_same(const struct plan *a, const struct plan *b)
+{
+        CHECK_INT(a->n_shots, b->n_shots);
+        for (size_t i = 0; i < a->n_shots; i++) {
+                const struct plan_shot *x = &a->shots[i], *y = &b->shots[i];
+
+                CHECK(same_angles(&x->pose, &y->pose));
+                CHECK(x->pose.lamps == y->pose.lamps && x->pose.laser == y->pose.laser);
+                CHECK(x->seq == y->seq && x->cameras == y->cameras && x->bracket == y->bracket);
+                CHECK(x->kind == y->kind && x->t_start_s == y->t_start_s);
+        }
+}
+
 /* The paper's capture: the plan beats the naive order and both are above the bound. */
 static void case_paper(void)
 {
         struct rig_config *rc = rig_load(paper_rig_path);
         struct session_conf *sc = NULL;
-        struct plan *p, *naive = NULL;
+        struct plan *p, *naive = NULL, *again;
         char err[512];
 
         CHECK_INT(sessconf_load(paper_path, rc, &sc, err, sizeof(err)), 0);
@@ -565,6 +598,9 @@ static void case_paper(void)
         CHECK(p->n_skips > 0);
         CHECK(p->estimate_s < naive->estimate_s);
         CHECK_INT(p->n_moves, 400);
+        check_seqs(p);
+        check_same(p, again = build(rc, sc, NULL)); /* deterministic */
+        plan_free(again);
         plan_free(naive);
         plan_free(p);
         sessconf_free(sc);
