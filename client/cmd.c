@@ -41,7 +41,7 @@ struct cmd {
         out_print_fn print; /* human output */
         const char *done;   /* human output when print is NULL */
         bool watch;
-        bool stops; /* waits for motion: an interrupted wait stops the rig (not --no-wait) */
+        bool stops;   /* waits for motion: an interrupted wait stops the rig (not --no-wait) */
         bool follows; /* follows the session its result describes until it ends or pauses */
         json_t *(*local)(void); /* runs here, without goniod: its result is printed */
 };
@@ -219,6 +219,8 @@ static const struct cmd commands[] = {
          p_dataset, out_print_dataset},
         {"dataset", "create", "NAME", "create and open a new dataset", "dataset.open", 1, 1, 0,
          TIMEOUT_S, p_dataset, out_print_dataset},
+        {"dataset", "check", "NAME", "verify rows, files, checksums and session plans",
+         "dataset.check", 1, 1, 0, TIMEOUT_LONG_S, p_dataset, NULL, "dataset is consistent"},
         {"dataset", "close", "", "close the open dataset", "dataset.close", 0, 0, 0, TIMEOUT_S,
          NULL, NULL, "dataset closed"},
         {"fault", "clear", "", "clear a latched fault", "fault.clear", 0, 0, 0, TIMEOUT_S, NULL,
@@ -229,14 +231,14 @@ static const struct cmd commands[] = {
          TIMEOUT_LONG_S, p_session_file, NULL, .follows = true},
         {"session", "resume", "[DATASET]", "resume the paused or interrupted session",
          "session.resume", 0, 1, 0, TIMEOUT_LONG_S, p_session_resume, NULL, .follows = true},
-        {"session", "pause", "", "pause the session at the next capture", "session.pause", 0, 0,
-         0, TIMEOUT_S, NULL, out_print_session_status},
+        {"session", "pause", "", "pause the session at the next capture", "session.pause", 0, 0, 0,
+         TIMEOUT_S, NULL, out_print_session_status},
         {"session", "abort", "", "end the session now", "session.abort", 0, 0, 0, TIMEOUT_S, NULL,
          out_print_session_status},
         {"session", "status", "", "the session's state and progress", "session.status", 0, 0, 0,
          TIMEOUT_S, NULL, out_print_session_status},
-        {"session", "watch", "", "follow the session until it ends or pauses", "session.status",
-         0, 0, 0, TIMEOUT_S, NULL, NULL, .follows = true},
+        {"session", "watch", "", "follow the session until it ends or pauses", "session.status", 0,
+         0, 0, TIMEOUT_S, NULL, NULL, .follows = true},
         {NULL, "watch", "[--count N]", "print notifications until interrupted", NULL, 0, 0,
          ARG_COUNT, TIMEOUT_S, NULL, NULL, NULL, true},
         {NULL, "devices", "", "serial ports, V4L2 nodes, gpiochips, USB devices here (no goniod)",
@@ -324,10 +326,10 @@ int cmd_exit_for_code(int code)
         static const struct {
                 int err, exit;
         } table[] = {
-                {EIO, EXIT_DEVICE},     {ETIMEDOUT, EXIT_DEVICE},   {EINVAL, EXIT_INVALID},
-                {ERANGE, EXIT_INVALID}, {ENOENT, EXIT_INVALID},     {ENOSYS, EXIT_INVALID},
-                {ENOSPC, EXIT_STORAGE}, {ECANCELED, EXIT_CANCELED}, {EBUSY, EXIT_BUSY},
-                {ESTALE, EXIT_BUSY},
+                {EIO, EXIT_DEVICE},     {ETIMEDOUT, EXIT_DEVICE}, {EINVAL, EXIT_INVALID},
+                {ERANGE, EXIT_INVALID}, {ENOENT, EXIT_INVALID},   {ENOSYS, EXIT_INVALID},
+                {ENOSPC, EXIT_STORAGE}, {EBADMSG, EXIT_STORAGE},  {ECANCELED, EXIT_CANCELED},
+                {EBUSY, EXIT_BUSY},     {ESTALE, EXIT_BUSY},
         };
         int err = proto_code_to_errno(code);
 

@@ -87,8 +87,7 @@ static void on_event(const char *method, json_t *params, void *userdata)
                 return;
         if (f->o->json)
                 out_notification(f->o, method, params);
-        if (strcmp(method, "session.state") == 0 && !f->o->json && !f->o->quiet &&
-            !f->o->progress)
+        if (strcmp(method, "session.state") == 0 && !f->o->json && !f->o->quiet && !f->o->progress)
                 printf("session %s: %s %s\n", str(params, "name"), str(params, "state"),
                        str(params, "reason"));
         progress_line(f->o, params);
@@ -155,8 +154,10 @@ int csession_follow(struct out *o, struct conn *conn, int intr_fd, json_t *statu
                         return r;
                 }
                 if (r < 0) {
-                        out_error(o, "session", "lost goniod: %s (the session goes on: gonioctl "
-                                  "session watch)", e.message[0] ? e.message : strerror(-r));
+                        out_error(o, "session",
+                                  "lost goniod: %s (the session goes on: gonioctl "
+                                  "session watch)",
+                                  e.message[0] ? e.message : strerror(-r));
                         json_decref(f.last);
                         return EXIT_PROTOCOL;
                 }
@@ -189,7 +190,8 @@ void out_print_session_plan(json_t *r)
         json_array_foreach(order, i, v) printf(" %s", json_string_value(v));
         printf("\nduration  %s estimated (lower bound %s)\n", est, low);
         printf("skipped   %.0f\n", num(r, "skipped_count"));
-        json_array_foreach(json_object_get(r, "skipped"), i, v) printf("  %s\n", json_string_value(v));
+        json_array_foreach(json_object_get(r, "skipped"), i, v)
+                printf("  %s\n", json_string_value(v));
         if (num(r, "skipped_count") > json_array_size(json_object_get(r, "skipped")))
                 printf("  ...\n");
 }
@@ -206,8 +208,8 @@ void out_print_session_status(json_t *r)
         fmt_duration(el, sizeof(el), num(r, "elapsed_s"));
         fmt_duration(eta, sizeof(eta), num(r, "eta_s"));
         printf("session %s (dataset %s): %s%s%s\n", str(r, "name"), str(r, "dataset"),
-               strcmp(state, "none") == 0 ? str(r, "ended") : state, str(r, "reason")[0] ? ": " : "",
-               str(r, "reason"));
+               strcmp(state, "none") == 0 ? str(r, "ended") : state,
+               str(r, "reason")[0] ? ": " : "", str(r, "reason"));
         printf("captured %.0f of %.0f, %.1f/s, elapsed %s, ETA %s\n", num(r, "captured"),
                num(r, "planned"), num(r, "rate_per_s"), el, eta);
 }

@@ -150,6 +150,33 @@ static int info_job(void *userdata)
         return 0;
 }
 
+static void add_problem(const char *problem, void *userdata)
+{
+        json_array_append_new(userdata, json_string(problem));
+}
+
+/* ds_check on a handle of its own (the writer may be storing meanwhile). */
+static int check_job(void *userdata)
+{
+        struct ds_job *j = userdata;
+        json_t *problems = json_array();
+        struct ds *d = NULL;
+        int r = ds_open(j->path, &d);
+
+        if (r >= 0 && problems)
+                r = ds_check(d, add_problem, problems);
+        if (r < 0)
+                snprintf(j->msg, sizeof(j->msg), "cannot check dataset '%s': %s", j->name,
+                         r == -ENOENT ? "no such dataset" : strerror(-r));
+        else
+                j->result = json_pack("{sssssIso}", "name", j->name, "path", ds_path(d), "count",
+                                      (json_int_t)ds_count(d), "problems", problems);
+        ds_close(d);
+        if (r < 0)
+                json_decref(problems);
+        return r < 0 ? r : 0;
+}
+
 DEFINE_TRIVIAL_CLEANUP_FUNC(DIR *, closedir);
 
 static int list_job(void *userdata)
@@ -282,6 +309,22 @@ static void read_done(int result, void *userdata)
         job_free(j);
 }
 
+/* Answers a check: its result when clean, else an error whose data lists the problems. */
+static void checked_done(int result, void *userdata)
+{
+        struct ds_job *j = userdata;
+        json_t *problems = json_object_get(j->result, "problems");
+        size_t n = json_array_size(problems);
+
+        if (result >= 0 && n > 0) {
+                srv_fail_data(j->req, -EBADMSG, json_pack("{sO}", "problems", problems),
+                              "dataset '%s': %zu problem%s, the first: %s", j->name, n,
+                              n == 1 ? "" : "s", json_string_value(json_array_get(problems, 0)));
+                return job_free(j);
+        }
+        read_done(result, j);
+}
+
 int datasets_path(const struct manager *m, const char *name, char *path, size_t len)
 {
         if (!name || !name[0] || name[0] == '.' || strlen(name) >= DS_NAME_MAX ||
@@ -394,10 +437,10 @@ int datasets_close(struct srv_req *req, json_t *params, void *userdata)
         return push_change(j, close_job, closed_done);
 }
 
-/* Queues a read job; the request is answered with its result. */
-static int push_read(struct ds_job *j, workq_fn fn)
+/* Queues a read job; the request is answered with its result (by done, else read_done). */
+static int push_read(struct ds_job *j, workq_fn fn, workq_done_fn done)
 {
-        int r = push(j, fn, read_done);
+        int r = push(j, fn, done ? done : read_done);
 
         if (r < 0) {
                 struct srv_req *req = j->req;
@@ -417,7 +460,7 @@ int datasets_list(struct srv_req *req, json_t *params, void *userdata)
                 return r;
         if (!(j = job_new(m, req)))
                 return -ENOMEM;
-        return push_read(j, list_job);
+        return push_read(j, list_job, NULL);
 }
 
 int datasets_info(struct srv_req *req, json_t *params, void *userdata)
@@ -441,7 +484,26 @@ int datasets_info(struct srv_req *req, json_t *params, void *userdata)
                 return -ENOMEM;
         snprintf(j->path, sizeof(j->path), "%s", path);
         snprintf(j->name, sizeof(j->name), "%s", name);
-        return push_read(j, info_job);
+        return push_read(j, info_job, NULL);
+}
+
+int datasets_check(struct srv_req *req, json_t *params, void *userdata)
+{
+        struct manager *m = userdata;
+        const char *name = NULL;
+        struct ds_job *j;
+        char path[PATH_MAX];
+        int r;
+
+        if ((r = srv_params_check(req, params, KEYS("name"))) < 0 ||
+            (r = srv_param_str(req, params, "name", &name)) < 0 ||
+            (r = dataset_path(req, m, name, path, sizeof(path))) < 0)
+                return r;
+        if (!(j = job_new(m, req)))
+                return -ENOMEM;
+        snprintf(j->path, sizeof(j->path), "%s", path);
+        snprintf(j->name, sizeof(j->name), "%s", name);
+        return push_read(j, check_job, checked_done);
 }
 
 void datasets_free(struct manager *m)

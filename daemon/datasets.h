@@ -22,6 +22,9 @@ int datasets_open(struct srv_req *req, json_t *params, void *userdata);
 int datasets_close(struct srv_req *req, json_t *params, void *userdata);
 int datasets_list(struct srv_req *req, json_t *params, void *userdata);
 int datasets_info(struct srv_req *req, json_t *params, void *userdata);
+/* dataset.check: rows, files, checksums, orphans and the session plans (ds_check), on a
+ * handle of its own; an error listing the problems when there are any. */
+int datasets_check(struct srv_req *req, json_t *params, void *userdata);
 
 /* Queues fn on the dataset worker ("ds-ops", started on first use); done runs on the loop.
  * Returns 0, -EAGAIN (queue full) or -errno. */

@@ -168,8 +168,8 @@ struct manager *manager_free(struct manager *m)
                 return NULL;
         datasets_free(m);
         m->server = server_free(m->server);
-        m->capture = capture_free(m->capture); /* completes pending stores */
-        m->rig = rig_free(m->rig);             /* safe state */
+        m->capture = capture_free(m->capture);        /* completes pending stores */
+        m->rig = rig_free(m->rig);                    /* safe state */
         m->session = session_runner_free(m->session); /* last: the above may call it back */
         rigconf_free(m->rc);
         sd_event_unref(m->event);

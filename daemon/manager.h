@@ -19,11 +19,11 @@ struct manager {
         struct rig *rig;
         struct server *server;
         char data_dir[PATH_MAX];
-        struct capture *capture;    /* the capture pipeline and its open dataset */
+        struct capture *capture;        /* the capture pipeline and its open dataset */
         struct session_runner *session; /* the scripted capture session, if any */
-        struct workq *ds_worker;    /* runs dataset.* off the loop (datasets.c) */
-        bool ds_busy;               /* a dataset.open or close is running */
-        uint64_t shutdown_deadline; /* set once SIGTERM/SIGINT arrived */
+        struct workq *ds_worker;        /* runs dataset.* off the loop (datasets.c) */
+        bool ds_busy;                   /* a dataset.open or close is running */
+        uint64_t shutdown_deadline;     /* set once SIGTERM/SIGINT arrived */
 };
 
 /* Loads the rig file, opens the rig, listens on socket_path. On a rig-file error the

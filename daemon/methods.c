@@ -567,6 +567,7 @@ const struct srv_method manager_methods[] = {
         {"dataset.close", datasets_close},
         {"dataset.list", datasets_list},
         {"dataset.info", datasets_info},
+        {"dataset.check", datasets_check},
         {"fault.clear", m_fault_clear},
         {"session.plan", m_session_plan},
         {"session.run", m_session_run},

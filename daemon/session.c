@@ -39,11 +39,11 @@
 #include "protocol/proto.h"
 #include "session.h"
 
-#define MAX_DARKS        64
-#define PROGRESS_USEC    100000 /* session.progress at most 10 times a second */
-#define SKIPS_LISTED     200
-#define POSE_TOLERANCE   1e-4 /* deg: an axis this close to its target is not moved */
-#define KIND_NAME(k)     ((const char *const[]){"image", "dark", "flat", "laser"}[k])
+#define MAX_DARKS      64
+#define PROGRESS_USEC  100000 /* session.progress at most 10 times a second */
+#define SKIPS_LISTED   200
+#define POSE_TOLERANCE 1e-4 /* deg: an axis this close to its target is not moved */
+#define KIND_NAME(k)   ((const char *const[]){"image", "dark", "flat", "laser"}[k])
 
 enum sstate { S_NONE, S_LOADING, S_PREPARING, S_RUNNING, S_PAUSING, S_PAUSED, S_ENDING };
 
@@ -76,23 +76,23 @@ struct session_runner {
         int settle_ms[GN_ROLE_COUNT];
         struct run_shot *shots;
         size_t n_shots, next;
-        bool positioned;        /* the rig is in shots[next]'s pose and lighting */
-        unsigned ops;           /* rig operations in flight (moves, switches, homing, settle) */
-        bool exposing;          /* a take's frames are not back yet */
-        unsigned takes;         /* takes whose stores have not all answered */
-        int pos_phase;          /* of position(): 0 to start, 1 moving and switching, 2 settling */
-        int settle_pending_ms;  /* extra settle after the moves in flight */
-        int error;              /* first failure of this run: pauses it */
+        bool positioned;       /* the rig is in shots[next]'s pose and lighting */
+        unsigned ops;          /* rig operations in flight (moves, switches, homing, settle) */
+        bool exposing;         /* a take's frames are not back yet */
+        unsigned takes;        /* takes whose stores have not all answered */
+        int pos_phase;         /* of position(): 0 to start, 1 moving and switching, 2 settling */
+        int settle_pending_ms; /* extra settle after the moves in flight */
+        int error;             /* first failure of this run: pauses it */
         bool pause_req, abort_req;
-        bool lights_off;        /* pausing or ending: lamps and laser were switched off */
+        bool lights_off; /* pausing or ending: lamps and laser were switched off */
         int64_t planned, captured, captured_run;
         uint64_t t_run_ns, t_progress_ns;
         double estimate_s; /* timing model of what remained when the run began */
         struct dark darks[MAX_DARKS];
         size_t n_darks;
         sd_event_source *settle_timer;
-        char busy[160];       /* session_busy_reason() */
-        char ended[16];       /* how the last session ended: "done", "aborted" ("" while one runs) */
+        char busy[160]; /* session_busy_reason() */
+        char ended[16]; /* how the last session ended: "done", "aborted" ("" while one runs) */
         session_done_fn done; /* the start or resume request, answered once running */
         void *done_ud;
 };
@@ -186,11 +186,10 @@ json_t *session_status(const struct session_runner *s)
         if (s->state == S_NONE && !s->ended[0])
                 return json_pack("{ss}", "state", "none");
         st = json_pack("{sssssssssIsIsIsfsfsfsIsI}", "state", state_names[s->state], "name",
-                         s->name, "dataset", s->dataset, "reason", s->reason, "planned",
-                         (json_int_t)s->planned, "captured", (json_int_t)s->captured,
-                         "remaining", (json_int_t)remaining, "rate_per_s", rate, "eta_s", eta,
-                         "elapsed_s", elapsed, "shot", (json_int_t)s->next, "shots",
-                         (json_int_t)s->n_shots);
+                       s->name, "dataset", s->dataset, "reason", s->reason, "planned",
+                       (json_int_t)s->planned, "captured", (json_int_t)s->captured, "remaining",
+                       (json_int_t)remaining, "rate_per_s", rate, "eta_s", eta, "elapsed_s",
+                       elapsed, "shot", (json_int_t)s->next, "shots", (json_int_t)s->n_shots);
         if (st && s->state == S_NONE)
                 json_object_set_new(st, "ended", json_string(s->ended));
         if (st && s->error < 0)
@@ -235,12 +234,11 @@ static json_t *plan_json(const struct rig_config *rc, const struct session_conf 
                 per_kind[p->shots[i].kind] += __builtin_popcount(p->shots[i].cameras);
         for (int k = 0; k < 4; k++)
                 json_object_set_new(kinds, KIND_NAME(k), json_integer(per_kind[k]));
-        return json_pack("{sssssssIsIsIsfsfsososIso}", "session", sc->name, "dataset",
-                         sc->dataset, "rig", rc->name, "captures", (json_int_t)p->n_captures,
-                         "shots", (json_int_t)p->n_shots, "moves", (json_int_t)p->n_moves,
-                         "estimate_s", p->estimate_s, "lower_bound_s", p->lower_bound_s, "order",
-                         order, "kinds", kinds, "skipped_count", (json_int_t)p->n_skips,
-                         "skipped", skips);
+        return json_pack("{sssssssIsIsIsfsfsososIso}", "session", sc->name, "dataset", sc->dataset,
+                         "rig", rc->name, "captures", (json_int_t)p->n_captures, "shots",
+                         (json_int_t)p->n_shots, "moves", (json_int_t)p->n_moves, "estimate_s",
+                         p->estimate_s, "lower_bound_s", p->lower_bound_s, "order", order, "kinds",
+                         kinds, "skipped_count", (json_int_t)p->n_skips, "skipped", skips);
 }
 
 /* Parses and plans text from the rig's current pose. */
@@ -278,8 +276,7 @@ json_t *session_plan(struct session_runner *s, const char *path, const char *tex
 }
 
 /* The plan's captures as index items: one per camera of each shot. */
-static struct ds_plan_item *plan_items(const struct rig_config *rc, const struct plan *p,
-                                       size_t *n)
+static struct ds_plan_item *plan_items(const struct rig_config *rc, const struct plan *p, size_t *n)
 {
         struct ds_plan_item *items = calloc(p->n_captures ? p->n_captures : 1, sizeof(*items));
         size_t k = 0;
@@ -292,10 +289,13 @@ static struct ds_plan_item *plan_items(const struct rig_config *rc, const struct
                 for (size_t c = 0; c < rc->n_cameras && k < p->n_captures; c++) {
                         if (!(sh->cameras & (1u << c)))
                                 continue;
-                        items[k] = (struct ds_plan_item){.seq = seq++, .shot = i + 1,
-                                                         .bracket = sh->bracket, .pose = sh->pose,
-                                                         .exposure_us = sh->exposure_us,
-                                                         .gain = sh->gain};
+                        items[k] = (struct ds_plan_item){.seq = seq++,
+                                                         .shot = i + 1,
+                                                         .bracket = sh->bracket,
+                                                         .pose = sh->pose,
+                                                         .exposure_us =
+                                                                 plan_shot_exposure_us(rc, sh, c),
+                                                         .gain = plan_shot_gain(rc, sh, c)};
                         snprintf(items[k].camera, sizeof(items[k].camera), "%s",
                                  rc->cameras[c].name);
                         snprintf(items[k].kind, sizeof(items[k].kind), "%s", KIND_NAME(sh->kind));
@@ -311,12 +311,12 @@ static struct ds_plan_item *plan_items(const struct rig_config *rc, const struct
 /* What a start or resume hands to the dataset worker and gets back. */
 struct load_job {
         struct session_runner *s;
-        bool begin;                        /* start: record the session and its plan */
-        bool from_pause;                   /* resume of the paused session: paused again on failure */
+        bool begin;      /* start: record the session and its plan */
+        bool from_pause; /* resume of the paused session: paused again on failure */
         char data_dir[PATH_MAX];
-        char dataset[DS_NAME_MAX];         /* "" (resume): the newest unfinished session's */
-        char name[DS_NAME_MAX];            /* "" (resume): the dataset's unfinished session */
-        struct ds *old;                    /* the dataset that was open (maybe the target) */
+        char dataset[DS_NAME_MAX]; /* "" (resume): the newest unfinished session's */
+        char name[DS_NAME_MAX];    /* "" (resume): the dataset's unfinished session */
+        struct ds *old;            /* the dataset that was open (maybe the target) */
         char old_name[DS_NAME_MAX];
         int64_t old_count;
         struct ds *d; /* the target, open */
@@ -453,7 +453,8 @@ static int find_unfinished(struct load_job *j)
 }
 
 /* Records why a job failed (the first reason only) and returns r. */
-static int job_fail(struct load_job *j, int r, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static int job_fail(struct load_job *j, int r, const char *fmt, ...)
+        __attribute__((format(printf, 3, 4)));
 static int job_fail(struct load_job *j, int r, const char *fmt, ...)
 {
         va_list ap;
@@ -554,6 +555,13 @@ static void shot_add_item(struct run_shot *sh, const struct ds_plan_item *it, in
         sh->seq[sh->n++] = it->seq;
 }
 
+/* True when it can be exposed in the same request as the items of sh so far. */
+static bool same_request(const struct run_shot *sh, const struct ds_plan_item *it)
+{
+        return sh->n < RIG_MAX_CAMERAS && sh->exposure_us == it->exposure_us &&
+               sh->gain == it->gain;
+}
+
 /* Groups the pending items (seq order) into shots. Returns 0 or -ENOMEM/-ENOENT (a camera
  * of the plan is not in this rig). */
 static int build_shots(struct session_runner *s, const struct load_job *j)
@@ -573,8 +581,8 @@ static int build_shots(struct session_runner *s, const struct load_job *j)
                                   it->camera);
                         return -ENOENT;
                 }
-                if (it->shot != shot || s->shots[s->n_shots - 1].n == RIG_MAX_CAMERAS)
-                        s->n_shots++;
+                if (it->shot != shot || !same_request(&s->shots[s->n_shots - 1], it))
+                        s->n_shots++; /* cameras of other exposures or gains: one shot each */
                 shot = it->shot;
                 shot_add_item(&s->shots[s->n_shots - 1], it, cam);
         }
@@ -610,8 +618,10 @@ static double estimate_rest(const struct session_runner *s)
                 return 0;
         for (size_t i = 0; i < s->n_shots; i++) {
                 const struct run_shot *sh = &s->shots[i];
-                ps[i] = (struct plan_shot){.pose = sh->pose, .exposure_us = sh->exposure_us,
-                                           .gain = sh->gain, .bracket = sh->bracket};
+                ps[i] = (struct plan_shot){.pose = sh->pose,
+                                           .exposure_us = sh->exposure_us,
+                                           .gain = sh->gain,
+                                           .bracket = sh->bracket};
                 for (size_t k = 0; k < sh->n; k++)
                         ps[i].cameras |= 1u << sh->cams[k];
         }
@@ -635,8 +645,7 @@ static void load_done(int result, void *userdata)
         snprintf(s->name, sizeof(s->name), "%s", j->name);
         snprintf(s->dataset, sizeof(s->dataset), "%s", j->dataset);
         if (r >= 0 && (r = datasets_attach(m, TAKE_PTR(j->d), j->dataset, j->count)) < 0)
-                snprintf(j->msg, sizeof(j->msg), "cannot start the storage pool: %s",
-                         strerror(-r));
+                snprintf(j->msg, sizeof(j->msg), "cannot start the storage pool: %s", strerror(-r));
         if (r >= 0 && (r = build_shots(s, j)) < 0)
                 snprintf(j->msg, sizeof(j->msg), "%s", s->reason);
         if (r < 0) {
@@ -993,8 +1002,11 @@ static void on_taken(struct capture *cp, const struct capture_result *res, void 
 static void expose(struct session_runner *s)
 {
         const struct run_shot *sh = &s->shots[s->next];
-        struct capture_tag tag = {.session = s->name, .kind = sh->kind, .bracket = sh->bracket,
-                                  .exposed = on_exposed, .planned = &sh->pose};
+        struct capture_tag tag = {.session = s->name,
+                                  .kind = sh->kind,
+                                  .bracket = sh->bracket,
+                                  .exposed = on_exposed,
+                                  .planned = &sh->pose};
         struct cam_request req = {.exposure_us = sh->exposure_us, .gain = sh->gain};
         bool dark = strcmp(sh->kind, "dark") == 0;
         int r;
@@ -1127,8 +1139,8 @@ static void record(struct session_runner *s, const char *state)
         count = capture_dataset_count(m->capture);
         j->d = end ? capture_detach(m->capture) : capture_dataset(m->capture);
         if (datasets_push(m, record_job_run, record_done, j) < 0) {
-                log_error("session '%s': the dataset worker is busy; not recorded as %s",
-                          s->name, state);
+                log_error("session '%s': the dataset worker is busy; not recorded as %s", s->name,
+                          state);
                 if (end) /* the dataset stays open rather than being closed on the loop */
                         (void)datasets_attach(m, j->d, s->dataset, count);
                 return record_done(-EAGAIN, j);

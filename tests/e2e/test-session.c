@@ -88,6 +88,18 @@ static void check_complete(struct rigenv *e, const char *dataset, const char *se
         CHECK_INT(check_dataset_roles(e, dataset, (1u << GN_ROLE_COUNT) - 1), n);
 }
 
+/* Flips one byte in the middle of the dataset's first image. */
+static void corrupt_first_image(struct rigenv *e, const char *dataset)
+{
+        char cmd[600];
+
+        snprintf(cmd, sizeof(cmd),
+                 "f=$(ls %s/%s/images/000001_*.png) && printf 'X' | dd of=\"$f\" bs=1 "
+                 "seek=200 conv=notrunc status=none",
+                 e->data, dataset);
+        CHECK(system(cmd) == 0);
+}
+
 /* plan moves nothing; run captures the plan, once, with .lp files and the records. */
 static void test_run(struct rigenv *e)
 {
@@ -106,6 +118,16 @@ static void test_run(struct rigenv *e)
         CHECK(access(lp, F_OK) == 0);
         /* a second run of the same session name is refused: resume it, or rename */
         CHECK_INT(ctl(e, NULL, "session", "run", file, NULL), 9);
+        /* gonioctl dataset check: clean, then one changed byte is found and named */
+        CHECK_INT(ctl(e, NULL, "dataset", "check", "ds1", NULL), 0);
+        corrupt_first_image(e, "ds1");
+        {
+                char *argv[] = {
+                        (char *)e->gonioctl, "--socket", e->sock, "dataset", "check", "ds1", NULL};
+                char err[1024];
+                CHECK_INT(run_capture(argv, NULL, 0, err, sizeof(err)), 7);
+                CHECK(strstr(err, "000001_"));
+        }
 }
 
 /* Each operator mistake is refused with file, line and key, and nothing moves. */
@@ -125,13 +147,12 @@ static void test_badfile(struct rigenv *e)
         json_t *st;
 
         for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
-                char *argv[] = {(char *)e->gonioctl, "--socket", e->sock, "session", "run",
-                                file, NULL};
+                char *argv[] = {
+                        (char *)e->gonioctl, "--socket", e->sock, "session", "run", file, NULL};
                 session_file(e, "bad.yaml", cases[i].text, file, sizeof(file));
                 CHECK_INT(run_capture(argv, NULL, 0, err, sizeof(err)), 6);
                 if (!strstr(err, cases[i].where) || !strstr(err, "bad.yaml"))
-                        fprintf(stderr, "case %zu: expected '%s' in: %s\n", i, cases[i].where,
-                                err);
+                        fprintf(stderr, "case %zu: expected '%s' in: %s\n", i, cases[i].where, err);
                 CHECK(strstr(err, "bad.yaml") && strstr(err, cases[i].where));
         }
         st = ctl_ok(e, "status", NULL);
