@@ -674,7 +674,7 @@ static int parse_opts(int argc, char **argv, struct opts *o)
         };
         int ch;
 
-        *o = (struct opts){300, "/var/tmp", 2, 16, DS_PNG_LEVEL_DEFAULT, 0, 3.0, 6, false, false};
+        *o = (struct opts){300, "/var/tmp", 2, 16, DS_PNG_LEVEL_DEFAULT, 0, 3.0, 10, false, false};
         while ((ch = getopt_long(argc, argv, "", longopts, NULL)) != -1)
                 switch (ch) {
                 case 'n':

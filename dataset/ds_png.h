@@ -38,10 +38,10 @@ struct ds_png_codec {
 
 /* The codec of a zlib level (docs/dataset.md, "Image codec", measured with bench/pipeline
  * --codecs). 0: rows stored uncompressed. 1: every row filtered with sub, then Z_RLE; on
- * noisy camera frames as small as level 6 for a third of the CPU of level 1 with zlib's
- * usual strategy. 2-9 and -1 (zlib's 6): the best filter of each row and Z_FILTERED,
- * slower; smaller only on smooth (noise-free) images. Other levels give a codec that
- * ds_png_encode_codec refuses. */
+ * the simulated rig's frames smaller than level 6 with adaptive filters, for a third of
+ * the CPU of level 1 with them. 2-9 and -1 (zlib's 6): the best filter of each row and
+ * Z_FILTERED, slower; smaller only on smooth (noise-free) images. Other levels give a
+ * codec that ds_png_encode_codec refuses. */
 struct ds_png_codec ds_png_codec_of_level(int level);
 
 /* Encodes frame (1 or 3 channels, 8 or 16 bits, any stride >= the packed row) as PNG
