@@ -463,20 +463,17 @@ int datasets_list(struct srv_req *req, json_t *params, void *userdata)
         return push_read(j, list_job, NULL);
 }
 
-int datasets_info(struct srv_req *req, json_t *params, void *userdata)
+/* Queues a read job fn on dataset name (NULL: the open one, when open_ok) for req. */
+static int push_named(struct srv_req *req, struct manager *m, const char *name, bool open_ok,
+                      workq_fn fn, workq_done_fn done)
 {
-        struct manager *m = userdata;
-        const char *name = NULL;
         struct ds_job *j;
         char path[PATH_MAX];
         int r;
 
-        if ((r = srv_params_check(req, params, KEYS("name"))) < 0 ||
-            (r = srv_param_str(req, params, "name", &name)) < 0)
-                return r;
-        if (!name && !capture_dataset(m->capture))
+        if (!name && open_ok && !capture_dataset(m->capture))
                 return srv_req_errmsg(req, -ENOENT, "no dataset is open and no name given");
-        if (!name)
+        if (!name && open_ok)
                 name = capture_dataset_name(m->capture);
         if ((r = dataset_path(req, m, name, path, sizeof(path))) < 0)
                 return r;
@@ -484,26 +481,29 @@ int datasets_info(struct srv_req *req, json_t *params, void *userdata)
                 return -ENOMEM;
         snprintf(j->path, sizeof(j->path), "%s", path);
         snprintf(j->name, sizeof(j->name), "%s", name);
-        return push_read(j, info_job, NULL);
+        return push_read(j, fn, done);
+}
+
+int datasets_info(struct srv_req *req, json_t *params, void *userdata)
+{
+        const char *name = NULL;
+        int r;
+
+        if ((r = srv_params_check(req, params, KEYS("name"))) < 0 ||
+            (r = srv_param_str(req, params, "name", &name)) < 0)
+                return r;
+        return push_named(req, userdata, name, true, info_job, NULL);
 }
 
 int datasets_check(struct srv_req *req, json_t *params, void *userdata)
 {
-        struct manager *m = userdata;
         const char *name = NULL;
-        struct ds_job *j;
-        char path[PATH_MAX];
         int r;
 
         if ((r = srv_params_check(req, params, KEYS("name"))) < 0 ||
-            (r = srv_param_str(req, params, "name", &name)) < 0 ||
-            (r = dataset_path(req, m, name, path, sizeof(path))) < 0)
+            (r = srv_param_str(req, params, "name", &name)) < 0)
                 return r;
-        if (!(j = job_new(m, req)))
-                return -ENOMEM;
-        snprintf(j->path, sizeof(j->path), "%s", path);
-        snprintf(j->name, sizeof(j->name), "%s", name);
-        return push_read(j, check_job, checked_done);
+        return push_named(req, userdata, name, false, check_job, checked_done);
 }
 
 void datasets_free(struct manager *m)

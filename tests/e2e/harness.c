@@ -57,7 +57,7 @@ static const char *const test_rig =
         "    material: { albedo: [0.7, 0.6, 0.5] }\n"
         "  turntable: { radius: 150, albedo: [0.3, 0.3, 0.3] }\n";
 
-static void write_file(const char *path, const char *text)
+void write_file(const char *path, const char *text)
 {
         FILE *f = fopen(path, "we");
 

@@ -28,6 +28,9 @@ void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const ch
  * socket and data. */
 void rigenv_crash_daemon(struct rigenv *e);
 
+/* Writes text to path (the test fails if it cannot). */
+void write_file(const char *path, const char *text);
+
 /* Kills gonio-sim with SIGKILL (every emulated device vanishes at once) and starts it
  * again: its drives come back unhomed at 0. */
 void rigenv_crash_sim(struct rigenv *e);

@@ -32,21 +32,12 @@ static const char *const session_text = "name: s1\n"
                                         "skip_glare: false\n"
                                         "metadata: { object: sphere, operator: e2e }\n";
 
-static void write_text(const char *path, const char *text)
-{
-        FILE *f = fopen(path, "we");
-
-        CHECK(f);
-        CHECK(fputs(text, f) >= 0);
-        CHECK(fclose(f) == 0);
-}
-
 /* Writes text as DIR/NAME and returns its path (static buffer per call site). */
 static const char *session_file(struct rigenv *e, const char *name, const char *text, char *path,
                                 size_t len)
 {
         snprintf(path, len, "%s/%s", e->dir, name);
-        write_text(path, text);
+        write_file(path, text);
         return path;
 }
 
