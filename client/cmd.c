@@ -162,8 +162,8 @@ static int p_session_file(const struct cmd *c, const struct args *a, char **argv
         return csession_file_params(argv[0], *ret);
 }
 
-static int p_session_resume(const struct cmd *c, const struct args *a, char **argv, int argc,
-                            json_t **ret)
+static int p_session_dataset(const struct cmd *c, const struct args *a, char **argv, int argc,
+                             json_t **ret)
 {
         return argc > 0 ? set(*ret, "dataset", json_string(argv[0])) : 0;
 }
@@ -230,11 +230,12 @@ static const struct cmd commands[] = {
         {"session", "run", "FILE", "run a session file (Ctrl-C pauses it)", "session.run", 1, 1, 0,
          TIMEOUT_LONG_S, p_session_file, NULL, .follows = true},
         {"session", "resume", "[DATASET]", "resume the paused or interrupted session",
-         "session.resume", 0, 1, 0, TIMEOUT_LONG_S, p_session_resume, NULL, .follows = true},
+         "session.resume", 0, 1, 0, TIMEOUT_LONG_S, p_session_dataset, NULL, .follows = true},
         {"session", "pause", "", "pause the session at the next capture", "session.pause", 0, 0, 0,
          TIMEOUT_S, NULL, out_print_session_status},
-        {"session", "abort", "", "end the session now", "session.abort", 0, 0, 0, TIMEOUT_S, NULL,
-         out_print_session_status},
+        {"session", "abort", "[DATASET]",
+         "end the session now (or an unfinished one after a restart)", "session.abort", 0, 1, 0,
+         TIMEOUT_S, p_session_dataset, out_print_session_status},
         {"session", "status", "", "the session's state and progress", "session.status", 0, 0, 0,
          TIMEOUT_S, NULL, out_print_session_status},
         {"session", "watch", "", "follow the session until it ends or pauses", "session.status", 0,

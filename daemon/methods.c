@@ -537,9 +537,21 @@ static int m_session_pause(struct srv_req *req, json_t *params, void *userdata)
         return session_control(req, params, userdata, session_pause);
 }
 
+/* session.abort: the loaded session, else (after a restart) an unfinished one in the index. */
 static int m_session_abort(struct srv_req *req, json_t *params, void *userdata)
 {
-        return session_control(req, params, userdata, session_abort);
+        struct manager *m = userdata;
+        const char *dataset = NULL;
+        char msg[512];
+        int r;
+
+        if (session_active(m->session))
+                return session_control(req, params, m, session_abort);
+        if ((r = srv_params_check(req, params, KEYS("dataset"))) < 0 ||
+            (r = srv_param_str(req, params, "dataset", &dataset)) < 0)
+                return r;
+        r = session_abandon(m->session, dataset, on_session_started, req, msg, sizeof(msg));
+        return r < 0 ? srv_req_errmsg(req, r, "%s", msg) : 0;
 }
 
 static int m_session_status(struct srv_req *req, json_t *params, void *userdata)

@@ -26,6 +26,7 @@
 #include <stdarg.h>
 #include <math.h>
 #include <string.h>
+#include <sys/statvfs.h>
 #include <systemd/sd-event.h>
 
 #include "common/clock.h"
@@ -42,7 +43,10 @@
 #define MAX_DARKS      64
 #define PROGRESS_USEC  100000 /* session.progress at most 10 times a second */
 #define SKIPS_LISTED   200
-#define POSE_TOLERANCE 1e-4 /* deg: an axis this close to its target is not moved */
+#define POSE_TOLERANCE 1e-4             /* deg: an axis this close to its target is not moved */
+#define RETRY_USEC     (5 * 1000000ULL) /* a session paused by a fault tries again this often */
+#define SPACE_MARGIN   4 /* a full disk must have room for this many uncompressed shots */
+#define ABANDONED      "aborted by a client while not loaded (goniod had restarted)"
 #define KIND_NAME(k)   ((const char *const[]){"image", "dark", "flat", "laser"}[k])
 
 enum sstate { S_NONE, S_LOADING, S_PREPARING, S_RUNNING, S_PAUSING, S_PAUSED, S_ENDING };
@@ -91,7 +95,8 @@ struct session_runner {
         struct dark darks[MAX_DARKS];
         size_t n_darks;
         sd_event_source *settle_timer;
-        char busy[160]; /* session_busy_reason() */
+        sd_event_source *retry_timer; /* paused by a fault or a full disk: resume when it is gone */
+        char busy[160];               /* session_busy_reason() */
         char ended[16]; /* how the last session ended: "done", "aborted" ("" while one runs) */
         session_done_fn done; /* the start or resume request, answered once running */
         void *done_ud;
@@ -313,6 +318,7 @@ struct load_job {
         struct session_runner *s;
         bool begin;      /* start: record the session and its plan */
         bool from_pause; /* resume of the paused session: paused again on failure */
+        bool abandon;    /* record the session as aborted instead of loading it */
         char data_dir[PATH_MAX];
         char dataset[DS_NAME_MAX]; /* "" (resume): the newest unfinished session's */
         char name[DS_NAME_MAX];    /* "" (resume): the dataset's unfinished session */
@@ -516,6 +522,15 @@ static int load(struct load_job *j)
 
         if ((r = load_dataset(j, rc->text)) < 0)
                 return r;
+        if (j->abandon && (r = begin_or_find(j, rc->text)) >= 0 &&
+            (r = ds_session_set_state(j->d, j->name, "aborted", ABANDONED)) >= 0)
+                r = ds_session_get(j->d, j->name, &j->info);
+        if (j->abandon && r < 0)
+                return job_fail(j, r, "dataset '%s': %s", j->dataset, strerror(-r));
+        if (j->abandon) {
+                j->old = ds_close(j->old);
+                return 0;
+        }
         if ((r = begin_or_find(j, rc->text)) < 0 ||
             (r = ds_session_get(j->d, j->name, &j->info)) < 0 ||
             (r = ds_session_set_state(j->d, j->name, "running", "")) < 0 ||
@@ -656,6 +671,13 @@ static void load_done(int result, void *userdata)
         }
         s->planned = j->info.planned;
         s->captured = j->info.captured;
+        if (j->abandon) {
+                snprintf(s->reason, sizeof(s->reason), "%s", ABANDONED);
+                snprintf(s->ended, sizeof(s->ended), "aborted");
+                set_state(s, S_NONE);
+                answer(s, 0, NULL);
+                return load_job_free(j);
+        }
         memcpy(s->darks, j->darks, sizeof(s->darks));
         s->n_darks = j->n_darks;
         read_settle(s, j->info.file_text);
@@ -754,30 +776,28 @@ int session_start(struct session_runner *s, const char *path, const char *text,
         return r;
 }
 
-int session_resume(struct session_runner *s, const char *dataset, session_done_fn done,
-                   void *userdata, char *msg, size_t len)
+/* Loads the paused session, or the unfinished session of dataset (NULL: the newest in the
+ * data directory) to resume it, or with abandon to record it as aborted. */
+static int load_unfinished(struct session_runner *s, const char *dataset, bool abandon,
+                           session_done_fn done, void *userdata, char *msg, size_t len)
 {
         struct load_job *j;
+        char path[PATH_MAX];
         int r;
 
-        if (s->state != S_NONE && s->state != S_PAUSED)
-                return snprintf(msg, len, "%s", s->busy), -EBUSY;
+        if (dataset && datasets_path(s->m, dataset, path, sizeof(path)) < 0)
+                return snprintf(msg, len, "'%s' is not a valid dataset name", dataset), -EINVAL;
         if (!(j = calloc(1, sizeof(*j))))
                 return -ENOMEM;
+        j->abandon = abandon;
         if (s->state == S_PAUSED) { /* the index says what the pause left to do */
                 snprintf(j->dataset, sizeof(j->dataset), "%s", s->dataset);
                 snprintf(j->name, sizeof(j->name), "%s", s->name);
                 j->from_pause = true;
         } else if (dataset) {
-                char path[PATH_MAX];
-
-                if (datasets_path(s->m, dataset, path, sizeof(path)) < 0) {
-                        free(j);
-                        return snprintf(msg, len, "'%s' is not a valid dataset name", dataset),
-                               -EINVAL;
-                }
                 snprintf(j->dataset, sizeof(j->dataset), "%s", dataset);
         }
+        s->retry_timer = sd_event_source_disable_unref(s->retry_timer);
         s->done = done;
         s->done_ud = userdata;
         if ((r = push_load(s, j, msg, len)) < 0) {
@@ -785,6 +805,27 @@ int session_resume(struct session_runner *s, const char *dataset, session_done_f
                 load_job_free(j);
         }
         return r;
+}
+
+int session_resume(struct session_runner *s, const char *dataset, session_done_fn done,
+                   void *userdata, char *msg, size_t len)
+{
+        if (s->state == S_LOADING || s->state == S_PREPARING || s->state == S_RUNNING) {
+                if (done) /* resumed already: the caller follows it */
+                        done(s->m, 0, NULL, session_status(s), userdata);
+                return 0;
+        }
+        if (s->state != S_NONE && s->state != S_PAUSED)
+                return snprintf(msg, len, "%s", s->busy), -EBUSY;
+        return load_unfinished(s, dataset, false, done, userdata, msg, len);
+}
+
+int session_abandon(struct session_runner *s, const char *dataset, session_done_fn done,
+                    void *userdata, char *msg, size_t len)
+{
+        if (s->state != S_NONE)
+                return snprintf(msg, len, "%s", s->busy), -EBUSY;
+        return load_unfinished(s, dataset, true, done, userdata, msg, len);
 }
 
 /* ---- preparing: fault cleared, axes homed ---- */
@@ -1060,6 +1101,71 @@ static void step_preparing(struct session_runner *s)
 
 /* ---- pausing and ending ---- */
 
+/* True when the session paused for a cause that can go away by itself: a device fault (the
+ * device comes back), a full disk (space is freed), a drive that lost its home. Not after a
+ * client's pause or stop. */
+static bool retry_worth(const struct session_runner *s)
+{
+        if (s->pause_req || s->abort_req || s->error >= 0)
+                return false;
+        return strcmp(rig_state(s->m->rig), "fault") == 0 || s->error != -ECANCELED;
+}
+
+/* Bytes the next shot's frames take uncompressed, times the margin. */
+static uint64_t space_needed(const struct session_runner *s)
+{
+        const struct run_shot *sh = s->next < s->n_shots ? &s->shots[s->next] : NULL;
+        uint64_t bytes = 0;
+
+        for (size_t k = 0; sh && k < sh->n; k++) {
+                const struct rig_camera_conf *c = &rc_of(s)->cameras[sh->cams[k]];
+                bytes += (uint64_t)c->width * c->height * 3 * (c->bits > 8 ? 2 : 1);
+        }
+        return SPACE_MARGIN * bytes;
+}
+
+/* True when the dataset's file system has room for the next shot. */
+static bool space_for_next(const struct session_runner *s)
+{
+        char path[PATH_MAX];
+        struct statvfs st;
+
+        if (datasets_path(s->m, s->dataset, path, sizeof(path)) < 0 || statvfs(path, &st) < 0)
+                return true; /* let the resume find out */
+        return (uint64_t)st.f_bavail * st.f_frsize >= space_needed(s);
+}
+
+static int on_retry(sd_event_source *es, uint64_t usec, void *userdata)
+{
+        struct session_runner *s = userdata;
+        char msg[256];
+        bool storage = s->error == -ENOSPC || s->error == -EDQUOT || s->error == -EFBIG;
+
+        if (s->state != S_PAUSED)
+                return 0;
+        if ((storage && !space_for_next(s)) ||
+            session_resume(s, NULL, NULL, NULL, msg, sizeof(msg)) < 0)
+                return sd_event_source_set_time_relative(es, RETRY_USEC) < 0
+                               ? 0
+                               : sd_event_source_set_enabled(es, SD_EVENT_ONESHOT);
+        log_info("session '%s': resuming after '%s'", s->name, s->reason);
+        return 0;
+}
+
+/* After a pause with a cause that can go away, tries to resume every RETRY_USEC. */
+static void arm_retry(struct session_runner *s)
+{
+        int r;
+
+        if (!retry_worth(s))
+                return;
+        s->retry_timer = sd_event_source_disable_unref(s->retry_timer);
+        r = sd_event_add_time_relative(s->m->event, &s->retry_timer, CLOCK_MONOTONIC, RETRY_USEC,
+                                       100000, on_retry, s);
+        if (r < 0)
+                log_warning("session '%s': cannot arm the resume timer: %s", s->name, strerror(-r));
+}
+
 /* What a pause or the end records in the index, on the dataset worker. */
 struct record_job {
         struct session_runner *s;
@@ -1115,6 +1221,7 @@ static void record_done(int result, void *userdata)
                 set_state(s, S_NONE);
         } else {
                 set_state(s, S_PAUSED);
+                arm_retry(s);
         }
         free(j);
 }
@@ -1221,6 +1328,7 @@ int session_abort(struct session_runner *s, char *msg, size_t len)
                 return snprintf(msg, len, "session '%s' is %s", s->name, state_names[s->state]),
                        -EBUSY;
         s->abort_req = true;
+        s->retry_timer = sd_event_source_disable_unref(s->retry_timer);
         if (s->state == S_PAUSED) {
                 snprintf(s->reason, sizeof(s->reason), "aborted by a client");
                 s->lights_off = true;
@@ -1248,6 +1356,7 @@ struct session_runner *session_runner_free(struct session_runner *s)
         if (!s)
                 return NULL;
         s->settle_timer = sd_event_source_disable_unref(s->settle_timer);
+        s->retry_timer = sd_event_source_disable_unref(s->retry_timer);
         free(s->shots);
         free(s);
         return NULL;

@@ -45,10 +45,17 @@ int session_start(struct session_runner *s, const char *path, const char *text,
 
 /* Resumes the paused session, or after a restart the unfinished session of dataset (NULL:
  * the newest unfinished one in the data directory): clears a rig fault, homes axes that lost
- * their home, and captures what the index says is missing. Returns 0 (done follows) or
- * -EBUSY/-ENOENT with msg. */
+ * their home, and captures what the index says is missing. A session paused by a fault or a
+ * full disk tries this by itself every 5 s. When a resume runs already, done gets the status
+ * at once. Returns 0 (done follows) or -EBUSY/-ENOENT with msg. */
 int session_resume(struct session_runner *s, const char *dataset, session_done_fn done,
                    void *userdata, char *msg, size_t len);
+
+/* Records the unfinished session of dataset (NULL: the newest in the data directory) as
+ * aborted without running it: after a restart, when nothing is loaded. Returns 0 (done
+ * follows) or -EBUSY (a session is loaded: session_abort) / -EINVAL with msg. */
+int session_abandon(struct session_runner *s, const char *dataset, session_done_fn done,
+                    void *userdata, char *msg, size_t len);
 
 /* Pauses at the next capture boundary (lamps and laser off). Returns 0 or -ENOENT/-EALREADY. */
 int session_pause(struct session_runner *s, char *msg, size_t len);

@@ -250,6 +250,50 @@ static void test_fault(struct rigenv *e)
         check_complete(e, "ds1", "s1", n);
 }
 
+/* A fault pauses the session; it resumes by itself once the device is back. */
+static void test_autoresume(struct rigenv *e)
+{
+        char file[400], state[32];
+        int64_t n;
+        int fd;
+
+        session_file(e, "s1.yaml", session_text, file, sizeof(file));
+        n = planned_captures(e, file);
+        fd = start_raw(e, file);
+        usleep(200000);
+        sim_request(e, "{\"cmd\":\"unplug\",\"bus\":\"drives\",\"ms\":1000}\n");
+        wait_session(e, "paused", 30);
+        for (int i = 0; i < 300 && strcmp(session_state(e, state, sizeof(state)), "none"); i++)
+                usleep(100000); /* no client resumes it */
+        close(fd);
+        check_complete(e, "ds1", "s1", n);
+}
+
+/* After a crash of goniod the unfinished session can be given up without running it. */
+static void test_abandon(struct rigenv *e)
+{
+        struct ds_session_info info = {0};
+        char file[400], path[400];
+        struct ds *d = NULL;
+        int fd;
+
+        session_file(e, "s1.yaml", session_text, file, sizeof(file));
+        fd = start_raw(e, file);
+        usleep(300000);
+        rigenv_crash_daemon(e);
+        close(fd);
+        CHECK_INT(ctl(e, NULL, "session", "abort", NULL), 0);
+        CHECK_INT(ctl(e, NULL, "session", "resume", NULL), 6); /* nothing left to resume */
+        snprintf(path, sizeof(path), "%s/ds1", e->data);
+        CHECK_INT(ds_open(path, &d), 0);
+        CHECK_INT(ds_session_get(d, "s1", &info), 0);
+        CHECK_STR(info.state, "aborted");
+        CHECK(info.captured < info.planned);
+        ds_session_info_clear(&info);
+        CHECK_INT(ds_check(d, print_problem, NULL), 0);
+        ds_close(d);
+}
+
 /* kill -9 of goniod, gonio-sim or both at seeded random moments, twice, each followed by a
  * resume; the session ends complete, every capture once. */
 static void test_kill(struct rigenv *e, const char *who, unsigned seed)
@@ -308,6 +352,10 @@ int main(int argc, char **argv)
                 test_pause(&e);
         else if (strcmp(c, "fault") == 0)
                 test_fault(&e);
+        else if (strcmp(c, "autoresume") == 0)
+                test_autoresume(&e);
+        else if (strcmp(c, "abandon") == 0)
+                test_abandon(&e);
         else if (strncmp(c, "kill-", 5) == 0 && strchr(c + 5, '-'))
                 test_kill(&e, c + 5, (unsigned)atoi(strchr(c + 5, '-') + 1));
         else
