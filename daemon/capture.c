@@ -183,6 +183,7 @@ static void fill_row(struct capture *cp, const struct take *t, const struct rig_
         row->bracket = t->tag.bracket;
         row->plan_seq = t->tag.plan_seq[s - e->shots];
         row->dark_id = t->tag.dark_id[s - e->shots];
+        row->flat_id = t->tag.flat_id[s - e->shots];
         row->exposure_us = s->frame.exposure_us;
         row->gain = s->frame.gain;
         row->t_request_ns = e->t_request_ns;

@@ -40,6 +40,7 @@ struct capture_tag {
         int bracket;                       /* index in the HDR bracket */
         int64_t plan_seq[RIG_MAX_CAMERAS]; /* per camera of the take; 0: none */
         int64_t dark_id[RIG_MAX_CAMERAS];  /* the dark frame's row per camera; 0: none */
+        int64_t flat_id[RIG_MAX_CAMERAS];  /* the flat field's row per camera; 0: none */
         capture_exposed_fn exposed;        /* may be NULL */
         /* The pose the frames must have been exposed in (angles where not NAN, within
          * DS_PLAN_POSE_TOL_DEG; lamps and laser exactly), or NULL: a frame exposed elsewhere

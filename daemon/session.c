@@ -84,6 +84,7 @@ struct session_runner {
         unsigned ops;          /* rig operations in flight (moves, switches, homing, settle) */
         bool exposing;         /* a take's frames are not back yet */
         unsigned takes;        /* takes whose stores have not all answered */
+        unsigned ref_takes;    /* of which darks and flats, whose row ids later shots record */
         int pos_phase;         /* of position(): 0 to start, 1 moving and switching, 2 settling */
         int settle_pending_ms; /* extra settle after the moves in flight */
         int error;             /* first failure of this run: pauses it */
@@ -94,6 +95,7 @@ struct session_runner {
         double estimate_s; /* timing model of what remained when the run began */
         struct dark darks[MAX_DARKS];
         size_t n_darks;
+        int64_t flats[RIG_MAX_CAMERAS]; /* the newest flat field's row per camera, 0: none */
         sd_event_source *settle_timer;
         sd_event_source *retry_timer; /* paused by a fault or a full disk: resume when it is gone */
         char busy[160];               /* session_busy_reason() */
@@ -336,6 +338,7 @@ struct load_job {
         struct ds_session_info info;
         struct dark darks[MAX_DARKS];
         size_t n_darks;
+        int64_t flats[RIG_MAX_CAMERAS];
         char msg[300];
 };
 
@@ -538,6 +541,8 @@ static int load(struct load_job *j)
                 return job_fail(j, r, "dataset '%s', session '%s': %s", j->dataset, j->name,
                                 ds_last_error(j->d)[0] ? ds_last_error(j->d) : strerror(-r));
         find_darks(j, rc);
+        for (size_t i = 0; i < rc->n_cameras; i++)
+                j->flats[i] = MAX(ds_find_flat(j->d, rc->cameras[i].name), 0);
         j->count = ds_count(j->d);
         j->old = ds_close(j->old);
         return 0;
@@ -679,6 +684,7 @@ static void load_done(int result, void *userdata)
                 return load_job_free(j);
         }
         memcpy(s->darks, j->darks, sizeof(s->darks));
+        memcpy(s->flats, j->flats, sizeof(s->flats));
         s->n_darks = j->n_darks;
         read_settle(s, j->info.file_text);
         load_job_free(j);
@@ -1031,12 +1037,23 @@ static void on_taken(struct capture *cp, const struct capture_result *res, void 
                 }
                 s->captured++;
                 s->captured_run++;
+                int cam = camera_index(rc_of(s), sh->row.camera);
                 if (strcmp(sh->row.kind, "dark") == 0)
-                        remember_dark(s, camera_index(rc_of(s), sh->row.camera),
-                                      sh->row.exposure_us, sh->row.gain, sh->row.id);
+                        remember_dark(s, cam, sh->row.exposure_us, sh->row.gain, sh->row.id);
+                if (strcmp(sh->row.kind, "flat") == 0 && cam >= 0)
+                        s->flats[cam] = sh->row.id;
         }
         progress(s);
         step(s);
+}
+
+/* A take of dark frames or flat fields is stored: the shots after it may name its rows. */
+static void on_ref_taken(struct capture *cp, const struct capture_result *res, void *userdata)
+{
+        struct session_runner *s = userdata;
+
+        s->ref_takes--;
+        on_taken(cp, res, userdata);
 }
 
 /* Exposes the cameras of the next shot, labelled with their plan items. */
@@ -1049,20 +1066,26 @@ static void expose(struct session_runner *s)
                                   .exposed = on_exposed,
                                   .planned = &sh->pose};
         struct cam_request req = {.exposure_us = sh->exposure_us, .gain = sh->gain};
-        bool dark = strcmp(sh->kind, "dark") == 0;
+        bool dark = strcmp(sh->kind, "dark") == 0, flat = strcmp(sh->kind, "flat") == 0;
         int r;
 
         for (size_t k = 0; k < sh->n; k++) {
                 tag.plan_seq[k] = sh->seq[k];
                 tag.dark_id[k] = dark ? 0 : dark_of(s, sh->cams[k], sh->exposure_us, sh->gain);
+                tag.flat_id[k] = dark || flat ? 0 : s->flats[sh->cams[k]];
         }
+        if (s->ref_takes > 0 && !dark)
+                return; /* the dark or flat rows it names are not stored yet: on_ref_taken */
         s->exposing = true;
         s->takes++;
-        r = capture_take(s->m->capture, sh->cams, sh->n, &req, &tag, on_taken, s);
+        s->ref_takes += dark || flat;
+        r = capture_take(s->m->capture, sh->cams, sh->n, &req, &tag,
+                         dark || flat ? on_ref_taken : on_taken, s);
         if (r >= 0)
                 return;
         s->exposing = false;
         s->takes--;
+        s->ref_takes -= dark || flat;
         if (r != -EAGAIN) /* -EAGAIN: the storage queue is full; a store's answer calls back */
                 set_error(s, r, "capture refused: %s",
                           r == -EBUSY ? rig_busy_reason(s->m->rig) : strerror(-r));

@@ -316,8 +316,10 @@ int ds_plan_pending(struct ds *d, const char *session, ds_plan_fn fn, void *user
         return rc == SQLITE_DONE ? n : ds_db_fail(d, rc, "Failed to read the plan");
 }
 
-int64_t ds_find_dark(struct ds *d, const char *camera, int exposure_us, double gain,
-                     uint64_t not_before_ns)
+/* The newest row of kind from camera (with exposure_us and gain unless exposure_us < 0)
+ * taken at or after not_before_ns: its id, 0 if none, or -errno. */
+static int64_t find_frame(struct ds *d, const char *kind, const char *camera, int exposure_us,
+                          double gain, uint64_t not_before_ns)
 {
         _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
         int r, rc;
@@ -327,9 +329,9 @@ int64_t ds_find_dark(struct ds *d, const char *camera, int exposure_us, double g
         if (!d || !camera)
                 return -EINVAL;
         r = ds_db_prepare(d,
-                          "SELECT id FROM captures WHERE kind = 'dark' AND camera = ?"
-                          " AND exposure_us = ? AND abs(gain - ?) <= 1e-6 AND t_exposure_ns >= ?"
-                          " ORDER BY t_exposure_ns DESC, id DESC LIMIT 1",
+                          "SELECT id FROM captures WHERE kind = ?5 AND camera = ?1"
+                          " AND (?2 < 0 OR (exposure_us = ?2 AND abs(gain - ?3) <= 1e-6))"
+                          " AND t_exposure_ns >= ?4 ORDER BY t_exposure_ns DESC, id DESC LIMIT 1",
                           &s);
         if (r < 0)
                 return r;
@@ -337,8 +339,21 @@ int64_t ds_find_dark(struct ds *d, const char *camera, int exposure_us, double g
         sqlite3_bind_int(s, 2, exposure_us);
         sqlite3_bind_double(s, 3, gain);
         sqlite3_bind_int64(s, 4, (sqlite3_int64)MIN(not_before_ns, (uint64_t)INT64_MAX));
+        sqlite3_bind_text(s, 5, kind, -1, SQLITE_STATIC);
         rc = sqlite3_step(s);
         if (rc == SQLITE_ROW)
                 return sqlite3_column_int64(s, 0);
-        return rc == SQLITE_DONE ? 0 : ds_db_fail(d, rc, "Failed to look up a dark frame");
+        return rc == SQLITE_DONE ? 0 : ds_db_fail(d, rc, "Failed to look up a reference frame");
+}
+
+int64_t ds_find_dark(struct ds *d, const char *camera, int exposure_us, double gain,
+                     uint64_t not_before_ns)
+{
+        return exposure_us < 0 ? -EINVAL
+                               : find_frame(d, "dark", camera, exposure_us, gain, not_before_ns);
+}
+
+int64_t ds_find_flat(struct ds *d, const char *camera)
+{
+        return find_frame(d, "flat", camera, -1, 0, 0);
 }

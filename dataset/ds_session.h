@@ -79,6 +79,9 @@ int ds_plan_pending(struct ds *d, const char *session, ds_plan_fn fn, void *user
 int64_t ds_find_dark(struct ds *d, const char *camera, int exposure_us, double gain,
                      uint64_t not_before_ns);
 
+/* The newest row of kind "flat" of camera: its row id, 0 if there is none, or -errno. */
+int64_t ds_find_flat(struct ds *d, const char *camera);
+
 /* Computes the unit direction towards the lit lamp of capture c, in the object's frame
  * (rig geometry: the caller's), into dir. Returns 0, > 0 to leave c out of the file, or
  * a negative -errno that stops ds_write_lp. */

@@ -28,6 +28,7 @@ static const char *const session_text = "name: s1\n"
                                         "lamps: [lamp0, lamp1]\n"
                                         "laser: true\n"
                                         "dark_frames: 1\n"
+                                        "flat_frames: 1\n"
                                         "skip_occluded: false\n"
                                         "skip_glare: false\n"
                                         "metadata: { object: sphere, operator: e2e }\n";
@@ -91,6 +92,32 @@ static void corrupt_first_image(struct rigenv *e, const char *dataset)
         CHECK(system(cmd) == 0);
 }
 
+static int check_refs(const struct ds_capture *c, void *userdata)
+{
+        bool ref = strcmp(c->kind, "image") == 0 || strcmp(c->kind, "laser") == 0;
+
+        if (ref && (c->dark_id <= 0 || c->flat_id <= 0))
+                fprintf(stderr, "row %lld (%s): dark %lld, flat %lld\n", (long long)c->id,
+                        c->kind, (long long)c->dark_id, (long long)c->flat_id);
+        CHECK(!ref || (c->dark_id > 0 && c->flat_id > 0));
+        (*(int *)userdata) += ref;
+        return 0;
+}
+
+/* Every image and laser row of dataset names its dark frame and flat field. */
+static void check_references(struct rigenv *e, const char *dataset)
+{
+        char path[400];
+        struct ds *d = NULL;
+        int n = 0;
+
+        snprintf(path, sizeof(path), "%s/%s", e->data, dataset);
+        CHECK_INT(ds_open(path, &d), 0);
+        CHECK(ds_rows(d, 0, -1, check_refs, &n) > 0);
+        CHECK(n > 0);
+        ds_close(d);
+}
+
 /* plan moves nothing; run captures the plan, once, with .lp files and the records. */
 static void test_run(struct rigenv *e)
 {
@@ -105,6 +132,7 @@ static void test_run(struct rigenv *e)
         json_decref(st);
         CHECK_INT(ctl(e, NULL, "session", "run", file, NULL), 0);
         check_complete(e, "ds1", "s1", n);
+        check_references(e, "ds1");
         snprintf(lp, sizeof(lp), "%s/ds1/lp/s1", e->data);
         CHECK(access(lp, F_OK) == 0);
         /* a second run of the same session name is refused: resume it, or rename */
