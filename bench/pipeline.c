@@ -657,6 +657,46 @@ static int bench(const struct opts *o, const struct rig_config *rc, struct sim_s
 
 /* --- main --- */
 
+/* Applies option ch (its argument in optarg) to o. */
+static int set_opt(struct opts *o, int ch)
+{
+        switch (ch) {
+        case 'n':
+                o->captures = atol(optarg);
+                break;
+        case 'd':
+                o->dir = optarg;
+                break;
+        case 'e':
+                o->encoders = (unsigned)atoi(optarg);
+                break;
+        case 'c':
+                o->capacity = (size_t)atol(optarg);
+                break;
+        case 'l':
+                o->level = atoi(optarg);
+                break;
+        case 't':
+                o->render_threads = atoi(optarg);
+                break;
+        case 's':
+                o->stage_s = atof(optarg);
+                break;
+        case 'b':
+                o->blocks = atoi(optarg);
+                break;
+        case 'C':
+                o->codecs = true;
+                break;
+        case 'k':
+                o->keep = true;
+                break;
+        default:
+                return -EINVAL;
+        }
+        return 0;
+}
+
 static int parse_opts(int argc, char **argv, struct opts *o)
 {
         static const struct option longopts[] = {
@@ -676,40 +716,8 @@ static int parse_opts(int argc, char **argv, struct opts *o)
 
         *o = (struct opts){300, "/var/tmp", 2, 16, DS_PNG_LEVEL_DEFAULT, 0, 3.0, 10, false, false};
         while ((ch = getopt_long(argc, argv, "", longopts, NULL)) != -1)
-                switch (ch) {
-                case 'n':
-                        o->captures = atol(optarg);
-                        break;
-                case 'd':
-                        o->dir = optarg;
-                        break;
-                case 'e':
-                        o->encoders = (unsigned)atoi(optarg);
-                        break;
-                case 'c':
-                        o->capacity = (size_t)atol(optarg);
-                        break;
-                case 'l':
-                        o->level = atoi(optarg);
-                        break;
-                case 't':
-                        o->render_threads = atoi(optarg);
-                        break;
-                case 's':
-                        o->stage_s = atof(optarg);
-                        break;
-                case 'b':
-                        o->blocks = atoi(optarg);
-                        break;
-                case 'C':
-                        o->codecs = true;
-                        break;
-                case 'k':
-                        o->keep = true;
-                        break;
-                default:
+                if (set_opt(o, ch) < 0)
                         return -EINVAL;
-                }
         if (o->captures < 1 || o->encoders < 1 || o->encoders > 16 || o->capacity < 1 ||
             o->level < 0 || o->level > 9 || o->render_threads < 0 || o->stage_s <= 0 ||
             o->blocks < 1 || o->blocks > o->captures || optind != argc)
