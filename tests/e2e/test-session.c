@@ -97,8 +97,8 @@ static int check_refs(const struct ds_capture *c, void *userdata)
         bool ref = strcmp(c->kind, "image") == 0 || strcmp(c->kind, "laser") == 0;
 
         if (ref && (c->dark_id <= 0 || c->flat_id <= 0))
-                fprintf(stderr, "row %lld (%s): dark %lld, flat %lld\n", (long long)c->id,
-                        c->kind, (long long)c->dark_id, (long long)c->flat_id);
+                fprintf(stderr, "row %lld (%s): dark %lld, flat %lld\n", (long long)c->id, c->kind,
+                        (long long)c->dark_id, (long long)c->flat_id);
         CHECK(!ref || (c->dark_id > 0 && c->flat_id > 0));
         (*(int *)userdata) += ref;
         return 0;
@@ -180,6 +180,15 @@ static void test_badfile(struct rigenv *e)
         json_decref(st);
 }
 
+/* Prints a reply that is not a result (for the log of a failing run). */
+static void print_reply(const char *what, json_t *reply)
+{
+        char *text = json_dumps(reply, JSON_COMPACT);
+
+        fprintf(stderr, "%s: %s\n", what, text ? text : "?");
+        free(text);
+}
+
 /* Starts the session over a raw connection (answered once it runs) and returns that fd. */
 static int start_raw(struct rigenv *e, const char *file)
 {
@@ -195,11 +204,14 @@ static int start_raw(struct rigenv *e, const char *file)
         p = json_pack("{sssssss{ssss}}", "jsonrpc", "2.0", "method", "session.run", "id", "1",
                       "params", "file", file, "text", text);
         free(text);
-        snprintf(req, sizeof(req), "%s\n", json_dumps(p, JSON_COMPACT));
+        text = json_dumps(p, JSON_COMPACT);
+        CHECK(text);
+        snprintf(req, sizeof(req), "%s\n", text);
+        free(text);
         json_decref(p);
         r = raw_call(fd, req);
         if (!json_object_get(r, "result"))
-                fprintf(stderr, "session.run: %s\n", json_dumps(r, JSON_COMPACT));
+                print_reply("session.run", r);
         CHECK(json_object_get(r, "result"));
         json_decref(r);
         return fd;
@@ -349,7 +361,7 @@ static void test_kill(struct rigenv *e, const char *who, unsigned seed)
                 fd = raw_connect(e);
                 r = raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":2,\"method\":\"session.resume\"}\n");
                 if (!json_object_get(r, "result"))
-                        fprintf(stderr, "resume %d: %s\n", k, json_dumps(r, JSON_COMPACT));
+                        print_reply("session.resume", r);
                 json_decref(r);
         }
         close(fd);
