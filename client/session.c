@@ -88,7 +88,9 @@ static void on_event(const char *method, json_t *params, void *userdata)
         if (f->o->json)
                 out_notification(f->o, method, params);
         if (strcmp(method, "session.state") == 0 && !f->o->json && !f->o->quiet && !f->o->progress)
-                printf("session %s: %s %s\n", str(params, "name"), str(params, "state"),
+                printf("session %s: %s %s\n", str(params, "name"),
+                       strcmp(str(params, "state"), "none") == 0 ? str(params, "ended")
+                                                                 : str(params, "state"),
                        str(params, "reason"));
         progress_line(f->o, params);
         json_decref(f->last);

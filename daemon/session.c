@@ -12,7 +12,7 @@
  * use the dataset at once. Everything else runs on the loop, as a state machine woken by
  * each completion (step()):
  *   LOADING    the dataset job runs
- *   PREPARING  a rig fault is cleared and the swept axes that lost their home are homed
+ *   PREPARING  a rig fault is cleared and the axes that lost their home are homed
  *   RUNNING    for each shot: move and switch into its pose, expose, hand the frames to the
  *              pool; the next pose's motion starts as soon as the frames are back, while the
  *              pool encodes and stores them (the pool's bounded queue holds the runner back)
@@ -28,6 +28,7 @@
 #include <string.h>
 #include <sys/statvfs.h>
 #include <systemd/sd-event.h>
+#include <unistd.h>
 
 #include "common/clock.h"
 #include "common/log.h"
@@ -421,14 +422,12 @@ static int open_dataset(const char *dir, const char *name, bool create, const ch
                         struct ds **ret)
 {
         char path[PATH_MAX];
-        int r;
 
         if ((size_t)snprintf(path, sizeof(path), "%s/%s", dir, name) >= sizeof(path))
                 return -ENAMETOOLONG;
-        r = ds_open(path, ret);
-        if (r == -ENOENT && create)
-                r = ds_create(path, name, rig_text, ret);
-        return r;
+        if (create && access(path, F_OK) < 0 && errno == ENOENT)
+                return ds_create(path, name, rig_text, ret);
+        return ds_open(path, ret);
 }
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(DIR *, closedir);
