@@ -111,6 +111,17 @@ static void check_no_orphan(struct rigenv *e, const char *dataset)
         ds_close(d);
 }
 
+static char mounted[300]; /* the tmpfs to unmount (also when a check fails) */
+
+static void unmount_data(void)
+{
+        char cmd[400];
+
+        snprintf(cmd, sizeof(cmd), "umount -l %s", mounted);
+        if (mounted[0] && system(cmd) != 0)
+                fprintf(stderr, "cannot unmount %s\n", mounted);
+}
+
 /* Fills the file system of dir up to about room free bytes with dir/filler. */
 static void fill_disk(const char *dir, long room)
 {
@@ -147,6 +158,8 @@ static int test_enospc(struct rigenv *e)
                 fprintf(stderr, "enospc case skipped: cannot mount a tmpfs\n");
                 return TEST_SKIP;
         }
+        snprintf(mounted, sizeof(mounted), "%s", e->data);
+        atexit(unmount_data);
         write_session(e, "s1", "ds1", session_text, file, sizeof(file));
         n = sess_planned(e, file, NULL);
         fill_disk(e->data, 600 << 10); /* the index and a few images fit, not 50 images */
@@ -172,8 +185,8 @@ static int test_enospc(struct rigenv *e)
         CHECK(unlink(cmd) == 0);
         CHECK_INT(ctl(e, NULL, "session", "resume", NULL), 0);
         sess_check_complete(e, "ds1", "s1", n);
-        snprintf(cmd, sizeof(cmd), "umount -l %s", e->data);
-        CHECK(system(cmd) == 0);
+        unmount_data();
+        mounted[0] = 0;
         return 0;
 }
 
