@@ -1031,6 +1031,10 @@ static void on_taken(struct capture *cp, const struct capture_result *res, void 
         for (size_t i = 0; i < res->n_shots; i++) {
                 const struct capture_shot *sh = &res->shots[i];
                 if (sh->result < 0) {
+                        /* the fault this failure latched may have failed a move first (-EIO,
+                         * same message): the cause's errno is the store's (ENOSPC...) */
+                        if (s->error < 0 && strcmp(s->reason, sh->msg) == 0)
+                                s->error = sh->result;
                         set_error(s, sh->result, "%s", sh->msg);
                         continue;
                 }

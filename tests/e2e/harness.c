@@ -17,6 +17,7 @@
 #include "common/clock.h"
 #include "common/pose.h"
 #include "dataset/ds.h"
+#include "dataset/ds_session.h"
 #include "harness.h"
 #include "tests/test.h"
 
@@ -386,37 +387,72 @@ const char *raw_seen(void)
         return seen;
 }
 
+/* Lines read past the message raw_next returned stay for the next call on the same fd. */
+static struct {
+        char buf[1 << 20];
+        size_t len;
+        int fd;
+} raw = {.fd = -1};
+
+/* The next message on fd, waiting up to timeout_ms for it (the test fails after). */
+static json_t *raw_next(int fd, int timeout_ms)
+{
+        if (fd != raw.fd)
+                raw.len = 0, raw.buf[0] = 0, raw.fd = fd;
+        for (;;) {
+                char *nl = strchr(raw.buf, '\n');
+                struct pollfd pfd = {.fd = fd, .events = POLLIN};
+                json_t *msg;
+                ssize_t n;
+
+                if (nl) {
+                        *nl = 0;
+                        msg = json_loads(raw.buf, 0, NULL);
+                        memmove(raw.buf, nl + 1, raw.len - (nl + 1 - raw.buf) + 1);
+                        raw.len = strlen(raw.buf);
+                        CHECK(msg);
+                        return msg;
+                }
+                CHECK(poll(&pfd, 1, timeout_ms) == 1);
+                n = read(fd, raw.buf + raw.len, sizeof(raw.buf) - 1 - raw.len);
+                CHECK(n > 0);
+                raw.len += n;
+                raw.buf[raw.len] = 0;
+        }
+}
+
 json_t *raw_call(int fd, const char *text)
 {
-        static char buf[1 << 20];
-        static size_t len;
-        static int last_fd = -1; /* lines read past a reply stay for the next call on fd */
-
-        if (fd != last_fd)
-                len = 0, buf[0] = 0, last_fd = fd;
+        if (fd != raw.fd)
+                raw.len = 0, raw.buf[0] = 0, raw.fd = fd;
         CHECK(write(fd, text, strlen(text)) == (ssize_t)strlen(text));
         for (;;) {
-                char *nl;
-                ssize_t n;
-                struct pollfd pfd = {.fd = fd, .events = POLLIN};
+                json_t *msg = raw_next(fd, 20000);
 
-                while ((nl = strchr(buf, '\n'))) {
-                        json_t *msg;
-                        *nl = 0;
-                        msg = json_loads(buf, 0, NULL);
-                        memmove(buf, nl + 1, len - (nl + 1 - buf) + 1);
-                        len = strlen(buf);
-                        CHECK(msg);
-                        if (json_object_get(msg, "id"))
-                                return msg;
-                        note_seen(json_string_value(json_object_get(msg, "method")));
-                        json_decref(msg); /* a notification */
+                if (json_object_get(msg, "id"))
+                        return msg;
+                note_seen(json_string_value(json_object_get(msg, "method")));
+                json_decref(msg); /* a notification */
+        }
+}
+
+json_t *raw_wait_note(int fd, const char *method, const char *state, double timeout)
+{
+        double end = now_s() + timeout;
+
+        for (;;) {
+                json_t *msg = raw_next(fd, (int)fmax(1, (end - now_s()) * 1000));
+                json_t *params = json_object_get(msg, "params");
+                const char *m = json_string_value(json_object_get(msg, "method"));
+                const char *st = json_string_value(json_object_get(params, "state"));
+
+                if (m && strcmp(m, method) == 0 && (!state || (st && strcmp(st, state) == 0))) {
+                        json_incref(params);
+                        json_decref(msg);
+                        return params;
                 }
-                CHECK(poll(&pfd, 1, 20000) == 1);
-                n = read(fd, buf + len, sizeof(buf) - 1 - len);
-                CHECK(n > 0);
-                len += n;
-                buf[len] = 0;
+                json_decref(msg);
+                CHECK(now_s() < end);
         }
 }
 
@@ -518,4 +554,123 @@ int64_t check_dataset_roles(struct rigenv *e, const char *name, unsigned roles)
         CHECK_INT(ds_rows(d, 0, -1, check_row, &rows), n);
         ds_close(d);
         return n;
+}
+
+/* ---- sessions ---- */
+
+const char *sess_write(struct rigenv *e, const char *name, const char *text, char *path, size_t len)
+{
+        snprintf(path, len, "%s/%s", e->dir, name);
+        write_file(path, text);
+        return path;
+}
+
+int64_t sess_planned(struct rigenv *e, const char *file, double *estimate_s)
+{
+        json_t *plan = ctl_ok(e, "session", "plan", file, NULL);
+        int64_t n = json_integer_value(json_object_get(plan, "captures"));
+
+        CHECK(n > 0);
+        if (estimate_s)
+                *estimate_s = json_number_value(json_object_get(plan, "estimate_s"));
+        json_decref(plan);
+        return n;
+}
+
+int sess_start_raw(struct rigenv *e, const char *file)
+{
+        char *text = NULL, *req;
+        size_t len = 0;
+        FILE *f = fopen(file, "re");
+        json_t *p, *r;
+        int fd = raw_connect(e);
+
+        CHECK(f && fd >= 0);
+        CHECK(getdelim(&text, &len, 0, f) > 0);
+        fclose(f);
+        p = json_pack("{sssssss{ssss}}", "jsonrpc", "2.0", "method", "session.run", "id", "1",
+                      "params", "file", file, "text", text);
+        free(text);
+        req = json_dumps(p, JSON_COMPACT);
+        json_decref(p);
+        CHECK(req);
+        req = realloc(req, strlen(req) + 2);
+        CHECK(req);
+        strcat(req, "\n");
+        r = raw_call(fd, req);
+        free(req);
+        if (!json_object_get(r, "result"))
+                fprintf(stderr, "session.run: %s\n", json_dumps(r, JSON_COMPACT));
+        CHECK(json_object_get(r, "result"));
+        json_decref(r);
+        return fd;
+}
+
+const char *sess_state(struct rigenv *e, char *buf, size_t len)
+{
+        json_t *st = ctl_ok(e, "session", "status", NULL);
+
+        snprintf(buf, len, "%s", json_string_value(json_object_get(st, "state")));
+        json_decref(st);
+        return buf;
+}
+
+void sess_wait(struct rigenv *e, const char *want, double timeout)
+{
+        double end = now_s() + timeout;
+        char state[32];
+
+        while (strcmp(sess_state(e, state, sizeof(state)), want) != 0) {
+                if (strcmp(state, "none") == 0 || now_s() > end) {
+                        fprintf(stderr, "session state %s, expected %s\n", state, want);
+                        CHECK(!"the session did not reach the expected state");
+                }
+                usleep(50000);
+        }
+}
+
+static void print_problem(const char *problem, void *userdata)
+{
+        fprintf(stderr, "dataset check: %s\n", problem);
+}
+
+int sess_problems(struct rigenv *e, const char *dataset)
+{
+        char path[400];
+        struct ds *d = NULL;
+        int r;
+
+        snprintf(path, sizeof(path), "%s/%s", e->data, dataset);
+        CHECK_INT(ds_open(path, &d), 0);
+        r = ds_check(d, print_problem, NULL);
+        CHECK(r >= 0);
+        ds_close(d);
+        return r;
+}
+
+void sess_info(struct rigenv *e, const char *dataset, const char *session,
+               struct ds_session_info *info)
+{
+        char path[400];
+        struct ds *d = NULL;
+
+        snprintf(path, sizeof(path), "%s/%s", e->data, dataset);
+        CHECK_INT(ds_open(path, &d), 0);
+        CHECK_INT(ds_session_get(d, session, info), 0);
+        ds_close(d);
+}
+
+void sess_check_complete(struct rigenv *e, const char *dataset, const char *session, int64_t n)
+{
+        struct ds_session_info info = {0};
+
+        CHECK_INT(sess_problems(e, dataset), 0);
+        sess_info(e, dataset, session, &info);
+        if (strcmp(info.state, "done") != 0)
+                fprintf(stderr, "session %s: %s (%s)\n", session, info.state, info.reason);
+        CHECK_STR(info.state, "done");
+        CHECK_INT(info.planned, n);
+        CHECK_INT(info.captured, n);
+        ds_session_info_clear(&info);
+        CHECK_INT(check_dataset_roles(e, dataset, (1u << GN_ROLE_COUNT) - 1), n);
 }

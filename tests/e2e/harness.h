@@ -62,6 +62,10 @@ json_t *sim_query(struct rigenv *e, const char *json_line);
 /* Polls status until field state == want (or fails the test after timeout seconds). */
 json_t *wait_state(struct rigenv *e, const char *want, double timeout);
 
+/* Reads fd (sharing raw_call's buffer) until a notification of method whose params' state
+ * is state (NULL: any); returns those params. Fails the test after timeout seconds. */
+json_t *raw_wait_note(int fd, const char *method, const char *state, double timeout);
+
 /* Space-separated methods of the notifications raw_call has skipped so far. */
 const char *raw_seen(void);
 
@@ -77,3 +81,37 @@ int run_capture(char *const argv[], char *out, size_t outlen, char *err, size_t 
  * lamps and laser, at the exposure's start and end. Exits the test on a mismatch (printing
  * both poses). Returns the row count. */
 int64_t check_dataset_roles(struct rigenv *e, const char *name, unsigned roles);
+
+/* ---- sessions ---- */
+
+struct ds_session_info;
+
+/* Writes text as DIR/name into path (len bytes) and returns path. */
+const char *sess_write(struct rigenv *e, const char *name, const char *text, char *path,
+                       size_t len);
+
+/* The capture count session.plan gives for file (checked > 0); its estimate_s into
+ * *estimate_s unless NULL. */
+int64_t sess_planned(struct rigenv *e, const char *file, double *estimate_s);
+
+/* Sends session.run of file on a new raw connection, checks that it is answered with a
+ * result (the session runs) and returns that connection's fd. */
+int sess_start_raw(struct rigenv *e, const char *file);
+
+/* The session's state (gonioctl session status) into buf; returns buf. */
+const char *sess_state(struct rigenv *e, char *buf, size_t len);
+
+/* Polls until the session's state is want; fails the test if it ends or after timeout s. */
+void sess_wait(struct rigenv *e, const char *want, double timeout);
+
+/* ds_check of dataset (under e->data) on a handle of its own: prints each problem and
+ * returns their count. */
+int sess_problems(struct rigenv *e, const char *dataset);
+
+/* ds_session_get of session in dataset into info (the test fails if there is none). */
+void sess_info(struct rigenv *e, const char *dataset, const char *session,
+               struct ds_session_info *info);
+
+/* The session is done with n captures, each once, every row matching what gonio-sim
+ * rendered (all roles), and ds_check finds nothing wrong. */
+void sess_check_complete(struct rigenv *e, const char *dataset, const char *session, int64_t n);
