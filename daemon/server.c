@@ -36,7 +36,7 @@
 #include "protocol/proto.h"
 #include "server.h"
 
-#define SRV_MAX_OUTPUT   (8u << 20)
+#define SRV_MAX_OUTPUT   (16u * PROTO_MAX_LINE) /* 1 MiB: a client's unsent output */
 #define SRV_FD_RESERVE   64   /* descriptors left for devices, datasets and the loop */
 #define SRV_ACCEPT_BATCH 1024 /* per wake-up, so a connection flood cannot starve clients */
 
@@ -147,7 +147,9 @@ static void client_send(struct client *c, const json_t *msg)
         if (c->fd < 0 || !(text = proto_dump(msg, &len)))
                 return;
         if (c->out_len + len > SRV_MAX_OUTPUT) {
-                log_warning("client %p does not read its replies, disconnecting", (void *)c);
+                log_warning("client %p does not read what it is sent (%zu bytes unread), "
+                            "disconnecting it",
+                            (void *)c, c->out_len);
                 client_close(c);
                 return;
         }

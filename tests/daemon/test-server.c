@@ -362,7 +362,9 @@ static void test_noread(const char *path)
                 }
                 CHECK(now_s() < end);
         }
-        CHECK(sent > 100); /* it was dropped for its backlog, not at once */
+        /* dropped for its backlog (1 MiB of 60 kB replies beyond the socket buffers), not
+         * at once */
+        CHECK(sent > 16);
         close(rude);
         wait_clients(watch, 1);
         stop(pid, watch);
