@@ -18,6 +18,7 @@
 #include <limits.h>
 #include <math.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "common/clock.h"
 #include "common/log.h"
@@ -423,12 +424,14 @@ int ds_library_open(const char *data_dir, bool create, struct ds **ret)
                 return -EINVAL;
         if (snprintf(path, sizeof(path), "%s/%s", data_dir, DS_LIBRARY) >= (int)sizeof(path))
                 return -ENAMETOOLONG;
-        r = ds_open(path, ret);
-        if (r == -ENOENT && create)
+        if (access(path, F_OK) < 0 && errno == ENOENT) {
+                if (!create)
+                        return -ENOENT; /* no library yet: not an error to log */
                 r = ds_create(path, DS_LIBRARY, NULL, ret);
-        if (r == -EEXIST) /* created meanwhile by another process */
-                r = ds_open(path, ret);
-        return r;
+                if (r != -EEXIST) /* else created meanwhile by another process */
+                        return r;
+        }
+        return ds_open(path, ret);
 }
 
 struct add_darks {

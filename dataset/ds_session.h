@@ -75,7 +75,7 @@ typedef int (*ds_plan_fn)(const struct ds_plan_item *it, void *userdata);
  * the count, fn's negative value, -ENOENT (no such session) or -errno. */
 int ds_plan_pending(struct ds *d, const char *session, ds_plan_fn fn, void *userdata);
 
-/* The dark library: the newest row of kind "dark" of camera with exposure_us and gain
+/* Dark frames: the newest row of kind "dark" of camera with exposure_us and gain
  * (within 1e-6) whose frame was exposed at or after not_before_ns (CLOCK_REALTIME).
  * Returns its row id, 0 if there is none, or -errno. */
 int64_t ds_find_dark(struct ds *d, const char *camera, int exposure_us, double gain,
