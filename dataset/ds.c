@@ -13,6 +13,11 @@
  * up before the image is written (-EEXIST, nothing written), and the unique index
  * captures_plan refuses a second row from anyone.
  *
+ * ds_import_file puts an image of another dataset in place as a hard link (link(2) is
+ * atomic: the name appears complete; then fsync(images/)) or, across file systems, as a
+ * copy by the same durable write, and commits its row the same way; the image is read
+ * back once (link) or hashed as written (copy) and must match the source row's checksum.
+ *
  * Row ids come from the store's own sequence (max(id) + 1 when the writer starts),
  * so the file name is known before the row exists. One process writes a dataset at
  * a time (flock on the dataset directory, taken by the first ds_store); readers
@@ -378,7 +383,7 @@ static int remove_orphans(struct ds *d)
 }
 
 /* Makes this handle the dataset's only writer (first ds_store). */
-static int become_writer(struct ds *d)
+int ds_become_writer(struct ds *d)
 {
         int r;
 
@@ -441,6 +446,51 @@ static int write_image(int dir_fd, const char *name, const void *png, size_t len
         return r < 0 ? r : gn_sha256_final(sha, hex);
 }
 
+/* Removes the image name of a row that was not committed (durably when it was there). */
+static void remove_image(struct ds *d, const char *name)
+{
+        if (unlinkat(d->img_fd, name, 0) == 0)
+                (void)fsync(d->img_fd);
+}
+
+/* Commits row, whose image name is in place and durable; removes the image when the commit
+ * fails. */
+static int commit_row(struct ds *d, struct ds_capture *row, const char *name)
+{
+        int r;
+
+        row->t_stored_ns = gn_realtime_ns();
+        r = ds_db_insert(d, row);
+        if (r < 0) {
+                remove_image(d, name);
+                return r;
+        }
+        d->next_id++;
+        return 0;
+}
+
+/* Copies c into row, the next row to store: its kind defaulted and checked, the handle
+ * made the writer, its plan item free (exactly once), its id reserved. */
+static int begin_row(struct ds *d, const struct ds_capture *c, struct ds_capture *row)
+{
+        int r;
+
+        if (!c->camera[0])
+                return ds_fail(d, -EINVAL, "a capture needs a camera name");
+        *row = *c;
+        if (!row->kind[0])
+                snprintf(row->kind, sizeof(row->kind), "image");
+        if (!ds_kind_ok(row->kind))
+                return ds_fail(d, -EINVAL, "unknown capture kind '%.*s'", (int)sizeof(row->kind),
+                               row->kind);
+        r = ds_become_writer(d);
+        if (r == 0)
+                r = ds_db_check_plan_item(d, row);
+        if (r == 0)
+                row->id = d->next_id;
+        return r;
+}
+
 /* Writes the encoded image of row (named after row->id) and commits the row. */
 static int store_encoded(struct ds *d, const void *png, size_t len, struct ds_capture *row)
 {
@@ -450,11 +500,7 @@ static int store_encoded(struct ds *d, const void *png, size_t len, struct ds_ca
         r = write_image(d->img_fd, name, png, len, row->sha256);
         if (r < 0)
                 return ds_fail(d, r, "Failed to write %s: %s", row->file, strerror(-r));
-        row->t_stored_ns = gn_realtime_ns();
-        r = ds_db_insert(d, row);
-        if (r < 0 && unlinkat(d->img_fd, name, 0) == 0)
-                (void)fsync(d->img_fd);
-        return r;
+        return commit_row(d, row, name);
 }
 
 int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_frame *shape,
@@ -468,30 +514,99 @@ int ds_store_png(struct ds *d, const void *png, size_t len, const struct gn_fram
         if (!d || !png || !shape || !c)
                 return -EINVAL;
         d->error[0] = 0;
-        if (!c->camera[0])
-                return ds_fail(d, -EINVAL, "a capture needs a camera name");
-        row = *c;
-        if (!row.kind[0])
-                snprintf(row.kind, sizeof(row.kind), "image");
-        if (!ds_kind_ok(row.kind))
-                return ds_fail(d, -EINVAL, "unknown capture kind '%.*s'", (int)sizeof(row.kind),
-                               row.kind);
-        r = become_writer(d);
-        if (r == 0)
-                r = ds_db_check_plan_item(d, &row);
+        r = begin_row(d, c, &row);
         if (r < 0)
                 return r;
-        row.id = d->next_id;
         row.size = (int64_t)len;
         row.width = shape->width;
         row.height = shape->height;
         snprintf(row.pixfmt, sizeof(row.pixfmt), "%s", gn_frame_format(shape));
         r = store_encoded(d, png, len, &row);
+        if (r == 0)
+                *c = row;
+        return r;
+}
+
+/* ---- importing ---- */
+
+/* Hard-links src_file (below src_dir_fd) as images/name, reads it back once into hex and
+ * *size, and makes the new name durable; nothing is left on failure. */
+static int link_image(struct ds *d, int src_dir_fd, const char *src_file, const char *name,
+                      char hex[GN_SHA256_HEX], int64_t *size)
+{
+        struct stat st = {0};
+        int r = 0;
+
+        if (linkat(src_dir_fd, src_file, d->img_fd, name, 0) < 0)
+                return -errno;
+        if (fstatat(d->img_fd, name, &st, 0) < 0)
+                r = -errno;
+        if (r == 0)
+                r = gn_sha256_file_at(d->img_fd, name, hex);
+        if (r == 0 && fsync(d->img_fd) < 0)
+                r = -errno;
+        if (r < 0)
+                remove_image(d, name);
+        *size = st.st_size;
+        return r;
+}
+
+/* Copies src_file (below src_dir_fd) to images/name with the durable write of ds_store,
+ * hashing the bytes into hex as they are written; nothing is left on failure. */
+static int copy_image(struct ds *d, int src_dir_fd, const char *src_file, const char *name,
+                      char hex[GN_SHA256_HEX], int64_t *size)
+{
+        _cleanup_free_ void *buf = NULL;
+        size_t len = 0;
+        int r;
+
+        r = gn_read_file_at(src_dir_fd, src_file, DS_FILE_MAX, &buf, &len);
+        if (r == 0)
+                r = write_image(d->img_fd, name, buf, len, hex);
+        *size = (int64_t)len;
+        return r;
+}
+
+/* Puts src_file (below src_dir_fd) in place as images/name: a hard link, or a copy where
+ * the file systems differ or do not link. hex and *size: what was put there. */
+static int place_image(struct ds *d, int src_dir_fd, const char *src_file, const char *name,
+                       char hex[GN_SHA256_HEX], int64_t *size)
+{
+        int r = link_image(d, src_dir_fd, src_file, name, hex, size);
+
+        if (r == -EXDEV || r == -EPERM || r == -EMLINK || r == -EOPNOTSUPP)
+                r = copy_image(d, src_dir_fd, src_file, name, hex, size);
+        return r;
+}
+
+int ds_import_file(struct ds *d, int src_dir_fd, const char *src_file, struct ds_capture *c)
+{
+        char hex[GN_SHA256_HEX];
+        struct ds_capture row;
+        const char *name;
+        int64_t size = 0;
+        int r;
+
+        if (!ds_file_name_ok(src_file))
+                return ds_fail(d, -EINVAL, "bad source file name '%s'", src_file);
+        r = begin_row(d, c, &row);
         if (r < 0)
                 return r;
-        d->next_id++;
-        *c = row;
-        return 0;
+        name = image_name(&row);
+        r = place_image(d, src_dir_fd, src_file, name, hex, &size);
+        if (r < 0)
+                return ds_fail(d, r, "Failed to import %s as %s: %s", src_file, row.file,
+                               strerror(-r));
+        if (strcmp(hex, row.sha256) != 0) {
+                remove_image(d, name);
+                return ds_fail(d, -EBADMSG, "%s does not match the checksum of its source row",
+                               src_file);
+        }
+        row.size = size;
+        r = commit_row(d, &row, name);
+        if (r == 0)
+                *c = row;
+        return r;
 }
 
 int ds_store(struct ds *d, const struct gn_frame *frame, struct ds_capture *c)

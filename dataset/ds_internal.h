@@ -164,6 +164,18 @@ void ds_db_read_row(sqlite3_stmt *s, struct ds_capture *c);
  * such plan item) or -errno. Checked before the image is written. */
 int ds_db_check_plan_item(struct ds *d, const struct ds_capture *c);
 
+/* Stores the row c (c->sha256: the source's checksum; c->file, id, size, t_stored_ns set
+ * here) with the image src_file below src_dir_fd as its file, hard-linked into images/ or,
+ * where link(2) cannot (another file system), copied by ds_store's durable write; the
+ * bytes must match c->sha256. Same exactly-once rules and writer as ds_store_png. Returns
+ * 0, -EBADMSG (checksum mismatch), -EEXIST, -EINVAL or -errno; on failure nothing is
+ * recorded and no file is left behind. */
+int ds_import_file(struct ds *d, int src_dir_fd, const char *src_file, struct ds_capture *c);
+
+/* Makes d the dataset's only writer (flock; orphans removed, next_id valid), as the first
+ * store does. Returns 0, -EBUSY (another handle writes) or -errno. */
+int ds_become_writer(struct ds *d);
+
 /* True for the capture kinds of the index ("image", "dark", "flat", "laser"). */
 bool ds_kind_ok(const char *kind);
 

@@ -7,9 +7,18 @@
  * nothing but the dataset: the items still to capture are those without a capture row
  * (NOT EXISTS on the unique (session, plan_seq) index of captures). Each session keeps
  * its count of captured items, updated in the transaction of each row (ds_index.c), so
- * a summary never counts rows; ds_check recounts. */
+ * a summary never counts rows; ds_check recounts.
+ *
+ * The dark library of a data directory is the dataset "darks" in it: sessions of any
+ * dataset copy their dark rows there (ds_library_add_darks) and later sessions, in other
+ * datasets, import them back (ds_import_frame). Its rows are outside any plan (session
+ * "library", no plan_seq), so exactly once there is by the frame: a dark row is added
+ * unless the library has one of the same checksum, camera, exposure, gain and exposure
+ * time, looked up under the library's writer lock. */
+#include <limits.h>
 #include <math.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "common/clock.h"
 #include "common/log.h"
@@ -356,4 +365,162 @@ int64_t ds_find_dark(struct ds *d, const char *camera, int exposure_us, double g
 int64_t ds_find_flat(struct ds *d, const char *camera)
 {
         return find_frame(d, "flat", camera, -1, 0, 0);
+}
+
+/* ---- importing frames, the data directory's dark library ---- */
+
+static int take_row(const struct ds_capture *c, void *userdata)
+{
+        *(struct ds_capture *)userdata = *c;
+        return 0;
+}
+
+/* Reads row id of d into c. Returns 0, -ENOENT or -errno. */
+static int read_row(struct ds *d, int64_t id, struct ds_capture *c)
+{
+        int r;
+
+        c->id = 0;
+        r = ds_rows(d, id - 1, 1, take_row, c);
+        if (r < 0)
+                return r;
+        return c->id == id ? 0 : -ENOENT;
+}
+
+int64_t ds_import_frame(struct ds *dst, struct ds *src, int64_t src_id,
+                        const struct ds_capture *label)
+{
+        struct ds_capture c;
+        int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!dst || !src || src_id < 1 || !label)
+                return -EINVAL;
+        dst->error[0] = 0;
+        r = read_row(src, src_id, &c);
+        if (r < 0)
+                return ds_fail(dst, r, "Failed to read row %lld of dataset '%s': %s",
+                               (long long)src_id, src->path, strerror(-r));
+        snprintf(c.session, sizeof(c.session), "%s", label->session);
+        c.plan_seq = label->plan_seq;
+        if (label->kind[0])
+                snprintf(c.kind, sizeof(c.kind), "%s", label->kind);
+        c.bracket = label->bracket;
+        c.dark_id = label->dark_id;
+        c.flat_id = label->flat_id;
+        r = ds_import_file(dst, src->dir_fd, c.file, &c);
+        return r < 0 ? r : c.id;
+}
+
+int ds_library_open(const char *data_dir, bool create, struct ds **ret)
+{
+        char path[PATH_MAX];
+        int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!data_dir || !ret)
+                return -EINVAL;
+        if (snprintf(path, sizeof(path), "%s/%s", data_dir, DS_LIBRARY) >= (int)sizeof(path))
+                return -ENAMETOOLONG;
+        if (access(path, F_OK) < 0 && errno == ENOENT) {
+                if (!create)
+                        return -ENOENT; /* no library yet: not an error to log */
+                r = ds_create(path, DS_LIBRARY, NULL, ret);
+                if (r != -EEXIST) /* else created meanwhile by another process */
+                        return r;
+        }
+        return ds_open(path, ret);
+}
+
+struct add_darks {
+        struct ds *lib, *src;
+        sqlite3_stmt *known; /* of lib: has it this frame? */
+        int added;
+};
+
+/* 1 when the library has the frame c (the same checksum, camera, exposure, gain and
+ * exposure time), 0 when not. */
+static int library_has(struct add_darks *a, const struct ds_capture *c)
+{
+        int rc;
+
+        sqlite3_bind_text(a->known, 1, c->sha256, -1, SQLITE_STATIC);
+        sqlite3_bind_text(a->known, 2, c->camera, -1, SQLITE_STATIC);
+        sqlite3_bind_int(a->known, 3, c->exposure_us);
+        sqlite3_bind_double(a->known, 4, c->gain);
+        sqlite3_bind_int64(a->known, 5, (sqlite3_int64)c->t_exposure_ns);
+        rc = sqlite3_step(a->known);
+        sqlite3_reset(a->known);
+        if (rc == SQLITE_ROW || rc == SQLITE_DONE)
+                return rc == SQLITE_ROW;
+        return ds_db_fail(a->lib, rc, "Failed to look up a dark frame");
+}
+
+/* Imports the dark row c of the source unless the library has it. */
+static int add_dark(struct add_darks *a, const struct ds_capture *c)
+{
+        struct ds_capture label = {.session = DS_LIBRARY_SESSION, .kind = "dark"};
+        int64_t id;
+        int r;
+
+        r = library_has(a, c);
+        if (r != 0)
+                return MIN(r, 0);
+        id = ds_import_frame(a->lib, a->src, c->id, &label);
+        if (id < 0)
+                return (int)id;
+        a->added++;
+        return 0;
+}
+
+/* Calls add_dark for each dark row of session (NULL: all) of a->src, in id order. */
+static int walk_darks(struct add_darks *a, const char *session)
+{
+        _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
+        struct ds_capture c;
+        int r, rc;
+
+        r = ds_db_prepare(a->src,
+                          "SELECT " DS_ROW_COLUMNS " FROM captures WHERE kind = 'dark'"
+                          " AND (?1 IS NULL OR session = ?1) ORDER BY id",
+                          &s);
+        if (r < 0)
+                return r;
+        if (session)
+                sqlite3_bind_text(s, 1, session, -1, SQLITE_STATIC);
+        while ((rc = sqlite3_step(s)) == SQLITE_ROW) {
+                ds_db_read_row(s, &c);
+                r = add_dark(a, &c);
+                if (r < 0)
+                        return r;
+        }
+        return rc == SQLITE_DONE ? 0 : ds_db_fail(a->src, rc, "Failed to read dark frames");
+}
+
+int ds_library_add_darks(struct ds *lib, struct ds *src, const char *session)
+{
+        struct add_darks a = {.lib = lib, .src = src};
+        int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!lib || !src || lib == src)
+                return -EINVAL;
+        lib->error[0] = 0;
+        r = ds_become_writer(lib); /* no other process adds between look-up and import */
+        if (r == 0)
+                r = ds_db_prepare(lib,
+                                  "SELECT 1 FROM captures WHERE kind = 'dark' AND sha256 = ?"
+                                  " AND camera = ? AND exposure_us = ? AND gain = ?"
+                                  " AND t_exposure_ns = ?",
+                                  &a.known);
+        if (r == 0)
+                r = walk_darks(&a, session);
+        sqlite3_finalize(a.known);
+        if (a.added > 0)
+                log_info("dark library '%s': %d dark frame(s) added from '%s'", lib->path, a.added,
+                         src->path);
+        return r < 0 ? r : a.added;
 }

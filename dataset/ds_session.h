@@ -1,12 +1,14 @@
 /* ds_session.h - capture sessions in a dataset: the start record and the whole plan of
- * a session, its state and stop record, the plan items still to capture (resume), the
- * dark library, and the RTI light files (.lp) of its views. The rows themselves are
- * stored with ds_store (ds.h) with c->session and c->plan_seq set: exactly once per
- * plan item. Every function does blocking I/O (see ds_forbid_thread); the records are
- * SQLite transactions, so any handle of the dataset may write them, the store's writer
- * or a second handle. */
+ * a session, its state and stop record, the plan items still to capture (resume), dark
+ * frames (ds_find_dark) and the data directory's dark library shared by its datasets
+ * (ds_library_open), frames imported from another dataset, and the RTI light files
+ * (.lp) of its views. The rows themselves are stored with ds_store (ds.h) with c->session and
+ * c->plan_seq set: exactly once per plan item. Every function does blocking I/O (see
+ * ds_forbid_thread); the records are SQLite transactions, so any handle of the dataset may write
+ * them, the store's writer or a second handle. */
 #pragma once
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -73,7 +75,7 @@ typedef int (*ds_plan_fn)(const struct ds_plan_item *it, void *userdata);
  * the count, fn's negative value, -ENOENT (no such session) or -errno. */
 int ds_plan_pending(struct ds *d, const char *session, ds_plan_fn fn, void *userdata);
 
-/* The dark library: the newest row of kind "dark" of camera with exposure_us and gain
+/* Dark frames: the newest row of kind "dark" of camera with exposure_us and gain
  * (within 1e-6) whose frame was exposed at or after not_before_ns (CLOCK_REALTIME).
  * Returns its row id, 0 if there is none, or -errno. */
 int64_t ds_find_dark(struct ds *d, const char *camera, int exposure_us, double gain,
@@ -81,6 +83,42 @@ int64_t ds_find_dark(struct ds *d, const char *camera, int exposure_us, double g
 
 /* The newest row of kind "flat" of camera: its row id, 0 if there is none, or -errno. */
 int64_t ds_find_flat(struct ds *d, const char *camera);
+
+/* Copies row src_id of src into dst as a new row: its file (hard-linked into dst's
+ * images/ under dst's naming, or copied by the durable write of ds_store where the two
+ * are on different file systems) and its pose, lamps, camera, exposure, gain, request and
+ * exposure times, sha256, size, width, height and pixfmt; session, plan_seq, bracket,
+ * dark_id and flat_id come from label, and so does the kind unless label->kind is "" (the
+ * source's); the other fields of label are ignored. The file is read back (link) or
+ * hashed as it is written (copy) once and must match the source row's sha256. A plan
+ * item is stored exactly once as by ds_store (the recorded angles are the source's: those
+ * of a plan item ds_check compares). src may be read by another process meanwhile; dst
+ * becomes its writer. Returns the new row's id, -ENOENT (src has no row src_id), -EEXIST
+ * (the plan item has its row), -EBADMSG (the file does not match its checksum), -EBUSY,
+ * -EINVAL or -errno; on failure nothing is recorded and no file is left in dst
+ * (ds_last_error(dst) tells why). */
+int64_t ds_import_frame(struct ds *dst, struct ds *src, int64_t src_id,
+                        const struct ds_capture *label);
+
+/* The dark library of a data directory: the dataset DS_LIBRARY in it, shared by the
+ * sessions of every dataset there. Its rows have session DS_LIBRARY_SESSION and no plan
+ * item. */
+#define DS_LIBRARY         "darks"
+#define DS_LIBRARY_SESSION "library"
+
+/* Opens <data_dir>/darks, creating it (no rig file) when it does not exist and create is
+ * set. Find its frames with ds_find_dark, take them into a dataset with ds_import_frame.
+ * Returns 0, -ENOENT (none and !create), -EBADMSG (not a dataset) or -errno. */
+int ds_library_open(const char *data_dir, bool create, struct ds **ret);
+
+/* Imports into the library lib every row of kind "dark" of session (NULL: of every
+ * session) of src that lib lacks: a frame is in lib when lib has a dark row of the same
+ * sha256, camera, exposure, gain and exposure time (so frames imported from the library
+ * do not come back, and identical bytes taken at other settings or times are kept). lib
+ * becomes the library's writer (held until ds_close: open, add, close). Returns the
+ * number of rows added, -EINVAL (lib is src), or ds_import_frame's -errno (the rows
+ * imported before stay: calling it again adds the rest). */
+int ds_library_add_darks(struct ds *lib, struct ds *src, const char *session);
 
 /* Computes the unit direction towards the lit lamp of capture c, in the object's frame
  * (rig geometry: the caller's), into dir. Returns 0, > 0 to leave c out of the file, or

@@ -1,9 +1,10 @@
 /* test-ds-order.c - the durability order of one ds_store, observed at the system
  * calls: the image file is fsynced before it is renamed to its name, the rename is
  * made durable (fsync of images/) before the row reaches the index, and the row
- * reaches the index (SQLite's write of the WAL frame, the commit) last.
+ * reaches the index (SQLite's write of the WAL frame, the commit) last. The same for
+ * one ds_import_frame by hard link: link, fsync of images/, commit.
  *
- * fsync, fdatasync, rename, renameat and pwrite64 are interposed by defining them in
+ * fsync, fdatasync, rename, renameat, linkat and pwrite64 are interposed by defining them in
  * this executable: the dataset library's calls and libsqlite3's calls (through its
  * PLT) both land here, are recorded with the path of their file, and are passed on to
  * libc (dlsym RTLD_NEXT). Nothing is mocked: every call still happens. */
@@ -16,12 +17,13 @@
 #include <unistd.h>
 
 #include "dataset/ds.h"
+#include "dataset/ds_session.h"
 #include "ds-util.h"
 #include "tests/test.h"
 
 #define MAX_EVENTS 256
 
-enum ev_kind { EV_FSYNC, EV_RENAME, EV_WAL_WRITE };
+enum ev_kind { EV_FSYNC, EV_RENAME, EV_WAL_WRITE, EV_LINK };
 
 struct event {
         enum ev_kind kind;
@@ -99,6 +101,13 @@ int renameat(int from_dir, const char *from, int to_dir, const char *to)
                                                                                  to_dir, to);
 }
 
+int linkat(int from_dir, const char *from, int to_dir, const char *to, int flags)
+{
+        record(EV_LINK, to);
+        return ((int (*)(int, const char *, int, const char *, int))real("linkat"))(
+                from_dir, from, to_dir, to, flags);
+}
+
 ssize_t pwrite64(int fd, const void *buf, size_t len, off_t off)
 {
         char p[PATH_MAX];
@@ -122,29 +131,22 @@ static int find(enum ev_kind kind, const char *suffix)
 
 static void dump(void)
 {
-        static const char *const names[] = {"fsync", "rename", "wal-write"};
+        static const char *const names[] = {"fsync", "rename", "wal-write", "link"};
 
         for (int i = 0; i < n_events; i++)
                 fprintf(stderr, "  %2d %-9s %s\n", i, names[events[i].kind], events[i].path);
 }
 
-int main(void)
+/* The second store of d: fsync of the file < rename < fsync of images/ < commit. */
+static void check_store(struct ds *d, const struct gn_frame *f)
 {
-        char *tmp = tu_tmpdir(), path[4200];
-        struct ds *d = NULL;
         struct ds_capture c;
-        struct gn_frame f;
         int i_sync, i_rename, i_dir, i_wal;
 
-        snprintf(path, sizeof(path), "%s/ds", tmp);
-        CHECK_INT(ds_create(path, "order", "rig: order\n", &d), 0);
-        tu_frame(&f, 64, 48, 3, 8, 1, false);
-        tu_capture(&c, "cam0", "l1", 0);
-        CHECK_INT(ds_store(d, &f, &c), 0); /* the first store also takes the writer's lock */
-
         tu_capture(&c, "cam0", "l1", 1);
+        n_events = 0;
         recording = true;
-        CHECK_INT(ds_store(d, &f, &c), 0);
+        CHECK_INT(ds_store(d, f, &c), 0);
         recording = false;
         dump();
         CHECK_STR(c.file, "images/000002_cam0_l1_laser.png");
@@ -158,6 +160,47 @@ int main(void)
         CHECK(i_sync < i_rename);
         CHECK(i_rename < i_dir);
         CHECK(i_dir < i_wal);
+}
+
+/* An import of row 1 of src into the new dataset at path, by hard link: link < fsync of
+ * images/ < commit. */
+static void check_import(struct ds *src, const char *path)
+{
+        struct ds_capture label = {.session = ""};
+        struct ds *dst = NULL;
+        int i_link, i_dir, i_wal;
+
+        CHECK_INT(ds_create(path, "order-import", NULL, &dst), 0);
+        n_events = 0;
+        recording = true;
+        CHECK_INT(ds_import_frame(dst, src, 1, &label), 1);
+        recording = false;
+        dump();
+        i_link = find(EV_LINK, "000001_cam0_l1.png");
+        i_dir = find(EV_FSYNC, "/images");
+        i_wal = find(EV_WAL_WRITE, "/index.sqlite-wal");
+        fprintf(stderr, "link %d, dir fsync %d, commit %d\n", i_link, i_dir, i_wal);
+        CHECK(i_link >= 0 && i_dir >= 0 && i_wal >= 0);
+        CHECK(i_link < i_dir);
+        CHECK(i_dir < i_wal);
+        ds_close(dst);
+}
+
+int main(void)
+{
+        char *tmp = tu_tmpdir(), path[4200];
+        struct ds *d = NULL;
+        struct ds_capture c;
+        struct gn_frame f;
+
+        snprintf(path, sizeof(path), "%s/ds", tmp);
+        CHECK_INT(ds_create(path, "order", "rig: order\n", &d), 0);
+        tu_frame(&f, 64, 48, 3, 8, 1, false);
+        tu_capture(&c, "cam0", "l1", 0);
+        CHECK_INT(ds_store(d, &f, &c), 0); /* the first store also takes the writer's lock */
+        check_store(d, &f);
+        snprintf(path, sizeof(path), "%s/imported", tmp);
+        check_import(d, path);
 
         gn_frame_free_data(&f);
         ds_close(d);
