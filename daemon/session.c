@@ -399,22 +399,38 @@ static void find_darks(struct load_job *j, const struct rig_config *rc)
         }
 }
 
-/* Drops the planned dark frames that the dataset's dark library already holds, younger than
- * the session's limit. */
+/* Brings the library's dark frame for it (younger than not_before) into d, outside the plan:
+ * its row id, 0 when the library has none, or -errno. */
+static int64_t import_dark(struct ds *d, struct ds *lib, const struct ds_plan_item *it,
+                           uint64_t not_before)
+{
+        struct ds_capture label = {.session = DS_LIBRARY_SESSION, .kind = "dark"};
+        int64_t id = lib ? ds_find_dark(lib, it->camera, it->exposure_us, it->gain, not_before) : 0;
+
+        return id > 0 ? ds_import_frame(d, lib, id, &label) : id;
+}
+
+/* Drops the planned dark frames that the dataset, or the data directory's dark library
+ * (imported from there), already holds younger than the session's limit. */
 static void reuse_darks(struct load_job *j)
 {
         uint64_t now = gn_realtime_ns(), age = (uint64_t)j->dark_max_age_s * 1000000000ULL;
+        uint64_t not_before = now > age ? now - age : 0;
+        struct ds *lib = NULL;
         size_t k = 0;
 
+        if (ds_library_open(j->data_dir, false, &lib) < 0)
+                lib = NULL;
         for (size_t i = 0; i < j->n_items; i++) {
                 const struct ds_plan_item *it = &j->items[i];
                 if (strcmp(it->kind, "dark") == 0 && it->seq > 0 &&
-                    ds_find_dark(j->d, it->camera, it->exposure_us, it->gain,
-                                 now > age ? now - age : 0) > 0)
+                    (ds_find_dark(j->d, it->camera, it->exposure_us, it->gain, not_before) > 0 ||
+                     import_dark(j->d, lib, it, not_before) > 0))
                         continue;
                 j->items[k++] = *it;
         }
         j->n_items = k;
+        ds_close(lib);
 }
 
 /* Opens dataset name in dir (creating it when create), or -ENOENT. */
@@ -760,7 +776,13 @@ int session_start(struct session_runner *s, const char *path, const char *text,
                 return snprintf(msg, len, "%s", s->busy), -EBUSY;
         if ((r = plan_text(s, path, text, &sc, &p, msg, len)) < 0)
                 return r;
-        if (datasets_path(s->m, sc->dataset, dspath, sizeof(dspath)) < 0) {
+        if (strcmp(sc->dataset, DS_LIBRARY) == 0) {
+                snprintf(msg, len,
+                         "%s: key 'dataset': '%s' is the dark library, not a dataset "
+                         "for sessions",
+                         path, sc->dataset);
+                r = -EINVAL;
+        } else if (datasets_path(s->m, sc->dataset, dspath, sizeof(dspath)) < 0) {
                 snprintf(msg, len, "%s: key 'dataset': '%s' is not a valid dataset name", path,
                          sc->dataset);
                 r = -EINVAL;
@@ -1198,6 +1220,7 @@ struct record_job {
         struct ds *d; /* borrowed (pause) or taken (end: closed here) */
         bool end;
         char name[DS_NAME_MAX], state[16], reason[256];
+        char data_dir[PATH_MAX]; /* for the dark library */
         const struct rig_config *rc;
         char msg[300];
 };
@@ -1213,6 +1236,21 @@ static int row_light_dir(const struct ds_capture *c, double dir[3], void *userda
         return 0;
 }
 
+/* Adds the session's dark frames to the data directory's dark library (a failure is logged:
+ * the session's own rows are not at stake). */
+static void share_darks(struct record_job *j)
+{
+        struct ds *lib = NULL;
+        int r = ds_library_open(j->data_dir, true, &lib);
+
+        if (r >= 0)
+                r = ds_library_add_darks(lib, j->d, j->name);
+        if (r < 0)
+                log_warning("session '%s': cannot add its dark frames to the library: %s", j->name,
+                            strerror(-r));
+        ds_close(lib);
+}
+
 static int record_job_run(void *userdata)
 {
         struct record_job *j = userdata;
@@ -1220,6 +1258,8 @@ static int record_job_run(void *userdata)
 
         if (r >= 0 && strcmp(j->state, "done") == 0)
                 r = ds_write_lp(j->d, j->name, row_light_dir, (void *)j->rc);
+        if (r >= 0 && j->end)
+                share_darks(j);
         if (r < 0)
                 snprintf(j->msg, sizeof(j->msg), "dataset '%s': cannot record the session's %s: %s",
                          ds_name(j->d), j->state,
@@ -1266,6 +1306,7 @@ static void record(struct session_runner *s, const char *state)
                 return set_state(s, end ? S_NONE : S_PAUSED);
         }
         *j = (struct record_job){.s = s, .end = end, .rc = m->rc};
+        snprintf(j->data_dir, sizeof(j->data_dir), "%s", m->data_dir);
         snprintf(j->name, sizeof(j->name), "%s", s->name);
         snprintf(j->state, sizeof(j->state), "%s", state);
         snprintf(j->reason, sizeof(j->reason), "%s", s->reason);

@@ -309,6 +309,36 @@ static void test_autoresume(struct rigenv *e)
         check_complete(e, "ds1", "s1", n);
 }
 
+/* The darks of a session in one dataset are reused by a session in another (the data
+ * directory's dark library): taken once, imported into the second, named by its rows. */
+static void test_darklib(struct rigenv *e)
+{
+        struct ds_session_info info = {0};
+        char file[400], path[400], *text = strdup(session_text);
+        struct ds *d = NULL;
+        int64_t n;
+
+        CHECK(text);
+        session_file(e, "s1.yaml", session_text, file, sizeof(file));
+        CHECK_INT(ctl(e, NULL, "session", "run", file, NULL), 0);
+        memcpy(strstr(text, "dataset: ds1"), "dataset: ds2", 12);
+        session_file(e, "s2.yaml", text, file, sizeof(file));
+        free(text);
+        n = planned_captures(e, file);
+        CHECK_INT(ctl(e, NULL, "session", "run", file, NULL), 0);
+        snprintf(path, sizeof(path), "%s/ds2", e->data);
+        CHECK_INT(ds_open(path, &d), 0);
+        CHECK_INT(ds_session_get(d, "s1", &info), 0);
+        CHECK_STR(info.state, "done");
+        CHECK_INT(info.planned, n - 2); /* one dark per camera came from the library */
+        CHECK_INT(ds_count(d), n);
+        CHECK(ds_find_dark(d, "cam0", 20000, 1.0, 0) > 0);
+        CHECK_INT(ds_check(d, print_problem, NULL), 0);
+        ds_session_info_clear(&info);
+        ds_close(d);
+        check_references(e, "ds2");
+}
+
 /* After a crash of goniod the unfinished session can be given up without running it. */
 static void test_abandon(struct rigenv *e)
 {
@@ -396,6 +426,8 @@ int main(int argc, char **argv)
                 test_autoresume(&e);
         else if (strcmp(c, "abandon") == 0)
                 test_abandon(&e);
+        else if (strcmp(c, "darklib") == 0)
+                test_darklib(&e);
         else if (strncmp(c, "kill-", 5) == 0 && strchr(c + 5, '-'))
                 test_kill(&e, c + 5, (unsigned)atoi(strchr(c + 5, '-') + 1));
         else
