@@ -17,6 +17,7 @@
 #include "common/clock.h"
 #include "common/pose.h"
 #include "dataset/ds.h"
+#include "dataset/ds_session.h"
 #include "harness.h"
 #include "tests/test.h"
 
@@ -518,4 +519,156 @@ int64_t check_dataset_roles(struct rigenv *e, const char *name, unsigned roles)
         CHECK_INT(ds_rows(d, 0, -1, check_row, &rows), n);
         ds_close(d);
         return n;
+}
+
+/* ---- sessions ---- */
+
+const char *const e2e_session_text = "name: s1\n"
+                                     "dataset: ds1\n"
+                                     "sweep:\n"
+                                     "  turntable: { from: 0, to: 270, step: 90 }\n"
+                                     "  light_arm: [0, 120]\n"
+                                     "cameras: [cam0, cam1]\n"
+                                     "lamps: [lamp0, lamp1]\n"
+                                     "laser: true\n"
+                                     "dark_frames: 1\n"
+                                     "skip_occluded: false\n"
+                                     "skip_glare: false\n"
+                                     "metadata: { object: sphere, operator: e2e }\n";
+
+const char *session_file(struct rigenv *e, const char *name, const char *text, char *path,
+                         size_t len)
+{
+        snprintf(path, len, "%s/%s", e->dir, name);
+        write_file(path, text);
+        return path;
+}
+
+int64_t planned_captures(struct rigenv *e, const char *file)
+{
+        json_t *plan = ctl_ok(e, "session", "plan", file, NULL);
+        int64_t n = json_integer_value(json_object_get(plan, "captures"));
+
+        CHECK(n > 0);
+        json_decref(plan);
+        return n;
+}
+
+static void print_problem(const char *problem, void *userdata)
+{
+        (void)userdata;
+        fprintf(stderr, "dataset check: %s\n", problem);
+}
+
+void check_complete(struct rigenv *e, const char *dataset, const char *session, int64_t n)
+{
+        struct ds_session_info info = {0};
+        char path[400];
+        struct ds *d = NULL;
+
+        snprintf(path, sizeof(path), "%s/%s", e->data, dataset);
+        CHECK_INT(ds_open(path, &d), 0);
+        CHECK_INT(ds_check(d, print_problem, NULL), 0);
+        CHECK_INT(ds_session_get(d, session, &info), 0);
+        if (strcmp(info.state, "done") != 0)
+                fprintf(stderr, "session %s: %s (%s)\n", session, info.state, info.reason);
+        CHECK_STR(info.state, "done");
+        CHECK_INT(info.planned, n);
+        CHECK_INT(info.captured, n);
+        CHECK_INT(ds_count(d), n);
+        ds_session_info_clear(&info);
+        ds_close(d);
+        CHECK_INT(check_dataset_roles(e, dataset, (1u << GN_ROLE_COUNT) - 1), n);
+}
+
+int session_start_raw(struct rigenv *e, const char *file)
+{
+        char *text = NULL, *req;
+        size_t len = 0;
+        FILE *f = fopen(file, "re");
+        json_t *p, *r;
+        int fd = raw_connect(e);
+
+        CHECK(f && fd >= 0);
+        CHECK(getdelim(&text, &len, 0, f) > 0);
+        fclose(f);
+        p = json_pack("{sssssss{ssss}}", "jsonrpc", "2.0", "method", "session.run", "id", "1",
+                      "params", "file", file, "text", text);
+        free(text);
+        req = json_dumps(p, JSON_COMPACT);
+        CHECK(req && asprintf(&text, "%s\n", req) > 0);
+        free(req);
+        json_decref(p);
+        r = raw_call(fd, text);
+        free(text);
+        if (!json_object_get(r, "result"))
+                fprintf(stderr, "session.run: %s\n", json_dumps(r, JSON_COMPACT));
+        CHECK(json_object_get(r, "result"));
+        json_decref(r);
+        return fd;
+}
+
+const char *session_state(struct rigenv *e, char *buf, size_t len)
+{
+        json_t *st = ctl_ok(e, "session", "status", NULL);
+
+        snprintf(buf, len, "%s", json_string_value(json_object_get(st, "state")));
+        json_decref(st);
+        return buf;
+}
+
+void wait_session(struct rigenv *e, const char *want, double timeout)
+{
+        char state[32];
+
+        for (double t = 0; t < timeout; t += 0.05) {
+                if (strcmp(session_state(e, state, sizeof(state)), want) == 0)
+                        return;
+                if (strcmp(state, "none") == 0)
+                        break; /* it ended: waiting longer will not help */
+                usleep(50000);
+        }
+        fprintf(stderr, "session state %s, expected %s\n", state, want);
+        CHECK(!"timeout waiting for the session");
+}
+
+/* Kills what who names, waits for the pause when goniod survived, and resumes the session
+ * on a new connection, which it returns (fd, the old one, is closed). */
+static int kill_and_resume(struct rigenv *e, int fd, const char *who)
+{
+        bool daemon = strchr(who, 'd');
+        json_t *r;
+
+        if (strchr(who, 's'))
+                rigenv_crash_sim(e);
+        if (daemon)
+                rigenv_crash_daemon(e);
+        if (!daemon)
+                wait_session(e, "paused", 30);
+        close(fd);
+        fd = raw_connect(e);
+        r = raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":2,\"method\":\"session.resume\"}\n");
+        if (!json_object_get(r, "result"))
+                fprintf(stderr, "resume after kill of %s: %s\n", who, json_dumps(r, JSON_COMPACT));
+        json_decref(r);
+        return fd;
+}
+
+void session_run_killing(struct rigenv *e, const char *file, const char *const who[], int kills)
+{
+        int fd = session_start_raw(e, file);
+
+        for (int k = 0; k < kills; k++) {
+                usleep(100000 + rand() % 1200000);
+                fd = kill_and_resume(e, fd, who[k]);
+        }
+        close(fd);
+        for (int i = 0; i < 600; i++) { /* the session ends or pauses (a kill hit its end) */
+                char state[32];
+                if (strcmp(session_state(e, state, sizeof(state)), "none") == 0)
+                        break;
+                if (strcmp(state, "paused") == 0)
+                        CHECK_INT(ctl(e, NULL, "session", "resume", NULL), 0);
+                usleep(100000);
+        }
 }

@@ -77,3 +77,37 @@ int run_capture(char *const argv[], char *out, size_t outlen, char *err, size_t 
  * lamps and laser, at the exposure's start and end. Exits the test on a mismatch (printing
  * both poses). Returns the row count. */
 int64_t check_dataset_roles(struct rigenv *e, const char *name, unsigned roles);
+
+/* ---- sessions (issue 8) ---- */
+
+/* A session of the test rig: s1 into dataset ds1, 4 turntable x 2 light-arm positions, 2
+ * lamps, 2 cameras, a laser frame per pose, a dark per camera; nothing skipped. */
+extern const char *const e2e_session_text;
+
+/* Writes text as DIR/NAME and returns its path (in path, len bytes). */
+const char *session_file(struct rigenv *e, const char *name, const char *text, char *path,
+                         size_t len);
+
+/* The capture count session.plan gives for the session file (checked > 0). */
+int64_t planned_captures(struct rigenv *e, const char *file);
+
+/* Starts the session file over a new raw connection (answered once it runs) and returns
+ * that fd, which receives the session's notifications. Exits the test on an error. */
+int session_start_raw(struct rigenv *e, const char *file);
+
+/* The state of session.status (e.g. "running", "paused", "none") in buf. */
+const char *session_state(struct rigenv *e, char *buf, size_t len);
+
+/* Waits until the session state is want, up to timeout seconds; fails the test when the
+ * session ends or the time is out first. */
+void wait_session(struct rigenv *e, const char *want, double timeout);
+
+/* Checks that session of dataset is done with n captures, each once, rows matching the
+ * render log, and that ds_check finds nothing wrong. */
+void check_complete(struct rigenv *e, const char *dataset, const char *session, int64_t n);
+
+/* Runs the session file and kills it kills times: each after a random 0.1-1.3 s (rand()),
+ * goniod when who[k] has a 'd', gonio-sim when it has an 's' (both: "ds"), then resumes it
+ * with session.resume. Returns when the session has ended, resuming it whenever it pauses
+ * (a kill at its end), for up to 60 s. */
+void session_run_killing(struct rigenv *e, const char *file, const char *const who[], int kills);
