@@ -72,8 +72,9 @@ static double now_s(void)
         return (double)gn_monotonic_ns() * 1e-9;
 }
 
-/* Starts argv with stdout on a pipe; returns the read end in *out_fd. */
-static pid_t spawn(char *const argv[], int *out_fd)
+/* Starts argv with stdout on a pipe (the read end in *out_fd) and stderr appended to
+ * err_path (NULL: inherited). */
+static pid_t spawn(char *const argv[], int *out_fd, const char *err_path)
 {
         int p[2];
         pid_t pid;
@@ -83,6 +84,11 @@ static pid_t spawn(char *const argv[], int *out_fd)
         CHECK(pid >= 0);
         if (pid == 0) {
                 dup2(p[1], STDOUT_FILENO);
+                if (err_path) {
+                        int fd = open(err_path, O_WRONLY | O_CREAT | O_APPEND, 0644);
+                        if (fd < 0 || dup2(fd, STDERR_FILENO) < 0)
+                                _exit(127);
+                }
                 execv(argv[0], argv);
                 _exit(127);
         }
@@ -199,7 +205,7 @@ static void start_daemon(struct rigenv *e)
                         e->sock,           "--data", e->data, NULL};
         int fd;
 
-        e->daemon = spawn(argv, &fd);
+        e->daemon = spawn(argv, &fd, e->daemon_log[0] ? e->daemon_log : NULL);
         close(fd);
         wait_socket(e, 30);
 }
@@ -213,12 +219,13 @@ static void start_sim(struct rigenv *e)
         snprintf(log, sizeof(log), "%s/render.log", e->dir);
         e->sim = spawn((char *[]){(char *)e->gonio_sim, "--rig", e->rig, "--dir", e->simdir,
                                   "--time-scale", e->time_scale, "--render-log", log, NULL},
-                       &fd);
+                       &fd, NULL);
         CHECK(wait_word(fd, "ready", 30));
         close(fd);
 }
 
-void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
+/* Sets e up for a rig in a new temp dir: paths, rig file, environment. */
+static void init(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
 {
         memset(e, 0, sizeof(*e));
         running = e;
@@ -235,6 +242,19 @@ void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const ch
         write_file(e->rig, rig_text ? rig_text : test_rig);
         setenv("GONIO_SIM_DIR", e->simdir, 1);
         snprintf(e->time_scale, sizeof(e->time_scale), "%g", time_scale);
+}
+
+void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
+{
+        init(e, argv, time_scale, rig_text);
+        start_sim(e);
+        start_daemon(e);
+}
+
+void rigenv_start_logged(struct rigenv *e, char **argv, double time_scale)
+{
+        init(e, argv, time_scale, NULL);
+        snprintf(e->daemon_log, sizeof(e->daemon_log), "%s/goniod.log", e->dir);
         start_sim(e);
         start_daemon(e);
 }

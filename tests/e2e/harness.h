@@ -14,6 +14,7 @@ struct rigenv {
         char data[300];   /* datasets */
         char time_scale[32];
         pid_t sim, daemon;
+        char daemon_log[320]; /* goniod's stderr when set (rigenv_start_logged) */
         const char *goniod, *gonioctl, *gonio_sim;
 };
 
@@ -23,6 +24,10 @@ void rigenv_start(struct rigenv *e, char **argv, double time_scale);
 
 /* Like rigenv_start with the rig file rig_text (YAML; NULL: the default test rig). */
 void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text);
+
+/* Like rigenv_start, with goniod's stderr (its log) appended to e->daemon_log, DIR/goniod.log,
+ * for this start and every restart. */
+void rigenv_start_logged(struct rigenv *e, char **argv, double time_scale);
 
 /* Kills goniod with SIGKILL (as a crash would) and starts it again on the same rig,
  * socket and data. */
