@@ -39,6 +39,23 @@ double bench_now_ms(void)
         return (double)gn_monotonic_ns() * 1e-6;
 }
 
+double bench_cpu_s(pid_t pid)
+{
+        char path[64], buf[1024], *p;
+        unsigned long utime, stime;
+        FILE *f;
+
+        snprintf(path, sizeof(path), "/proc/%d/stat", (int)pid);
+        f = fopen(path, "re");
+        CHECK(f);
+        CHECK(fgets(buf, sizeof(buf), f));
+        fclose(f);
+        p = strrchr(buf, ')'); /* the command name may hold spaces */
+        CHECK(p && sscanf(p + 2, "%*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %lu %lu", &utime,
+                          &stime) == 2);
+        return (double)(utime + stime) / (double)sysconf(_SC_CLK_TCK);
+}
+
 void bench_add(struct bench_samples *s, double v)
 {
         if (s->n == s->cap) {

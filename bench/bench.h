@@ -17,6 +17,9 @@ void bench_start(struct rigenv *e, double time_scale, bool log);
 /* CLOCK_MONOTONIC in milliseconds. */
 double bench_now_ms(void);
 
+/* CPU time (user + system) process pid has used so far, in seconds (all its threads). */
+double bench_cpu_s(pid_t pid);
+
 /* A growing array of samples. */
 struct bench_samples {
         double *v;
