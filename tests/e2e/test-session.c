@@ -3,17 +3,11 @@
  * kill -9 of goniod, of gonio-sim or of both, at seeded random moments, with every planned
  * capture present exactly once. Every row is compared with what gonio-sim rendered, and the
  * dataset with `dataset check` (ds_check). */
-#include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include "common/clock.h"
-#include "dataset/ds.h"
-#include "dataset/ds_session.h"
 #include "harness.h"
 #include "tests/test.h"
 
