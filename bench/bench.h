@@ -57,7 +57,7 @@ double bench_sim_angle(struct rigenv *e, int *fd, int role);
 
 /* Writes a session file DIR/NAME.yaml of the e2e rig named and into dataset name:
  * 24 turntable x 2 light-arm positions, 2 lamps and a laser frame at each, 2 cameras
- * (288 captures), or with big_moves 2 x 2 positions 180 deg apart (24 captures). Returns
- * its path in path. */
+ * (288 captures), or with big_moves 2 x 2 positions 180 deg apart, no laser (16
+ * captures). Returns its path in path. */
 const char *bench_session(struct rigenv *e, const char *name, bool big_moves, char *path,
                           size_t len);
