@@ -4,15 +4,13 @@
  * the camera arm back and forth by several distances through the control socket.
  * Last line: {"bench":"move","moves":N,"physical_s":...,"measured_s":...,
  * "overhead_ms_per_move":...,"ratio":measured/physical}. */
-#include <libgen.h>
-#include <limits.h>
 #include <stdio.h>
 #include <string.h>
 #include <unistd.h>
 
+#include "bench.h"
 #include "common/clock.h"
 #include "drivers/axis/axis.h"
-#include "tests/e2e/harness.h"
 #include "tests/test.h"
 
 /* camera_arm of the e2e rig: 30 deg/s, 60 deg/s^2, settle 20 ms */
@@ -20,32 +18,15 @@
 #define ACCEL  60.0
 #define SETTLE 0.020
 
-/* Paths of goniod, gonioctl and gonio-sim next to this benchmark in the build tree. */
-static void tool_paths(char paths[3][PATH_MAX])
-{
-        static const char *const rel[] = {"daemon/goniod", "client/gonioctl", "sim/gonio-sim"};
-        char self[PATH_MAX];
-        ssize_t n = readlink("/proc/self/exe", self, sizeof(self) - 1);
-        const char *build;
-
-        CHECK(n > 0);
-        self[n] = 0;
-        build = dirname(dirname(self)); /* BUILD/bench/move -> BUILD */
-        for (int i = 0; i < 3; i++)
-                snprintf(paths[i], PATH_MAX, "%s/%s", build, rel[i]);
-}
-
 int main(void)
 {
         static const double targets[] = {5, -5, 30, -30, 90, 0, 1, 0, 10, -10};
-        char paths[3][PATH_MAX], req[256];
-        char *argv[] = {"move", paths[0], paths[1], paths[2], NULL};
+        char req[256];
         double physical = 0, measured = 0, pos = 0;
         struct rigenv e;
         int fd, n = 0;
 
-        tool_paths(paths);
-        rigenv_start(&e, argv, 1);
+        bench_start(&e, 1, false);
         json_decref(ctl_ok(&e, "home", NULL));
         fd = raw_connect(&e);
         for (size_t i = 0; i < sizeof(targets) / sizeof(targets[0]); i++, n++) {

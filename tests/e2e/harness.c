@@ -72,8 +72,9 @@ static double now_s(void)
         return (double)gn_monotonic_ns() * 1e-9;
 }
 
-/* Starts argv with stdout on a pipe; returns the read end in *out_fd. */
-static pid_t spawn(char *const argv[], int *out_fd)
+/* Starts argv with stdout on a pipe (the read end in *out_fd) and stderr appended to
+ * err_path (NULL: inherited). */
+static pid_t spawn(char *const argv[], int *out_fd, const char *err_path)
 {
         int p[2];
         pid_t pid;
@@ -83,6 +84,11 @@ static pid_t spawn(char *const argv[], int *out_fd)
         CHECK(pid >= 0);
         if (pid == 0) {
                 dup2(p[1], STDOUT_FILENO);
+                if (err_path) {
+                        int fd = open(err_path, O_WRONLY | O_CREAT | O_APPEND, 0644);
+                        if (fd < 0 || dup2(fd, STDERR_FILENO) < 0)
+                                _exit(127);
+                }
                 execv(argv[0], argv);
                 _exit(127);
         }
@@ -199,7 +205,7 @@ static void start_daemon(struct rigenv *e)
                         e->sock,           "--data", e->data, NULL};
         int fd;
 
-        e->daemon = spawn(argv, &fd);
+        e->daemon = spawn(argv, &fd, e->daemon_log[0] ? e->daemon_log : NULL);
         close(fd);
         wait_socket(e, 30);
 }
@@ -213,12 +219,13 @@ static void start_sim(struct rigenv *e)
         snprintf(log, sizeof(log), "%s/render.log", e->dir);
         e->sim = spawn((char *[]){(char *)e->gonio_sim, "--rig", e->rig, "--dir", e->simdir,
                                   "--time-scale", e->time_scale, "--render-log", log, NULL},
-                       &fd);
+                       &fd, NULL);
         CHECK(wait_word(fd, "ready", 30));
         close(fd);
 }
 
-void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
+/* Sets e up for a rig in a new temp dir: paths, rig file, environment. */
+static void init(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
 {
         memset(e, 0, sizeof(*e));
         running = e;
@@ -235,6 +242,19 @@ void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const ch
         write_file(e->rig, rig_text ? rig_text : test_rig);
         setenv("GONIO_SIM_DIR", e->simdir, 1);
         snprintf(e->time_scale, sizeof(e->time_scale), "%g", time_scale);
+}
+
+void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
+{
+        init(e, argv, time_scale, rig_text);
+        start_sim(e);
+        start_daemon(e);
+}
+
+void rigenv_start_logged(struct rigenv *e, char **argv, double time_scale)
+{
+        init(e, argv, time_scale, NULL);
+        snprintf(e->daemon_log, sizeof(e->daemon_log), "%s/goniod.log", e->dir);
         start_sim(e);
         start_daemon(e);
 }
@@ -558,6 +578,29 @@ int64_t check_dataset_roles(struct rigenv *e, const char *name, unsigned roles)
 
 /* ---- sessions ---- */
 
+/* Prints a reply that is not a result (for the log of a failing run). */
+static void print_reply(const char *what, json_t *reply)
+{
+        char *text = json_dumps(reply, JSON_COMPACT);
+
+        fprintf(stderr, "%s: %s\n", what, text ? text : "?");
+        free(text);
+}
+
+const char *const e2e_session_text = "name: s1\n"
+                                     "dataset: ds1\n"
+                                     "sweep:\n"
+                                     "  turntable: { from: 0, to: 270, step: 90 }\n"
+                                     "  light_arm: [0, 120]\n"
+                                     "cameras: [cam0, cam1]\n"
+                                     "lamps: [lamp0, lamp1]\n"
+                                     "laser: true\n"
+                                     "dark_frames: 1\n"
+                                     "flat_frames: 1\n"
+                                     "skip_occluded: false\n"
+                                     "skip_glare: false\n"
+                                     "metadata: { object: sphere, operator: e2e }\n";
+
 const char *sess_write(struct rigenv *e, const char *name, const char *text, char *path, size_t len)
 {
         snprintf(path, len, "%s/%s", e->dir, name);
@@ -600,7 +643,7 @@ int sess_start_raw(struct rigenv *e, const char *file)
         r = raw_call(fd, req);
         free(req);
         if (!json_object_get(r, "result"))
-                fprintf(stderr, "session.run: %s\n", json_dumps(r, JSON_COMPACT));
+                print_reply("session.run", r);
         CHECK(json_object_get(r, "result"));
         json_decref(r);
         return fd;
@@ -674,4 +717,45 @@ void sess_check_complete(struct rigenv *e, const char *dataset, const char *sess
         CHECK_INT(info.captured, info.planned);
         ds_session_info_clear(&info);
         CHECK_INT(check_dataset_roles(e, dataset, (1u << GN_ROLE_COUNT) - 1), n);
+}
+
+/* Kills what who names, waits for the pause when goniod survived, and resumes the session
+ * on a new connection, which it returns (fd, the old one, is closed). */
+static int kill_and_resume(struct rigenv *e, int fd, const char *who)
+{
+        bool daemon = strchr(who, 'd');
+        json_t *r;
+
+        if (strchr(who, 's'))
+                rigenv_crash_sim(e);
+        if (daemon)
+                rigenv_crash_daemon(e);
+        if (!daemon)
+                sess_wait(e, "paused", 30);
+        close(fd);
+        fd = raw_connect(e);
+        r = raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":2,\"method\":\"session.resume\"}\n");
+        if (!json_object_get(r, "result"))
+                print_reply("resume after a kill", r);
+        json_decref(r);
+        return fd;
+}
+
+void sess_run_killing(struct rigenv *e, const char *file, const char *const who[], int kills)
+{
+        int fd = sess_start_raw(e, file);
+
+        for (int k = 0; k < kills; k++) {
+                usleep(100000 + rand() % 1200000);
+                fd = kill_and_resume(e, fd, who[k]);
+        }
+        close(fd);
+        for (int i = 0; i < 600; i++) { /* the session ends or pauses (a kill hit its end) */
+                char state[32];
+                if (strcmp(sess_state(e, state, sizeof(state)), "none") == 0)
+                        break;
+                if (strcmp(state, "paused") == 0)
+                        CHECK_INT(ctl(e, NULL, "session", "resume", NULL), 0);
+                usleep(100000);
+        }
 }

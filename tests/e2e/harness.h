@@ -14,6 +14,7 @@ struct rigenv {
         char data[300];   /* datasets */
         char time_scale[32];
         pid_t sim, daemon;
+        char daemon_log[320]; /* goniod's stderr when set (rigenv_start_logged) */
         const char *goniod, *gonioctl, *gonio_sim;
 };
 
@@ -23,6 +24,10 @@ void rigenv_start(struct rigenv *e, char **argv, double time_scale);
 
 /* Like rigenv_start with the rig file rig_text (YAML; NULL: the default test rig). */
 void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text);
+
+/* Like rigenv_start, with goniod's stderr (its log) appended to e->daemon_log, DIR/goniod.log,
+ * for this start and every restart. */
+void rigenv_start_logged(struct rigenv *e, char **argv, double time_scale);
 
 /* Kills goniod with SIGKILL (as a crash would) and starts it again on the same rig,
  * socket and data. */
@@ -86,6 +91,11 @@ int64_t check_dataset_roles(struct rigenv *e, const char *name, unsigned roles);
 
 struct ds_session_info;
 
+/* A session of the test rig: s1 into dataset ds1, 4 turntable x 2 light-arm positions, 2
+ * lamps, 2 cameras, a laser frame per pose, a dark frame and a flat field per camera; nothing
+ * skipped. */
+extern const char *const e2e_session_text;
+
 /* Writes text as DIR/name into path (len bytes) and returns path. */
 const char *sess_write(struct rigenv *e, const char *name, const char *text, char *path,
                        size_t len);
@@ -115,3 +125,9 @@ void sess_info(struct rigenv *e, const char *dataset, const char *session,
 /* The session is done with n captures, each once, every row matching what gonio-sim
  * rendered (all roles), and ds_check finds nothing wrong. */
 void sess_check_complete(struct rigenv *e, const char *dataset, const char *session, int64_t n);
+
+/* Runs the session file and kills it kills times: each after a random 0.1-1.3 s (rand()),
+ * goniod when who[k] has a 'd', gonio-sim when it has an 's' (both: "ds"), then resumes it
+ * with session.resume. Returns when the session has ended, resuming it whenever it pauses
+ * (a kill at its end), for up to 60 s. */
+void sess_run_killing(struct rigenv *e, const char *file, const char *const who[], int kills);

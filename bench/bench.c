@@ -1,0 +1,187 @@
+/* bench.c - helpers shared by the benchmarks on goniod and gonio-sim (see bench.h). */
+#include <errno.h>
+#include <libgen.h>
+#include <limits.h>
+#include <math.h>
+#include <poll.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "bench.h"
+#include "common/clock.h"
+#include "common/pose.h"
+#include "tests/test.h"
+
+void bench_start(struct rigenv *e, double time_scale, bool log)
+{
+        static const char *const rel[] = {"daemon/goniod", "client/gonioctl", "sim/gonio-sim"};
+        static char paths[3][PATH_MAX];
+        char self[PATH_MAX];
+        char *argv[] = {"bench", paths[0], paths[1], paths[2], NULL};
+        ssize_t n = readlink("/proc/self/exe", self, sizeof(self) - 1);
+        const char *build;
+
+        CHECK(n > 0);
+        self[n] = 0;
+        build = dirname(dirname(self)); /* BUILD/bench/NAME -> BUILD */
+        for (int i = 0; i < 3; i++)
+                snprintf(paths[i], PATH_MAX, "%s/%s", build, rel[i]);
+        if (log)
+                rigenv_start_logged(e, argv, time_scale);
+        else
+                rigenv_start(e, argv, time_scale);
+}
+
+double bench_now_ms(void)
+{
+        return (double)gn_monotonic_ns() * 1e-6;
+}
+
+double bench_cpu_s(pid_t pid)
+{
+        char path[64], buf[1024], *p;
+        unsigned long utime, stime;
+        FILE *f;
+
+        snprintf(path, sizeof(path), "/proc/%d/stat", (int)pid);
+        f = fopen(path, "re");
+        CHECK(f);
+        CHECK(fgets(buf, sizeof(buf), f));
+        fclose(f);
+        p = strrchr(buf, ')'); /* the command name may hold spaces */
+        CHECK(p && sscanf(p + 2, "%*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %lu %lu", &utime,
+                          &stime) == 2);
+        return (double)(utime + stime) / (double)sysconf(_SC_CLK_TCK);
+}
+
+void bench_add(struct bench_samples *s, double v)
+{
+        if (s->n == s->cap) {
+                s->cap = s->cap ? 2 * s->cap : 1024;
+                s->v = realloc(s->v, s->cap * sizeof(*s->v));
+                CHECK(s->v);
+        }
+        s->v[s->n++] = v;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+        double x = *(const double *)a, y = *(const double *)b;
+
+        return (x > y) - (x < y);
+}
+
+double bench_quantile(struct bench_samples *s, double q)
+{
+        size_t i;
+
+        if (s->n == 0)
+                return NAN;
+        qsort(s->v, s->n, sizeof(*s->v), cmp_double);
+        i = (size_t)ceil(q * (double)s->n);
+        return s->v[i > 0 ? i - 1 : 0];
+}
+
+void bench_samples_clear(struct bench_samples *s)
+{
+        free(s->v);
+        *s = (struct bench_samples){0};
+}
+
+int bench_client(struct rigenv *e, const char *name)
+{
+        char req[256];
+        int fd = raw_connect(e);
+        json_t *r;
+
+        CHECK(fd >= 0);
+        snprintf(req, sizeof(req),
+                 "{\"jsonrpc\":\"2.0\",\"id\":0,\"method\":\"hello\",\"params\":"
+                 "{\"client\":\"%s\",\"protocol\":1}}\n",
+                 name);
+        r = raw_call(fd, req);
+        CHECK(json_object_get(r, "result"));
+        json_decref(r);
+        return fd;
+}
+
+ssize_t bench_lines_read(struct bench_lines *l, bool wait, void (*fn)(json_t *msg, void *ud),
+                         void *ud)
+{
+        struct pollfd pfd = {.fd = l->fd, .events = POLLIN};
+        ssize_t n;
+        char *start = l->buf, *nl;
+
+        if (poll(&pfd, 1, wait ? 30000 : 0) == 0)
+                return -EAGAIN;
+        n = read(l->fd, l->buf + l->len, sizeof(l->buf) - 1 - l->len);
+        if (n <= 0)
+                return n < 0 ? -errno : 0;
+        l->len += n;
+        l->buf[l->len] = 0;
+        while ((nl = strchr(start, '\n'))) {
+                json_t *msg;
+
+                *nl = 0;
+                msg = json_loads(start, 0, NULL);
+                fn(msg, ud);
+                json_decref(msg);
+                start = nl + 1;
+        }
+        l->len -= start - l->buf;
+        memmove(l->buf, start, l->len);
+        CHECK(l->len < sizeof(l->buf) - 1); /* a line longer than the buffer */
+        return n;
+}
+
+double bench_sim_angle(struct rigenv *e, int *fd, int role)
+{
+        static const char req[] = "{\"cmd\":\"state\"}\n";
+        char reply[4096], path[400];
+        size_t len = 0;
+        json_t *r, *deg;
+        double a;
+
+        if (*fd < 0) {
+                snprintf(path, sizeof(path), "%s/control.sock", e->simdir);
+                *fd = test_unix_connect(path);
+                CHECK(*fd >= 0);
+        }
+        CHECK(write(*fd, req, sizeof(req) - 1) == (ssize_t)sizeof(req) - 1);
+        while (len == 0 || reply[len - 1] != '\n') {
+                ssize_t n = read(*fd, reply + len, sizeof(reply) - 1 - len);
+                CHECK(n > 0);
+                len += n;
+        }
+        reply[len] = 0;
+        r = json_loads(reply, 0, NULL);
+        deg = json_object_get(json_object_get(r, "state"), gn_role_name(role));
+        CHECK(json_is_number(deg));
+        a = json_number_value(deg);
+        json_decref(r);
+        return a;
+}
+
+const char *bench_session(struct rigenv *e, const char *name, bool big_moves, char *path,
+                          size_t len)
+{
+        char text[1024], file[128];
+
+        snprintf(text, sizeof(text),
+                 "name: %s\n"
+                 "dataset: %s\n"
+                 "sweep:\n"
+                 "  turntable: %s\n"
+                 "  light_arm: %s\n"
+                 "cameras: [cam0, cam1]\n"
+                 "lamps: [lamp0, lamp1]\n"
+                 "laser: %s\n"
+                 "skip_occluded: false\n"
+                 "skip_glare: false\n",
+                 name, name, big_moves ? "[0, 180]" : "{ from: 0, to: 345, step: 15 }",
+                 big_moves ? "[0, 180]" : "[0, 120]", big_moves ? "false" : "true");
+        snprintf(file, sizeof(file), "%s.yaml", name);
+        return sess_write(e, file, text, path, len);
+}
