@@ -138,13 +138,10 @@ static int client_flush(struct client *c)
         return sd_event_source_set_io_events(c->io, EPOLLIN | (c->out_len ? EPOLLOUT : 0));
 }
 
-/* Queues one message (not stolen) to c; disconnects c if it cannot keep up. */
-static void client_send(struct client *c, const json_t *msg)
+/* Queues len bytes of text (whole lines) to c; disconnects c if it cannot keep up. */
+static void client_send_text(struct client *c, const char *text, size_t len)
 {
-        _cleanup_free_ char *text = NULL;
-        size_t len;
-
-        if (c->fd < 0 || !(text = proto_dump(msg, &len)))
+        if (c->fd < 0)
                 return;
         if (c->out_len + len > SRV_MAX_OUTPUT) {
                 log_warning("client %p does not read what it is sent (%zu bytes unread), "
@@ -167,6 +164,16 @@ static void client_send(struct client *c, const json_t *msg)
         c->out_len += len;
         if (client_flush(c) < 0)
                 client_close(c);
+}
+
+/* Queues one message (not stolen) to c; disconnects c if it cannot keep up. */
+static void client_send(struct client *c, const json_t *msg)
+{
+        _cleanup_free_ char *text = NULL;
+        size_t len;
+
+        if (c->fd >= 0 && (text = proto_dump(msg, &len)))
+                client_send_text(c, text, len);
 }
 
 static void req_free(struct srv_req *req)
@@ -701,11 +708,14 @@ struct server *server_free(struct server *s)
 void server_broadcast(struct server *s, const char *method, json_t *params)
 {
         json_t *msg = proto_notification(method, params);
+        _cleanup_free_ char *text = NULL;
+        size_t len;
 
-        for (struct client *c = s->clients, *next; msg && c; c = next) {
-                next = c->next;
-                client_send(c, msg);
-        }
+        if (msg && (text = proto_dump(msg, &len))) /* once for every client */
+                for (struct client *c = s->clients, *next; c; c = next) {
+                        next = c->next;
+                        client_send_text(c, text, len);
+                }
         json_decref(msg);
 }
 

@@ -45,7 +45,8 @@
 #define PROGRESS_USEC  100000           /* session.progress at most 10 times a second */
 #define POSE_TOLERANCE 1e-4             /* deg: an axis this close to its target is not moved */
 #define RETRY_USEC     (5 * 1000000ULL) /* a session paused by a fault tries again this often */
-#define SPACE_MARGIN   4 /* a full disk must have room for this many uncompressed shots */
+#define STILL_POLL_MS  20 /* preparing: how often to look whether stopping axes stand still */
+#define SPACE_MARGIN   4  /* a full disk must have room for this many uncompressed shots */
 
 static const char *const state_names[] = {"none",    "starting", "preparing", "running",
                                           "pausing", "paused",   "ending"};
@@ -122,7 +123,8 @@ static void remember_dark(struct session_runner *s, int cam, int exposure_us, do
 
 json_t *session_status(const struct session_runner *s)
 {
-        double elapsed = s->t_run_ns ? (gn_monotonic_ns() - s->t_run_ns) / 1e9 : 0;
+        uint64_t until = s->state == S_NONE && s->t_end_ns ? s->t_end_ns : gn_monotonic_ns();
+        double elapsed = s->t_run_ns ? (until - s->t_run_ns) / 1e9 : 0;
         double rate = elapsed > 0 ? s->captured_run / elapsed : 0;
         int64_t remaining = s->planned - s->captured;
         double eta = rate > 0 ? remaining / rate : s->estimate_s;
@@ -475,6 +477,9 @@ static void step_preparing(struct session_runner *s)
                                s->error < 0 ? s->reason : "paused or aborted before it ran");
                 return begin_stop(s, s->abort_req ? S_ENDING : S_PAUSING);
         }
+        if (strcmp(rig_state(s->m->rig), "stopping") == 0 ||
+            strcmp(rig_state(s->m->rig), "moving") == 0)
+                return settle(s, STILL_POLL_MS); /* a stop just before the resume: wait for rest */
         session_set_state(s, S_RUNNING);
         session_answer(s, 0, NULL);
         step(s);

@@ -56,6 +56,7 @@ struct session_runner {
         bool lights_off; /* pausing or ending: lamps and laser were switched off */
         int64_t planned, captured, captured_run;
         uint64_t t_run_ns, t_progress_ns;
+        uint64_t t_end_ns; /* when the last session ended (monotonic), for its status */
         double estimate_s; /* timing model of what remained when the run began */
         struct dark darks[MAX_DARKS];
         size_t n_darks;

@@ -467,6 +467,7 @@ static void load_done(int result, void *userdata)
         if (j->abandon) {
                 snprintf(s->reason, sizeof(s->reason), "%s", ABANDONED);
                 snprintf(s->ended, sizeof(s->ended), "aborted");
+                s->t_end_ns = s->t_run_ns = gn_monotonic_ns();
                 session_set_state(s, S_NONE);
                 session_answer(s, 0, NULL);
                 return load_job_free(j);
@@ -693,6 +694,7 @@ static void record_done(int result, void *userdata)
                 log_error("%s", j->msg);
         if (j->end) {
                 snprintf(s->ended, sizeof(s->ended), "%s", j->state);
+                s->t_end_ns = gn_monotonic_ns();
                 log_info("session '%s' %s: %" PRId64 " of %" PRId64 " captures%s%s", s->name,
                          j->state, s->captured, s->planned, s->reason[0] ? ": " : "", s->reason);
                 free(s->shots);

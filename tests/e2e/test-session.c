@@ -214,6 +214,46 @@ static void test_darklib(struct rigenv *e)
         check_references(e, "ds2");
 }
 
+/* The state of session.status over a raw connection (fast enough to hit short windows). */
+static void raw_session_state(int fd, char *buf, size_t len)
+{
+        json_t *r = raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":7,\"method\":\"session.status\"}\n");
+
+        snprintf(buf, len, "%s",
+                 json_string_value(json_object_get(json_object_get(r, "result"), "state")));
+        json_decref(r);
+}
+
+/* A client's stop pauses the session; a resume sent the moment it is paused, while the
+ * stopped axis may still be coming to rest, runs it to the end (it waits for the axis). */
+static void test_stopresume(struct rigenv *e)
+{
+        char file[400], state[32] = "";
+        int fd, n;
+        json_t *r;
+
+        sess_write(e, "s1.yaml", e2e_session_text, file, sizeof(file));
+        n = sess_planned(e, file, NULL);
+        fd = sess_start_raw(e, file);
+        json_decref(wait_state(e, "moving", 30));
+        json_decref(raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":5,\"method\":\"stop\"}\n"));
+        for (int i = 0; i < 2000 && strcmp(state, "paused") != 0; i++)
+                raw_session_state(fd, state, sizeof(state));
+        CHECK_STR(state, "paused");
+        r = raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":6,\"method\":\"session.resume\"}\n");
+        CHECK(json_object_get(r, "result"));
+        json_decref(r);
+        for (int i = 0; i < 600; i++) {
+                raw_session_state(fd, state, sizeof(state));
+                if (strcmp(state, "none") == 0)
+                        break;
+                CHECK(strcmp(state, "paused") != 0); /* never paused again */
+                usleep(50000);
+        }
+        close(fd);
+        sess_check_complete(e, "ds1", "s1", n);
+}
+
 /* After a crash of goniod the unfinished session can be given up without running it. */
 static void test_abandon(struct rigenv *e)
 {
@@ -272,6 +312,8 @@ int main(int argc, char **argv)
                 test_abandon(&e);
         else if (strcmp(c, "darklib") == 0)
                 test_darklib(&e);
+        else if (strcmp(c, "stopresume") == 0)
+                test_stopresume(&e);
         else if (strncmp(c, "kill-", 5) == 0 && strchr(c + 5, '-'))
                 test_kill(&e, c + 5, (unsigned)atoi(strchr(c + 5, '-') + 1));
         else
