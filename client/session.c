@@ -55,6 +55,12 @@ static void fmt_duration(char *buf, size_t len, double s)
         snprintf(buf, len, "%ld:%02ld:%02ld", t / 3600, t / 60 % 60, t % 60);
 }
 
+/* The state to show: how it ended once it has. */
+static const char *shown_state(json_t *st)
+{
+        return strcmp(str(st, "state"), "none") == 0 ? str(st, "ended") : str(st, "state");
+}
+
 /* The progress line of a session status: bar, count, rate, ETA, state. */
 static void progress_line(struct out *o, json_t *st)
 {
@@ -69,7 +75,7 @@ static void progress_line(struct out *o, json_t *st)
         bar[BAR_WIDTH] = 0;
         fmt_duration(eta, sizeof(eta), num(st, "eta_s"));
         fprintf(stderr, "\r\033[K[%s] %.0f/%.0f  %.1f/s  ETA %s  %s", bar, captured, planned,
-                num(st, "rate_per_s"), eta, str(st, "state"));
+                num(st, "rate_per_s"), eta, shown_state(st));
         o->progress_shown = true;
 }
 
@@ -88,9 +94,7 @@ static void on_event(const char *method, json_t *params, void *userdata)
         if (f->o->json)
                 out_notification(f->o, method, params);
         if (strcmp(method, "session.state") == 0 && !f->o->json && !f->o->quiet && !f->o->progress)
-                printf("session %s: %s %s\n", str(params, "name"),
-                       strcmp(str(params, "state"), "none") == 0 ? str(params, "ended")
-                                                                 : str(params, "state"),
+                printf("session %s: %s %s\n", str(params, "name"), shown_state(params),
                        str(params, "reason"));
         progress_line(f->o, params);
         json_decref(f->last);
@@ -210,7 +214,7 @@ void out_print_session_status(json_t *r)
         fmt_duration(el, sizeof(el), num(r, "elapsed_s"));
         fmt_duration(eta, sizeof(eta), num(r, "eta_s"));
         printf("session %s (dataset %s): %s%s%s\n", str(r, "name"), str(r, "dataset"),
-               strcmp(state, "none") == 0 ? str(r, "ended") : state,
+               shown_state(r),
                str(r, "reason")[0] ? ": " : "", str(r, "reason"));
         printf("captured %.0f of %.0f, %.1f/s, elapsed %s, ETA %s\n", num(r, "captured"),
                num(r, "planned"), num(r, "rate_per_s"), el, eta);
