@@ -214,8 +214,7 @@ void out_print_session_status(json_t *r)
         fmt_duration(el, sizeof(el), num(r, "elapsed_s"));
         fmt_duration(eta, sizeof(eta), num(r, "eta_s"));
         printf("session %s (dataset %s): %s%s%s\n", str(r, "name"), str(r, "dataset"),
-               shown_state(r),
-               str(r, "reason")[0] ? ": " : "", str(r, "reason"));
+               shown_state(r), str(r, "reason")[0] ? ": " : "", str(r, "reason"));
         printf("captured %.0f of %.0f, %.1f/s, elapsed %s, ETA %s\n", num(r, "captured"),
                num(r, "planned"), num(r, "rate_per_s"), el, eta);
 }
