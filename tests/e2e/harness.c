@@ -649,6 +649,16 @@ int sess_start_raw(struct rigenv *e, const char *file)
         return fd;
 }
 
+int sess_start_default(struct rigenv *e, int64_t *planned)
+{
+        char file[400];
+
+        sess_write(e, "s1.yaml", e2e_session_text, file, sizeof(file));
+        if (planned)
+                *planned = sess_planned(e, file, NULL);
+        return sess_start_raw(e, file);
+}
+
 const char *sess_state(struct rigenv *e, char *buf, size_t len)
 {
         json_t *st = ctl_ok(e, "session", "status", NULL);

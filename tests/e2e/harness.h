@@ -108,6 +108,10 @@ int64_t sess_planned(struct rigenv *e, const char *file, double *estimate_s);
  * result (the session runs) and returns that connection's fd. */
 int sess_start_raw(struct rigenv *e, const char *file);
 
+/* Writes e2e_session_text as DIR/s1.yaml, its planned capture count into *planned (unless
+ * NULL), and starts it with sess_start_raw: returns that fd. */
+int sess_start_default(struct rigenv *e, int64_t *planned);
+
 /* The session's state (gonioctl session status) into buf; returns buf. */
 const char *sess_state(struct rigenv *e, char *buf, size_t len);
 

@@ -120,14 +120,11 @@ static void test_badfile(struct rigenv *e)
 /* pause stops at a capture boundary with lamps and laser off; resume completes it. */
 static void test_pause(struct rigenv *e)
 {
-        char file[400];
         int64_t n;
         json_t *st;
         int fd;
 
-        sess_write(e, "s1.yaml", e2e_session_text, file, sizeof(file));
-        n = sess_planned(e, file, NULL);
-        fd = sess_start_raw(e, file);
+        fd = sess_start_default(e, &n);
         usleep(300000);
         json_decref(ctl_ok(e, "session", "pause", NULL));
         sess_wait(e, "paused", 30);
@@ -145,14 +142,11 @@ static void test_pause(struct rigenv *e)
  * resume after the drives return completes it. */
 static void test_fault(struct rigenv *e)
 {
-        char file[400];
         int64_t n;
         json_t *st;
         int fd;
 
-        sess_write(e, "s1.yaml", e2e_session_text, file, sizeof(file));
-        n = sess_planned(e, file, NULL);
-        fd = sess_start_raw(e, file);
+        fd = sess_start_default(e, &n);
         usleep(200000);
         sim_request(e, "{\"cmd\":\"unplug\",\"bus\":\"drives\",\"ms\":1500}\n");
         sess_wait(e, "paused", 30);
@@ -168,13 +162,11 @@ static void test_fault(struct rigenv *e)
 /* A fault pauses the session; it resumes by itself once the device is back. */
 static void test_autoresume(struct rigenv *e)
 {
-        char file[400], state[32];
+        char state[32];
         int64_t n;
         int fd;
 
-        sess_write(e, "s1.yaml", e2e_session_text, file, sizeof(file));
-        n = sess_planned(e, file, NULL);
-        fd = sess_start_raw(e, file);
+        fd = sess_start_default(e, &n);
         usleep(200000);
         sim_request(e, "{\"cmd\":\"unplug\",\"bus\":\"drives\",\"ms\":1000}\n");
         sess_wait(e, "paused", 30);
@@ -228,13 +220,12 @@ static void raw_session_state(int fd, char *buf, size_t len)
  * stopped axis may still be coming to rest, runs it to the end (it waits for the axis). */
 static void test_stopresume(struct rigenv *e)
 {
-        char file[400], state[32] = "";
-        int fd, n;
+        char state[32] = "";
+        int64_t n;
+        int fd;
         json_t *r;
 
-        sess_write(e, "s1.yaml", e2e_session_text, file, sizeof(file));
-        n = sess_planned(e, file, NULL);
-        fd = sess_start_raw(e, file);
+        fd = sess_start_default(e, &n);
         json_decref(wait_state(e, "moving", 30));
         json_decref(raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":5,\"method\":\"stop\"}\n"));
         for (int i = 0; i < 2000 && strcmp(state, "paused") != 0; i++)
@@ -258,11 +249,9 @@ static void test_stopresume(struct rigenv *e)
 static void test_abandon(struct rigenv *e)
 {
         struct ds_session_info info = {0};
-        char file[400];
         int fd;
 
-        sess_write(e, "s1.yaml", e2e_session_text, file, sizeof(file));
-        fd = sess_start_raw(e, file);
+        fd = sess_start_default(e, NULL);
         usleep(300000);
         rigenv_crash_daemon(e);
         close(fd);
