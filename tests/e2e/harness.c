@@ -578,8 +578,7 @@ int64_t check_dataset_roles(struct rigenv *e, const char *name, unsigned roles)
 
 /* ---- sessions ---- */
 
-/* Prints a reply that is not a result (for the log of a failing run). */
-static void print_reply(const char *what, json_t *reply)
+void print_json(const char *what, json_t *reply)
 {
         char *text = json_dumps(reply, JSON_COMPACT);
 
@@ -643,7 +642,7 @@ int sess_start_raw(struct rigenv *e, const char *file)
         r = raw_call(fd, req);
         free(req);
         if (!json_object_get(r, "result"))
-                print_reply("session.run", r);
+                print_json("session.run", r);
         CHECK(json_object_get(r, "result"));
         json_decref(r);
         return fd;
@@ -746,7 +745,7 @@ static int kill_and_resume(struct rigenv *e, int fd, const char *who)
         fd = raw_connect(e);
         r = raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":2,\"method\":\"session.resume\"}\n");
         if (!json_object_get(r, "result"))
-                print_reply("resume after a kill", r);
+                print_json("resume after a kill", r);
         json_decref(r);
         return fd;
 }

@@ -74,6 +74,9 @@ json_t *raw_wait_note(int fd, const char *method, const char *state, double time
 /* Space-separated methods of the notifications raw_call has skipped so far. */
 const char *raw_seen(void);
 
+/* Prints "what: <compact JSON>" to stderr (for the log of a run). */
+void print_json(const char *what, json_t *j);
+
 /* Runs a program with args and returns its exit status, stderr into err (may be NULL). */
 int run_capture(char *const argv[], char *out, size_t outlen, char *err, size_t errlen);
 

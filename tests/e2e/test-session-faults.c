@@ -165,8 +165,8 @@ static int test_enospc(struct rigenv *e)
         fill_disk(e->data, 600 << 10); /* the index and a few images fit, not 50 images */
         r = ctl(e, NULL, "session", "run", file, NULL);
         st = ctl_ok(e, "session", "status", NULL);
-        fprintf(stderr, "gonioctl session run: exit %d, then %s\n", r,
-                json_dumps(st, JSON_COMPACT));
+        fprintf(stderr, "gonioctl session run: exit %d\n", r);
+        print_json("then session.status", st);
         CHECK_INT(r, 7); /* paused: storage error */
         CHECK_STR(json_string_value(json_object_get(st, "state")), "paused");
         reason = json_string_value(json_object_get(st, "reason"));
