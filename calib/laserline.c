@@ -1,17 +1,16 @@
 /* laserline.c - the laser line's sub-pixel centre per row of a frame (see laserline.h).
  *
  * DESIGN. Each row (or column) is read once: d[x] = max(on[x] - off[x], 0) in the laser's
- * channel, into a stack buffer, with the maximum and the noise (sum of |d[x] - d[x-1]|) of
- * every block of LL_BLOCK samples. Candidates are then taken from the brightest block
- * down: from the candidate's top (or its run of clipped samples) the profile is followed
- * down each side to its foot, at most max_width px; the higher foot is the local baseline
- * (which removes ambient light in one-frame mode), the height above it must pass the
- * threshold, the width at half height must be plausible and d must not keep falling beyond
- * the feet, else the candidate (speckle,
- * a step, a broad patch of light) is left out of the search and the next one is tried. A second
- * plausible peak at least `ambiguity` as high as the first rejects the row. Clipped peaks
- * are centred on the midpoint of their two half-height crossings; others by the chosen
- * estimator. The hot loops are compiled for AVX2 and plain x86-64 (target_clones). */
+ * channel, into a stack buffer, with the maximum of every block of LL_BLOCK samples. Candidates are
+ * then taken from the brightest block down: from the candidate's top (or its run of clipped
+ * samples) the profile is followed down each side to its foot, at most max_width px; the higher
+ * foot is the local baseline (which removes ambient light in one-frame mode), the height above it
+ * must pass the threshold, the width at half height must be plausible and d must not keep falling
+ * beyond the feet, else the candidate (speckle, a step, a broad patch of light) is left out of the
+ * search and the next one is tried. A second plausible peak at least `ambiguity` as high as the
+ * first rejects the row. Clipped peaks are centred on the midpoint of their two half-height
+ * crossings; others by the chosen estimator. The hot loops are compiled for AVX2 and plain x86-64
+ * (target_clones). */
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
@@ -19,9 +18,10 @@
 
 #include "laserline.h"
 
-#define LL_BLOCK      16
+#define LL_BLOCK      64
 #define LL_CANDIDATES 16 /* candidates tried per row */
-#define LL_NOISE_GAP  2  /* blocks between a candidate's block and those its noise comes from */
+#define LL_NOISE_GAP  24 /* px between a peak's top and the windows its noise comes from */
+#define LL_NOISE_LEN  16 /* px in each of those windows */
 
 struct line {
         const uint8_t *on8; /* the on frame's samples (one of on8, on16) */
@@ -34,7 +34,6 @@ struct line {
         int spans, span_lo[LL_CANDIDATES], span_hi[LL_CANDIDATES]; /* tried: not searched */
         uint16_t d[LL_BLOCK * ((LASERLINE_MAX_LEN + LL_BLOCK - 1) / LL_BLOCK)];
         uint16_t bmax[(LASERLINE_MAX_LEN + LL_BLOCK - 1) / LL_BLOCK];
-        uint32_t bsad[(LASERLINE_MAX_LEN + LL_BLOCK - 1) / LL_BLOCK]; /* sum |d[x] - d[x-1]| */
 };
 
 struct peak {
@@ -52,7 +51,7 @@ void laserline_opts_default(struct laserline_opts *o, int channel)
                 .max_width = 8,
                 .saturation = 0.98,
                 .ambiguity = 0.5,
-                .window = 4,
+                .window = 0,
         };
 }
 
@@ -91,8 +90,7 @@ diff16(const uint16_t *on, const uint16_t *off, size_t step, int n, uint16_t *d)
                 DIFF_LOOP(on, off, step, n, d);
 }
 
-/* Block maxima and sums of |d[x] - d[x-1]|, each at most l->cap so that speckle does not
- * count as noise (the tail block padded with its last sample). */
+/* Block maxima of d (the tail block padded with the last sample). */
 __attribute__((target_clones("avx2", "default"))) static void line_stats(struct line *l)
 {
         for (int x = l->n; x < l->nb * LL_BLOCK; x++)
@@ -100,31 +98,33 @@ __attribute__((target_clones("avx2", "default"))) static void line_stats(struct 
         for (int b = 0; b < l->nb; b++) {
                 const uint16_t *d = l->d + b * LL_BLOCK;
                 uint16_t m = 0;
-                uint32_t sad = 0;
                 for (int i = 0; i < LL_BLOCK; i++)
                         m = d[i] > m ? d[i] : m;
-                for (int i = 1; i < LL_BLOCK; i++) {
-                        int a = abs((int)d[i] - (int)d[i - 1]);
-                        sad += (uint32_t)(a < l->cap ? a : l->cap);
-                }
                 l->bmax[b] = m;
-                l->bsad[b] = sad;
         }
 }
 
-/* Least height of a peak at x: min_peak, or snr times the noise (mean |d[x] - d[x-1]|) of
- * the noisier of the blocks LL_NOISE_GAP away on each side (the peak's own blocks carry the
- * peak's slopes). */
-static double threshold(const struct line *l, const struct laserline_opts *o, int x)
+/* Sum of |d[x] - d[x-1]| over LL_NOISE_LEN samples from x, each term at most l->cap so
+ * that speckle does not count as noise; 0 where the window leaves the line. */
+static uint32_t noise_at(const struct line *l, int x)
 {
-        int b = x / LL_BLOCK, lo = b - LL_NOISE_GAP, hi = b + LL_NOISE_GAP;
         uint32_t sad = 0;
 
-        if (lo >= 0)
-                sad = l->bsad[lo];
-        if (hi < l->nb && l->bsad[hi] > sad)
-                sad = l->bsad[hi];
-        return fmax(l->floor, o->snr * sad / LL_BLOCK);
+        for (int i = x + 1; x >= 0 && x + LL_NOISE_LEN <= l->n && i < x + LL_NOISE_LEN; i++) {
+                int a = abs((int)l->d[i] - (int)l->d[i - 1]);
+                sad += (uint32_t)(a < l->cap ? a : l->cap);
+        }
+        return sad;
+}
+
+/* Least height of a peak whose top spans s0..s1: min_peak, or snr times the noise (mean
+ * |d[x] - d[x-1]|) of the noisier of two windows LL_NOISE_GAP px beyond the top. */
+static double threshold(const struct line *l, const struct laserline_opts *o, int s0, int s1)
+{
+        uint32_t lo = noise_at(l, s0 - LL_NOISE_GAP - LL_NOISE_LEN),
+                 hi = noise_at(l, s1 + LL_NOISE_GAP);
+
+        return fmax(l->floor, o->snr * (lo > hi ? lo : hi) / (LL_NOISE_LEN - 1));
 }
 
 static int top_block(const struct line *l)
@@ -229,13 +229,14 @@ static double centre_com(const struct line *l, int x, int w, int lo, int hi)
 }
 
 /* Sub-pixel centre of the unclipped peak whose top sample is x (0 < x < n - 1). */
-static double centre_of(const struct line *l, const struct laserline_opts *o, int x, int lo, int hi)
+static double centre_of(const struct line *l, const struct laserline_opts *o, int x, int w, int lo,
+                        int hi)
 {
         double b = base_at(l, lo, hi, x);
         double a = l->d[x - 1] - b, m = l->d[x] - b, c = l->d[x + 1] - b, den;
 
         if (o->estimator == LASERLINE_COM)
-                return centre_com(l, x, o->window, lo, hi);
+                return centre_com(l, x, w, lo, hi);
         if (o->estimator == LASERLINE_GAUSS3 && a > 0 && c > 0) {
                 den = log(a) - 2 * log(m) + log(c);
                 if (den < 0)
@@ -250,7 +251,7 @@ static double centre_of(const struct line *l, const struct laserline_opts *o, in
 static bool peak_eval(const struct line *l, const struct laserline_opts *o, int x, struct peak *p,
                       int *lo, int *hi)
 {
-        int lim = (int)ceil(o->max_width), s0 = x, s1 = x;
+        int lim = (int)ceil(o->max_width), s0 = x, s1 = x, mid;
         bool clip = clipped(l, x);
         double base, level, left, right;
 
@@ -266,14 +267,17 @@ static bool peak_eval(const struct line *l, const struct laserline_opts *o, int 
         left = crossing(l, s0, *lo, level);
         right = crossing(l, s1, *hi, level);
         p->width = right - left;
-        if (p->strength < threshold(l, o, x) || p->width < o->min_width ||
+        if (p->strength < threshold(l, o, s0, s1) || p->width < o->min_width ||
             p->width > o->max_width || s0 == 0 || s1 == l->n - 1 ||
             falls_on(l, *lo, -1, lim / 2, p->strength) || falls_on(l, *hi, 1, lim / 2, p->strength))
                 return false;
-        if (clip) /* the clipped run and its flanks: symmetric about the centre */
-                p->centre = centre_com(l, (s0 + s1) / 2, (s1 - s0) / 2 + o->window + 1, *lo, *hi);
+        mid = (s0 + s1) / 2; /* clipped: the run and its flanks, symmetric about the centre */
+        if (clip)
+                p->centre =
+                        centre_com(l, mid, mid - *lo > *hi - mid ? mid - *lo : *hi - mid, *lo, *hi);
         else
-                p->centre = centre_of(l, o, x, *lo, *hi);
+                p->centre = centre_of(
+                        l, o, x, o->window > 0 ? o->window : (int)ceil(1.3 * p->width), *lo, *hi);
         return true;
 }
 

@@ -31,7 +31,7 @@ struct laserline_opts {
         double saturation; /* an on-frame sample at or above this fraction of full scale is clipped
                             */
         double ambiguity;  /* a second plausible peak this fraction as high rejects the row */
-        int window;        /* LASERLINE_COM half window, px */
+        int window; /* LASERLINE_COM half window, px; 0: 1.3 x the width at half height (3 sigma) */
 };
 
 /* Per row (or column) results, arrays owned by the caller, each of n elements. */

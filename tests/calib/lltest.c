@@ -29,10 +29,10 @@ static const char scene[] =
         "  turntable: { radius: 0 }\n"
         "  sensor: { black_level: 0.02 }\n";
 
-/* The analytic image of (PLATE_X, 0, z) crossing row v, z in [10, 100]: bisection. */
+/* The analytic image of (PLATE_X, 0, z) crossing row v, z in [0, 110]: bisection. */
 static bool line_at_row(const struct sim_cam_geom *g, double v, double *u, double *z)
 {
-        double lo = 10, hi = 100, uv_lo[2], uv_hi[2], uv[2] = {NAN, NAN}, m = 0;
+        double lo = 0, hi = 110, uv_lo[2], uv_hi[2], uv[2] = {NAN, NAN}, m = 0;
 
         CHECK_INT(sim_cam_project(g, (double[3]){PLATE_X, 0, lo}, uv_lo), 0);
         CHECK_INT(sim_cam_project(g, (double[3]){PLATE_X, 0, hi}, uv_hi), 0);
@@ -66,6 +66,7 @@ static void classify(struct llscene *s, const struct sim_truth *tr)
 {
         struct gn_pose st = {.laser = true};
         struct sim_cam_geom g;
+        int k = (int)lround(6.0 * s->w / 640); /* px: the line's reach (4 sigma) at this scale */
 
         CHECK_INT(sim_camera_geom(s->t.s, &st, 0, &g), 0);
         for (int v = 0; v < s->h; v++) {
@@ -76,11 +77,13 @@ static void classify(struct llscene *s, const struct sim_truth *tr)
                 s->row[v] = LL_GAP;
                 if (!line_at_row(&g, v, &u, &z))
                         continue;
+                if (z < 9 || z > 101) /* beyond the plate's edges, with a margin */
+                        continue;
                 s->u[v] = u;
-                hits = plate_hits(tr, v, (int)lround(u), 6);
-                if (z < 11 || z > 99 || (hits > 0 && hits < 13))
+                hits = plate_hits(tr, v, (int)lround(u), k);
+                if (z < 11 || z > 99 || (hits > 0 && hits < 2 * k + 1))
                         s->row[v] = LL_EDGE;
-                else if (hits == 13)
+                else if (hits == 2 * k + 1)
                         s->row[v] = LL_VISIBLE;
         }
 }
