@@ -32,7 +32,7 @@ static double expect(const struct llscene *s, const struct gn_frame *on, const s
                      const struct laserline_opts *o, double rms_max, const char *what)
 {
         struct run x;
-        int visible, missed, spurious;
+        int visible, missed, spurious, hidden = 0;
         double rms, strength = 0, width = 0;
 
         CHECK(laserline_extract(on, off, o, run_init(&x)) >= 0);
@@ -42,11 +42,13 @@ static double expect(const struct llscene *s, const struct gn_frame *on, const s
                         strength = fmax(strength, x.strength[v]);
                         width = fmax(width, x.width[v]);
                 }
+        for (int v = 0; v < s->h; v++)
+                hidden += s->row[v] == LL_GAP && !isnan(s->u[v]);
         fprintf(stderr,
-                "%s: %d visible rows, %d missed, %d spurious, RMS %.4f px, "
-                "strength <= %.0f DN, width <= %.2f px, %d ambiguous\n",
-                what, visible, missed, spurious, rms, strength, width, x.r.ambiguous);
-        CHECK(visible > 100);
+                "%s: %d visible rows, %d missed, %d spurious, %d hidden by the ball, "
+                "RMS %.4f px, strength <= %.0f DN, width <= %.2f px, %d ambiguous\n",
+                what, visible, missed, spurious, hidden, rms, strength, width, x.r.ambiguous);
+        CHECK(visible > 100 && hidden > 10);
         CHECK_INT(spurious, 0);
         CHECK_INT(missed, 0);
         CHECK(rms <= rms_max);
