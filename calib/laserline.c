@@ -1,16 +1,17 @@
 /* laserline.c - the laser line's sub-pixel centre per row of a frame (see laserline.h).
  *
  * DESIGN. Each row (or column) is read once: d[x] = max(on[x] - off[x], 0) in the laser's
- * channel, into a stack buffer, with the maximum of every block of LL_BLOCK samples. Candidates are
- * then taken from the brightest block down: from the candidate's top (or its run of clipped
- * samples) the profile is followed down each side to its foot, at most max_width px; the higher
- * foot is the local baseline (which removes ambient light in one-frame mode), the height above it
- * must pass the threshold, the width at half height must be plausible and d must not keep falling
- * beyond the feet, else the candidate (speckle, a step, a broad patch of light) is left out of the
- * search and the next one is tried. A second plausible peak at least `ambiguity` as high as the
- * first rejects the row. Clipped peaks are centred on the midpoint of their two half-height
- * crossings; others by the chosen estimator. The hot loops are compiled for AVX2 and plain x86-64
- * (target_clones). */
+ * channel, into a stack buffer, with the maximum of every block of LL_BLOCK samples (the only
+ * full passes; both are vectorised, compiled for AVX2 and plain x86-64 by target_clones).
+ * Candidates are then taken from the brightest block down. From a candidate's top (or its run
+ * of clipped samples) the profile is followed down each side to its foot, at most max_width
+ * px; the higher foot is the local baseline (it removes ambient light in one-frame mode). The
+ * height above it must reach min_peak and snr times the noise measured in two windows beside
+ * the peak, and the width at half height must lie in [min_width, max_width]; otherwise the
+ * candidate (speckle, a step, a patch of light) is left out of the search and the next one
+ * is tried. A second plausible peak at least `ambiguity` as high as the first rejects the
+ * row. Clipped peaks are centred by the centre of mass of the run and its flanks (the
+ * clipped profile is symmetric about the centre); others by the chosen estimator. */
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
@@ -186,16 +187,6 @@ static int descend(const struct line *l, int x, int dir, int lim)
         return x;
 }
 
-/* Does d keep falling beyond the foot (a broad patch of light cut short by the walk's
- * limit, not a line standing on a flat base)? */
-static bool falls_on(const struct line *l, int foot, int dir, int k, double strength)
-{
-        int x = foot + dir * k;
-
-        x = x < 0 ? 0 : x >= l->n ? l->n - 1 : x;
-        return l->d[foot] - l->d[x] > strength / 4;
-}
-
 /* Where d, walking from x towards foot, first falls below level (linear interpolation). */
 static double crossing(const struct line *l, int x, int foot, double level)
 {
@@ -268,8 +259,7 @@ static bool peak_eval(const struct line *l, const struct laserline_opts *o, int 
         right = crossing(l, s1, *hi, level);
         p->width = right - left;
         if (p->strength < threshold(l, o, s0, s1) || p->width < o->min_width ||
-            p->width > o->max_width || s0 == 0 || s1 == l->n - 1 ||
-            falls_on(l, *lo, -1, lim / 2, p->strength) || falls_on(l, *hi, 1, lim / 2, p->strength))
+            p->width > o->max_width || s0 == 0 || s1 == l->n - 1)
                 return false;
         mid = (s0 + s1) / 2; /* clipped: the run and its flanks, symmetric about the centre */
         if (clip)
