@@ -1,8 +1,9 @@
 /* test-laserline.c - calib/laserline.c against the renderer's analytic laser line (noise on):
- * RMS <= 0.03 px over the rows where the line is seen, every such row found, and no point
- * at all on rows without laser light (the ball hides the line, or the plate ends), with
- * speckle, an ambient lamp lit in the on frame only, a lamp in both frames, one frame in a
- * dark room and with a lamp, clipped peaks, 8 and 16 bits, and columns. */
+ * RMS <= 0.03 px (0.04 with a lamp under the line) over the rows where the line is seen,
+ * every such row found, and no point at all on rows without laser light (the ball hides the
+ * line, or the plate ends), with speckle, an ambient lamp lit in the on frame only, a lamp in
+ * both frames, one frame in a dark room and with a lamp, clipped peaks, two lines in a row,
+ * 8 and 16 bits, and columns. */
 #include <math.h>
 
 #include "common/cleanup.h"
@@ -185,6 +186,48 @@ static void test_saturation(void)
         ll_close(&s);
 }
 
+/* Adds k times the laser's light (on - off, red, 8 bits) shifted by dx px: a second line. */
+static void second_line(struct gn_frame *on, const struct gn_frame *off, int dx, double k)
+{
+        for (int v = 0; v < on->height; v++)
+                for (int u = on->width - 1 - dx; u >= 0; u--) {
+                        uint8_t *a = on->data + v * on->stride, *b = off->data + v * off->stride;
+                        double add = k * (a[3 * u] > b[3 * u] ? a[3 * u] - b[3 * u] : 0);
+                        a[3 * (u + dx)] = (uint8_t)fmin(255, a[3 * (u + dx)] + lround(add));
+                }
+}
+
+/* Two lines in a row: the row gets no point when the second is at least `ambiguity` as
+ * high as the first; a weaker second line (a faint reflection) is ignored. */
+static void test_ambiguous(void)
+{
+        struct llscene s;
+        struct gn_frame on, off;
+        struct laserline_opts o;
+        struct run x;
+        int visible, missed, spurious;
+
+        laserline_opts_default(&o, 0);
+        ll_open(&s, W, H, POWER, 0);
+        ll_render(&s, true, false, 8, 1, &on);
+        ll_render(&s, false, false, 8, 2, &off);
+        second_line(&on, &off, 40, 0.3);
+        expect(&s, &on, &off, &o, RMS_MAX, "a reflection 0.3 as bright, 40 px away");
+        second_line(&on, &off, 40, 0.5); /* now 0.8 as bright */
+        CHECK(laserline_extract(&on, &off, &o, run_init(&x)) >= 0);
+        ll_score(&s, &x.r, &visible, &missed, &spurious);
+        fprintf(stderr,
+                "a second line 0.8 as bright: %d of %d rows rejected as ambiguous, %d "
+                "points\n",
+                x.r.ambiguous, visible, x.r.points);
+        CHECK_INT(missed, visible);
+        CHECK_INT(spurious, 0);
+        CHECK(x.r.ambiguous >= visible);
+        gn_frame_free_data(&on);
+        gn_frame_free_data(&off);
+        ll_close(&s);
+}
+
 static void transpose(const struct gn_frame *f, struct gn_frame *t)
 {
         CHECK_INT(gn_frame_alloc(t, f->height, f->width, f->channels, f->bits), 0);
@@ -245,9 +288,10 @@ static void test_args(void)
 }
 
 static const struct test_case cases[] = {
-        {"accuracy", test_accuracy},   {"speckle", test_speckle},       {"ambient", test_ambient},
-        {"one-frame", test_one_frame}, {"saturation", test_saturation}, {"columns", test_columns},
-        {"args", test_args},
+        {"accuracy", test_accuracy},     {"speckle", test_speckle},
+        {"ambient", test_ambient},       {"one-frame", test_one_frame},
+        {"saturation", test_saturation}, {"columns", test_columns},
+        {"ambiguous", test_ambiguous},   {"args", test_args},
 };
 
 int main(int argc, char **argv)
