@@ -19,7 +19,7 @@
 
 #include "laserline.h"
 
-#define LL_BLOCK      64
+#define LL_BLOCK      64 /* samples per block of the candidate search */
 #define LL_CANDIDATES 16 /* candidates tried per row */
 #define LL_NOISE_GAP  24 /* px between a peak's top and the windows its noise comes from */
 #define LL_NOISE_LEN  16 /* px in each of those windows */
@@ -92,7 +92,7 @@ diff16(const uint16_t *on, const uint16_t *off, size_t step, int n, uint16_t *d)
 }
 
 /* Block maxima of d (the tail block padded with the last sample). */
-__attribute__((target_clones("avx2", "default"))) static void line_stats(struct line *l)
+__attribute__((target_clones("avx2", "default"))) static void block_maxima(struct line *l)
 {
         for (int x = l->n; x < l->nb * LL_BLOCK; x++)
                 l->d[x] = l->d[l->n - 1];
@@ -322,7 +322,7 @@ static int check_args(const struct gn_frame *on, const struct gn_frame *off,
         return len > LASERLINE_MAX_LEN ? -E2BIG : 0;
 }
 
-/* Loads line i of the frames into l (d, block statistics). */
+/* Loads line i of the frames into l: d and its block maxima. */
 static void line_load(struct line *l, const struct gn_frame *on, const struct gn_frame *off,
                       const struct laserline_opts *o, int i)
 {
@@ -336,7 +336,7 @@ static void line_load(struct line *l, const struct gn_frame *on, const struct gn
         else
                 diff16(l->on16 + l->first, off ? (const uint16_t *)off->data + l->first : NULL,
                        l->step, l->n, l->d);
-        line_stats(l);
+        block_maxima(l);
 }
 
 int laserline_extract(const struct gn_frame *on, const struct gn_frame *off,
