@@ -2,6 +2,7 @@
  * matrices are kept between frames so that only the processing is timed. */
 #include <cerrno>
 #include <cmath>
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "laserline-ref.h"
@@ -26,6 +27,14 @@ struct llref *llref_free(struct llref *r)
 {
         delete r;
         return nullptr;
+}
+
+void llref_threads(int n)
+{
+        try {
+                cv::setNumThreads(n > 0 ? n : -1);
+        } catch (...) {
+        }
 }
 
 static float row_centre(const cv::Mat &img, int v)

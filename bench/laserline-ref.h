@@ -17,6 +17,9 @@ struct llref *llref_new(int w, int h);
 /* NULL is a no-op; returns NULL. */
 struct llref *llref_free(struct llref *r);
 
+/* Sets the number of threads OpenCV uses (cv::setNumThreads; 0 = its default). */
+void llref_threads(int n);
+
 /* centre[h]: per row, the centre (NAN: nothing above the threshold). Returns 0 or -EIO. */
 int llref_extract(struct llref *r, const struct gn_frame *on, const struct gn_frame *off,
                   float *centre);

@@ -1,7 +1,8 @@
 /* bench/laserline.c - the laser line's extraction (calib/laserline, on minus off) on 1280x960
  * RGB8 frames rendered once (tests/calib/lltest: the laser on a plate, noise on), against
  * the OpenCV reference of the usual steps (laserline-ref.cpp) and against merely reading
- * both frames from memory (a loop summing their bytes). Also the RMS of our centres against
+ * both frames from memory (a loop summing them as 64-bit words); the reference also on one
+ * thread (printed, not in the JSON line). Also the RMS of our centres against
  * the renderer's analytic line. Last line: one JSON object. */
 #include <stdio.h>
 #include <stdlib.h>
@@ -72,7 +73,7 @@ int main(void)
         struct llscene s;
         struct gn_frame on, off;
         struct timed t = {.r = {.centre = centre, .strength = strength, .width = width, .n = H}};
-        double ours, ref, mem, rms;
+        double ours, ref, ref1, mem, rms;
         int visible, missed, spurious;
 
         ll_open(&s, W, H, 1.2e3, 0);
@@ -85,11 +86,15 @@ int main(void)
         CHECK(t.ref);
         ours = time_ms(&t, OURS, 50);
         ref = time_ms(&t, REFERENCE, 10);
+        llref_threads(1);
+        ref1 = time_ms(&t, REFERENCE, 10);
+        llref_threads(0);
         mem = time_ms(&t, MEMREAD, 50);
         rms = ll_score(&s, &t.r, &visible, &missed, &spurious);
         printf("laserline: %dx%d RGB8, on minus off: %.3f ms/frame; OpenCV reference %.3f ms "
-               "(%.1fx ours); reading both frames %.3f ms (ours %.2fx)\n",
-               W, H, ours, ref, ref / ours, mem, ours / mem);
+               "(%.1fx ours), %.3f ms on one thread (%.1fx ours); reading both frames %.3f ms "
+               "(ours %.2fx)\n",
+               W, H, ours, ref, ref / ours, ref1, ref1 / ours, mem, ours / mem);
         printf("accuracy: %d rows with the line seen, %d missed, %d spurious, RMS %.4f px\n",
                visible, missed, spurious, rms);
         printf("{\"bench\":\"laserline\",\"ms_per_frame\":%.4f,\"reference_ms\":%.4f,"
