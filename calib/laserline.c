@@ -151,6 +151,9 @@ static int block_argmax(const struct line *l, int b)
 {
         int x = -1;
 
+        for (int i = b * LL_BLOCK; l->spans == 0 && i < (b + 1) * LL_BLOCK && i < l->n; i++)
+                if (l->d[i] == l->bmax[b]) /* nothing tried yet: the first sample at the maximum */
+                        return i;
         for (int i = b * LL_BLOCK; i < (b + 1) * LL_BLOCK && i < l->n; i++)
                 if ((x < 0 || l->d[i] > l->d[x]) && !tried(l, i))
                         x = i;
