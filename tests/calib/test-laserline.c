@@ -3,7 +3,7 @@
  * every such row found, and no point at all on rows without laser light (the ball hides the
  * line, or the plate ends), with speckle, an ambient lamp lit in the on frame only, a lamp in
  * both frames, one frame in a dark room and with a lamp, clipped peaks, two lines in a row,
- * 8 and 16 bits, and columns. */
+ * 8 and 16 bits, columns, and the laser's channel only. */
 #include <math.h>
 
 #include "common/cleanup.h"
@@ -59,6 +59,7 @@ static double expect(const struct llscene *s, const struct gn_frame *on, const s
 static void test_accuracy(void)
 {
         static const char *names[] = {"gauss3", "com", "parabola"};
+        struct run x;
         struct llscene s;
         struct gn_frame on, off;
         struct laserline_opts o;
@@ -74,6 +75,10 @@ static void test_accuracy(void)
                         snprintf(what, sizeof(what), "%d bits, %s", bits, names[e]);
                         expect(&s, &on, &off, &o, e == LASERLINE_COM ? RMS_MAX : 1, what);
                 }
+                /* the laser is red: the green channel has no line */
+                laserline_opts_default(&o, 1);
+                CHECK_INT(laserline_extract(&on, &off, &o, run_init(&x)), 0);
+                CHECK_INT(laserline_extract(&on, NULL, &o, run_init(&x)), 0);
                 gn_frame_free_data(&on);
                 gn_frame_free_data(&off);
         }
