@@ -1,0 +1,108 @@
+/* bench/laserline.c - the laser line's extraction (calib/laserline, on minus off) on 1280x960
+ * RGB8 frames rendered once (tests/calib/lltest: the laser on a plate, noise on), against
+ * the OpenCV reference of the usual steps (laserline-ref.cpp) and against merely reading
+ * both frames from memory (a loop summing them as 64-bit words); the reference also on one
+ * thread (printed, not in the JSON line). Also the RMS of our centres against
+ * the renderer's analytic line. Last line: one JSON object. */
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "common/clock.h"
+#include "laserline-ref.h"
+#include "tests/calib/lltest.h"
+
+#define W      1280
+#define H      960
+#define ROUNDS 7 /* the best round of each is kept: the machine is shared */
+
+static double now_ms(void)
+{
+        return (double)gn_monotonic_ns() * 1e-6;
+}
+
+static volatile uint64_t sink;
+
+/* Sums both frames as 64-bit words (every byte read once, as fast as the loop goes). */
+static void memread(const struct gn_frame *on, const struct gn_frame *off)
+{
+        const uint64_t *a = (const uint64_t *)on->data, *b = (const uint64_t *)off->data;
+        uint64_t s = 0;
+
+        for (size_t i = 0; i < gn_frame_bytes(on) / 8; i++)
+                s += a[i] + b[i];
+        sink = s;
+}
+
+struct timed {
+        const struct gn_frame *on, *off;
+        struct laserline_opts o;
+        struct laserline_result r;
+        struct llref *ref;
+        float ref_centre[H];
+};
+
+enum { OURS, REFERENCE, MEMREAD };
+
+static void run(struct timed *t, int what)
+{
+        if (what == OURS)
+                CHECK(laserline_extract(t->on, t->off, &t->o, &t->r) > 0);
+        else if (what == REFERENCE)
+                CHECK_INT(llref_extract(t->ref, t->on, t->off, t->ref_centre), 0);
+        else
+                memread(t->on, t->off);
+}
+
+/* Milliseconds per frame of `what`: the best of ROUNDS rounds of n frames. */
+static double time_ms(struct timed *t, int what, int n)
+{
+        double best = INFINITY;
+
+        for (int k = 0; k < ROUNDS; k++) {
+                double t0 = now_ms();
+                for (int i = 0; i < n; i++)
+                        run(t, what);
+                best = fmin(best, (now_ms() - t0) / n);
+        }
+        return best;
+}
+
+int main(void)
+{
+        static float centre[H], strength[H], width[H];
+        struct llscene s;
+        struct gn_frame on, off;
+        struct timed t = {.r = {.centre = centre, .strength = strength, .width = width, .n = H}};
+        double ours, ref, ref1, mem, rms;
+        int visible, missed, spurious;
+
+        ll_open(&s, W, H, 1.2e3, 0);
+        ll_render(&s, true, false, 8, 1, &on);
+        ll_render(&s, false, false, 8, 2, &off);
+        t.on = &on;
+        t.off = &off;
+        laserline_opts_default(&t.o, 0);
+        t.ref = llref_new(W, H);
+        CHECK(t.ref);
+        ours = time_ms(&t, OURS, 50);
+        ref = time_ms(&t, REFERENCE, 10);
+        llref_threads(1);
+        ref1 = time_ms(&t, REFERENCE, 10);
+        llref_threads(0);
+        mem = time_ms(&t, MEMREAD, 50);
+        rms = ll_score(&s, &t.r, &visible, &missed, &spurious);
+        printf("laserline: %dx%d RGB8, on minus off: %.3f ms/frame; OpenCV reference %.3f ms "
+               "(%.1fx ours), %.3f ms on one thread (%.1fx ours); reading both frames %.3f ms "
+               "(ours %.2fx)\n",
+               W, H, ours, ref, ref / ours, ref1, ref1 / ours, mem, ours / mem);
+        printf("accuracy: %d rows with the line seen, %d missed, %d spurious, RMS %.4f px\n",
+               visible, missed, spurious, rms);
+        printf("{\"bench\":\"laserline\",\"ms_per_frame\":%.4f,\"reference_ms\":%.4f,"
+               "\"memread_ms\":%.4f,\"rms_px\":%.4f}\n",
+               ours, ref, mem, rms);
+        llref_free(t.ref);
+        gn_frame_free_data(&on);
+        gn_frame_free_data(&off);
+        ll_close(&s);
+        return 0;
+}
