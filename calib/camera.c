@@ -217,6 +217,22 @@ static ssize_t outlier(const struct solve *s, const double *view_rms, double *me
         return worst;
 }
 
+/* RMS of view i against the intrinsics solved without it: its board pose by solvePnP, its
+ * corners reprojected. NAN when that fails. */
+static double rms_against_fit(const struct solve *s, size_t i)
+{
+        const struct view_pts *p = &s->pts[i];
+        _cleanup_free_ double *uv = malloc(2 * p->n * sizeof(double) + 1);
+        double rvec[3], tvec[3], sum = 0;
+
+        if (!uv || cal_cv_solve_pnp(p->obj, p->uv, p->n, &s->out->k, rvec, tvec) < 0 ||
+            cal_cv_project(p->obj, p->n, rvec, tvec, &s->out->k, uv) < 0)
+                return NAN;
+        for (int k = 0; k < 2 * p->n; k++)
+                sum += (uv[k] - p->uv[k]) * (uv[k] - p->uv[k]);
+        return sqrt(sum / p->n);
+}
+
 /* Fits, rejects the worst outlier while enough views remain, fits again. */
 static int fit_rejecting(struct solve *s)
 {
@@ -241,8 +257,10 @@ static int fit_rejecting(struct solve *s)
                          view_rms[w], view_rms[w] / median, median);
         }
         for (size_t i = 0; i < out->n_views; i++) {
-                out->views[i].rms = view_rms[i];
                 out->views[i].used = !isnan(view_rms[i]);
+                out->views[i].rms = out->views[i].used ? view_rms[i]
+                                    : s->pts[i].n      ? rms_against_fit(s, i)
+                                                       : NAN;
         }
         return 0;
 }

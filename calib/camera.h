@@ -24,10 +24,11 @@
 /* One view (dataset row) offered to the solve. */
 struct cal_view {
         int64_t row_id;
-        char file[256];              /* relative to the dataset */
-        int corners;                 /* corners found, 0 when the board was not found */
-        double rms;                  /* reprojection RMS in px; NAN when not in the final fit */
-        bool used;                   /* in the final fit */
+        char file[256]; /* relative to the dataset */
+        int corners;    /* corners found, 0 when the board was not found */
+        double rms;     /* reprojection RMS in the final fit, px; for a view rejected as an outlier,
+                         * its RMS against that fit (pose by solvePnP); NAN without corners */
+        bool used;      /* in the final fit */
         char reason[CAL_REASON_MAX]; /* why not used, "" when used */
 };
 
