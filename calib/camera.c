@@ -347,6 +347,23 @@ int cal_camera_solve(struct ds *d, const struct cal_camera_opts *o, struct cal_c
         return r < 0 ? r : 0;
 }
 
+int cal_board_parse(const char *spec, struct cal_board *b)
+{
+        char type[16], end;
+        int n;
+
+        *b = (struct cal_board){0};
+        n = sscanf(spec, "%15[a-z]:%dx%d:%lf:%lf%c", type, &b->squares_x, &b->squares_y,
+                   &b->square_mm, &b->marker_mm, &end);
+        if (n == 4 && !strcmp(type, "chessboard"))
+                b->type = CAL_BOARD_CHESSBOARD;
+        else if (n == 5 && !strcmp(type, "charuco"))
+                b->type = CAL_BOARD_CHARUCO;
+        else
+                return -EINVAL;
+        return cal_board_valid(b) ? 0 : -EINVAL;
+}
+
 void cal_camera_clear(struct cal_camera *c)
 {
         free(c->views);

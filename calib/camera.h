@@ -54,6 +54,11 @@ struct cal_camera {
         struct cal_view *views; /* n_views, in row order; malloc'd (cal_camera_clear) */
 };
 
+/* Parses a board description: "chessboard:9x7:20" (squares across x down, square side in
+ * mm) or "charuco:8x6:20:15" (and the marker side). Returns 0, or -EINVAL for a malformed
+ * or impossible board (cal_board_valid). */
+int cal_board_parse(const char *spec, struct cal_board *b);
+
 /* Solves the intrinsics of one camera from its dataset rows of kind "image", bracket 0: finds
  * the board in each, calibrates, rejects outlier views one at a time (worst first, while its
  * RMS is above max(outlier_factor x median, outlier_floor_px) and enough views remain) and

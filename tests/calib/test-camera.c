@@ -5,6 +5,7 @@
  * geometry; bad input (board missing, too few views, a view of another camera) is rejected
  * with a reason; the calibration file keeps a better result unless forced. */
 #include <math.h>
+#include <sys/wait.h>
 
 #include "calib/camera.h"
 #include "common/cleanup.h"
@@ -383,13 +384,75 @@ static void test_file(void)
         tu_rm_rf(tmp);
 }
 
+/* Runs gonioctl (path in $GONIOCTL) with args; its stdout and stderr into out. Returns its
+ * exit code. */
+static int gonioctl(const char *args, char *out, size_t len)
+{
+        char cmd[1024];
+        FILE *p;
+        size_t n;
+        int st;
+
+        snprintf(cmd, sizeof(cmd), "%s %s 2>&1", getenv("GONIOCTL"), args);
+        p = popen(cmd, "r");
+        CHECK(p);
+        n = fread(out, 1, len - 1, p);
+        out[n] = 0;
+        st = pclose(p);
+        fprintf(stderr, "$ gonioctl %s -> %d\n%s", args, WEXITSTATUS(st), out);
+        return WEXITSTATUS(st);
+}
+
+/* gonioctl calibrate camera --from DATASET: the summary, the file, the errors. */
+static void test_gonioctl(void)
+{
+        struct fixture fx;
+        struct cal_camera back;
+        char args[1024], out[8192], file[600], err[512];
+
+        if (!getenv("GONIOCTL")) {
+                fprintf(stderr, "GONIOCTL not set: skipped\n");
+                exit(TEST_SKIP);
+        }
+        fx_open(&fx, &(struct cal_board){CAL_BOARD_CHESSBOARD, 9, 7, 16, 0});
+        add_poses(&fx, 8);
+        add_view(&fx, &poses[0], no_board, TRUTH[4], 70);
+        fx.d = ds_close(fx.d);
+        snprintf(args, sizeof(args), "calibrate camera --from %s --board chessboard:9x7:16",
+                 fx.path);
+        CHECK_INT(gonioctl(args, out, sizeof(out)), 0);
+        CHECK_STR_CONTAINS(out, "camera c0: 1280x960, 8 views used, 1 rejected");
+        CHECK_STR_CONTAINS(out, "board not found");
+        CHECK_STR_CONTAINS(out, "reprojection RMS 0.0");
+        snprintf(file, sizeof(file), "%s/calibration.yaml", fx.path);
+        CHECK_INT(cal_camera_read(file, "c0", &back, err, sizeof(err)), 0);
+        CHECK_NEAR(back.k.fx, TRUTH[0], 0.002 * TRUTH[0]);
+        CHECK_INT(back.n_used, 8);
+        /* --json, a board that is not there, a bad board, an unknown camera */
+        snprintf(args, sizeof(args), "--json calibrate camera --from %s --board chessboard:9x7:16",
+                 fx.path);
+        CHECK_INT(gonioctl(args, out, sizeof(out)), 0);
+        CHECK_STR_CONTAINS(out, "\"rms_px\":");
+        snprintf(args, sizeof(args), "calibrate camera --from %s --board chessboard:6x5:16",
+                 fx.path);
+        CHECK_INT(gonioctl(args, out, sizeof(out)), 6);
+        CHECK_STR_CONTAINS(out, "board not found in any of 9 views of camera c0");
+        snprintf(args, sizeof(args), "calibrate camera --from %s --board chessboard:9x7", fx.path);
+        CHECK_INT(gonioctl(args, out, sizeof(out)), 2);
+        snprintf(args, sizeof(args),
+                 "calibrate camera --from %s --board chessboard:9x7:16 --camera c7", fx.path);
+        CHECK_INT(gonioctl(args, out, sizeof(out)), 6);
+        CHECK_STR_CONTAINS(out, "no captures of camera c7");
+        fx_close(&fx);
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
                 {"corners", test_corners}, {"chessboard", test_chessboard},
                 {"charuco", test_charuco}, {"outlier", test_outlier},
                 {"too-few", test_too_few}, {"not-found", test_not_found},
-                {"file", test_file},
+                {"file", test_file},       {"gonioctl", test_gonioctl},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
