@@ -140,10 +140,11 @@ static int detect_view(struct ds *d, struct solve *s, size_t i)
         v->corners = r;
         if (r == 0)
                 snprintf(v->reason, sizeof(v->reason), "board not found");
-        else if (r < s->o.min_corners || !spans_plane(b, ids, r))
-                snprintf(v->reason, sizeof(v->reason),
-                         "only %d corners of the board, on one line or fewer than %d", r,
+        else if (r < s->o.min_corners)
+                snprintf(v->reason, sizeof(v->reason), "only %d corners of the board (need %d)", r,
                          s->o.min_corners);
+        else if (!spans_plane(b, ids, r))
+                snprintf(v->reason, sizeof(v->reason), "the %d corners found lie on one line", r);
         p->n = v->reason[0] ? 0 : r;
         for (int k = 0; k < p->n; k++)
                 cal_board_corner_xy(b, ids[k], &p->obj[3 * k]);
