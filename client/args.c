@@ -25,6 +25,9 @@ enum opt_id {
         O_GAIN,
         O_BITS,
         O_COUNT,
+        O_FROM,
+        O_BOARD,
+        O_FORCE,
 };
 
 static const struct {
@@ -46,6 +49,9 @@ static const struct {
         {"gain", O_GAIN, true, ARG_GAIN},
         {"bits", O_BITS, true, ARG_BITS},
         {"count", O_COUNT, true, ARG_COUNT},
+        {"from", O_FROM, true, ARG_FROM},
+        {"board", O_BOARD, true, ARG_BOARD},
+        {"force", O_FORCE, false, ARG_FORCE},
 };
 
 int args_usage_error(const char *what, const char *fmt, ...)
@@ -124,6 +130,12 @@ static int set_value(struct args *a, enum opt_id id, const char *v)
                 return 0;
         case O_COUNT:
                 return args_parse_long(v, 1, LONG_MAX, &a->count) < 0 ? -EINVAL : 0;
+        case O_FROM:
+                a->from = v;
+                return 0;
+        case O_BOARD:
+                a->board = v;
+                return 0;
         default:
                 break;
         }

@@ -14,6 +14,9 @@ enum arg_opt {
         ARG_GAIN = 1 << 4,
         ARG_BITS = 1 << 5,
         ARG_COUNT = 1 << 6,
+        ARG_FROM = 1 << 7,
+        ARG_BOARD = 1 << 8,
+        ARG_FORCE = 1 << 9,
 };
 
 struct args {
@@ -26,6 +29,8 @@ struct args {
         double gain;        /* --gain */
         int bits;           /* --bits */
         long count;         /* --count */
+        const char *from;   /* --from: a dataset directory */
+        const char *board;  /* --board: a board description (calib/camera.h) */
         char **words;       /* positional words (command first); borrowed from argv */
         int nwords;
 };

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include "drivers/discover.h"
+#include "client/calibrate.h"
 #include "client/cmd.h"
 #include "client/conn.h"
 #include "client/output.h"
@@ -43,7 +44,9 @@ struct cmd {
         bool watch;
         bool stops;   /* waits for motion: an interrupted wait stops the rig (not --no-wait) */
         bool follows; /* follows the session its result describes until it ends or pauses */
-        json_t *(*local)(void); /* runs here, without goniod: its result is printed */
+        /* runs here, without goniod: fills its result (printed) or prints its error with
+         * out_error; returns an enum gonioctl_exit value */
+        int (*local)(const struct args *a, struct out *o, json_t **ret);
 };
 
 /* "move", "dataset open": the words naming c, for messages. */
@@ -186,11 +189,14 @@ static int p_call(const struct cmd *c, const struct args *a, char **argv, int ar
 }
 
 /* The devices of this machine, from $GONIO_SYSFS (for tests) or /sys. */
-static json_t *discover_here(void)
+static int discover_here(const struct args *a, struct out *o, json_t **ret)
 {
         const char *sysfs = getenv("GONIO_SYSFS");
 
-        return discover_all(sysfs && *sysfs ? sysfs : "/sys");
+        *ret = discover_all(sysfs && *sysfs ? sysfs : "/sys");
+        if (!*ret)
+                out_error(o, "devices", "out of memory");
+        return *ret ? EXIT_OK : EXIT_PROTOCOL;
 }
 
 static const struct cmd commands[] = {
@@ -244,6 +250,10 @@ static const struct cmd commands[] = {
          ARG_COUNT, TIMEOUT_S, NULL, NULL, NULL, true},
         {NULL, "devices", "", "serial ports, V4L2 nodes, gpiochips, USB devices here (no goniod)",
          NULL, 0, 0, 0, TIMEOUT_S, NULL, out_print_devices, .local = discover_here},
+        {"calibrate", "camera", "--from DATASET --board SPEC [--camera NAME] [--force]",
+         "solve a camera's intrinsics from a dataset's board views (no goniod)", NULL, 0, 0,
+         ARG_FROM | ARG_BOARD | ARG_CAMERA | ARG_FORCE, TIMEOUT_S, NULL, calibrate_print_camera,
+         .local = calibrate_camera},
         {NULL, "call", "METHOD [JSON-PARAMS]", "send any request, print its result", NULL, 1, 2, 0,
          TIMEOUT_S, p_call, out_print_pretty},
 };
@@ -587,14 +597,15 @@ static int run_method(const struct cmd *c, const struct args *a, struct out *o, 
 }
 
 /* Runs a command that needs no goniod and prints its result. */
-static int run_local(const struct cmd *c, struct out *o, json_t *params)
+static int run_local(const struct cmd *c, const struct args *a, struct out *o, json_t *params)
 {
-        json_t *res = c->local();
+        json_t *res = NULL;
+        int r = c->local(a, o, &res);
 
         json_decref(params);
-        if (!res) {
-                out_error(o, c->name, "out of memory");
-                return EXIT_PROTOCOL;
+        if (r != EXIT_OK) {
+                json_decref(res);
+                return r;
         }
         out_result(o, c->print, c->done, res);
         json_decref(res);
@@ -623,7 +634,7 @@ int cmd_run(const struct args *a)
         }
         out_init(&o, a->json, a->quiet);
         if (c->local)
-                return run_local(c, &o, params);
+                return run_local(c, a, &o, params);
         r = connect_hello(a, &o, &conn);
         if (r != EXIT_OK) {
                 json_decref(params);
