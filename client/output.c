@@ -380,6 +380,9 @@ static long long get_int(json_t *o, const char *key)
 /* What one discovered device is: a relay board, a USB device, a card name or a driver. */
 static void device_what(struct table *t, json_t *d)
 {
+        const char *label = json_string_value(json_object_get(d, "label"));
+        const char *usb = json_string_value(json_object_get(d, "usb"));
+
         if (json_object_get(d, "relays"))
                 table_addf(t, "%s %s, HID relay board, %lld relays", get_str(d, "id"),
                            get_str(d, "product"), get_int(d, "relays"));
@@ -389,30 +392,37 @@ static void device_what(struct table *t, json_t *d)
         else if (json_object_get(d, "name"))
                 table_addf(t, "%s", get_str(d, "name"));
         else
-                table_addf(t, "%s%s%s%s%s", get_str(d, "driver"),
-                           json_is_string(json_object_get(d, "label")) ? " " : "",
-                           json_is_string(json_object_get(d, "label")) ? get_str(d, "label") : "",
-                           json_is_string(json_object_get(d, "usb")) ? " usb " : "",
-                           json_is_string(json_object_get(d, "usb")) ? get_str(d, "usb") : "");
+                table_addf(t, "%s%s%s%s%s", get_str(d, "driver"), label ? " " : "",
+                           label ? label : "", usb ? " usb " : "", usb ? usb : "");
 }
 
-/* The sizes of a format: "640x480 1280x720", else its range "16x16-1920x1080". */
+#define SIZES_LISTED 8 /* more sizes than this and a range: the range is shown */
+
+/* The sizes of a format: "640x480 1280x720", or its range "16x16-1920x1080" (with the number
+ * of sizes it lists, if any) where there is no list or a long one. */
 static void cell_sizes(struct table *t, json_t *fmt)
 {
         json_t *sizes = json_object_get(fmt, "sizes"), *r = json_object_get(fmt, "range"), *e;
+        size_t n = json_array_size(sizes), len = 0, i;
         _cleanup_free_ char *s = NULL;
-        size_t len = 0, i;
         FILE *f = open_memstream(&s, &len);
 
         if (!f) {
                 table_addf(t, "?");
                 return;
         }
-        json_array_foreach(sizes, i, e)
-                fprintf(f, "%s%lldx%lld", i ? " " : "", get_int(e, "width"), get_int(e, "height"));
-        if (json_array_size(sizes) == 0 && json_is_object(r))
+        if (json_is_object(r) && (n == 0 || n > SIZES_LISTED)) {
                 fprintf(f, "%lldx%lld-%lldx%lld", get_int(r, "min_width"), get_int(r, "min_height"),
                         get_int(r, "max_width"), get_int(r, "max_height"));
+                if (n)
+                        fprintf(f, " (%zu sizes)", n);
+        } else {
+                json_array_foreach(sizes, i, e)
+                {
+                        fprintf(f, "%s%lldx%lld", i ? " " : "", get_int(e, "width"),
+                                get_int(e, "height"));
+                }
+        }
         fclose(f);
         table_addf(t, "%s", len ? s : "-");
 }
@@ -473,6 +483,13 @@ static void print_lines(const char *who, json_t *lines)
         table_print(&t);
 }
 
+/* Why a node could not be asked for its details, when it could not. */
+static void print_node_error(json_t *d)
+{
+        if (json_is_string(json_object_get(d, "error")))
+                printf("\n%s: cannot query: %s\n", get_str(d, "path"), get_str(d, "error"));
+}
+
 /* The details of each device that has them: formats, controls, lines. */
 static void print_device_details(json_t *r)
 {
@@ -481,17 +498,23 @@ static void print_device_details(json_t *r)
 
         json_array_foreach(json_object_get(r, "v4l2"), i, d)
         {
+                print_node_error(d);
                 if (json_array_size(json_object_get(d, "formats")))
                         print_formats(get_str(d, "path"), json_object_get(d, "formats"));
                 if (json_array_size(json_object_get(d, "controls")))
                         print_controls(get_str(d, "path"), json_object_get(d, "controls"));
         }
-        json_array_foreach(json_object_get(r, "gpio"), i,
-                           d) if (json_array_size(json_object_get(d, "lines")))
-                print_lines(get_str(d, "path"), json_object_get(d, "lines"));
-        json_array_foreach(json_object_get(r, "libcamera"), i,
-                           d) if (json_array_size(json_object_get(d, "formats")))
-                print_formats(get_str(d, "id"), json_object_get(d, "formats"));
+        json_array_foreach(json_object_get(r, "gpio"), i, d)
+        {
+                print_node_error(d);
+                if (json_array_size(json_object_get(d, "lines")))
+                        print_lines(get_str(d, "path"), json_object_get(d, "lines"));
+        }
+        json_array_foreach(json_object_get(r, "libcamera"), i, d)
+        {
+                if (json_array_size(json_object_get(d, "formats")))
+                        print_formats(get_str(d, "id"), json_object_get(d, "formats"));
+        }
 }
 
 void out_print_devices(json_t *r)

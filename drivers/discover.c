@@ -69,25 +69,28 @@ static const char *usb_ancestor(const char *dir, char *buf, size_t len)
         return buf[0] = 0, buf;
 }
 
-/* Calls fn for each entry of SYSFS/sub whose name starts with prefix. */
+/* Calls fn for each entry of SYSFS/sub whose name starts with prefix, in version order
+ * (video2 before video10). */
 static void each_entry(const char *sysfs, const char *sub, const char *prefix, json_t *out,
                        void (*fn)(const char *dir, const char *name, json_t *out))
 {
         char path[PATH_MAX];
-        DIR *d;
-        struct dirent *de;
+        struct dirent **de;
+        int n;
 
         snprintf(path, sizeof(path), "%s/%s", sysfs, sub);
-        if (!(d = opendir(path)))
+        if ((n = scandir(path, &de, NULL, versionsort)) < 0)
                 return;
-        while ((de = readdir(d))) {
+        for (int i = 0; i < n; i++) {
                 char dir[PATH_MAX];
-                if (de->d_name[0] == '.' || strncmp(de->d_name, prefix, strlen(prefix)) != 0)
-                        continue;
-                snprintf(dir, sizeof(dir), "%s/%s", path, de->d_name);
-                fn(dir, de->d_name, out);
+                const char *name = de[i]->d_name;
+                if (name[0] != '.' && strncmp(name, prefix, strlen(prefix)) == 0) {
+                        snprintf(dir, sizeof(dir), "%s/%s", path, name);
+                        fn(dir, name, out);
+                }
+                free(de[i]);
         }
-        closedir(d);
+        free(de);
 }
 
 /* A tty with a device behind it (not a virtual console or pty). */
