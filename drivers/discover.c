@@ -136,11 +136,16 @@ static void node_error(json_t *o, int err)
                 json_object_set_new(o, "error", json_string(strerror(-err)));
 }
 
-/* A fourcc as its four characters, trailing blanks dropped ("YUYV", "GREY"). */
+/* A fourcc as its four characters, trailing blanks dropped ("YUYV", "GREY"); the big-endian
+ * flag (bit 31, V4L2 and DRM alike) is dropped, anything else unprintable becomes '?'. */
 static const char *fourcc_str(uint32_t f, char buf[5])
 {
-        for (int i = 0; i < 4; i++)
+        f &= ~(1u << 31);
+        for (int i = 0; i < 4; i++) {
                 buf[i] = (char)((f >> (8 * i)) & 0xff);
+                if (buf[i] < ' ' || buf[i] > '~')
+                        buf[i] = '?';
+        }
         buf[4] = 0;
         for (int i = 3; i > 0 && buf[i] == ' '; i--)
                 buf[i] = 0;
@@ -197,6 +202,7 @@ static json_t *v4l2_formats(int fd)
         return list;
 }
 
+/* A V4L2 control type as devices names it; "other" for compound and newer types. */
 static const char *ctrl_type(uint32_t type)
 {
         static const char *const names[] = {
