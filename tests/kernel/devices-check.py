@@ -2,7 +2,8 @@
 """In the kernel lane: `gonioctl devices --json` lists what the guest's test drivers
 created: both vivid nodes with their formats (YUYV among them, with sizes) and controls
 (Brightness), the gpio-sim chip "gonio-gpio" (init) with its named lines, and at least one
-vimc camera through libcamera with its formats. The human output names them too. Usage:
+vimc camera through libcamera with its formats. The human output names them too, and
+neither output has anything on stderr (libcamera's log is silenced). Usage:
 devices-check.py GONIOCTL"""
 import json
 import subprocess
@@ -10,8 +11,9 @@ import sys
 
 
 def gonioctl(*args):
-    return subprocess.run([sys.argv[1], *args], check=True, capture_output=True,
-                          text=True).stdout
+    done = subprocess.run([sys.argv[1], *args], check=True, capture_output=True, text=True)
+    assert done.stderr == "", f"stderr not quiet (libcamera's log?): {done.stderr[:300]}"
+    return done.stdout
 
 
 def check(found):
@@ -41,8 +43,9 @@ def check_text(text, found):
         assert word in text, f"human output lacks {word}"
 
 
-out = gonioctl("--json", "devices")
+out = ""
 try:
+    out = gonioctl("--json", "devices")
     check(json.loads(out))
     check_text(gonioctl("devices"), json.loads(out))
 except AssertionError as e:
