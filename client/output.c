@@ -372,9 +372,154 @@ static void describe_option(struct table *t, json_t *opt)
 }
 
 /* One row per device found: family, path, and what identifies it. */
+static long long get_int(json_t *o, const char *key)
+{
+        return (long long)json_integer_value(json_object_get(o, key));
+}
+
+/* What one discovered device is: a relay board, a USB device, a card name or a driver. */
+static void device_what(struct table *t, json_t *d)
+{
+        const char *label = json_string_value(json_object_get(d, "label"));
+        const char *usb = json_string_value(json_object_get(d, "usb"));
+
+        if (json_object_get(d, "relays"))
+                table_addf(t, "%s %s, HID relay board, %lld relays", get_str(d, "id"),
+                           get_str(d, "product"), get_int(d, "relays"));
+        else if (json_object_get(d, "id"))
+                table_addf(t, "%s %s %s", get_str(d, "id"), get_str(d, "manufacturer"),
+                           get_str(d, "product"));
+        else if (json_object_get(d, "name"))
+                table_addf(t, "%s", get_str(d, "name"));
+        else
+                table_addf(t, "%s%s%s%s%s", get_str(d, "driver"), label ? " " : "",
+                           label ? label : "", usb ? " usb " : "", usb ? usb : "");
+}
+
+#define SIZES_LISTED 8 /* more sizes than this and a range: the range is shown */
+
+/* The sizes of a format: "640x480 1280x720", or its range "16x16-1920x1080" (with the number
+ * of sizes it lists, if any) where there is no list or a long one. */
+static void cell_sizes(struct table *t, json_t *fmt)
+{
+        json_t *sizes = json_object_get(fmt, "sizes"), *r = json_object_get(fmt, "range"), *e;
+        size_t n = json_array_size(sizes), len = 0, i;
+        _cleanup_free_ char *s = NULL;
+        FILE *f = open_memstream(&s, &len);
+
+        if (!f) {
+                table_addf(t, "?");
+                return;
+        }
+        if (json_is_object(r) && (n == 0 || n > SIZES_LISTED)) {
+                fprintf(f, "%lldx%lld-%lldx%lld", get_int(r, "min_width"), get_int(r, "min_height"),
+                        get_int(r, "max_width"), get_int(r, "max_height"));
+                if (n)
+                        fprintf(f, " (%zu sizes)", n);
+        } else {
+                json_array_foreach(sizes, i, e)
+                {
+                        fprintf(f, "%s%lldx%lld", i ? " " : "", get_int(e, "width"),
+                                get_int(e, "height"));
+                }
+        }
+        fclose(f);
+        table_addf(t, "%s", len ? s : "-");
+}
+
+/* "WHO formats:" and a table of the formats (V4L2's description or libcamera's name). */
+static void print_formats(const char *who, json_t *formats)
+{
+        struct table t = {.ncols = 3, .align = "lll"};
+        size_t i;
+        json_t *f;
+
+        printf("\n%s formats:\n", who);
+        table_cells(&t, "FOURCC", "DESCRIPTION", "SIZES", NULL);
+        json_array_foreach(formats, i, f)
+        {
+                table_addf(&t, "%s", get_str(f, "fourcc"));
+                table_addf(&t, "%s",
+                           get_str(f, json_object_get(f, "name") ? "name" : "description"));
+                cell_sizes(&t, f);
+        }
+        table_print(&t);
+}
+
+static void print_controls(const char *who, json_t *controls)
+{
+        struct table t = {.ncols = 6, .align = "llrrrr"};
+        size_t i;
+        json_t *c;
+
+        printf("\n%s controls:\n", who);
+        table_cells(&t, "CONTROL", "TYPE", "MIN", "MAX", "STEP", "DEFAULT", NULL);
+        json_array_foreach(controls, i, c)
+        {
+                table_cells(&t, get_str(c, "name"), get_str(c, "type"), NULL);
+                table_addf(&t, "%lld", get_int(c, "min"));
+                table_addf(&t, "%lld", get_int(c, "max"));
+                table_addf(&t, "%lld", get_int(c, "step"));
+                table_addf(&t, "%lld", get_int(c, "default"));
+        }
+        table_print(&t);
+}
+
+static void print_lines(const char *who, json_t *lines)
+{
+        struct table t = {.ncols = 5, .align = "rllll"};
+        size_t i;
+        json_t *l;
+
+        printf("\n%s lines:\n", who);
+        table_cells(&t, "LINE", "NAME", "CONSUMER", "DIRECTION", "USED", NULL);
+        json_array_foreach(lines, i, l)
+        {
+                table_addf(&t, "%lld", get_int(l, "offset"));
+                table_cells(&t, get_str(l, "name"), get_str(l, "consumer"), get_str(l, "direction"),
+                            NULL);
+                cell_bool(&t, json_object_get(l, "used"), "used", "free");
+        }
+        table_print(&t);
+}
+
+/* Why a node could not be asked for its details, when it could not. */
+static void print_node_error(json_t *d)
+{
+        if (json_is_string(json_object_get(d, "error")))
+                printf("\n%s: cannot query: %s\n", get_str(d, "path"), get_str(d, "error"));
+}
+
+/* The details of each device that has them: formats, controls, lines. */
+static void print_device_details(json_t *r)
+{
+        size_t i;
+        json_t *d;
+
+        json_array_foreach(json_object_get(r, "v4l2"), i, d)
+        {
+                print_node_error(d);
+                if (json_array_size(json_object_get(d, "formats")))
+                        print_formats(get_str(d, "path"), json_object_get(d, "formats"));
+                if (json_array_size(json_object_get(d, "controls")))
+                        print_controls(get_str(d, "path"), json_object_get(d, "controls"));
+        }
+        json_array_foreach(json_object_get(r, "gpio"), i, d)
+        {
+                print_node_error(d);
+                if (json_array_size(json_object_get(d, "lines")))
+                        print_lines(get_str(d, "path"), json_object_get(d, "lines"));
+        }
+        json_array_foreach(json_object_get(r, "libcamera"), i, d)
+        {
+                if (json_array_size(json_object_get(d, "formats")))
+                        print_formats(get_str(d, "id"), json_object_get(d, "formats"));
+        }
+}
+
 void out_print_devices(json_t *r)
 {
-        static const char *const families[] = {"serial", "v4l2", "gpio", "usb"};
+        static const char *const families[] = {"serial", "v4l2", "gpio", "usb", "libcamera"};
         struct table t = {.ncols = 3, .align = "lll"};
         json_t *d;
         size_t i;
@@ -385,25 +530,18 @@ void out_print_devices(json_t *r)
                 {
                         table_addf(&t, "%s", families[f]);
                         table_addf(&t, "%s",
-                                   get_str(d, json_object_get(d, "path") ? "path" : "bus_path"));
-                        if (json_object_get(d, "relays"))
-                                table_addf(&t, "%s %s, HID relay board, %lld relays",
-                                           get_str(d, "id"), get_str(d, "product"),
-                                           (long long)json_integer_value(
-                                                   json_object_get(d, "relays")));
-                        else if (json_object_get(d, "id"))
-                                table_addf(&t, "%s %s %s", get_str(d, "id"),
-                                           get_str(d, "manufacturer"), get_str(d, "product"));
-                        else if (json_object_get(d, "name"))
-                                table_addf(&t, "%s", get_str(d, "name"));
+                                   get_str(d, json_object_get(d, "path")       ? "path"
+                                              : json_object_get(d, "bus_path") ? "bus_path"
+                                                                               : "id"));
+                        if (json_object_get(d, "model")) /* a libcamera camera */
+                                table_addf(&t, "%s", get_str(d, "model"));
                         else
-                                table_addf(&t, "%s%s%s", get_str(d, "driver"),
-                                           json_is_string(json_object_get(d, "usb")) ? " usb " : "",
-                                           json_is_string(json_object_get(d, "usb"))
-                                                   ? get_str(d, "usb")
-                                                   : "");
+                                device_what(&t, d);
                 }
         table_print(&t);
+        if (json_is_string(json_object_get(r, "libcamera_error")))
+                printf("libcamera: %s\n", get_str(r, "libcamera_error"));
+        print_device_details(r);
 }
 
 void out_print_describe(json_t *r)

@@ -1,12 +1,16 @@
 /* test-discover.c - device discovery (drivers/discover.c) on a sysfs tree built the way
  * the kernel lays it out (class links into a devices hierarchy, attribute files), in a
  * temp dir: a USB serial adapter, a virtual console that is no port, a V4L2 node, a
- * gpiochip and a USB HID relay board; the real sysfs of this machine must not crash it. */
+ * gpiochip and a USB HID relay board. The V4L2 node's "dev" names another device than
+ * /dev/video0 and the gpiochip has none: neither /dev node is asked (no formats, controls or
+ * lines) and neither is an error. libcamera is always an array; the real sysfs of this
+ * machine must not crash it. */
 #include <errno.h>
 #include <stdlib.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "common/cleanup.h"
 #include "drivers/discover.h"
 #include "tests/test.h"
 
@@ -58,6 +62,7 @@ static void build_tree(void)
         link_to("../../devices/virtual/tty/tty1", "class/tty/tty1");
         mkdirs("devices/platform/vivid.0/video4linux/video0");
         attr("devices/platform/vivid.0/video4linux/video0/name", "vivid-000-vid-cap");
+        attr("devices/platform/vivid.0/video4linux/video0/dev", "4095:4095");
         mkdirs("class/video4linux");
         link_to("../../devices/platform/vivid.0/video4linux/video0", "class/video4linux/video0");
         mkdirs("devices/platform/gpio-sim.0/gpiochip0");
@@ -91,6 +96,7 @@ static const char *field(json_t *o, const char *key)
 
 int main(void)
 {
+        static const char *const probed[] = {"formats", "controls", "lines", "label", "error"};
         json_t *all, *o, *usb;
         char cmd[128];
 
@@ -107,6 +113,11 @@ int main(void)
         CHECK_STR(field(only(all, "v4l2"), "path"), "/dev/video0");
         CHECK_STR(field(only(all, "gpio"), "path"), "/dev/gpiochip0");
         CHECK_STR(field(only(all, "gpio"), "driver"), "gpio-sim");
+        for (size_t i = 0; i < ELEMENTSOF(probed); i++) {
+                CHECK(!json_object_get(only(all, "v4l2"), probed[i]));
+                CHECK(!json_object_get(only(all, "gpio"), probed[i]));
+        }
+        CHECK(json_is_array(json_object_get(all, "libcamera")));
         usb = json_object_get(all, "usb");
         CHECK_INT(json_array_size(usb), 2);
         for (size_t i = 0; i < 2; i++) {

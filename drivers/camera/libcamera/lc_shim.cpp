@@ -1,7 +1,7 @@
 /* lc_shim.cpp - the C face of libcamera (see lc_shim.h, DESIGN there): the one shared
  * CameraManager, camera lookup, stream configuration, buffers mapped once at open, requests
- * completed on libcamera's thread and handed out through an eventfd. Every extern "C" entry
- * catches all exceptions and returns -errno. */
+ * completed on libcamera's thread and handed out through an eventfd, and the camera list for
+ * discovery. Every extern "C" entry catches all exceptions and returns -errno. */
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
@@ -446,4 +446,71 @@ extern "C" void lc_cam_stop(struct lc_cam *cam)
                         ;
                 return 0;
         });
+}
+
+namespace
+{
+
+/* What lc_list() hands out for one camera, owning the strings and arrays the info points to. */
+struct listed {
+        std::vector<std::string> names;
+        std::vector<std::vector<lc_size>> sizes;
+        std::vector<lc_format_info> formats;
+};
+
+void describe(const StreamFormats &sf, listed &l)
+{
+        const std::vector<PixelFormat> pfs = sf.pixelformats();
+
+        l.names.reserve(pfs.size()); /* no reallocation: formats point into both */
+        l.sizes.reserve(pfs.size());
+        for (const PixelFormat &pf : pfs) {
+                const SizeRange r = sf.range(pf);
+                l.names.push_back(pf.toString());
+                l.sizes.emplace_back();
+                for (const Size &s : sf.sizes(pf))
+                        l.sizes.back().push_back({(int)s.width, (int)s.height});
+                l.formats.push_back({pf.fourcc(),
+                                     l.names.back().c_str(),
+                                     l.sizes.back().data(),
+                                     l.sizes.back().size(),
+                                     {(int)r.min.width, (int)r.min.height},
+                                     {(int)r.max.width, (int)r.max.height}});
+        }
+}
+
+void list_one(Camera &c, void (*fn)(const lc_camera_info *, void *), void *data)
+{
+        const auto model = c.properties().get(properties::Model);
+        const std::string m = model ? *model : std::string();
+        listed l;
+
+        auto config = c.generateConfiguration({StreamRole::StillCapture});
+        if (config && config->size() == 1)
+                describe(config->at(0).formats(), l);
+        const lc_camera_info info = {c.id().c_str(), m.c_str(), l.formats.data(), l.formats.size()};
+        fn(&info, data);
+}
+
+/* Lists every camera; the shared_ptrs are gone before the caller drops the CameraManager. */
+int list_all(void (*fn)(const lc_camera_info *, void *), void *data)
+{
+        const auto cameras = cm->cameras();
+        for (const auto &c : cameras)
+                list_one(*c, fn, data);
+        return (int)cameras.size();
+}
+
+} // namespace
+
+extern "C" int lc_list(void (*fn)(const struct lc_camera_info *info, void *data), void *data,
+                       char *cause, size_t len)
+{
+        int r = guard(cause, len, [&]() { return cm_get(); });
+
+        if (r < 0)
+                return fail(cause, len, r, std::string("cannot start libcamera: ") + strerror(-r));
+        r = guard(cause, len, [&]() { return list_all(fn, data); });
+        cm_put();
+        return r;
 }

@@ -78,6 +78,31 @@ int lc_cam_next(struct lc_cam *cam, struct lc_frame *out, char *cause, size_t le
 /* Stops the camera, dropping requests in flight and frames not taken; a no-op when stopped. */
 void lc_cam_stop(struct lc_cam *cam);
 
+struct lc_size {
+        int width, height;
+};
+
+/* One pixel format a camera's StillCapture stream offers, and its sizes. */
+struct lc_format_info {
+        uint32_t fourcc;             /* DRM fourcc */
+        const char *name;            /* libcamera's name of it ("YUYV", "BGR888") */
+        const struct lc_size *sizes; /* the sizes it lists (may be none) */
+        size_t nsizes;
+        struct lc_size min, max; /* the range they lie in */
+};
+
+/* A camera as lc_list() describes it; every pointer is valid during the callback only. */
+struct lc_camera_info {
+        const char *id, *model; /* model: "" when the camera names none */
+        const struct lc_format_info *formats;
+        size_t nformats;
+};
+
+/* Calls fn(info, data) for each camera libcamera sees, without acquiring any. Returns the
+ * number of cameras, -EOPNOTSUPP (built without libcamera) or the -errno libcamera gave. */
+int lc_list(void (*fn)(const struct lc_camera_info *info, void *data), void *data, char *cause,
+            size_t len);
+
 #ifdef __cplusplus
 }
 #endif

@@ -1,16 +1,28 @@
 /* lc_shim_none.c - lc_shim.h where gonio is built without libcamera (-Dlibcamera=disabled
- * or not found): a rig file naming a libcamera camera still loads, and opening the camera
- * fails with -EOPNOTSUPP and a cause that says why. */
+ * or not found): a rig file naming a libcamera camera still loads, opening the camera
+ * fails with -EOPNOTSUPP and a cause that says why, and listing cameras fails the same way. */
 #include <errno.h>
 #include <stdio.h>
 
 #include "drivers/camera/libcamera/lc_shim.h"
 
-int lc_cam_open(const char *id, const char *model, int index, int width, int height,
-                const uint32_t *fourccs, size_t n, struct lc_cam **ret, char *cause, size_t len)
+/* Fails like lc_cam_open(), with the same cause. */
+static int no_libcamera(char *cause, size_t len)
 {
         snprintf(cause, len, "gonio was built without libcamera");
         return -EOPNOTSUPP;
+}
+
+int lc_cam_open(const char *id, const char *model, int index, int width, int height,
+                const uint32_t *fourccs, size_t n, struct lc_cam **ret, char *cause, size_t len)
+{
+        return no_libcamera(cause, len);
+}
+
+int lc_list(void (*fn)(const struct lc_camera_info *info, void *data), void *data, char *cause,
+            size_t len)
+{
+        return no_libcamera(cause, len);
 }
 
 /* Never reached without a camera; defined for the linker. */
