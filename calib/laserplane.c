@@ -1,0 +1,281 @@
+/* laserplane.c - a laser's plane from the line on a board at several poses (laserplane.h). */
+#include <errno.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "calib/laserplane.h"
+#include "calib/turntable_geom.h"
+#include "common/cleanup.h"
+
+#define LP_MAX_CORNERS  1024
+#define LP_RANSAC_ITERS 300
+
+/* The board's pose in the laser-off frame: R, t (board to camera). Returns the corners
+ * found (< 4: not found) or -errno. */
+static int lp_board_pose(const struct gn_frame *f, const struct cal_lp_opts *o, double R[9],
+                         double t[3])
+{
+        struct cal_image im = {f->data, f->width, f->height, f->channels, f->bits, f->stride};
+        double uv[2 * LP_MAX_CORNERS], obj[3 * LP_MAX_CORNERS], xy[2], rv[3];
+        int ids[LP_MAX_CORNERS], n, e;
+
+        n = cal_cv_find_corners(&o->board, &im, uv, ids, LP_MAX_CORNERS);
+        if (n < 4)
+                return n < 0 ? n : 0;
+        for (int j = 0; j < n; j++) {
+                cal_board_corner_xy(&o->board, ids[j], xy);
+                obj[3 * j] = xy[0];
+                obj[3 * j + 1] = xy[1];
+                obj[3 * j + 2] = 0;
+        }
+        if ((e = cal_cv_solve_pnp(obj, uv, n, &o->k, rv, t)) < 0)
+                return e;
+        cal_rodrigues(rv, R);
+        return n;
+}
+
+/* Cuts the rays of the line's pixels uv (2n) with the board's plane (R, t); keeps the points
+ * on the board's squares, half a square in from their edge, into pts (3 each). Returns the
+ * number kept or -errno. */
+static int lp_cut(double *uv, int n, const struct cal_lp_opts *o, const double R[9],
+                  const double t[3], double *pts)
+{
+        const struct cal_board *b = &o->board;
+        double m[3] = {R[2], R[5], R[8]}, h = 0.5 * b->square_mm;
+        int kept = 0, e;
+
+        if (n == 0)
+                return 0;
+        if ((e = cal_cv_undistort(uv, n, &o->k, uv)) < 0)
+                return e;
+        for (int i = 0; i < n; i++) {
+                double ray[3] = {uv[2 * i], uv[2 * i + 1], 1}, X[3], d[3], bx, by;
+                double s = cal_dot(m, t) / cal_dot(m, ray);
+                for (int k = 0; k < 3; k++) {
+                        X[k] = s * ray[k];
+                        d[k] = X[k] - t[k];
+                }
+                bx = R[0] * d[0] + R[3] * d[1] + R[6] * d[2]; /* R^T d */
+                by = R[1] * d[0] + R[4] * d[1] + R[7] * d[2];
+                if (s <= 0 || bx < h || by < h || bx > b->squares_x * b->square_mm - h ||
+                    by > b->squares_y * b->square_mm - h)
+                        continue;
+                memcpy(pts + 3 * kept++, X, sizeof(X));
+        }
+        return kept;
+}
+
+/* The points of one view into pts (room for 3 x on->height); why says what was wrong when
+ * it returns 0. Returns the number of points or -errno. */
+static int lp_view(const struct cal_lp_view *v, const struct cal_lp_opts *o, double *pts, char *why,
+                   size_t wlen)
+{
+        int h = v->on->height, n = 0, e;
+        double R[9], t[3];
+        struct laserline_opts lo;
+        _cleanup_free_ float *c = malloc(h * sizeof(float));
+        _cleanup_free_ double *uv = malloc(2 * h * sizeof(double));
+
+        if (!c || !uv)
+                return -ENOMEM;
+        if ((e = lp_board_pose(v->off, o, R, t)) <= 0) {
+                snprintf(why, wlen, "board not found");
+                return e;
+        }
+        laserline_opts_default(&lo, o->channel);
+        struct laserline_result r = {.centre = c, .n = h};
+        if ((e = laserline_extract(v->on, v->off, &lo, &r)) < 0) {
+                snprintf(why, wlen, "frames unusable (%s)", strerror(-e));
+                return e;
+        }
+        for (int y = 0; y < h; y++)
+                if (!isnan(c[y])) {
+                        uv[2 * n] = c[y];
+                        uv[2 * n++ + 1] = y;
+                }
+        if ((e = lp_cut(uv, n, o, R, t, pts)) < 0)
+                return e;
+        snprintf(why, wlen, "%d line points, %d on the board", n, e);
+        return e;
+}
+
+static double lp_dist(const struct cal_plane *p, const double *x)
+{
+        return fabs(cal_dot(p->n, x) + p->d);
+}
+
+/* Copies the points of pts within tol of p to in (3 each); returns their number. */
+static size_t lp_inliers(const double *pts, size_t n, const struct cal_plane *p, double tol,
+                         double *in)
+{
+        size_t k = 0;
+
+        for (size_t i = 0; i < n; i++)
+                if (lp_dist(p, pts + 3 * i) <= tol) {
+                        if (in)
+                                memcpy(in + 3 * k, pts + 3 * i, 3 * sizeof(double));
+                        k++;
+                }
+        return k;
+}
+
+/* RANSAC over planes through three of the points (a fixed sequence: reproducible). */
+static void lp_ransac(const double *pts, size_t n, double tol, struct cal_plane *best)
+{
+        uint64_t s = 0x9e3779b97f4a7c15ULL;
+        size_t best_k = 0;
+
+        for (int it = 0; it < LP_RANSAC_ITERS; it++) {
+                const double *q[3];
+                double u[3], w[3];
+                struct cal_plane p;
+                for (int j = 0; j < 3; j++) {
+                        s = s * 6364136223846793005ULL + 1442695040888963407ULL;
+                        q[j] = pts + 3 * ((s >> 33) % n);
+                }
+                for (int k = 0; k < 3; k++) {
+                        u[k] = q[1][k] - q[0][k];
+                        w[k] = q[2][k] - q[0][k];
+                }
+                cal_cross(u, w, p.n);
+                if (cal_dot(p.n, p.n) < 1e-12)
+                        continue;
+                cal_normalize(p.n);
+                p.d = -cal_dot(p.n, q[0]);
+                size_t k = lp_inliers(pts, n, &p, tol, NULL);
+                if (k > best_k) {
+                        best_k = k;
+                        *best = p;
+                }
+        }
+}
+
+/* RANSAC, then least squares on the inliers, twice. */
+static int lp_fit(const double *pts, size_t n, double tol, struct cal_laser *out)
+{
+        _cleanup_free_ double *in = malloc(3 * n * sizeof(double));
+        int e = 0;
+
+        if (!in)
+                return -ENOMEM;
+        lp_ransac(pts, n, tol, &out->plane);
+        for (int pass = 0; pass < 2 && e == 0; pass++) {
+                out->inliers = lp_inliers(pts, n, &out->plane, tol, in);
+                e = cal_plane_fit(in, out->inliers, &out->plane, &out->rms_mm, &out->spread_mm);
+        }
+        out->points = n;
+        return e;
+}
+
+/* Appends "view i (why)" to the list of views without the line in bad. */
+static void lp_note(char *bad, size_t len, size_t i, const char *why)
+{
+        size_t l = strlen(bad);
+
+        if (l + 1 < len)
+                snprintf(bad + l, len - l, "%sview %zu (%s)", l ? ", " : "", i, why);
+}
+
+/* Gathers the points of every view into pts (3 x height each); the views without the line in
+ * bad. Returns the number of points or -errno. */
+static int lp_gather(const struct cal_lp_view *v, size_t n, const struct cal_lp_opts *o,
+                     int min_points, double *pts, struct cal_laser *out, char *bad, size_t blen)
+{
+        size_t np = 0;
+        char why[128];
+
+        for (size_t i = 0; i < n; i++) {
+                int k = lp_view(&v[i], o, pts + 3 * np, why, sizeof(why));
+                if (k < 0 && k != -EINVAL)
+                        return k;
+                if (k < min_points) {
+                        lp_note(bad, blen, i, k == -EINVAL ? "frames of different shapes" : why);
+                        continue;
+                }
+                np += k;
+                out->n_used++;
+        }
+        return np;
+}
+
+int cal_laser_solve(const struct cal_lp_view *v, size_t n, const struct cal_lp_opts *o,
+                    struct cal_laser *out, char *err, size_t errlen)
+{
+        int min_views = o->min_views > 0 ? o->min_views : CAL_LP_MIN_VIEWS;
+        int min_points = o->min_points > 0 ? o->min_points : CAL_LP_MIN_POINTS;
+        size_t rows = 0;
+        char bad[1024] = "";
+        int np, e;
+
+        memset(out, 0, sizeof(*out));
+        out->n_views = n;
+        for (size_t i = 0; i < n; i++)
+                rows += v[i].on ? v[i].on->height : 0;
+        for (size_t i = 0; i < n; i++)
+                if (!v[i].on || !v[i].off || !cal_board_valid(&o->board)) {
+                        snprintf(err, errlen, "view %zu: no frame, or a bad board", i);
+                        return -EINVAL;
+                }
+        _cleanup_free_ double *pts = malloc((3 * rows + 3) * sizeof(double));
+        if (!pts)
+                return -ENOMEM;
+        if ((np = lp_gather(v, n, o, min_points, pts, out, bad, sizeof(bad))) < 0) {
+                snprintf(err, errlen, "%s", cal_cv_last_error());
+                return np;
+        }
+        if (out->n_used < min_views) {
+                snprintf(err, errlen,
+                         "no laser line found on the board in %zu of %zu views: %s; need the line "
+                         "across the board in at least %d: is the laser on, and does its line "
+                         "cross the board where the camera sees it?",
+                         n - out->n_used, n, bad, min_views);
+                return -ENODATA;
+        }
+        if ((e = lp_fit(pts, np, o->inlier_mm > 0 ? o->inlier_mm : CAL_LP_INLIER_MM, out)) < 0)
+                return e;
+        if (out->spread_mm < 1.0) {
+                snprintf(err, errlen,
+                         "the laser points lie on one line (%.2f mm across it): tilt the board "
+                         "or move it along the laser between views",
+                         out->spread_mm);
+                return -ENODATA;
+        }
+        return 0;
+}
+
+void cal_laser_vs_axis(const struct cal_plane *p, const struct cal_turntable *tt, double *angle_deg,
+                       double *dist_mm)
+{
+        *angle_deg = asin(fmin(fabs(cal_dot(p->n, tt->axis)), 1)) * 180 / M_PI;
+        *dist_mm = lp_dist(p, tt->origin);
+}
+
+void cal_laser_agreement(const struct cal_plane *a, const struct cal_plane *b,
+                         const struct cal_turntable *tt, double *angle_deg, double *dist_mm)
+{
+        double c = fabs(cal_dot(a->n, b->n)), A[9], x[3];
+
+        *angle_deg = acos(fmin(c, 1)) * 180 / M_PI;
+        *dist_mm = 0;
+        if (!tt)
+                return;
+        for (int k = 0; k < 3; k++) {
+                A[k] = a->n[k];
+                A[3 + k] = b->n[k];
+                A[6 + k] = tt->axis[k];
+        }
+        x[0] = -a->d;
+        x[1] = -b->d;
+        x[2] = cal_dot(tt->axis, tt->origin);
+        if (*angle_deg > 0.01 && cal_solve(A, x, 3) == 0) { /* the planes' common line */
+                double d[3] = {x[0] - tt->origin[0], x[1] - tt->origin[1], x[2] - tt->origin[2]};
+                *dist_mm = sqrt(cal_dot(d, d));
+        } else { /* parallel: their distance at the axis origin */
+                double s = cal_dot(a->n, b->n) < 0 ? -1 : 1;
+                *dist_mm = fabs(cal_dot(a->n, tt->origin) + a->d -
+                                s * (cal_dot(b->n, tt->origin) + b->d));
+        }
+}
