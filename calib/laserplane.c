@@ -10,8 +10,20 @@
 #include "calib/turntable_geom.h"
 #include "common/cleanup.h"
 
-#define LP_MAX_CORNERS  1024
-#define LP_RANSAC_ITERS 300
+#define LP_MAX_CORNERS   1024
+#define LP_RANSAC_ITERS  300
+#define LP_EDGE_FRACTION 0.15 /* points this fraction of a square from its edges are dropped */
+#define LP_LINE_MM       0.5  /* a view's points farther from its line on the board: spurious */
+
+/* True when board point (bx, by) is near the edge between two squares, where the line's
+ * centre is pulled towards the white square. */
+static bool lp_near_edge(double bx, double by, double sq)
+{
+        double fx = bx / sq - floor(bx / sq), fy = by / sq - floor(by / sq);
+        double m = LP_EDGE_FRACTION;
+
+        return fx < m || fx > 1 - m || fy < m || fy > 1 - m;
+}
 
 /* The board's pose in the laser-off frame: R, t (board to camera). Returns the corners
  * found (< 4: not found) or -errno. */
@@ -38,10 +50,11 @@ static int lp_board_pose(const struct gn_frame *f, const struct cal_lp_opts *o, 
 }
 
 /* Cuts the rays of the line's pixels uv (2n) with the board's plane (R, t); keeps the points
- * on the board's squares, half a square in from their edge, into pts (3 each). Returns the
- * number kept or -errno. */
+ * on the board's squares, half a square in from their edge and away from the edges between
+ * squares, into pts (3 each, camera frame) and bxy (2 each, board frame). Returns the number
+ * kept or -errno. */
 static int lp_cut(double *uv, int n, const struct cal_lp_opts *o, const double R[9],
-                  const double t[3], double *pts)
+                  const double t[3], double *pts, double *bxy)
 {
         const struct cal_board *b = &o->board;
         double m[3] = {R[2], R[5], R[8]}, h = 0.5 * b->square_mm;
@@ -61,11 +74,49 @@ static int lp_cut(double *uv, int n, const struct cal_lp_opts *o, const double R
                 bx = R[0] * d[0] + R[3] * d[1] + R[6] * d[2]; /* R^T d */
                 by = R[1] * d[0] + R[4] * d[1] + R[7] * d[2];
                 if (s <= 0 || bx < h || by < h || bx > b->squares_x * b->square_mm - h ||
-                    by > b->squares_y * b->square_mm - h)
+                    by > b->squares_y * b->square_mm - h || lp_near_edge(bx, by, b->square_mm))
                         continue;
-                memcpy(pts + 3 * kept++, X, sizeof(X));
+                memcpy(pts + 3 * kept, X, sizeof(X));
+                bxy[2 * kept] = bx;
+                bxy[2 * kept++ + 1] = by;
         }
         return kept;
+}
+
+/* Distance of (x, y) from the line through a and b. */
+static double lp_line_dist(const double *a, const double *b, const double *p)
+{
+        double dx = b[0] - a[0], dy = b[1] - a[1], l = hypot(dx, dy);
+
+        return l > 0 ? fabs(dx * (p[1] - a[1]) - dy * (p[0] - a[0])) / l : INFINITY;
+}
+
+/* Keeps (compacted to the front of pts) the points of one view on the straight line that
+ * most of them form on the board (RANSAC in the board frame, bxy): speckle and noise off the
+ * line go. Returns the number kept. */
+static int lp_on_line(double *pts, const double *bxy, int n)
+{
+        int best_k = 0, ia = 0, ib = 0, k = 0;
+        uint64_t s = 0x2545f4914f6cdd1dULL;
+
+        for (int it = 0; it < LP_RANSAC_ITERS && n >= 2; it++) {
+                int a, b, c = 0;
+                s = s * 6364136223846793005ULL + 1442695040888963407ULL;
+                a = (s >> 33) % n;
+                s = s * 6364136223846793005ULL + 1442695040888963407ULL;
+                b = (s >> 33) % n;
+                for (int i = 0; i < n; i++)
+                        c += lp_line_dist(bxy + 2 * a, bxy + 2 * b, bxy + 2 * i) <= LP_LINE_MM;
+                if (c > best_k) {
+                        best_k = c;
+                        ia = a;
+                        ib = b;
+                }
+        }
+        for (int i = 0; i < n && best_k > 0; i++)
+                if (lp_line_dist(bxy + 2 * ia, bxy + 2 * ib, bxy + 2 * i) <= LP_LINE_MM)
+                        memmove(pts + 3 * k++, pts + 3 * i, 3 * sizeof(double));
+        return k;
 }
 
 /* The points of one view into pts (room for 3 x on->height); why says what was wrong when
@@ -78,8 +129,9 @@ static int lp_view(const struct cal_lp_view *v, const struct cal_lp_opts *o, dou
         struct laserline_opts lo;
         _cleanup_free_ float *c = malloc(h * sizeof(float));
         _cleanup_free_ double *uv = malloc(2 * h * sizeof(double));
+        _cleanup_free_ double *bxy = malloc(2 * h * sizeof(double));
 
-        if (!c || !uv)
+        if (!c || !uv || !bxy)
                 return -ENOMEM;
         if ((e = lp_board_pose(v->off, o, R, t)) <= 0) {
                 snprintf(why, wlen, "board not found");
@@ -96,10 +148,13 @@ static int lp_view(const struct cal_lp_view *v, const struct cal_lp_opts *o, dou
                         uv[2 * n] = c[y];
                         uv[2 * n++ + 1] = y;
                 }
-        if ((e = lp_cut(uv, n, o, R, t, pts)) < 0)
+        if ((e = lp_cut(uv, n, o, R, t, pts, bxy)) < 0)
                 return e;
-        snprintf(why, wlen, "%d line points, %d on the board", n, e);
-        return e;
+        int k = lp_on_line(pts, bxy, e);
+        snprintf(why, wlen,
+                 "%d line points, %d on the board away from the squares' edges, %d on one line", n,
+                 e, k);
+        return k;
 }
 
 static double lp_dist(const struct cal_plane *p, const double *x)
@@ -161,6 +216,8 @@ static int lp_fit(const double *pts, size_t n, double tol, struct cal_laser *out
 
         if (!in)
                 return -ENOMEM;
+        if (n < 3)
+                return -EINVAL;
         lp_ransac(pts, n, tol, &out->plane);
         for (int pass = 0; pass < 2 && e == 0; pass++) {
                 out->inliers = lp_inliers(pts, n, &out->plane, tol, in);
@@ -207,7 +264,6 @@ int cal_laser_solve(const struct cal_lp_view *v, size_t n, const struct cal_lp_o
         int min_views = o->min_views > 0 ? o->min_views : CAL_LP_MIN_VIEWS;
         int min_points = o->min_points > 0 ? o->min_points : CAL_LP_MIN_POINTS;
         size_t rows = 0;
-        char bad[1024] = "";
         int np, e;
 
         memset(out, 0, sizeof(*out));
@@ -222,7 +278,7 @@ int cal_laser_solve(const struct cal_lp_view *v, size_t n, const struct cal_lp_o
         _cleanup_free_ double *pts = malloc((3 * rows + 3) * sizeof(double));
         if (!pts)
                 return -ENOMEM;
-        if ((np = lp_gather(v, n, o, min_points, pts, out, bad, sizeof(bad))) < 0) {
+        if ((np = lp_gather(v, n, o, min_points, pts, out, out->unused, sizeof(out->unused))) < 0) {
                 snprintf(err, errlen, "%s", cal_cv_last_error());
                 return np;
         }
@@ -231,7 +287,7 @@ int cal_laser_solve(const struct cal_lp_view *v, size_t n, const struct cal_lp_o
                          "no laser line found on the board in %zu of %zu views: %s; need the line "
                          "across the board in at least %d: is the laser on, and does its line "
                          "cross the board where the camera sees it?",
-                         n - out->n_used, n, bad, min_views);
+                         n - out->n_used, n, out->unused, min_views);
                 return -ENODATA;
         }
         if ((e = lp_fit(pts, np, o->inlier_mm > 0 ? o->inlier_mm : CAL_LP_INLIER_MM, out)) < 0)

@@ -37,6 +37,7 @@ struct cal_laser {
         double spread_mm;       /* RMS extent of the points across the line they would form */
         size_t points, inliers;
         int n_views, n_used; /* views given; views with enough points on the board */
+        char unused[512];    /* the views not used and why: "view 3 (board not found), ..." */
 };
 
 /* Fits the laser plane from n views. Returns 0; -ENODATA (the line on the board in fewer
