@@ -25,28 +25,15 @@ static bool lp_near_edge(double bx, double by, double sq)
         return fx < m || fx > 1 - m || fy < m || fy > 1 - m;
 }
 
-/* The board's pose in the laser-off frame: R, t (board to camera). Returns the corners
- * found (< 4: not found) or -errno. */
+/* The board's pose in the laser-off frame f: R, t (board to camera). Returns the corners
+ * found (0: not found) or -errno. */
 static int lp_board_pose(const struct gn_frame *f, const struct cal_lp_opts *o, double R[9],
                          double t[3])
 {
         struct cal_image im = {f->data, f->width, f->height, f->channels, f->bits, f->stride};
-        double uv[2 * LP_MAX_CORNERS], obj[3 * LP_MAX_CORNERS], xy[2], rv[3];
-        int ids[LP_MAX_CORNERS], n, e;
+        double uv[2 * LP_MAX_CORNERS], obj[3 * LP_MAX_CORNERS];
 
-        n = cal_cv_find_corners(&o->board, &im, uv, ids, LP_MAX_CORNERS);
-        if (n < 4)
-                return n < 0 ? n : 0;
-        for (int j = 0; j < n; j++) {
-                cal_board_corner_xy(&o->board, ids[j], xy);
-                obj[3 * j] = xy[0];
-                obj[3 * j + 1] = xy[1];
-                obj[3 * j + 2] = 0;
-        }
-        if ((e = cal_cv_solve_pnp(obj, uv, n, &o->k, rv, t)) < 0)
-                return e;
-        cal_rodrigues(rv, R);
-        return n;
+        return cal_board_pose(&o->board, &o->k, &im, uv, obj, LP_MAX_CORNERS, R, t);
 }
 
 /* Cuts the rays of the line's pixels uv (2n) with the board's plane (R, t); keeps the points

@@ -190,26 +190,39 @@ static int tt_refine(const struct tt_model *m, double p[N_PARAMS], double *rms)
         return e;
 }
 
+int cal_board_pose(const struct cal_board *b, const struct cal_intrinsics *k,
+                   const struct cal_image *im, double *uv, double *obj, int max, double R[9],
+                   double t[3])
+{
+        _cleanup_free_ int *ids = malloc(max * sizeof(int));
+        double xy[2], rv[3];
+        int n, e;
+
+        if (!ids)
+                return -ENOMEM;
+        n = cal_cv_find_corners(b, im, uv, ids, max);
+        if (n < 4)
+                return n < 0 ? n : 0;
+        for (int j = 0; j < n; j++) {
+                cal_board_corner_xy(b, ids[j], xy);
+                obj[3 * j] = xy[0];
+                obj[3 * j + 1] = xy[1];
+                obj[3 * j + 2] = 0;
+        }
+        if ((e = cal_cv_solve_pnp(obj, uv, n, k, rv, t)) < 0)
+                return e;
+        cal_rodrigues(rv, R);
+        return n;
+}
+
 /* Finds the board in view v and its pose into o. Returns the corners found (0: not found)
  * or -errno. */
 static int tt_detect(const struct cal_tt_view *v, const struct cal_tt_opts *opt, struct tt_obs *o)
 {
-        int ids[MAX_CORNERS], n, e;
-        double xy[2], rv[3];
+        int n = cal_board_pose(&opt->board, &opt->k, &v->im, o->uv, o->obj, MAX_CORNERS, o->R,
+                               o->t);
 
-        n = cal_cv_find_corners(&opt->board, &v->im, o->uv, ids, MAX_CORNERS);
-        if (n < 4)
-                return n < 0 ? n : 0;
-        for (int j = 0; j < n; j++) {
-                cal_board_corner_xy(&opt->board, ids[j], xy);
-                o->obj[3 * j] = xy[0];
-                o->obj[3 * j + 1] = xy[1];
-                o->obj[3 * j + 2] = 0;
-        }
-        if ((e = cal_cv_solve_pnp(o->obj, o->uv, n, &opt->k, rv, o->t)) < 0)
-                return e;
-        cal_rodrigues(rv, o->R);
-        o->n = n;
+        o->n = n > 0 ? n : 0;
         o->angle = v->angle_deg * DEG;
         return n;
 }

@@ -26,6 +26,14 @@ int cal_plane_fit(const double *p, size_t n, struct cal_plane *pl, double *rms, 
 /* Rotation matrix R (row-major) of Rodrigues vector r. */
 void cal_rodrigues(const double r[3], double R[9]);
 
+/* Finds board b in im (up to max corners) and its pose by solvePnP with intrinsics k:
+ * board to camera, x_cam = R x_board + t (R row-major). The corners' pixels go to uv (2 each)
+ * and their board points to obj (3 each, z = 0). Returns the number of corners (0: the board
+ * not found or fewer than 4 corners) or -errno (-EIO: OpenCV, cal_cv_last_error()). */
+int cal_board_pose(const struct cal_board *b, const struct cal_intrinsics *k,
+                   const struct cal_image *im, double *uv, double *obj, int max, double R[9],
+                   double t[3]);
+
 /* One view: the image and the turntable angle (degrees, counterclockwise seen from above). */
 struct cal_tt_view {
         struct cal_image im;
