@@ -47,6 +47,13 @@ struct cal_laser {
 int cal_laser_solve(const struct cal_lp_view *v, size_t n, const struct cal_lp_opts *o,
                     struct cal_laser *out, char *err, size_t errlen);
 
+/* cal_laser_solve on camera's rows of kind "image" (bracket 0) in dataset d: each row with
+ * the laser on paired with the nearest (by row order) laser-off row of the same pose (angles
+ * within 0.01 deg, same lamps). Returns as cal_laser_solve, or -ENODATA (no such pair: what was
+ * seen in err), -ENOENT (no images of camera), -EINVAL (camera NULL) or the dataset's -errno. */
+int cal_laser_solve_ds(struct ds *d, const char *camera, const struct cal_lp_opts *o,
+                       struct cal_laser *out, char *err, size_t errlen);
+
 /* How far plane p is from containing the axis of tt (both in the camera frame): the angle
  * (deg) between the axis and the plane, and the distance (mm) of the axis origin from it. */
 void cal_laser_vs_axis(const struct cal_plane *p, const struct cal_turntable *tt, double *angle_deg,

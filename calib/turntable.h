@@ -9,6 +9,7 @@
 #include <stddef.h>
 
 #include "calib/cv_shim.h"
+#include "dataset/ds.h"
 
 #define CAL_TT_MIN_VIEWS    3    /* views that must show the board */
 #define CAL_TT_MIN_SPAN_DEG 10.0 /* least turntable angle span */
@@ -66,3 +67,10 @@ struct cal_turntable {
  * sentence saying what was seen and what to change in err. */
 int cal_turntable_solve(const struct cal_tt_view *v, size_t n, const struct cal_tt_opts *o,
                         struct cal_turntable *out, char *err, size_t errlen);
+
+/* cal_turntable_solve on the laser-off rows of kind "image" (bracket 0) of camera in
+ * dataset d, the turntable angle from each row's pose (0 when the rig has no turntable).
+ * Returns as cal_turntable_solve, or -ENOENT (no images of camera), -EINVAL (camera NULL) or
+ * the dataset's -errno, with err. */
+int cal_turntable_solve_ds(struct ds *d, const char *camera, const struct cal_tt_opts *o,
+                           struct cal_turntable *out, char *err, size_t errlen);

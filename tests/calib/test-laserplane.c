@@ -8,6 +8,8 @@
 
 #include "calib/laserplane.h"
 #include "calib/turntable_geom.h"
+#include "common/cleanup.h"
+#include "tests/dataset/ds-util.h"
 #include "tests/render/rtest.h"
 
 #define N_POSES 5
@@ -192,10 +194,61 @@ static void test_bad(void)
         release(&w, 3);
 }
 
+/* Through a dataset: each pose stored laser off then on, all at turntable angle 0 but the
+ * board moved between them: the same plane; without laser-off rows, a reason. */
+static void test_dataset(void)
+{
+        _cleanup_free_ char *tmp = tu_tmpdir();
+        struct views w;
+        struct cal_laser a, b;
+        struct cal_lp_opts o = {.board = BOARD, .k = K};
+        char path[512], err[1024];
+        struct ds *d;
+
+        snprintf(path, sizeof(path), "%s/ds", tmp);
+        CHECK_INT(ds_create(path, "laser", "rig: test\n", &d), 0);
+        for (int i = 0; i < 3; i++) {
+                struct pose p = poses[i];
+                p.tt = 0;
+                render_pose(&w, i, &p, 0, true);
+                for (int on = 0; on < 2; on++) {
+                        struct ds_capture c = {.pose = {{0, 0, 0}, 1, on},
+                                               .camera = "c0",
+                                               .lamps = "l0",
+                                               .exposure_us = 20000};
+                        CHECK_INT(ds_store(d, on ? &w.on[i] : &w.off[i], &c), 0);
+                }
+        }
+        CHECK_INT(solve(&w, 3, &a, err, sizeof(err)), 0);
+        CHECK_INT(cal_laser_solve_ds(d, "c0", &o, &b, err, sizeof(err)), 0);
+        CHECK_INT(b.n_used, 3);
+        CHECK(acos(fmin(fabs(cal_dot(a.plane.n, b.plane.n)), 1)) * 180 / M_PI < 1e-5);
+        ds_close(d);
+        /* laser-on rows only */
+        snprintf(path, sizeof(path), "%s/ds2", tmp);
+        CHECK_INT(ds_create(path, "laser", "rig: test\n", &d), 0);
+        for (int i = 0; i < 3; i++) {
+                struct ds_capture c = {.pose = {{0, 0, 0}, 1, true},
+                                       .camera = "c0",
+                                       .lamps = "l0",
+                                       .exposure_us = 20000};
+                CHECK_INT(ds_store(d, &w.on[i], &c), 0);
+        }
+        CHECK_INT(cal_laser_solve_ds(d, "c0", &o, &b, err, sizeof(err)), -ENODATA);
+        fprintf(stderr, "%s\n", err);
+        CHECK_STR_CONTAINS(err, "none of the 3 images of camera c0 has the laser on with a "
+                                "laser-off image of the same pose (3 with the laser on)");
+        ds_close(d);
+        release(&w, 3);
+        tu_rm_rf(tmp);
+}
+
 int main(int argc, char **argv)
 {
-        static const struct test_case cases[] = {
-                {"plane", test_plane}, {"two", test_two}, {"bad", test_bad}};
+        static const struct test_case cases[] = {{"plane", test_plane},
+                                                 {"two", test_two},
+                                                 {"bad", test_bad},
+                                                 {"dataset", test_dataset}};
 
         return TEST_RUN_CASES(cases, argc, argv);
 }

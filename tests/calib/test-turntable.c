@@ -7,6 +7,8 @@
 
 #include "calib/turntable.h"
 #include "calib/turntable_geom.h"
+#include "common/cleanup.h"
+#include "tests/dataset/ds-util.h"
 #include "tests/render/rtest.h"
 
 #define N_ANGLES 9
@@ -133,9 +135,43 @@ static void test_bad(void)
         CHECK_STR_CONTAINS(err, "looks the same turned by 180 deg");
 }
 
+/* Through a dataset: the views stored as captures of c0 with their turntable angles (and a
+ * laser-on view, not used) give the same axis; an unknown camera is refused. */
+static void test_dataset(void)
+{
+        _cleanup_free_ char *tmp = tu_tmpdir();
+        struct views w;
+        struct cal_turntable a, b;
+        struct cal_tt_opts o = {.board = BOARD, .k = K};
+        char path[512], err[512];
+        struct ds *d;
+
+        snprintf(path, sizeof(path), "%s/ds", tmp);
+        CHECK_INT(ds_create(path, "turntable", "rig: test\n", &d), 0);
+        render(&w, board_scene, N_ANGLES, -40, 10);
+        for (int i = 0; i < N_ANGLES; i++) {
+                struct ds_capture c = {.pose = {{w.v[i].angle_deg, 0, 0}, 1, i == 4},
+                                       .camera = "c0",
+                                       .lamps = "l0",
+                                       .exposure_us = 20000};
+                CHECK_INT(ds_store(d, &w.f[i], &c), 0);
+        }
+        CHECK_INT(solve(&w, N_ANGLES, &a, err, sizeof(err)), 0);
+        CHECK_INT(cal_turntable_solve_ds(d, "c0", &o, &b, err, sizeof(err)), 0);
+        CHECK_INT(b.n_views, N_ANGLES - 1);
+        CHECK(acos(fmin(cal_dot(a.axis, b.axis), 1)) * 180 / M_PI < 0.05);
+        CHECK_NEAR(b.span_deg, 80, 1e-9);
+        CHECK_INT(cal_turntable_solve_ds(d, "c9", &o, &b, err, sizeof(err)), -ENOENT);
+        CHECK_STR_CONTAINS(err, "no images of camera c9");
+        release(&w, N_ANGLES);
+        ds_close(d);
+        tu_rm_rf(tmp);
+}
+
 int main(int argc, char **argv)
 {
-        static const struct test_case cases[] = {{"axis", test_axis}, {"bad", test_bad}};
+        static const struct test_case cases[] = {
+                {"axis", test_axis}, {"bad", test_bad}, {"dataset", test_dataset}};
 
         return TEST_RUN_CASES(cases, argc, argv);
 }
