@@ -394,6 +394,25 @@ static int tt_detect_all(const struct cal_tt_view *v, size_t n, const struct cal
         return 0;
 }
 
+/* Refuses a board whose pose is ambiguous, or that cannot be detected. */
+static int tt_check_board(const struct cal_board *b, char *err, size_t errlen)
+{
+        if (!cal_board_valid(b)) {
+                snprintf(err, errlen, "bad board: %dx%d squares of %g mm", b->squares_x,
+                         b->squares_y, b->square_mm);
+                return -EINVAL;
+        }
+        if (b->type == CAL_BOARD_CHESSBOARD && b->squares_x % 2 == b->squares_y % 2) {
+                snprintf(err, errlen,
+                         "a chessboard of %dx%d squares looks the same turned by 180 deg, so its "
+                         "pose jumps between views: use one of an odd and an even number of "
+                         "squares, or a ChArUco board",
+                         b->squares_x, b->squares_y);
+                return -EINVAL;
+        }
+        return 0;
+}
+
 int cal_turntable_solve(const struct cal_tt_view *v, size_t n, const struct cal_tt_opts *o,
                         struct cal_turntable *out, char *err, size_t errlen)
 {
@@ -405,19 +424,8 @@ int cal_turntable_solve(const struct cal_tt_view *v, size_t n, const struct cal_
         int e;
 
         memset(out, 0, sizeof(*out));
-        if (!v || !cal_board_valid(&o->board)) {
-                snprintf(err, errlen, "bad board or no views");
-                return -EINVAL;
-        }
-        if (o->board.type == CAL_BOARD_CHESSBOARD &&
-            o->board.squares_x % 2 == o->board.squares_y % 2) {
-                snprintf(err, errlen,
-                         "a chessboard of %dx%d squares looks the same turned by 180 deg, so its "
-                         "pose jumps between views: use one of an odd and an even number of "
-                         "squares, or a ChArUco board",
-                         o->board.squares_x, o->board.squares_y);
-                return -EINVAL;
-        }
+        if (!v || (e = tt_check_board(&o->board, err, errlen)) < 0)
+                return v ? e : -EINVAL;
         _cleanup_free_ struct tt_obs *obs = calloc(n ? n : 1, sizeof(*obs));
         if (!obs)
                 return -ENOMEM;
