@@ -121,7 +121,7 @@ static int lp_view(const struct cal_lp_view *v, const struct cal_lp_opts *o, dou
         if (!c || !uv || !bxy)
                 return -ENOMEM;
         if ((e = lp_board_pose(v->off, o, R, t)) <= 0) {
-                snprintf(why, wlen, "board not found");
+                snprintf(why, wlen, e < 0 ? "laser-off frame unusable" : "board not found");
                 return e;
         }
         laserline_opts_default(&lo, o->channel);
@@ -211,6 +211,10 @@ static int lp_fit(const double *pts, size_t n, double tol, struct cal_laser *out
                 e = cal_plane_fit(in, out->inliers, &out->plane, &out->rms_mm, &out->spread_mm);
         }
         out->points = n;
+        if (out->plane.d > 0) /* the camera on the negative side */
+                for (int k = 0; k < 3; k++)
+                        out->plane.n[k] = -out->plane.n[k];
+        out->plane.d = -fabs(out->plane.d);
         return e;
 }
 
@@ -236,7 +240,7 @@ static int lp_gather(const struct cal_lp_view *v, size_t n, const struct cal_lp_
                 if (k < 0 && k != -EINVAL)
                         return k;
                 if (k < min_points) {
-                        lp_note(bad, blen, i, k == -EINVAL ? "frames of different shapes" : why);
+                        lp_note(bad, blen, i, why);
                         continue;
                 }
                 np += k;

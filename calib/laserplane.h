@@ -32,9 +32,10 @@ struct cal_lp_opts {
 };
 
 struct cal_laser {
-        struct cal_plane plane; /* in the camera frame (mm) */
-        double rms_mm;          /* RMS distance of the inliers from the plane */
-        double spread_mm;       /* RMS extent of the points across the line they would form */
+        struct cal_plane
+                plane;    /* in the camera frame (mm); n points away from the camera (d <= 0) */
+        double rms_mm;    /* RMS distance of the inliers from the plane */
+        double spread_mm; /* RMS extent of the points across the line they would form */
         size_t points, inliers;
         int n_views, n_used; /* views given; views with enough points on the board */
         char unused[512];    /* the views not used and why: "view 3 (board not found), ..." */

@@ -135,6 +135,7 @@ static void fit_checked(struct views *w, double az, struct cal_laser *l)
         CHECK(ang < 0.05);
         CHECK(dist < 0.1);
         CHECK(l->rms_mm < 0.1);
+        CHECK(l->plane.d <= 0);
         CHECK(l->n_used >= 3); /* a view whose line runs along a square's edge is dropped */
         release(w, N_POSES);
 }
