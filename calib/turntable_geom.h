@@ -3,7 +3,9 @@
 
 #include <stddef.h>
 
+/* a . b */
 double cal_dot(const double a[3], const double b[3]);
+/* c = a x b (c distinct from a and b). */
 void cal_cross(const double a[3], const double b[3], double c[3]);
 /* Scales a to unit length (a must not be 0). */
 void cal_normalize(double a[3]);
