@@ -245,3 +245,23 @@ extern "C" int cal_cv_project(const double *obj, int n, const double rvec[3], co
                 return fail(e.what());
         }
 }
+
+extern "C" int cal_cv_undistort(const double *uv, int n, const struct cal_intrinsics *k, double *xy)
+{
+        if (n < 1)
+                return -EINVAL;
+        try {
+                cv::Mat p(n, 1, CV_64FC2, (void *)uv), dist(1, 5, CV_64F, (void *)k->dist);
+                cv::Mat out(n, 1, CV_64FC2, xy);
+
+                cv::undistortPoints(
+                        p, out, camera_matrix(k), dist, cv::noArray(), cv::noArray(),
+                        cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 50,
+                                         1e-12));
+                if (out.data != (uchar *)xy)
+                        return fail("undistortPoints reallocated its output");
+                return 0;
+        } catch (const std::exception &e) {
+                return fail(e.what());
+        }
+}

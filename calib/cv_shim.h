@@ -93,6 +93,10 @@ int cal_cv_solve_pnp(const double *obj, const double *uv, int n, const struct ca
 int cal_cv_project(const double *obj, int n, const double rvec[3], const double tvec[3],
                    const struct cal_intrinsics *k, double *uv);
 
+/* undistortPoints of n pixels uv (2n) into normalised image coordinates xy (2n: x/z, y/z
+ * of the ray in the camera frame), iterated to 1e-12. Returns 0, -EINVAL or -EIO. */
+int cal_cv_undistort(const double *uv, int n, const struct cal_intrinsics *k, double *xy);
+
 /* The text of the last OpenCV exception caught on this thread, "" if none. */
 const char *cal_cv_last_error(void);
 

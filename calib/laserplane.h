@@ -1,0 +1,67 @@
+/* laserplane.h - a laser's plane in one camera's frame, from views of the laser line on a
+ * calibration board at several poses (known intrinsics): the line's centre per row
+ * (laserline.h, laser-on minus laser-off), the board's plane from solvePnP on the laser-off
+ * frame, each centre's ray cut with that plane (points on the board's squares only), then a
+ * robust plane fit (RANSAC, then least squares on the inliers). Several lasers: each fitted
+ * so, then compared with each other and with the turntable axis. docs/calibration.md. */
+#pragma once
+
+#include <stdbool.h>
+#include <stddef.h>
+
+#include "calib/laserline.h"
+#include "calib/turntable.h"
+#include "common/frame.h"
+
+#define CAL_LP_MIN_VIEWS  2   /* views with the line on the board */
+#define CAL_LP_MIN_POINTS 20  /* points on the board for a view to count */
+#define CAL_LP_INLIER_MM  0.3 /* RANSAC inlier distance */
+
+/* One pose of the board: the same view with the laser off (board lit) and on. */
+struct cal_lp_view {
+        const struct gn_frame *off, *on;
+};
+
+struct cal_lp_opts {
+        struct cal_board board;
+        struct cal_intrinsics k;
+        int channel;      /* the laser's channel (rig_config.laser_channel) */
+        int min_views;    /* 0: CAL_LP_MIN_VIEWS */
+        int min_points;   /* 0: CAL_LP_MIN_POINTS */
+        double inlier_mm; /* 0: CAL_LP_INLIER_MM */
+};
+
+struct cal_laser {
+        struct cal_plane
+                plane;    /* in the camera frame (mm); n points away from the camera (d <= 0) */
+        double rms_mm;    /* RMS distance of the inliers from the plane */
+        double spread_mm; /* RMS extent of the points across the line they would form */
+        size_t points, inliers;
+        int n_views, n_used; /* views given; views with enough points on the board */
+        char unused[512];    /* the views not used and why: "view 3 (board not found), ..." */
+};
+
+/* Fits the laser plane from n views. Returns 0; -ENODATA (the line on the board in fewer
+ * than min_views views: the laser off or out of view, or the board not found; or the points
+ * all on one line: the board never tilted), -EINVAL or -EIO, with what was seen per view and
+ * what to change in err. */
+int cal_laser_solve(const struct cal_lp_view *v, size_t n, const struct cal_lp_opts *o,
+                    struct cal_laser *out, char *err, size_t errlen);
+
+/* cal_laser_solve on camera's rows of kind "image" (bracket 0) in dataset d: each row with
+ * the laser on paired with the nearest (by row order) laser-off row of the same pose (angles
+ * within 0.01 deg, same lamps). Returns as cal_laser_solve, or -ENODATA (no such pair: what was
+ * seen in err), -ENOENT (no images of camera), -EINVAL (camera NULL) or the dataset's -errno. */
+int cal_laser_solve_ds(struct ds *d, const char *camera, const struct cal_lp_opts *o,
+                       struct cal_laser *out, char *err, size_t errlen);
+
+/* How far plane p is from containing the axis of tt (both in the camera frame): the angle
+ * (deg) between the axis and the plane, and the distance (mm) of the axis origin from it. */
+void cal_laser_vs_axis(const struct cal_plane *p, const struct cal_turntable *tt, double *angle_deg,
+                       double *dist_mm);
+
+/* Agreement of two lasers' planes a and b: the angle between them (deg) and, when tt is not
+ * NULL, the distance (mm) between where their common line and the axis pass the axis origin's
+ * height (0 when both contain the axis: they then meet on it). */
+void cal_laser_agreement(const struct cal_plane *a, const struct cal_plane *b,
+                         const struct cal_turntable *tt, double *angle_deg, double *dist_mm);
