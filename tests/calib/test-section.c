@@ -29,7 +29,7 @@ static const char cams_fmt[] =
         "cameras:\n"
         "  - { name: c0, sim: { bus: frames }, elevation: %g, distance: 380, azimuth: 30,\n"
         "      target: [0, 0, %g], width: %d, height: %d, fx: %g, fy: %g,\n"
-        "      distortion: [-0.1, 0.05, 0.0006, -0.0004, 0], exposure_us: 20000 }\n";
+        "      distortion: [-0.25, 0.12, 0.001, -0.0008, 0], exposure_us: 20000 }\n";
 static const char laser_fmt[] =
         "laser: { name: laser, modbus-coil: { bus: relays, coil: 7 }, azimuth: 0,\n"
         "         origin: [%g, 0, %g], width: 0.5, power: 1.2e3, channel: red }\n";
@@ -55,7 +55,7 @@ static void scan_open(struct scan *s, const char *shape, double elevation, doubl
         const struct rig_camera_conf *cc;
         double p[3], n[3];
 
-        snprintf(cams, sizeof(cams), cams_fmt, elevation, target_z, W, H, 1.4 * W, 1.4 * W);
+        snprintf(cams, sizeof(cams), cams_fmt, elevation, target_z, W, H, 1.7 * W, 1.7 * W);
         snprintf(scene, sizeof(scene), scene_fmt, shape);
         /* the laser from above for the flat relief, from the side for the others */
         snprintf(laser, sizeof(laser), laser_fmt, target_z < 10 ? 250.0 : 500.0,
@@ -311,7 +311,7 @@ static void test_undistort(void)
         CHECK(worst < 1e-6);
 }
 
-/* Bad arguments: -EINVAL, -ENOSPC, and a ray along the plane is no point. */
+/* Bad arguments: -EINVAL, -ENOSPC, and a ray that grazes the plane is no point. */
 static void test_args(void)
 {
         struct sec_camera cam = {.k = {.fx = 1000, .fy = 1000, .cx = 400, .cy = 300},
@@ -319,7 +319,8 @@ static void test_args(void)
                                  .height = H,
                                  .R = {1, 0, 0, 0, 1, 0, 0, 0, 1},
                                  .t = {0, 0, 500}};
-        double p[3] = {0, 0, 0}, n0[3] = {0, 0, 0}, nz[3] = {0, 0, 1}, nx[3] = {1, 0, 0};
+        double p[3] = {0, 0, 0}, n0[3] = {0, 0, 0}, nz[3] = {0, 0, 1}, nx[3] = {1, 0, 1e-5},
+               px[3] = {1, 0, 0};
         float centre[H];
         struct laserline_result r = {.centre = centre, .n = H};
         struct sec_ctx c;
@@ -332,15 +333,19 @@ static void test_args(void)
         CHECK_INT(sec_init(&c, &cam), 0);
         CHECK_INT(sec_add_laser(&c, p, n0), -EINVAL);
         CHECK_INT(sec_add_laser(&c, p, nz), 0);
-        CHECK_INT(sec_add_laser(&c, p, nx), 1);
-        CHECK_INT(sec_add_line(&c, 2, 0, &r, false, NULL), -EINVAL);
+        CHECK_INT(sec_add_laser(&c, px, nx), 1);
+        CHECK_INT(sec_add_laser(&c, p, nz), 2);
+        CHECK_INT(sec_add_laser(&c, p, nz), 3);
+        CHECK_INT(sec_add_laser(&c, p, nz), -ENOSPC);
+        CHECK_INT(sec_add_line(&c, 4, 0, &r, false, NULL), -EINVAL);
         r.n = H + 1;
         CHECK_INT(sec_add_line(&c, 0, 0, &r, false, NULL), -EINVAL);
         r.n = H;
         centre[300] = 400; /* the principal ray: meets z = 0 at the origin */
         CHECK_INT(sec_add_line(&c, 0, 0, &r, false, NULL), 1);
         CHECK(fabs(c.pts[0].x[0]) < 1e-9 && fabs(c.pts[0].x[2]) < 1e-9);
-        CHECK_INT(sec_add_line(&c, 1, 0, &r, false, NULL), 0); /* along the plane x = 0 */
+        /* nearly along the plane x = 1: a point 100 m away, no point */
+        CHECK_INT(sec_add_line(&c, 1, 0, &r, false, NULL), 0);
         CHECK(c.rejected == 1);
         sec_free(&c);
 }
