@@ -31,8 +31,8 @@ static const char cams_fmt[] =
         "      target: [0, 0, %g], width: %d, height: %d, fx: %g, fy: %g,\n"
         "      distortion: [-0.25, 0.12, 0.001, -0.0008, 0], exposure_us: 20000 }\n";
 static const char laser_fmt[] =
-        "laser: { name: laser, modbus-coil: { bus: relays, coil: 7 }, azimuth: 0,\n"
-        "         origin: [%g, 0, %g], width: 0.5, power: 1.2e3, channel: red }\n";
+        "laser: { name: laser, modbus-coil: { bus: relays, coil: 7 }, azimuth: %g,\n"
+        "         origin: [%g, %g, %g], width: 0.5, power: 1.2e3, channel: red }\n";
 static const char scene_fmt[] = "scene:\n"
                                 "  seed: 5\n"
                                 "  object: { shape: %s, size: 100, material: { albedo: 0.6 } }\n"
@@ -43,78 +43,110 @@ static const char scene_fmt[] = "scene:\n"
 typedef double (*truth_fn)(const struct sim_truth *tr, double turntable_deg,
                            const struct sec_point *p);
 
+/* One rendering rig per laser (the renderer has one laser), the camera of the first. */
 struct scan {
-        struct rtest t;
+        struct rtest t[2];
+        int lasers;
         struct sec_ctx c;
 };
 
-static void scan_open(struct scan *s, const char *shape, double elevation, double target_z)
+/* What a scan with one laser scored. */
+struct score {
+        double rms, worst, bias; /* mm: RMS, largest and mean signed distance */
+        int scored;
+};
+
+/* Opens the rig of laser s->lasers at azimuth az (from the side at 500 mm, or from above for
+ * the flat relief). */
+static void scan_add_rig(struct scan *s, const char *shape, double elevation, double target_z,
+                         double az)
 {
         char cams[512], scene[256], laser[256];
-        struct sec_camera cam = {.width = W, .height = H};
-        const struct rig_camera_conf *cc;
-        double p[3], n[3];
+        double r = target_z < 10 ? 250 : 500, h = target_z < 10 ? 400 : 60;
 
         snprintf(cams, sizeof(cams), cams_fmt, elevation, target_z, W, H, 1.7 * W, 1.7 * W);
         snprintf(scene, sizeof(scene), scene_fmt, shape);
-        /* the laser from above for the flat relief, from the side for the others */
-        snprintf(laser, sizeof(laser), laser_fmt, target_z < 10 ? 250.0 : 500.0,
-                 target_z < 10 ? 400.0 : 60.0);
-        rt_open(&s->t, "", laser, cams, scene);
-        cc = &s->t.rc->cameras[0];
+        snprintf(laser, sizeof(laser), laser_fmt, az, r * cos(az * DEG), r * sin(az * DEG), h);
+        rt_open(&s->t[s->lasers++], "", laser, cams, scene);
+}
+
+/* Opens the scan of shape with the lasers at the n azimuths az, triangulating with the true
+ * calibration of the rig file: intrinsics, riggeom_camera_pose, the laser's plane. */
+static void scan_open(struct scan *s, const char *shape, double elevation, double target_z,
+                      const double *az, int n)
+{
+        struct sec_camera cam = {.width = W, .height = H};
+        const struct rig_camera_conf *cc;
+
+        memset(s, 0, sizeof(*s));
+        for (int i = 0; i < n; i++)
+                scan_add_rig(s, shape, elevation, target_z, az[i]);
+        cc = &s->t[0].rc->cameras[0];
         cam.k = (struct cal_intrinsics){.fx = cc->fx, .fy = cc->fy, .cx = cc->cx, .cy = cc->cy};
         memcpy(cam.k.dist, cc->dist, sizeof(cam.k.dist));
         riggeom_camera_pose(cc, 0, cam.R, cam.t);
         CHECK_INT(sec_init(&s->c, &cam), 0);
-        sec_rig_laser_plane(s->t.rc->laser.laser_azimuth_deg, p, n);
-        CHECK_INT(sec_add_laser(&s->c, p, n), 0);
+        for (int i = 0; i < n; i++) {
+                double p[3], nv[3];
+                sec_rig_laser_plane(s->t[i].rc->laser.laser_azimuth_deg, p, nv);
+                CHECK_INT(sec_add_laser(&s->c, p, nv), i);
+        }
 }
 
 static void scan_close(struct scan *s)
 {
         sec_free(&s->c);
-        rt_close(&s->t);
+        for (int i = 0; i < s->lasers; i++)
+                rt_close(&s->t[i]);
 }
 
-/* Scans n angles, scoring each new point with fn: returns the RMS, the largest distance in
- * *worst and the points scored in *scored. */
-static double scan_score(struct scan *s, int n, truth_fn fn, double *worst, int *scored)
+/* Renders laser l on and off at turntable angle deg, extracts and triangulates the line. */
+static void scan_line(struct scan *s, int l, double deg, uint64_t seq, struct sim_truth *tr)
 {
+        struct gn_pose st = {.laser = true};
         struct sim_expose ex = {.bits = 8};
         struct laserline_opts o;
-        double sum = 0;
+        float centre[H];
+        struct laserline_result r = {.centre = centre, .n = H};
+        struct gn_frame on, off;
 
         laserline_opts_default(&o, 0);
-        *worst = 0;
-        *scored = 0;
+        for (int k = 0; k < GN_ROLE_COUNT; k++)
+                st.deg[k] = NAN;
+        st.deg[GN_ROLE_TURNTABLE] = deg;
+        rt_render(&s->t[l], &st, &ex, 2 * seq, &on, SIM_TRUTH_POINT | SIM_TRUTH_NORMAL, tr);
+        st.laser = false;
+        rt_render(&s->t[l], &st, &ex, 2 * seq + 1, &off, 0, NULL);
+        CHECK(laserline_extract(&on, &off, &o, &r) >= 0);
+        CHECK(sec_add_line(&s->c, l, deg, &r, false, &on) >= 0);
+        gn_frame_free_data(&on);
+        gn_frame_free_data(&off);
+}
+
+/* Scans n angles with laser l, scoring each new point with fn. */
+static struct score scan_score(struct scan *s, int l, int n, truth_fn fn)
+{
+        struct score sc = {0};
+        double sum = 0;
+
         for (int i = 0; i < n; i++) {
-                struct gn_pose st = {.laser = true};
                 _cleanup_(sim_truth_free) struct sim_truth tr = {0};
-                float centre[H];
-                struct laserline_result r = {.centre = centre, .n = H};
-                struct gn_frame on, off;
                 size_t first = s->c.n_pts;
 
-                for (int k = 0; k < GN_ROLE_COUNT; k++)
-                        st.deg[k] = NAN;
-                st.deg[GN_ROLE_TURNTABLE] = 360.0 * i / n;
-                rt_render(&s->t, &st, &ex, 2 * i, &on, SIM_TRUTH_POINT | SIM_TRUTH_NORMAL, &tr);
-                st.laser = false;
-                rt_render(&s->t, &st, &ex, 2 * i + 1, &off, 0, NULL);
-                CHECK(laserline_extract(&on, &off, &o, &r) >= 0);
-                CHECK(sec_add_line(&s->c, 0, 360.0 * i / n, &r, false, &on) >= 0);
+                scan_line(s, l, 360.0 * i / n, (uint64_t)(l * n + i), &tr);
                 for (size_t j = first; j < s->c.n_pts; j++) {
                         double d = fn(&tr, 360.0 * i / n, &s->c.pts[j]);
                         if (isnan(d))
                                 continue;
                         sum += d * d;
-                        *worst = fmax(*worst, fabs(d));
-                        (*scored)++;
+                        sc.bias += d;
+                        sc.worst = fmax(sc.worst, fabs(d));
+                        sc.scored++;
                 }
-                gn_frame_free_data(&on);
-                gn_frame_free_data(&off);
         }
-        return *scored ? sqrt(sum / *scored) : NAN;
+        sc.rms = sc.scored ? sqrt(sum / sc.scored) : NAN;
+        sc.bias = sc.scored ? sc.bias / sc.scored : NAN;
+        return sc;
 }
 
 static double sphere_dist(const struct sim_truth *tr, double turntable_deg,
@@ -184,22 +216,30 @@ static double plane_dist(const struct sim_truth *tr, double turntable_deg,
         return n[0] * (p->x[0] - q[0]) + n[1] * (p->x[1] - q[1]) + n[2] * (p->x[2] - q[2]);
 }
 
-/* Scans shape and checks the distances; leaves s open. */
+/* Scores laser l of scan s and checks the distances. */
+static struct score expect_score(struct scan *s, int l, const char *shape, truth_fn fn,
+                                 int min_points)
+{
+        size_t before = s->c.n_pts;
+        struct score sc = scan_score(s, l, ANGLES, fn);
+
+        fprintf(stderr,
+                "%s, laser %d: %zu points over %d angles, %d scored, RMS %.4f mm, worst %.4f mm, "
+                "mean %+.4f mm, %zu rejected rays\n",
+                shape, l, s->c.n_pts - before, ANGLES, sc.scored, sc.rms, sc.worst, sc.bias,
+                s->c.rejected);
+        CHECK(sc.scored >= min_points);
+        CHECK(sc.rms <= RMS_MAX);
+        CHECK(sc.worst <= fmax(MAX_SIGMA * sc.rms, 0.1));
+        return sc;
+}
+
+/* Scans shape with one laser at azimuth 0 and checks the distances; leaves s open. */
 static void expect_shape(struct scan *s, const char *shape, double elevation, double target_z,
                          truth_fn fn, int min_points)
 {
-        double worst, rms;
-        int scored;
-
-        scan_open(s, shape, elevation, target_z);
-        rms = scan_score(s, ANGLES, fn, &worst, &scored);
-        fprintf(stderr,
-                "%s: %zu points over %d angles, %d scored, RMS %.4f mm, worst %.4f mm, "
-                "%zu rejected rays\n",
-                shape, s->c.n_pts, ANGLES, scored, rms, worst, s->c.rejected);
-        CHECK(scored >= min_points);
-        CHECK(rms <= RMS_MAX);
-        CHECK(worst <= fmax(MAX_SIGMA * rms, 0.1));
+        scan_open(s, shape, elevation, target_z, (double[]){0}, 1);
+        expect_score(s, 0, shape, fn, min_points);
 }
 
 /* The sphere's normals from the grid: within 2 degrees of the true ones on average. */
@@ -285,6 +325,25 @@ static void test_relief(void)
         scan_close(&s);
 }
 
+/* Two lasers on either side of the camera, merged into one cloud: each within the RMS,
+ * their mean distances to the surface within 0.1 mm of each other, and the normals found
+ * from each laser's own lines. */
+static void test_two_lasers(void)
+{
+        struct scan s;
+        struct score a, b;
+        size_t normals;
+
+        scan_open(&s, "gem", 25, 30, (double[]){0, 70}, 2);
+        a = expect_score(&s, 0, "gem", plane_dist, ANGLES * 40);
+        b = expect_score(&s, 1, "gem", plane_dist, ANGLES * 40);
+        CHECK(fabs(a.bias - b.bias) <= 0.1);
+        normals = sec_normals(&s.c);
+        fprintf(stderr, "two lasers: %zu points, %zu with a normal\n", s.c.n_pts, normals);
+        CHECK(normals > s.c.n_pts * 8 / 10);
+        scan_close(&s);
+}
+
 /* Undistortion inverts the forward model to 1e-6 px over the whole image. */
 static void test_undistort(void)
 {
@@ -351,7 +410,8 @@ static void test_args(void)
 }
 
 static const struct test_case cases[] = {
-        {"sphere", test_sphere},       {"gem", test_gem},   {"relief", test_relief},
+        {"sphere", test_sphere},       {"gem", test_gem},
+        {"relief", test_relief},       {"two-lasers", test_two_lasers},
         {"undistort", test_undistort}, {"args", test_args},
 };
 
