@@ -202,12 +202,12 @@ int sec_add_line(struct sec_ctx *c, int laser, double turntable_deg,
                  const struct laserline_result *r, bool columns, const struct gn_frame *texture)
 {
         struct sec_line *ln;
-        int r_;
+        int ret;
 
         if (!line_args_ok(c, laser, r, columns, texture))
                 return -EINVAL;
-        if ((r_ = reserve(c, (size_t)r->n)) < 0)
-                return r_;
+        if ((ret = reserve(c, (size_t)r->n)) < 0)
+                return ret;
         ln = &c->lines[c->n_lines];
         *ln = (struct sec_line){.laser = laser, .turntable_deg = turntable_deg, .first = c->n_pts};
         to_object(c->eye, turntable_deg, ln->eye);

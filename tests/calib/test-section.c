@@ -344,27 +344,28 @@ static void test_two_lasers(void)
         scan_close(&s);
 }
 
-/* Undistortion inverts the forward model to 1e-6 px over the whole image. */
+/* Undistortion inverts the forward model (the renderer's, as cv::projectPoints) to 1e-6 px
+ * over the whole image of a strong lens. */
 static void test_undistort(void)
 {
-        struct cal_intrinsics k = {.fx = 1100,
-                                   .fy = 1105,
-                                   .cx = 401,
-                                   .cy = 298,
-                                   .dist = {-0.25, 0.12, 0.001, -0.0008, -0.02}};
+        struct sim_cam_geom g = {.width = W,
+                                 .height = H,
+                                 .fx = 1100,
+                                 .fy = 1105,
+                                 .cx = 401,
+                                 .cy = 298,
+                                 .dist = {-0.25, 0.12, 0.001, -0.0008, -0.02},
+                                 .R = {1, 0, 0, 0, 1, 0, 0, 0, 1}};
+        struct cal_intrinsics k = {.fx = g.fx, .fy = g.fy, .cx = g.cx, .cy = g.cy};
         double worst = 0;
 
+        memcpy(k.dist, g.dist, sizeof(k.dist));
         for (int v = 0; v <= H; v += 25)
                 for (int u = 0; u <= W; u += 25) {
-                        double xy[2], r2, rad, xd, yd;
+                        double xy[2], uv[2];
                         CHECK_INT(sec_undistort(&k, u, v, xy), 0);
-                        r2 = xy[0] * xy[0] + xy[1] * xy[1];
-                        rad = 1 + r2 * (k.dist[0] + r2 * (k.dist[1] + r2 * k.dist[4]));
-                        xd = xy[0] * rad + 2 * k.dist[2] * xy[0] * xy[1] +
-                             k.dist[3] * (r2 + 2 * xy[0] * xy[0]);
-                        yd = xy[1] * rad + k.dist[2] * (r2 + 2 * xy[1] * xy[1]) +
-                             2 * k.dist[3] * xy[0] * xy[1];
-                        worst = fmax(worst, hypot(k.fx * xd + k.cx - u, k.fy * yd + k.cy - v));
+                        CHECK_INT(sim_cam_project(&g, (double[3]){xy[0], xy[1], 1}, uv), 0);
+                        worst = fmax(worst, hypot(uv[0] - u, uv[1] - v));
                 }
         fprintf(stderr, "undistort: worst %.2e px\n", worst);
         CHECK(worst < 1e-6);
