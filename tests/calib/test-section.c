@@ -410,10 +410,51 @@ static void test_args(void)
         sec_free(&c);
 }
 
+/* The object frame (minus the turntable angle about z), a line per column, and colour from a
+ * 16-bit mono texture, on a camera looking up at the plane z = 0 from 500 mm below. */
+static void test_frames(void)
+{
+        struct sec_camera cam = {.k = {.fx = 1000, .fy = 1000, .cx = 400, .cy = 300},
+                                 .width = W,
+                                 .height = H,
+                                 .R = {1, 0, 0, 0, 1, 0, 0, 0, 1},
+                                 .t = {0, 0, 500}};
+        double p[3] = {0, 0, 0}, nz[3] = {0, 0, 1};
+        float centre[W];
+        struct laserline_result r = {.centre = centre, .n = W};
+        struct gn_frame tex = {0};
+        struct sec_ctx c;
+
+        for (int i = 0; i < W; i++)
+                centre[i] = NAN;
+        CHECK_INT(gn_frame_alloc(&tex, W, H, 1, 16), 0);
+        for (int y = 0; y < H; y++)
+                for (int x = 0; x < W; x++)
+                        ((uint16_t *)(tex.data + (size_t)y * tex.stride))[x] = 0x4000;
+        CHECK_INT(sec_init(&c, &cam), 0);
+        CHECK_INT(sec_add_laser(&c, p, nz), 0);
+        centre[500] = 300; /* column 500, row 300: the world point (50, 0, 0) */
+        CHECK_INT(sec_add_line(&c, 0, 90, &r, true, &tex), 1);
+        CHECK(fabs(c.pts[0].x[0]) < 1e-4 && fabs(c.pts[0].x[1] + 50) < 1e-4 &&
+              fabs(c.pts[0].x[2]) < 1e-4);
+        CHECK(c.pts[0].row == 500 && c.pts[0].line == 0);
+        CHECK(c.pts[0].rgb[0] == 64 && c.pts[0].rgb[1] == 64 && c.pts[0].rgb[2] == 64);
+        r.n = W + 1;
+        CHECK_INT(sec_add_line(&c, 0, 0, &r, true, NULL), -EINVAL);
+        r.n = H + 1; /* a per-row result longer than the image */
+        CHECK_INT(sec_add_line(&c, 0, 0, &r, false, NULL), -EINVAL);
+        tex.width--;
+        CHECK_INT(sec_add_line(&c, 0, 0, &r, true, &tex), -EINVAL);
+        tex.width++;
+        gn_frame_free_data(&tex);
+        sec_free(&c);
+}
+
 static const struct test_case cases[] = {
         {"sphere", test_sphere},       {"gem", test_gem},
         {"relief", test_relief},       {"two-lasers", test_two_lasers},
         {"undistort", test_undistort}, {"args", test_args},
+        {"frames", test_frames},
 };
 
 int main(int argc, char **argv)
