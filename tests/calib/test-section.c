@@ -1,0 +1,464 @@
+/* test-section.c - calib/section.c and calib/ply.c against the renderer's ground truth: a
+ * 100 mm sphere, gem and relief plate scanned at 90 turntable angles (laser on minus laser
+ * off, noise on, a strong lens), the line extracted by calib/laserline.c and triangulated
+ * with the true calibration from the rig file (intrinsics, riggeom_camera_pose, the laser's
+ * plane). The RMS distance from the points to the true surface must be <= 0.05 mm (sphere:
+ * analytic; gem and relief: the plane of the true object points around the line's pixel),
+ * and no point farther than 6 RMS (or 0.1 mm). Also: two lasers in one cloud, undistortion
+ * against the renderer's projection, the object frame, normals against the sphere's, colour,
+ * and a PLY round trip. */
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <unistd.h>
+
+#include "calib/ply.h"
+#include "calib/section.h"
+#include "common/cleanup.h"
+#include "common/fileio.h"
+#include "common/riggeom.h"
+#include "tests/render/rtest.h"
+
+#define W         800
+#define H         600
+#define ANGLES    90
+#define RMS_MAX   0.05 /* mm */
+#define MAX_SIGMA 6.0  /* no point farther than this many RMS (and 0.1 mm) */
+#define DEG       (M_PI / 180)
+
+static const char cams_fmt[] =
+        "cameras:\n"
+        "  - { name: c0, sim: { bus: frames }, elevation: %g, distance: 380, azimuth: 30,\n"
+        "      target: [0, 0, %g], width: %d, height: %d, fx: %g, fy: %g,\n"
+        "      distortion: [-0.25, 0.12, 0.001, -0.0008, 0], exposure_us: 20000 }\n";
+static const char laser_fmt[] =
+        "laser: { name: laser, modbus-coil: { bus: relays, coil: 7 }, azimuth: %g,\n"
+        "         origin: [%g, %g, %g], width: 0.5, power: 1.2e3, channel: red }\n";
+static const char scene_fmt[] = "scene:\n"
+                                "  seed: 5\n"
+                                "  object: { shape: %s, size: 100, material: { albedo: 0.6 } }\n"
+                                "  turntable: { radius: 0 }\n"
+                                "  sensor: { black_level: 0.02 }\n";
+
+/* Distance of p (object frame) to the true surface; NAN where not scored. */
+typedef double (*truth_fn)(const struct sim_truth *tr, double turntable_deg,
+                           const struct sec_point *p);
+
+/* One rendering rig per laser (the renderer has one laser), the camera of the first. */
+struct scan {
+        struct rtest t[2];
+        int lasers;
+        struct sec_ctx c;
+};
+
+/* What a scan with one laser scored. */
+struct score {
+        double rms, worst, bias; /* mm: RMS, largest and mean signed distance */
+        int scored;
+};
+
+/* Opens the rig of laser s->lasers at azimuth az (from the side at 500 mm, or from above for
+ * the flat relief). */
+static void scan_add_rig(struct scan *s, const char *shape, double elevation, double target_z,
+                         double az)
+{
+        char cams[512], scene[256], laser[256];
+        double r = target_z < 10 ? 250 : 500, h = target_z < 10 ? 400 : 60;
+
+        snprintf(cams, sizeof(cams), cams_fmt, elevation, target_z, W, H, 1.7 * W, 1.7 * W);
+        snprintf(scene, sizeof(scene), scene_fmt, shape);
+        snprintf(laser, sizeof(laser), laser_fmt, az, r * cos(az * DEG), r * sin(az * DEG), h);
+        rt_open(&s->t[s->lasers++], "", laser, cams, scene);
+}
+
+/* Opens the scan of shape with the lasers at the n azimuths az, triangulating with the true
+ * calibration of the rig file: intrinsics, riggeom_camera_pose, the laser's plane. */
+static void scan_open(struct scan *s, const char *shape, double elevation, double target_z,
+                      const double *az, int n)
+{
+        struct sec_camera cam = {.width = W, .height = H};
+        const struct rig_camera_conf *cc;
+
+        memset(s, 0, sizeof(*s));
+        for (int i = 0; i < n; i++)
+                scan_add_rig(s, shape, elevation, target_z, az[i]);
+        cc = &s->t[0].rc->cameras[0];
+        cam.k = (struct cal_intrinsics){.fx = cc->fx, .fy = cc->fy, .cx = cc->cx, .cy = cc->cy};
+        memcpy(cam.k.dist, cc->dist, sizeof(cam.k.dist));
+        riggeom_camera_pose(cc, 0, cam.R, cam.t);
+        CHECK_INT(sec_init(&s->c, &cam), 0);
+        for (int i = 0; i < n; i++) {
+                double p[3], nv[3];
+                sec_rig_laser_plane(s->t[i].rc->laser.laser_azimuth_deg, p, nv);
+                CHECK_INT(sec_add_laser(&s->c, p, nv), i);
+        }
+}
+
+static void scan_close(struct scan *s)
+{
+        sec_free(&s->c);
+        for (int i = 0; i < s->lasers; i++)
+                rt_close(&s->t[i]);
+}
+
+/* Renders laser l on and off at turntable angle deg, extracts and triangulates the line. */
+static void scan_line(struct scan *s, int l, double deg, uint64_t seq, struct sim_truth *tr)
+{
+        struct gn_pose st = {.laser = true};
+        struct sim_expose ex = {.bits = 8};
+        struct laserline_opts o;
+        float centre[H];
+        struct laserline_result r = {.centre = centre, .n = H};
+        struct gn_frame on, off;
+
+        laserline_opts_default(&o, 0);
+        for (int k = 0; k < GN_ROLE_COUNT; k++)
+                st.deg[k] = NAN;
+        st.deg[GN_ROLE_TURNTABLE] = deg;
+        rt_render(&s->t[l], &st, &ex, 2 * seq, &on, SIM_TRUTH_POINT, tr);
+        st.laser = false;
+        rt_render(&s->t[l], &st, &ex, 2 * seq + 1, &off, 0, NULL);
+        CHECK(laserline_extract(&on, &off, &o, &r) >= 0);
+        CHECK(sec_add_line(&s->c, l, deg, &r, false, &on) >= 0);
+        gn_frame_free_data(&on);
+        gn_frame_free_data(&off);
+}
+
+/* Scans n angles with laser l, scoring each new point with fn. */
+static struct score scan_score(struct scan *s, int l, int n, truth_fn fn)
+{
+        struct score sc = {0};
+        double sum = 0;
+
+        for (int i = 0; i < n; i++) {
+                _cleanup_(sim_truth_free) struct sim_truth tr = {0};
+                size_t first = s->c.n_pts;
+
+                scan_line(s, l, 360.0 * i / n, (uint64_t)(l * n + i), &tr);
+                for (size_t j = first; j < s->c.n_pts; j++) {
+                        double d = fn(&tr, 360.0 * i / n, &s->c.pts[j]);
+                        if (isnan(d))
+                                continue;
+                        sum += d * d;
+                        sc.bias += d;
+                        sc.worst = fmax(sc.worst, fabs(d));
+                        sc.scored++;
+                }
+        }
+        sc.rms = sc.scored ? sqrt(sum / sc.scored) : NAN;
+        sc.bias = sc.scored ? sc.bias / sc.scored : NAN;
+        return sc;
+}
+
+static double sphere_dist(const struct sim_truth *tr, double turntable_deg,
+                          const struct sec_point *p)
+{
+        (void)tr;
+        (void)turntable_deg;
+        return hypot(hypot(p->x[0], p->x[1]), p->x[2] - 50.0) - 50.0;
+}
+
+/* The truth point of pixel (u, v) (object frame), or NULL off the object or the image. */
+static const float *truth_at(const struct sim_truth *tr, int u, int v)
+{
+        const float *q;
+
+        if (u < 0 || u >= tr->width || v < 0 || v >= tr->height)
+                return NULL;
+        q = tr->point + 3 * ((size_t)v * tr->width + u);
+        return isnan(q[0]) ? NULL : q;
+}
+
+/* The surface's plane under pixel (u0, v) from the truth points around it: point q (the
+ * points of u0 and u0 + 1 interpolated at u) and unit normal n. False where the pixels
+ * u0-2..u0+3 of row v and v-2..v+2 of column u0 do not lie on one
+ * plane (a facet edge, a silhouette, a strong curvature). */
+static bool truth_plane(const struct sim_truth *tr, double u, int v, double q[3], double n[3])
+{
+        int u0 = (int)floor(u);
+        const float *a = truth_at(tr, u0 - 2, v), *b = truth_at(tr, u0 + 3, v),
+                    *c = truth_at(tr, u0, v - 2), *d = truth_at(tr, u0, v + 2);
+        const float *q0 = truth_at(tr, u0, v), *q1 = truth_at(tr, u0 + 1, v);
+        double e[3], f[3], len;
+
+        if (!a || !b || !c || !d || !q0 || !q1)
+                return false;
+        for (int k = 0; k < 3; k++) {
+                e[k] = b[k] - a[k];
+                f[k] = d[k] - c[k];
+                q[k] = q0[k] + (u - u0) * (q1[k] - q0[k]);
+        }
+        n[0] = e[1] * f[2] - e[2] * f[1];
+        n[1] = e[2] * f[0] - e[0] * f[2];
+        n[2] = e[0] * f[1] - e[1] * f[0];
+        len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        for (int k = 0; k < 3; k++)
+                n[k] /= len;
+        for (int x = u0 - 2; x <= u0 + 7; x++) { /* the row's and column's points on it */
+                const float *p =
+                        x <= u0 + 3 ? truth_at(tr, x, v) : truth_at(tr, u0, v + x - u0 - 5);
+                if (!p ||
+                    fabs(n[0] * (p[0] - q[0]) + n[1] * (p[1] - q[1]) + n[2] * (p[2] - q[2])) > 0.01)
+                        return false;
+        }
+        return true;
+}
+
+/* Distance to the plane of the true surface under the line's pixel; NAN where it is not
+ * one plane. */
+static double plane_dist(const struct sim_truth *tr, double turntable_deg,
+                         const struct sec_point *p)
+{
+        double q[3], n[3];
+
+        (void)turntable_deg;
+        if (!truth_plane(tr, p->u, p->row, q, n))
+                return NAN;
+        return n[0] * (p->x[0] - q[0]) + n[1] * (p->x[1] - q[1]) + n[2] * (p->x[2] - q[2]);
+}
+
+/* Scores laser l of scan s and checks the distances. */
+static struct score expect_score(struct scan *s, int l, const char *shape, truth_fn fn,
+                                 int min_points)
+{
+        size_t before = s->c.n_pts;
+        struct score sc = scan_score(s, l, ANGLES, fn);
+
+        fprintf(stderr,
+                "%s, laser %d: %zu points over %d angles, %d scored, RMS %.4f mm, worst %.4f mm, "
+                "mean %+.4f mm, %zu rejected rays\n",
+                shape, l, s->c.n_pts - before, ANGLES, sc.scored, sc.rms, sc.worst, sc.bias,
+                s->c.rejected);
+        CHECK(sc.scored >= min_points);
+        CHECK(sc.rms <= RMS_MAX);
+        CHECK(sc.worst <= fmax(MAX_SIGMA * sc.rms, 0.1));
+        return sc;
+}
+
+/* Scans shape with one laser at azimuth 0 and checks the distances; leaves s open. */
+static void expect_shape(struct scan *s, const char *shape, double elevation, double target_z,
+                         truth_fn fn, int min_points)
+{
+        scan_open(s, shape, elevation, target_z, (double[]){0}, 1);
+        expect_score(s, 0, shape, fn, min_points);
+}
+
+/* The sphere's normals from the grid: within 2 degrees of the true ones on average. */
+static void expect_sphere_normals(struct sec_ctx *c)
+{
+        size_t done = sec_normals(c), n = 0;
+        double sum = 0;
+
+        for (size_t i = 0; i < c->n_pts; i++) {
+                const struct sec_point *p = &c->pts[i];
+                double r[3] = {p->x[0], p->x[1], p->x[2] - 50.0};
+                double len = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+
+                if (p->n[0] == 0 && p->n[1] == 0 && p->n[2] == 0)
+                        continue;
+                sum += acos(fmin(1, (r[0] * p->n[0] + r[1] * p->n[1] + r[2] * p->n[2]) / len));
+                n++;
+        }
+        fprintf(stderr, "normals: %zu of %zu points, mean error %.3f deg\n", done, c->n_pts,
+                sum / n / DEG);
+        CHECK(done == n && n > c->n_pts * 9 / 10);
+        CHECK(sum / n / DEG < 2.0);
+}
+
+/* Reads the PLY written by ply_write_points back and compares it with the points. */
+static void expect_ply(const struct sec_point *p, size_t n, const char *path)
+{
+        _cleanup_free_ char *buf = NULL;
+        size_t len, count = 0;
+        char *end, *b;
+
+        CHECK_INT(gn_read_file_at(AT_FDCWD, path, 1 << 30, (void **)&buf, &len), 0);
+        end = strstr(buf, "end_header\n");
+        CHECK(end);
+        CHECK_STR_CONTAINS(buf, "format binary_little_endian 1.0\n");
+        CHECK(sscanf(strstr(buf, "element vertex "), "element vertex %zu", &count) == 1);
+        CHECK(count == n);
+        b = end + strlen("end_header\n");
+        CHECK(len == (size_t)(b - buf) + n * 27);
+        for (size_t i = 0; i < n; i++, b += 27) {
+                float f[6];
+                memcpy(f, b, sizeof(f)); /* this host is little-endian (x86, arm64) */
+                for (int k = 0; k < 3; k++) {
+                        CHECK(f[k] == p[i].x[k] && f[3 + k] == p[i].n[k]);
+                        CHECK((uint8_t)b[24 + k] == p[i].rgb[k]);
+                }
+        }
+}
+
+static void test_sphere(void)
+{
+        char dir[] = "/tmp/gonio-section-XXXXXX", path[64];
+        struct scan s;
+        size_t red = 0;
+
+        expect_shape(&s, "sphere", 20, 50, sphere_dist, ANGLES * 150);
+        expect_sphere_normals(&s.c);
+        for (size_t i = 0; i < s.c.n_pts; i++) /* the texture is the laser-on frame */
+                red += s.c.pts[i].rgb[0] > 2 * s.c.pts[i].rgb[1] + 20;
+        CHECK(red > s.c.n_pts * 9 / 10);
+        CHECK(mkdtemp(dir));
+        snprintf(path, sizeof(path), "%s/scan.ply", dir);
+        CHECK_INT(ply_write_points(AT_FDCWD, path, s.c.pts, s.c.n_pts), 0);
+        expect_ply(s.c.pts, s.c.n_pts, path);
+        CHECK_INT(unlink(path), 0);
+        CHECK_INT(rmdir(dir), 0);
+        scan_close(&s);
+}
+
+static void test_gem(void)
+{
+        struct scan s;
+
+        expect_shape(&s, "gem", 25, 30, plane_dist, ANGLES * 40);
+        scan_close(&s);
+}
+
+static void test_relief(void)
+{
+        struct scan s;
+
+        expect_shape(&s, "relief", 45, 5, plane_dist, ANGLES * 30);
+        scan_close(&s);
+}
+
+/* Two lasers on either side of the camera, merged into one cloud: each within the RMS,
+ * their mean distances to the surface within 0.1 mm of each other, and the normals found
+ * from each laser's own lines. */
+static void test_two_lasers(void)
+{
+        struct scan s;
+        struct score a, b;
+        size_t normals;
+
+        scan_open(&s, "gem", 25, 30, (double[]){0, 70}, 2);
+        a = expect_score(&s, 0, "gem", plane_dist, ANGLES * 40);
+        b = expect_score(&s, 1, "gem", plane_dist, ANGLES * 40);
+        CHECK(fabs(a.bias - b.bias) <= 0.1);
+        normals = sec_normals(&s.c);
+        fprintf(stderr, "two lasers: %zu points, %zu with a normal\n", s.c.n_pts, normals);
+        CHECK(normals > s.c.n_pts * 8 / 10);
+        scan_close(&s);
+}
+
+/* Undistortion inverts the forward model (the renderer's, as cv::projectPoints) to 1e-6 px
+ * over the whole image of a strong lens. */
+static void test_undistort(void)
+{
+        struct sim_cam_geom g = {.width = W,
+                                 .height = H,
+                                 .fx = 1100,
+                                 .fy = 1105,
+                                 .cx = 401,
+                                 .cy = 298,
+                                 .dist = {-0.25, 0.12, 0.001, -0.0008, -0.02},
+                                 .R = {1, 0, 0, 0, 1, 0, 0, 0, 1}};
+        struct cal_intrinsics k = {.fx = g.fx, .fy = g.fy, .cx = g.cx, .cy = g.cy};
+        double worst = 0;
+
+        memcpy(k.dist, g.dist, sizeof(k.dist));
+        for (int v = 0; v <= H; v += 25)
+                for (int u = 0; u <= W; u += 25) {
+                        double xy[2], uv[2];
+                        CHECK_INT(sec_undistort(&k, u, v, xy), 0);
+                        CHECK_INT(sim_cam_project(&g, (double[3]){xy[0], xy[1], 1}, uv), 0);
+                        worst = fmax(worst, hypot(uv[0] - u, uv[1] - v));
+                }
+        fprintf(stderr, "undistort: worst %.2e px\n", worst);
+        CHECK(worst < 1e-6);
+}
+
+/* Bad arguments: -EINVAL, -ENOSPC, and a ray that grazes the plane is no point. */
+static void test_args(void)
+{
+        struct sec_camera cam = {.k = {.fx = 1000, .fy = 1000, .cx = 400, .cy = 300},
+                                 .width = W,
+                                 .height = H,
+                                 .R = {1, 0, 0, 0, 1, 0, 0, 0, 1},
+                                 .t = {0, 0, 500}};
+        double p[3] = {0, 0, 0}, n0[3] = {0, 0, 0}, nz[3] = {0, 0, 1}, nx[3] = {1, 0, 1e-5},
+               px[3] = {1, 0, 0};
+        float centre[H];
+        struct laserline_result r = {.centre = centre, .n = H};
+        struct sec_ctx c;
+
+        for (int i = 0; i < H; i++)
+                centre[i] = NAN;
+        cam.R[0] = 2;
+        CHECK_INT(sec_init(&c, &cam), -EINVAL);
+        cam.R[0] = 1;
+        CHECK_INT(sec_init(&c, &cam), 0);
+        CHECK_INT(sec_add_laser(&c, p, n0), -EINVAL);
+        CHECK_INT(sec_add_laser(&c, p, nz), 0);
+        CHECK_INT(sec_add_laser(&c, px, nx), 1);
+        CHECK_INT(sec_add_laser(&c, p, nz), 2);
+        CHECK_INT(sec_add_laser(&c, p, nz), 3);
+        CHECK_INT(sec_add_laser(&c, p, nz), -ENOSPC);
+        CHECK_INT(sec_add_line(&c, 4, 0, &r, false, NULL), -EINVAL);
+        r.n = H + 1;
+        CHECK_INT(sec_add_line(&c, 0, 0, &r, false, NULL), -EINVAL);
+        r.n = H;
+        centre[300] = 400; /* the principal ray: meets z = 0 at the origin */
+        CHECK_INT(sec_add_line(&c, 0, 0, &r, false, NULL), 1);
+        CHECK(fabs(c.pts[0].x[0]) < 1e-9 && fabs(c.pts[0].x[2]) < 1e-9);
+        /* nearly along the plane x = 1: a point 100 m away, no point */
+        CHECK_INT(sec_add_line(&c, 1, 0, &r, false, NULL), 0);
+        CHECK(c.rejected == 1);
+        sec_free(&c);
+}
+
+/* The object frame (minus the turntable angle about z), a line per column, and colour from a
+ * 16-bit mono texture, on a camera looking up at the plane z = 0 from 500 mm below. */
+static void test_frames(void)
+{
+        struct sec_camera cam = {.k = {.fx = 1000, .fy = 1000, .cx = 400, .cy = 300},
+                                 .width = W,
+                                 .height = H,
+                                 .R = {1, 0, 0, 0, 1, 0, 0, 0, 1},
+                                 .t = {0, 0, 500}};
+        double p[3] = {0, 0, 0}, nz[3] = {0, 0, 1};
+        float centre[W];
+        struct laserline_result r = {.centre = centre, .n = W};
+        struct gn_frame tex = {0};
+        struct sec_ctx c;
+
+        for (int i = 0; i < W; i++)
+                centre[i] = NAN;
+        CHECK_INT(gn_frame_alloc(&tex, W, H, 1, 16), 0);
+        for (int y = 0; y < H; y++)
+                for (int x = 0; x < W; x++)
+                        ((uint16_t *)(tex.data + (size_t)y * tex.stride))[x] = 0x4000;
+        CHECK_INT(sec_init(&c, &cam), 0);
+        CHECK_INT(sec_add_laser(&c, p, nz), 0);
+        centre[500] = 300; /* column 500, row 300: the world point (50, 0, 0) */
+        CHECK_INT(sec_add_line(&c, 0, 90, &r, true, &tex), 1);
+        CHECK(fabs(c.pts[0].x[0]) < 1e-4 && fabs(c.pts[0].x[1] + 50) < 1e-4 &&
+              fabs(c.pts[0].x[2]) < 1e-4);
+        CHECK(c.pts[0].row == 500 && c.pts[0].line == 0);
+        CHECK(c.pts[0].rgb[0] == 64 && c.pts[0].rgb[1] == 64 && c.pts[0].rgb[2] == 64);
+        r.n = W + 1;
+        CHECK_INT(sec_add_line(&c, 0, 0, &r, true, NULL), -EINVAL);
+        r.n = H + 1; /* a per-row result longer than the image */
+        CHECK_INT(sec_add_line(&c, 0, 0, &r, false, NULL), -EINVAL);
+        tex.width--;
+        CHECK_INT(sec_add_line(&c, 0, 0, &r, true, &tex), -EINVAL);
+        tex.width++;
+        gn_frame_free_data(&tex);
+        sec_free(&c);
+}
+
+static const struct test_case cases[] = {
+        {"sphere", test_sphere},       {"gem", test_gem},
+        {"relief", test_relief},       {"two-lasers", test_two_lasers},
+        {"undistort", test_undistort}, {"args", test_args},
+        {"frames", test_frames},
+};
+
+int main(int argc, char **argv)
+{
+        return TEST_RUN_CASES(cases, argc, argv);
+}
