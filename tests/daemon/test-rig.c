@@ -348,7 +348,9 @@ static void test_partial(struct fixture *f)
         CHECK_INT(capture_new(f->event, f->rig, NULL, NULL, &cp), 0);
         CHECK_INT(capture_attach(cp, d, "ds", 0), 0);
         inject_drop(f, "cam1");
-        CHECK_INT(capture_take(cp, cams, 2, &(struct cam_request){0}, &(struct capture_tag){.session = "s1"}, on_captured, f), 0);
+        CHECK_INT(capture_take(cp, cams, 2, &(struct cam_request){0},
+                               &(struct capture_tag){.session = "s1"}, on_captured, f),
+                  0);
         run_until(f, f->done + 1);
         CHECK_INT(f->res.n_shots, 2);
         CHECK_INT(f->res.shots[0].result, 0);
