@@ -81,6 +81,12 @@ static int open_job(void *userdata)
                                         : strerror(-r));
                 return r;
         }
+        if ((r = ds_claim(j->d)) < 0) { /* what a crash left goes now */
+                snprintf(j->msg, sizeof(j->msg), "cannot open dataset '%s': %s", j->name,
+                         r == -EBUSY ? "another process is writing it" : ds_last_error(j->d));
+                j->d = ds_close(j->d);
+                return r;
+        }
         j->count = ds_count(j->d);
         j->old = ds_close(j->old);
         return 0;

@@ -338,6 +338,10 @@ static int load(struct load_job *j)
 
         if ((r = load_dataset(j, rc->text)) < 0)
                 return r;
+        if ((r = ds_claim(j->d)) < 0) /* what a crash left goes before anything is read */
+                return job_fail(j, r, "dataset '%s': %s", j->dataset,
+                                r == -EBUSY ? "another process is writing it"
+                                            : ds_last_error(j->d));
         if (j->abandon && (r = begin_or_find(j, rc->text)) >= 0 &&
             (r = ds_session_set_state(j->d, j->name, "aborted", ABANDONED)) >= 0)
                 r = ds_session_get(j->d, j->name, &j->info);

@@ -405,6 +405,12 @@ int ds_become_writer(struct ds *d)
         return 0;
 }
 
+int ds_claim(struct ds *d)
+{
+        DS_ASSERT_THREAD_ALLOWED();
+        return ds_become_writer(d);
+}
+
 void ds_name_part(char *out, size_t outlen, const char *in, const char *empty)
 {
         size_t n = 0;

@@ -249,11 +249,18 @@ static void test_stopresume(struct rigenv *e)
 static void test_abandon(struct rigenv *e)
 {
         struct ds_session_info info = {0};
+        char leftover[400];
         int fd;
 
         fd = sess_start_default(e, NULL);
         usleep(300000);
         rigenv_crash_daemon(e);
+        /* what a store cut short by the crash may leave: a temporary file and an image
+         * without its row; the session's dataset is cleaned before anything reads it */
+        snprintf(leftover, sizeof(leftover), "%s/ds1/images/000999_cam0_lamp0.png.tmp", e->data);
+        write_file(leftover, "torn");
+        snprintf(leftover, sizeof(leftover), "%s/ds1/images/000998_cam0_lamp0.png", e->data);
+        write_file(leftover, "orphan");
         close(fd);
         CHECK_INT(ctl(e, NULL, "session", "abort", NULL), 0);
         CHECK_INT(ctl(e, NULL, "session", "resume", NULL), 6); /* nothing left to resume */
