@@ -75,6 +75,20 @@ static int rows_load(struct ds *d, struct rows *r, char *err, size_t errlen)
         return 0;
 }
 
+/* Loads r->camera's rows and images into r and room for one view (view_size bytes) per row
+ * into *views. */
+static int load_views(struct ds *d, struct rows *r, size_t view_size, void **views, char *err,
+                      size_t errlen)
+{
+        int e;
+
+        if (!r->camera)
+                return -EINVAL;
+        if ((e = rows_load(d, r, err, errlen)) < 0)
+                return e;
+        return (*views = calloc(r->n, view_size)) ? 0 : -ENOMEM;
+}
+
 static double angle_of(const struct ds_capture *c)
 {
         double a = c->pose.deg[GN_ROLE_TURNTABLE];
@@ -91,12 +105,8 @@ int cal_turntable_solve_ds(struct ds *d, const char *camera, const struct cal_tt
         int e;
 
         memset(out, 0, sizeof(*out));
-        if (!camera)
-                return -EINVAL;
-        if ((e = rows_load(d, &r, err, errlen)) < 0)
+        if ((e = load_views(d, &r, sizeof(*v), (void **)&v, err, errlen)) < 0)
                 return e;
-        if (!(v = calloc(r.n, sizeof(*v))))
-                return -ENOMEM;
         for (size_t i = 0; i < r.n; i++) {
                 const struct gn_frame *f = &r.f[i];
                 if (r.c[i].pose.laser)
@@ -141,12 +151,8 @@ int cal_laser_solve_ds(struct ds *d, const char *camera, const struct cal_lp_opt
         int e;
 
         memset(out, 0, sizeof(*out));
-        if (!camera)
-                return -EINVAL;
-        if ((e = rows_load(d, &r, err, errlen)) < 0)
+        if ((e = load_views(d, &r, sizeof(*v), (void **)&v, err, errlen)) < 0)
                 return e;
-        if (!(v = calloc(r.n, sizeof(*v))))
-                return -ENOMEM;
         for (size_t i = 0; i < r.n; i++) {
                 if (!r.c[i].pose.laser)
                         continue;
