@@ -81,6 +81,8 @@ static int open_job(void *userdata)
                                         : strerror(-r));
                 return r;
         }
+        if (j->old && strcmp(ds_path(j->old), ds_path(j->d)) == 0)
+                j->old = ds_close(j->old); /* reopened: its lock would refuse the claim */
         if ((r = ds_claim(j->d)) < 0) { /* what a crash left goes now */
                 snprintf(j->msg, sizeof(j->msg), "cannot open dataset '%s': %s", j->name,
                          r == -EBUSY ? "another process is writing it" : ds_last_error(j->d));

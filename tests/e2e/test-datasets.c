@@ -75,6 +75,9 @@ static void test_lifecycle(struct rigenv *e)
         CHECK_INT(json_array_size(json_object_get(r, "captures")), 1);
         CHECK_STR(json_string_value(json_array_get(json_object_get(r, "cameras"), 0)), "cam0");
         json_decref(r);
+        r = ctl_ok(e, "dataset", "open", "a", NULL); /* the open one, after a store: reopened */
+        CHECK_INT(json_integer_value(json_object_get(r, "count")), 1);
+        json_decref(r);
         r = ctl_ok(e, "dataset", "info", "b", NULL);
         CHECK_INT(json_integer_value(json_object_get(r, "count")), 0);
         json_decref(r);
