@@ -326,3 +326,14 @@ void cal_laser_agreement(const struct cal_plane *a, const struct cal_plane *b,
                                 s * (cal_dot(b->n, tt->origin) + b->d));
         }
 }
+
+void cal_plane_to_turntable(const struct cal_plane *cam, const struct cal_turntable *tt,
+                            struct cal_plane *out)
+{
+        double n[3];
+
+        for (int k = 0; k < 3; k++)
+                n[k] = tt->R[k] * cam->n[0] + tt->R[3 + k] * cam->n[1] + tt->R[6 + k] * cam->n[2];
+        out->d = cam->d + cal_dot(cam->n, tt->t);
+        memcpy(out->n, n, sizeof(n));
+}

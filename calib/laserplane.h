@@ -65,3 +65,8 @@ void cal_laser_vs_axis(const struct cal_plane *p, const struct cal_turntable *tt
  * height (0 when both contain the axis: they then meet on it). */
 void cal_laser_agreement(const struct cal_plane *a, const struct cal_plane *b,
                          const struct cal_turntable *tt, double *angle_deg, double *dist_mm);
+
+/* Plane cam (camera frame) in the turntable frame of tt (x_cam = R x_tt + t): n' = R^T n,
+ * d' = d + n.t. The turntable frame is the world of calib/section.h at turntable angle 0. */
+void cal_plane_to_turntable(const struct cal_plane *cam, const struct cal_turntable *tt,
+                            struct cal_plane *out);
