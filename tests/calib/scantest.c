@@ -1,0 +1,228 @@
+/* scantest.c - scans of 100 mm objects scored against the renderer's truth (scantest.h). */
+#include <math.h>
+#include <stdio.h>
+
+#include "common/cleanup.h"
+#include "common/riggeom.h"
+#include "scantest.h"
+
+#define DEG (M_PI / 180)
+
+static const char cams_fmt[] =
+        "cameras:\n"
+        "  - { name: c0, sim: { bus: frames }, elevation: %g, distance: 380, azimuth: 30,\n"
+        "      target: [0, 0, %g], width: %d, height: %d, fx: %g, fy: %g,\n"
+        "      distortion: [-0.25, 0.12, 0.001, -0.0008, 0], exposure_us: 20000 }\n";
+static const char laser_fmt[] =
+        "laser: { name: laser, modbus-coil: { bus: relays, coil: 7 }, azimuth: %g,\n"
+        "         origin: [%g, %g, %g], width: 0.5, power: 1.2e3, channel: red }\n";
+static const char scene_fmt[] = "scene:\n"
+                                "  seed: 5\n"
+                                "  object: { shape: %s, size: 100, material: { albedo: 0.6 } }\n"
+                                "  turntable: { radius: 0 }\n"
+                                "  sensor: { black_level: 0.02 }\n";
+
+void scan_camera_yaml(char *buf, size_t len, double elevation, double target_z)
+{
+        snprintf(buf, len, cams_fmt, elevation, target_z, SCAN_W, SCAN_H, 1.7 * SCAN_W,
+                 1.7 * SCAN_W);
+}
+
+void scan_laser_yaml(char *buf, size_t len, double az, double target_z)
+{
+        double r = target_z < 10 ? 250 : 500, h = target_z < 10 ? 400 : 60;
+
+        snprintf(buf, len, laser_fmt, az, r * cos(az * DEG), r * sin(az * DEG), h);
+}
+
+void scan_rigs(struct scan *s, const char *shape, double elevation, double target_z,
+               const double *az, int n, int angles)
+{
+        char cams[512], scene[256], laser[256];
+
+        memset(s, 0, sizeof(*s));
+        s->angles = angles;
+        scan_camera_yaml(cams, sizeof(cams), elevation, target_z);
+        snprintf(scene, sizeof(scene), scene_fmt, shape);
+        for (int i = 0; i < n; i++) {
+                scan_laser_yaml(laser, sizeof(laser), az[i], target_z);
+                rt_open(&s->t[s->lasers++], "", laser, cams, scene);
+        }
+}
+
+void scan_start(struct scan *s, const struct sec_camera *cam, const double (*p)[3],
+                const double (*n)[3])
+{
+        static const double id[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+
+        memcpy(s->T, id, sizeof(id));
+        CHECK_INT(sec_init(&s->c, cam), 0);
+        for (int i = 0; i < s->lasers; i++)
+                CHECK_INT(sec_add_laser(&s->c, p[i], n[i]), i);
+}
+
+void scan_open(struct scan *s, const char *shape, double elevation, double target_z,
+               const double *az, int n, int angles)
+{
+        struct sec_camera cam = {.width = SCAN_W, .height = SCAN_H};
+        const struct rig_camera_conf *cc;
+        double p[2][3], nv[2][3];
+
+        scan_rigs(s, shape, elevation, target_z, az, n, angles);
+        cc = &s->t[0].rc->cameras[0];
+        cam.k = (struct cal_intrinsics){.fx = cc->fx, .fy = cc->fy, .cx = cc->cx, .cy = cc->cy};
+        memcpy(cam.k.dist, cc->dist, sizeof(cam.k.dist));
+        riggeom_camera_pose(cc, 0, cam.R, cam.t);
+        for (int i = 0; i < n; i++)
+                sec_rig_laser_plane(s->t[i].rc->laser.laser_azimuth_deg, p[i], nv[i]);
+        scan_start(s, &cam, p, nv);
+}
+
+void scan_close(struct scan *s)
+{
+        sec_free(&s->c);
+        for (int i = 0; i < s->lasers; i++)
+                rt_close(&s->t[i]);
+}
+
+/* Renders laser l on and off at turntable angle deg, extracts and triangulates the line. */
+static void scan_line(struct scan *s, int l, double deg, uint64_t seq, struct sim_truth *tr)
+{
+        struct gn_pose st = {.laser = true};
+        struct sim_expose ex = {.bits = 8};
+        struct laserline_opts o;
+        float centre[SCAN_H];
+        struct laserline_result r = {.centre = centre, .n = SCAN_H};
+        struct gn_frame on, off;
+
+        laserline_opts_default(&o, 0);
+        for (int k = 0; k < GN_ROLE_COUNT; k++)
+                st.deg[k] = NAN;
+        st.deg[GN_ROLE_TURNTABLE] = deg;
+        rt_render(&s->t[l], &st, &ex, 2 * seq, &on, SIM_TRUTH_POINT, tr);
+        st.laser = false;
+        rt_render(&s->t[l], &st, &ex, 2 * seq + 1, &off, 0, NULL);
+        CHECK(laserline_extract(&on, &off, &o, &r) >= 0);
+        CHECK(sec_add_line(&s->c, l, deg, &r, false, &on) >= 0);
+        gn_frame_free_data(&on);
+        gn_frame_free_data(&off);
+}
+
+/* Point p moved by T into the renderer's object frame. */
+static struct sec_point scan_to_truth(const double T[12], const struct sec_point *p)
+{
+        struct sec_point q = *p;
+
+        for (int k = 0; k < 3; k++)
+                q.x[k] = (float)(T[3 * k] * p->x[0] + T[3 * k + 1] * p->x[1] +
+                                 T[3 * k + 2] * p->x[2] + T[9 + k]);
+        return q;
+}
+
+/* Scans s->angles angles with laser l, scoring each new point with fn. */
+static struct score scan_score(struct scan *s, int l, truth_fn fn)
+{
+        struct score sc = {0};
+        double sum = 0;
+        int n = s->angles;
+
+        for (int i = 0; i < n; i++) {
+                _cleanup_(sim_truth_free) struct sim_truth tr = {0};
+                size_t first = s->c.n_pts;
+
+                scan_line(s, l, 360.0 * i / n, (uint64_t)(l * n + i), &tr);
+                for (size_t j = first; j < s->c.n_pts; j++) {
+                        struct sec_point q = scan_to_truth(s->T, &s->c.pts[j]);
+                        double d = fn(&tr, 360.0 * i / n, &q);
+                        if (isnan(d))
+                                continue;
+                        sum += d * d;
+                        sc.bias += d;
+                        sc.worst = fmax(sc.worst, fabs(d));
+                        sc.scored++;
+                }
+        }
+        sc.rms = sc.scored ? sqrt(sum / sc.scored) : NAN;
+        sc.bias = sc.scored ? sc.bias / sc.scored : NAN;
+        return sc;
+}
+
+double scan_sphere_dist(const struct sim_truth *tr, double turntable_deg, const struct sec_point *p)
+{
+        (void)tr;
+        (void)turntable_deg;
+        return hypot(hypot(p->x[0], p->x[1]), p->x[2] - 50.0) - 50.0;
+}
+
+/* The truth point of pixel (u, v) (object frame), or NULL off the object or the image. */
+static const float *truth_at(const struct sim_truth *tr, int u, int v)
+{
+        const float *q;
+
+        if (u < 0 || u >= tr->width || v < 0 || v >= tr->height)
+                return NULL;
+        q = tr->point + 3 * ((size_t)v * tr->width + u);
+        return isnan(q[0]) ? NULL : q;
+}
+
+/* The surface's plane under pixel (u0, v) from the truth points around it: point q (the
+ * points of u0 and u0 + 1 interpolated at u) and unit normal n. False where the pixels
+ * u0-2..u0+3 of row v and v-2..v+2 of column u0 do not lie on one
+ * plane (a facet edge, a silhouette, a strong curvature). */
+static bool truth_plane(const struct sim_truth *tr, double u, int v, double q[3], double n[3])
+{
+        int u0 = (int)floor(u);
+        const float *a = truth_at(tr, u0 - 2, v), *b = truth_at(tr, u0 + 3, v),
+                    *c = truth_at(tr, u0, v - 2), *d = truth_at(tr, u0, v + 2);
+        const float *q0 = truth_at(tr, u0, v), *q1 = truth_at(tr, u0 + 1, v);
+        double e[3], f[3], len;
+
+        if (!a || !b || !c || !d || !q0 || !q1)
+                return false;
+        for (int k = 0; k < 3; k++) {
+                e[k] = b[k] - a[k];
+                f[k] = d[k] - c[k];
+                q[k] = q0[k] + (u - u0) * (q1[k] - q0[k]);
+        }
+        n[0] = e[1] * f[2] - e[2] * f[1];
+        n[1] = e[2] * f[0] - e[0] * f[2];
+        n[2] = e[0] * f[1] - e[1] * f[0];
+        len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        for (int k = 0; k < 3; k++)
+                n[k] /= len;
+        for (int x = u0 - 2; x <= u0 + 7; x++) { /* the row's and column's points on it */
+                const float *p =
+                        x <= u0 + 3 ? truth_at(tr, x, v) : truth_at(tr, u0, v + x - u0 - 5);
+                if (!p ||
+                    fabs(n[0] * (p[0] - q[0]) + n[1] * (p[1] - q[1]) + n[2] * (p[2] - q[2])) > 0.01)
+                        return false;
+        }
+        return true;
+}
+
+double scan_plane_dist(const struct sim_truth *tr, double turntable_deg, const struct sec_point *p)
+{
+        double q[3], n[3];
+
+        (void)turntable_deg;
+        if (!truth_plane(tr, p->u, p->row, q, n))
+                return NAN;
+        return n[0] * (p->x[0] - q[0]) + n[1] * (p->x[1] - q[1]) + n[2] * (p->x[2] - q[2]);
+}
+
+struct score scan_expect(struct scan *s, int l, const char *shape, truth_fn fn, int min_points,
+                         double rms_max)
+{
+        size_t before = s->c.n_pts;
+        struct score sc = scan_score(s, l, fn);
+
+        fprintf(stderr,
+                "%s, laser %d: %zu points over %d angles, %d scored, RMS %.4f mm, worst %.4f mm, "
+                "mean %+.4f mm, %zu rejected rays\n",
+                shape, l, s->c.n_pts - before, s->angles, sc.scored, sc.rms, sc.worst, sc.bias,
+                s->c.rejected);
+        CHECK(sc.scored >= min_points);
+        CHECK(sc.rms <= rms_max);
+        CHECK(sc.worst <= fmax(SCAN_MAX_SIGMA * sc.rms, 0.1));
+        return sc;
+}

@@ -1,0 +1,73 @@
+/* scantest.h - 100 mm objects (sphere, gem, relief plate) scanned by light sectioning with the
+ * renderer in-process (laser on minus off, noise on, a strong lens), and the scanned points
+ * scored against the renderer's true surface: for the sphere analytically, for the gem and the
+ * relief against the plane of the true object points (SIM_TRUTH_POINT) around the line's pixel.
+ * Shared by test-section.c (the true calibration) and test-shape.c (the estimated one). */
+#pragma once
+
+#include "calib/section.h"
+#include "tests/render/rtest.h"
+
+#define SCAN_W         800
+#define SCAN_H         600
+#define SCAN_MAX_SIGMA 6.0 /* no point farther than this many RMS (and 0.1 mm) */
+
+/* Distance of p (object frame) to the true surface; NAN where not scored. */
+typedef double (*truth_fn)(const struct sim_truth *tr, double turntable_deg,
+                           const struct sec_point *p);
+
+/* One rendering rig per laser (the renderer has one laser), the camera of the first. The
+ * points are scored after the rigid motion T (R row-major, then t: x_truth = R x + t) from
+ * the frame they were triangulated in to the renderer's object frame (identity: the same). */
+struct scan {
+        struct rtest t[2];
+        int lasers, angles;
+        struct sec_ctx c;
+        double T[12];
+};
+
+/* What a scan with one laser scored. */
+struct score {
+        double rms, worst, bias; /* mm: RMS, largest and mean signed distance */
+        int scored;
+};
+
+/* The camera of the scans: 380 mm from (0, 0, target_z), at azimuth 30 and the given
+ * elevation, 800x600, a strong lens. Writes its rig-file section into buf. */
+void scan_camera_yaml(char *buf, size_t len, double elevation, double target_z);
+
+/* The laser at azimuth az: from the side at 500 mm, or from above for a flat object
+ * (target_z < 10). Writes its rig-file section into buf. */
+void scan_laser_yaml(char *buf, size_t len, double az, double target_z);
+
+/* Opens the rigs of shape with the lasers at the n azimuths az, to scan at `angles`
+ * turntable angles; no context yet (scan_start). */
+void scan_rigs(struct scan *s, const char *shape, double elevation, double target_z,
+               const double *az, int n, int angles);
+
+/* Starts the context with camera cam and the lasers' planes (the world frame of cam, one per
+ * rig), T the identity. */
+void scan_start(struct scan *s, const struct sec_camera *cam, const double (*p)[3],
+                const double (*n)[3]);
+
+/* scan_rigs then scan_start with the true calibration of the rig file: intrinsics,
+ * riggeom_camera_pose, the lasers' planes. */
+void scan_open(struct scan *s, const char *shape, double elevation, double target_z,
+               const double *az, int n, int angles);
+
+void scan_close(struct scan *s);
+
+/* The sphere's true surface: analytic. */
+double scan_sphere_dist(const struct sim_truth *tr, double turntable_deg,
+                        const struct sec_point *p);
+
+/* Distance to the plane of the true surface under the line's pixel; NAN where the true
+ * points there do not lie on one plane within 0.01 mm over 6 pixels of the row and 5 of the
+ * column (facet edges, silhouettes, strong curvature). */
+double scan_plane_dist(const struct sim_truth *tr, double turntable_deg, const struct sec_point *p);
+
+/* Scans laser l over s->angles angles and scores its points with fn; prints the numbers and
+ * checks at least min_points scored, RMS <= rms_max, no point beyond SCAN_MAX_SIGMA RMS (or
+ * 0.1 mm). */
+struct score scan_expect(struct scan *s, int l, const char *shape, truth_fn fn, int min_points,
+                         double rms_max);
