@@ -3,13 +3,15 @@
  * (laserline.h, laser-on minus laser-off), the board's plane from solvePnP on the laser-off
  * frame, each centre's ray cut with that plane (points on the board's squares only), then a
  * robust plane fit (RANSAC, then least squares on the inliers). Several lasers: each fitted
- * so, then compared with each other and with the turntable axis. docs/calibration.md. */
+ * so, then compared with each other and with the turntable axis, and refined jointly on a scan
+ * so that their surfaces agree (laserplane_joint.c). docs/calibration.md. */
 #pragma once
 
 #include <stdbool.h>
 #include <stddef.h>
 
 #include "calib/laserline.h"
+#include "calib/section.h"
 #include "calib/turntable.h"
 #include "common/frame.h"
 
@@ -70,3 +72,46 @@ void cal_laser_agreement(const struct cal_plane *a, const struct cal_plane *b,
  * d' = d + n.t. The turntable frame is the world of calib/section.h at turntable angle 0. */
 void cal_plane_to_turntable(const struct cal_plane *cam, const struct cal_turntable *tt,
                             struct cal_plane *out);
+
+#define CAL_LR_MATCH_MM   4.0 /* a point's match on another laser's cloud: at most this far */
+#define CAL_LR_ITERATIONS 20
+
+struct cal_lr_opts {
+        double match_mm; /* 0: CAL_LR_MATCH_MM (about the spacing of a laser's lines) */
+        int iterations;  /* 0: CAL_LR_ITERATIONS */
+        int reference;   /* the laser that stays (the best calibrated); the others move */
+};
+
+/* What cal_lasers_refine changed, and how well the lasers' surfaces agree before and after:
+ * over the points matched to another laser's surface (the nearest point within match_mm with
+ * a normal within 37 deg, distances beyond 3 robust sigmas left out). */
+struct cal_lr_result {
+        int n_lasers;
+        double angle_deg[SEC_MAX_LASERS]; /* how far each plane's normal turned */
+        double shift_mm[SEC_MAX_LASERS];  /* how far it moved at the centre of its points */
+        double offset_before[SEC_MAX_LASERS],
+                offset_after[SEC_MAX_LASERS]; /* each laser's mean
+                                               * signed distance from the others' surfaces (mm, +
+                                               * outside) */
+        double rms_before, rms_after;         /* RMS distance between the surfaces (mm) */
+        size_t pairs_before, pairs_after;
+        int iterations;
+};
+
+/* Refines the planes of the two or more lasers of scan c (world frame, as sec_add_laser) so
+ * that their surfaces agree: each point moves along its camera ray as its plane changes, and
+ * the distance from each laser's points to the other lasers' surfaces is minimised by
+ * changing every plane but the reference laser's (o NULL: laser 0), all together
+ * (Gauss-Newton, matches redone each iteration). Needs the
+ * normals (sec_normals) first; they are not updated (call sec_normals again). On success c's
+ * planes and points are the refined ones; on failure c is unchanged. Returns 0; -EINVAL (fewer
+ * than two lasers, no such reference), -ENODATA (fewer than 100 matched points: the clouds do not
+ * overlap, or no normals), -EDOM (a plane would change by more than 1 deg or 2 mm: a bad
+ * calibration, not a small error) or -ENOMEM, with a sentence in err. */
+int cal_lasers_refine(struct sec_ctx *c, const struct cal_lr_opts *o, struct cal_lr_result *out,
+                      char *err, size_t errlen);
+
+/* Sets the plane of laser `laser` of scan c to p (world frame) and moves its points along
+ * their camera rays onto it (their normals kept). Returns 0, -EINVAL (no such laser, p's
+ * normal zero), -EDOM (a ray along the plane) or -ENOMEM. */
+int cal_laser_replane(struct sec_ctx *c, int laser, const struct cal_plane *p);

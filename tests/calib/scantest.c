@@ -80,6 +80,7 @@ void scan_open(struct scan *s, const char *shape, double elevation, double targe
 
 void scan_close(struct scan *s)
 {
+        free(s->truth);
         sec_free(&s->c);
         for (int i = 0; i < s->lasers; i++)
                 rt_close(&s->t[i]);
@@ -119,7 +120,33 @@ static struct sec_point scan_to_truth(const double T[12], const struct sec_point
         return q;
 }
 
-/* Scans s->angles angles with laser l, scoring each new point with fn. */
+/* Adds distance d to sc and *sum (the squares); NAN is not scored. */
+static void score_add(struct score *sc, double *sum, double d)
+{
+        if (isnan(d))
+                return;
+        *sum += d * d;
+        sc->bias += d;
+        sc->worst = fmax(sc->worst, fabs(d));
+        sc->scored++;
+}
+
+static void score_end(struct score *sc, double sum)
+{
+        sc->rms = sc->scored ? sqrt(sum / sc->scored) : NAN;
+        sc->bias = sc->scored ? sc->bias / sc->scored : NAN;
+}
+
+/* Distance of point i (through T) from its kept true plane; NAN when not scored. */
+static double truth_dist(const struct scan *s, size_t i)
+{
+        struct sec_point q = scan_to_truth(s->T, &s->c.pts[i]);
+        const double *pl = s->truth[i];
+
+        return pl[0] * q.x[0] + pl[1] * q.x[1] + pl[2] * q.x[2] + pl[3];
+}
+
+/* Scans s->angles angles with laser l, keeping each new point's true plane (fn). */
 static struct score scan_score(struct scan *s, int l, truth_fn fn)
 {
         struct score sc = {0};
@@ -131,27 +158,44 @@ static struct score scan_score(struct scan *s, int l, truth_fn fn)
                 size_t first = s->c.n_pts;
 
                 scan_line(s, l, 360.0 * i / n, (uint64_t)(l * n + i), &tr);
+                s->truth = realloc(s->truth, (s->c.n_pts + 1) * sizeof(*s->truth));
+                CHECK(s->truth);
                 for (size_t j = first; j < s->c.n_pts; j++) {
                         struct sec_point q = scan_to_truth(s->T, &s->c.pts[j]);
-                        double d = fn(&tr, 360.0 * i / n, &q);
-                        if (isnan(d))
-                                continue;
-                        sum += d * d;
-                        sc.bias += d;
-                        sc.worst = fmax(sc.worst, fabs(d));
-                        sc.scored++;
+                        if (!fn(&tr, &q, s->truth[j]))
+                                s->truth[j][0] = s->truth[j][1] = s->truth[j][2] = s->truth[j][3] =
+                                        NAN;
+                        score_add(&sc, &sum, truth_dist(s, j));
                 }
         }
-        sc.rms = sc.scored ? sqrt(sum / sc.scored) : NAN;
-        sc.bias = sc.scored ? sc.bias / sc.scored : NAN;
+        score_end(&sc, sum);
         return sc;
 }
 
-double scan_sphere_dist(const struct sim_truth *tr, double turntable_deg, const struct sec_point *p)
+struct score scan_rescore(const struct scan *s, int l, const char *label)
 {
+        struct score sc = {0};
+        double sum = 0;
+
+        for (size_t i = 0; i < s->c.n_pts; i++)
+                if (s->c.pts[i].laser == l)
+                        score_add(&sc, &sum, truth_dist(s, i));
+        score_end(&sc, sum);
+        fprintf(stderr, "%s, laser %d: %d scored, RMS %.4f mm, worst %.4f mm, mean %+.4f mm\n",
+                label, l, sc.scored, sc.rms, sc.worst, sc.bias);
+        return sc;
+}
+
+bool scan_sphere_dist(const struct sim_truth *tr, const struct sec_point *p, double pl[4])
+{
+        double r = hypot(hypot(p->x[0], p->x[1]), p->x[2] - 50.0);
+
         (void)tr;
-        (void)turntable_deg;
-        return hypot(hypot(p->x[0], p->x[1]), p->x[2] - 50.0) - 50.0;
+        pl[0] = p->x[0] / r;
+        pl[1] = p->x[1] / r;
+        pl[2] = (p->x[2] - 50.0) / r;
+        pl[3] = -(pl[2] * 50.0 + 50.0); /* through (0, 0, 50) + 50 n */
+        return true;
 }
 
 /* The truth point of pixel (u, v) (object frame), or NULL off the object or the image. */
@@ -166,7 +210,7 @@ static const float *truth_at(const struct sim_truth *tr, int u, int v)
 }
 
 /* The surface's plane under pixel (u0, v) from the truth points around it: point q (the
- * points of u0 and u0 + 1 interpolated at u) and unit normal n. False where the pixels
+ * points of u0 and u0 + 1 interpolated at u) and unit normal n, outwards. False where the pixels
  * u0-2..u0+3 of row v and v-2..v+2 of column u0 do not lie on one
  * plane (a facet edge, a silhouette, a strong curvature). */
 static bool truth_plane(const struct sim_truth *tr, double u, int v, double q[3], double n[3])
@@ -184,9 +228,9 @@ static bool truth_plane(const struct sim_truth *tr, double u, int v, double q[3]
                 f[k] = d[k] - c[k];
                 q[k] = q0[k] + (u - u0) * (q1[k] - q0[k]);
         }
-        n[0] = e[1] * f[2] - e[2] * f[1];
-        n[1] = e[2] * f[0] - e[0] * f[2];
-        n[2] = e[0] * f[1] - e[1] * f[0];
+        n[0] = e[2] * f[1] - e[1] * f[2]; /* f x e: towards the camera (outwards) */
+        n[1] = e[0] * f[2] - e[2] * f[0];
+        n[2] = e[1] * f[0] - e[0] * f[1];
         len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
         for (int k = 0; k < 3; k++)
                 n[k] /= len;
@@ -200,14 +244,14 @@ static bool truth_plane(const struct sim_truth *tr, double u, int v, double q[3]
         return true;
 }
 
-double scan_plane_dist(const struct sim_truth *tr, double turntable_deg, const struct sec_point *p)
+bool scan_plane_dist(const struct sim_truth *tr, const struct sec_point *p, double pl[4])
 {
-        double q[3], n[3];
+        double q[3];
 
-        (void)turntable_deg;
-        if (!truth_plane(tr, p->u, p->row, q, n))
-                return NAN;
-        return n[0] * (p->x[0] - q[0]) + n[1] * (p->x[1] - q[1]) + n[2] * (p->x[2] - q[2]);
+        if (!truth_plane(tr, p->u, p->row, q, pl))
+                return false;
+        pl[3] = -(pl[0] * q[0] + pl[1] * q[1] + pl[2] * q[2]);
+        return true;
 }
 
 struct score scan_expect(struct scan *s, int l, const char *shape, truth_fn fn, int min_points,

@@ -12,18 +12,21 @@
 #define SCAN_H         600
 #define SCAN_MAX_SIGMA 6.0 /* no point farther than this many RMS (and 0.1 mm) */
 
-/* Distance of p (object frame) to the true surface; NAN where not scored. */
-typedef double (*truth_fn)(const struct sim_truth *tr, double turntable_deg,
-                           const struct sec_point *p);
+/* The true surface near p (object frame) as a plane n.x + d = 0 (pl: n, d; n unit, outwards);
+ * false where p is not scored. */
+typedef bool (*truth_fn)(const struct sim_truth *tr, const struct sec_point *p, double pl[4]);
 
 /* One rendering rig per laser (the renderer has one laser), the camera of the first. The
  * points are scored after the rigid motion T (R row-major, then t: x_truth = R x + t) from
- * the frame they were triangulated in to the renderer's object frame (identity: the same). */
+ * the frame they were triangulated in to the renderer's object frame (identity: the same);
+ * truth[i] is the true surface's plane near point i (NAN: not scored), kept for
+ * scan_rescore. */
 struct scan {
         struct rtest t[2];
         int lasers, angles;
         struct sec_ctx c;
         double T[12];
+        double (*truth)[4];
 };
 
 /* What a scan with one laser scored. */
@@ -57,17 +60,21 @@ void scan_open(struct scan *s, const char *shape, double elevation, double targe
 
 void scan_close(struct scan *s);
 
-/* The sphere's true surface: analytic. */
-double scan_sphere_dist(const struct sim_truth *tr, double turntable_deg,
-                        const struct sec_point *p);
+/* The sphere's true surface: its tangent plane at the point nearest p (the distance to it is
+ * the distance to the sphere). */
+bool scan_sphere_dist(const struct sim_truth *tr, const struct sec_point *p, double pl[4]);
 
-/* Distance to the plane of the true surface under the line's pixel; NAN where the true
- * points there do not lie on one plane within 0.01 mm over 6 pixels of the row and 5 of the
- * column (facet edges, silhouettes, strong curvature). */
-double scan_plane_dist(const struct sim_truth *tr, double turntable_deg, const struct sec_point *p);
+/* The plane of the true surface under the line's pixel; false where the true points there do
+ * not lie on one plane within 0.01 mm over 6 pixels of the row and 5 of the column (facet
+ * edges, silhouettes, strong curvature). */
+bool scan_plane_dist(const struct sim_truth *tr, const struct sec_point *p, double pl[4]);
 
 /* Scans laser l over s->angles angles and scores its points with fn; prints the numbers and
  * checks at least min_points scored, RMS <= rms_max, no point beyond SCAN_MAX_SIGMA RMS (or
  * 0.1 mm). */
 struct score scan_expect(struct scan *s, int l, const char *shape, truth_fn fn, int min_points,
                          double rms_max);
+
+/* Scores laser l's points of s again as they are now (moved by cal_lasers_refine, say)
+ * against the true planes kept when they were scanned; prints the numbers under label. */
+struct score scan_rescore(const struct scan *s, int l, const char *label);
