@@ -374,6 +374,24 @@ static void expect_refined(struct scan *s, const char *label)
         CHECK(fabs(a.bias - b.bias) <= 0.05);
 }
 
+/* cal_lasers_refine's refusals: no normals yet, one laser, no such reference laser. */
+static void expect_refine_errors(struct scan *s)
+{
+        struct cal_lr_result r;
+        char err[512];
+        int n = s->c.n_lasers;
+
+        CHECK_INT(cal_lasers_refine(&s->c, NULL, &r, err, sizeof(err)), -ENODATA);
+        CHECK_STR_CONTAINS(err, "compute the normals");
+        CHECK_INT(cal_lasers_refine(&s->c, &(struct cal_lr_opts){.reference = 2}, &r, err,
+                                    sizeof(err)),
+                  -EINVAL);
+        s->c.n_lasers = 1;
+        CHECK_INT(cal_lasers_refine(&s->c, NULL, &r, err, sizeof(err)), -EINVAL);
+        s->c.n_lasers = n;
+        CHECK_INT(cal_laser_replane(&s->c, 2, &(struct cal_plane){{0, 1, 0}, 0}), -EINVAL);
+}
+
 /* Two lasers (azimuths 0 and 70), each plane estimated from its own board views, scanning the
  * gem: each within RMS_MAX of the truth; refined jointly, their surfaces agree (mean distance
  * from each other within 0.02 mm). Then laser 1 knocked by 0.3 deg and 0.4 mm (its surface
@@ -384,12 +402,15 @@ static void test_two_lasers(void)
         struct estimate e;
         struct scan s;
         struct cal_plane knocked;
+        struct cal_lr_result res;
+        char err[512];
         double R[9];
 
         calibrate(&r, &e);
         scan_estimated(&s, &r, &e);
         scan_expect(&s, 0, r.shape, scan_plane_dist, ANGLES * 40, RMS_MAX);
         scan_expect(&s, 1, r.shape, scan_plane_dist, ANGLES * 40, RMS_MAX);
+        expect_refine_errors(&s);
         CHECK(sec_normals(&s.c) > s.c.n_pts * 8 / 10);
         expect_refined(&s, "two lasers");
         knocked = e.plane[1];
@@ -399,6 +420,13 @@ static void test_two_lasers(void)
         CHECK_INT(cal_laser_replane(&s.c, 1, &knocked), 0);
         scan_rescore(&s, 1, "laser 1 knocked");
         expect_refined(&s, "knocked");
+        knocked.d += 2.5; /* 2.5 mm more: refused, the scan unchanged */
+        CHECK_INT(cal_laser_replane(&s.c, 1, &knocked), 0);
+        float x = s.c.pts[s.c.n_pts - 1].x[0];
+        CHECK_INT(cal_lasers_refine(&s.c, NULL, &res, err, sizeof(err)), -EDOM);
+        fprintf(stderr, "%s\n", err);
+        CHECK_STR_CONTAINS(err, "laser 1's plane would turn by");
+        CHECK(s.c.pts[s.c.n_pts - 1].x[0] == x);
         scan_close(&s);
         cal_camera_clear(&e.cam);
 }
