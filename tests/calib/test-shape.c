@@ -10,6 +10,7 @@
  * pose at turntable angle 0 (docs/scanning.md, "With the estimated calibration"). */
 #include <math.h>
 #include <stdio.h>
+#include <time.h>
 
 #include "calib/camera.h"
 #include "calib/laserplane.h"
@@ -356,7 +357,13 @@ static void expect_refined(struct scan *s, const char *label)
         struct score a, b;
         char err[512];
 
+        struct timespec t0, t1;
+
+        clock_gettime(CLOCK_MONOTONIC, &t0);
         CHECK_INT(cal_lasers_refine(&s->c, NULL, &r, err, sizeof(err)), 0);
+        clock_gettime(CLOCK_MONOTONIC, &t1);
+        fprintf(stderr, "%s: %zu points refined in %.3f s\n", label, s->c.n_pts,
+                (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec));
         fprintf(stderr,
                 "%s: refined in %d iterations: laser 0 turned %.4f deg, moved %+.4f mm; laser 1 "
                 "turned %.4f deg, moved %+.4f mm\n"
