@@ -31,6 +31,9 @@
 #define LR_MAX_DEG  1.0  /* a larger change is no calibration error: refused */
 #define LR_MAX_MM   2.0
 #define LR_CELLS    (1 << 22)
+/* converged when a step moves no point (at the lever) by more: finer steps cycle as the
+ * matches change */
+#define LR_DONE_MM 1e-3
 
 /* One point as its ray: X = e + s d, in the world at its turntable angle (ew, dw) and in the
  * object frame (eo, dob); x its current object-frame point, nrm its normal. */
@@ -427,7 +430,7 @@ static long lr_iterate(struct lr_planes *P, struct lr_ray *rays, size_t n, doubl
                 return np < 0 ? np : -ENODATA;
         out->pairs_before = (size_t)np;
         lr_stats(rays, pairs, (size_t)np, P->n, &out->rms_before, out->offset_before);
-        for (out->iterations = 0; out->iterations < iters && step > 1e-5; out->iterations++) {
+        for (out->iterations = 0; out->iterations < iters && step > LR_DONE_MM; out->iterations++) {
                 if ((e = lr_step(P, rays, pairs, (size_t)np, &step)) < 0 ||
                     (e = lr_place(P, rays, n)) < 0)
                         return e;

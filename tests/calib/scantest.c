@@ -40,6 +40,7 @@ void scan_rigs(struct scan *s, const char *shape, double elevation, double targe
 {
         char cams[512], scene[256], laser[256];
 
+        CHECK(n <= SCAN_MAX_LASERS);
         memset(s, 0, sizeof(*s));
         s->angles = angles;
         scan_camera_yaml(cams, sizeof(cams), elevation, target_z);
@@ -66,7 +67,7 @@ void scan_open(struct scan *s, const char *shape, double elevation, double targe
 {
         struct sec_camera cam = {.width = SCAN_W, .height = SCAN_H};
         const struct rig_camera_conf *cc;
-        double p[2][3], nv[2][3];
+        double p[SCAN_MAX_LASERS][3], nv[SCAN_MAX_LASERS][3];
 
         scan_rigs(s, shape, elevation, target_z, az, n, angles);
         cc = &s->t[0].rc->cameras[0];

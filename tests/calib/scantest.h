@@ -8,9 +8,10 @@
 #include "calib/section.h"
 #include "tests/render/rtest.h"
 
-#define SCAN_W         800
-#define SCAN_H         600
-#define SCAN_MAX_SIGMA 6.0 /* no point farther than this many RMS (and 0.1 mm) */
+#define SCAN_W          800
+#define SCAN_H          600
+#define SCAN_MAX_SIGMA  6.0 /* no point farther than this many RMS (and 0.1 mm) */
+#define SCAN_MAX_LASERS 3
 
 /* The true surface near p (object frame) as a plane n.x + d = 0 (pl: n, d; n unit, outwards);
  * false where p is not scored. */
@@ -22,7 +23,7 @@ typedef bool (*truth_fn)(const struct sim_truth *tr, const struct sec_point *p, 
  * truth[i] is the true surface's plane near point i (NAN: not scored), kept for
  * scan_rescore. */
 struct scan {
-        struct rtest t[2];
+        struct rtest t[SCAN_MAX_LASERS];
         int lasers, angles;
         struct sec_ctx c;
         double T[12];

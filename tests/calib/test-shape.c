@@ -36,7 +36,7 @@ static const char lamp_fmt[] =
 struct rig {
         const char *shape;
         double elevation, target_z;
-        double az[2];
+        double az[SCAN_MAX_LASERS];
         int lasers;
 };
 
@@ -44,9 +44,10 @@ struct rig {
 struct estimate {
         struct cal_camera cam;
         struct cal_turntable tt;
-        struct cal_plane plane[2]; /* each laser's, in the estimated turntable frame */
-        double T[12];              /* estimated turntable frame -> renderer's world */
-        struct sim_cam_geom g;     /* the true camera */
+        struct cal_plane
+                plane[SCAN_MAX_LASERS]; /* each laser's, in the estimated turntable frame */
+        double T[12];                   /* estimated turntable frame -> renderer's world */
+        struct sim_cam_geom g;          /* the true camera */
 };
 
 /* Writes the rig file sections of r's camera, a lamp beside it (lit = lamp) and laser l. */
@@ -306,7 +307,7 @@ static void calibrate(const struct rig *r, struct estimate *e)
 static void scan_estimated(struct scan *s, const struct rig *r, const struct estimate *e)
 {
         struct sec_camera cam = {.k = e->cam.k, .width = SCAN_W, .height = SCAN_H};
-        double p[2][3], n[2][3];
+        double p[SCAN_MAX_LASERS][3], n[SCAN_MAX_LASERS][3];
 
         memcpy(cam.R, e->tt.R, sizeof(cam.R));
         memcpy(cam.t, e->tt.t, sizeof(cam.t));
@@ -348,37 +349,46 @@ static void test_relief(void)
         expect_shape(&(struct rig){"relief", 45, 5, {0}, 1}, scan_plane_dist, ANGLES * 30);
 }
 
-/* Refines the two lasers of s jointly; prints and returns what changed, and checks that the
- * lasers' surfaces then agree within 0.02 mm (mean) and that each laser's points still lie
- * within RMS_MAX of the truth, their mean distances from it within 0.05 mm of each other. */
+/* Seconds since t0. */
+static double since(const struct timespec *t0)
+{
+        struct timespec t1;
+
+        clock_gettime(CLOCK_MONOTONIC, &t1);
+        return (double)(t1.tv_sec - t0->tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0->tv_nsec);
+}
+
+/* Refines the lasers of s jointly (laser 0 the reference); prints what changed and checks
+ * that the lasers' surfaces then agree within 0.02 mm (each one's mean distance from the
+ * others'), that each laser's points still lie within RMS_MAX of the truth, and that their
+ * mean distances from it are within 0.05 mm of each other. */
 static void expect_refined(struct scan *s, const char *label)
 {
         struct cal_lr_result r;
-        struct score a, b;
+        struct score sc[SCAN_MAX_LASERS];
+        struct timespec t0;
         char err[512];
-
-        struct timespec t0, t1;
 
         clock_gettime(CLOCK_MONOTONIC, &t0);
         CHECK_INT(cal_lasers_refine(&s->c, NULL, &r, err, sizeof(err)), 0);
-        clock_gettime(CLOCK_MONOTONIC, &t1);
-        fprintf(stderr, "%s: %zu points refined in %.3f s\n", label, s->c.n_pts,
-                (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec));
         fprintf(stderr,
-                "%s: refined in %d iterations: laser 0 turned %.4f deg, moved %+.4f mm; laser 1 "
-                "turned %.4f deg, moved %+.4f mm\n"
-                "  the lasers' surfaces, before: RMS %.4f mm, laser 0 %+.4f mm, laser 1 %+.4f mm "
-                "from the other (%zu points)\n"
-                "  after: RMS %.4f mm, laser 0 %+.4f mm, laser 1 %+.4f mm (%zu points)\n",
-                label, r.iterations, r.angle_deg[0], r.shift_mm[0], r.angle_deg[1], r.shift_mm[1],
-                r.rms_before, r.offset_before[0], r.offset_before[1], r.pairs_before, r.rms_after,
-                r.offset_after[0], r.offset_after[1], r.pairs_after);
-        CHECK(fabs(r.offset_after[0]) < 0.02 && fabs(r.offset_after[1]) < 0.02);
+                "%s: %zu points refined in %d iterations, %.3f s; the surfaces' RMS distance "
+                "%.4f mm before (%zu points), %.4f mm after (%zu points)\n",
+                label, s->c.n_pts, r.iterations, since(&t0), r.rms_before, r.pairs_before,
+                r.rms_after, r.pairs_after);
+        for (int l = 0; l < s->lasers; l++) {
+                fprintf(stderr,
+                        "  laser %d: turned %.4f deg, moved %+.4f mm; from the others' surfaces "
+                        "%+.4f mm before, %+.4f mm after\n",
+                        l, r.angle_deg[l], r.shift_mm[l], r.offset_before[l], r.offset_after[l]);
+                CHECK(fabs(r.offset_after[l]) < 0.02);
+        }
         CHECK(r.rms_after <= r.rms_before);
-        a = scan_rescore(s, 0, label);
-        b = scan_rescore(s, 1, label);
-        CHECK(a.rms <= RMS_MAX && b.rms <= RMS_MAX);
-        CHECK(fabs(a.bias - b.bias) <= 0.05);
+        for (int l = 0; l < s->lasers; l++) {
+                sc[l] = scan_rescore(s, l, label);
+                CHECK(sc[l].rms <= RMS_MAX);
+                CHECK(fabs(sc[l].bias - sc[0].bias) <= 0.05);
+        }
 }
 
 /* cal_lasers_refine's refusals: no normals yet, one laser, no such reference laser. */
@@ -390,52 +400,72 @@ static void expect_refine_errors(struct scan *s)
 
         CHECK_INT(cal_lasers_refine(&s->c, NULL, &r, err, sizeof(err)), -ENODATA);
         CHECK_STR_CONTAINS(err, "compute the normals");
-        CHECK_INT(cal_lasers_refine(&s->c, &(struct cal_lr_opts){.reference = 2}, &r, err,
+        CHECK_INT(cal_lasers_refine(&s->c, &(struct cal_lr_opts){.reference = n}, &r, err,
                                     sizeof(err)),
                   -EINVAL);
         s->c.n_lasers = 1;
         CHECK_INT(cal_lasers_refine(&s->c, NULL, &r, err, sizeof(err)), -EINVAL);
         s->c.n_lasers = n;
-        CHECK_INT(cal_laser_replane(&s->c, 2, &(struct cal_plane){{0, 1, 0}, 0}), -EINVAL);
+        CHECK_INT(cal_laser_replane(&s->c, n, &(struct cal_plane){{0, 1, 0}, 0}), -EINVAL);
 }
 
-/* Two lasers (azimuths 0 and 70), each plane estimated from its own board views, scanning the
- * gem: each within RMS_MAX of the truth; refined jointly, their surfaces agree (mean distance
- * from each other within 0.02 mm). Then laser 1 knocked by 0.3 deg and 0.4 mm (its surface
- * then 0.1-0.3 mm off laser 0's): the refinement brings them back together. */
-static void test_two_lasers(void)
+/* Knocks every laser of s but laser 0 off its estimated plane (e) by 0.3 deg (about an axis
+ * that differs per laser) and 0.4 mm, plus extra_mm. */
+static void knock(struct scan *s, const struct estimate *e, double extra_mm)
 {
-        const struct rig r = {"gem", 25, 30, {0, 70}, 2};
+        for (int l = 1; l < s->lasers; l++) {
+                double a = l * 2.0, R[9];
+                struct cal_plane k = e->plane[l];
+                cal_rodrigues((double[3]){0.3 * DEG * cos(a), 0.3 * DEG * sin(a), 0}, R);
+                cal_mat_vec(R, e->plane[l].n, k.n);
+                k.d = e->plane[l].d + 0.4 + extra_mm;
+                CHECK_INT(cal_laser_replane(&s->c, l, &k), 0);
+                scan_rescore(s, l, "knocked");
+        }
+}
+
+/* Lasers at r's azimuths, each plane estimated from its own board views, scanning r's object:
+ * each within RMS_MAX of the truth; refined jointly, their surfaces agree (expect_refined).
+ * Then every laser but the first knocked by 0.3 deg and 0.4 mm (their surfaces then about
+ * 0.6 mm off the first's): the refinement brings them back. Knocked by 2.5 mm more, it
+ * refuses, leaving the scan unchanged. */
+static void expect_lasers(const struct rig *r, truth_fn fn, int min_points)
+{
         struct estimate e;
         struct scan s;
-        struct cal_plane knocked;
         struct cal_lr_result res;
         char err[512];
-        double R[9];
 
-        calibrate(&r, &e);
-        scan_estimated(&s, &r, &e);
-        scan_expect(&s, 0, r.shape, scan_plane_dist, ANGLES * 40, RMS_MAX);
-        scan_expect(&s, 1, r.shape, scan_plane_dist, ANGLES * 40, RMS_MAX);
+        calibrate(r, &e);
+        scan_estimated(&s, r, &e);
+        for (int l = 0; l < r->lasers; l++)
+                scan_expect(&s, l, r->shape, fn, min_points, RMS_MAX);
         expect_refine_errors(&s);
         CHECK(sec_normals(&s.c) > s.c.n_pts * 8 / 10);
-        expect_refined(&s, "two lasers");
-        knocked = e.plane[1];
-        cal_rodrigues((double[3]){0.18 * DEG, 0.24 * DEG, 0}, R); /* 0.3 deg */
-        cal_mat_vec(R, e.plane[1].n, knocked.n);
-        knocked.d = e.plane[1].d + 0.4;
-        CHECK_INT(cal_laser_replane(&s.c, 1, &knocked), 0);
-        scan_rescore(&s, 1, "laser 1 knocked");
+        expect_refined(&s, "as calibrated");
+        knock(&s, &e, 0);
         expect_refined(&s, "knocked");
-        knocked.d += 2.5; /* 2.5 mm more: refused, the scan unchanged */
-        CHECK_INT(cal_laser_replane(&s.c, 1, &knocked), 0);
+        knock(&s, &e, 2.5);
         float x = s.c.pts[s.c.n_pts - 1].x[0];
         CHECK_INT(cal_lasers_refine(&s.c, NULL, &res, err, sizeof(err)), -EDOM);
         fprintf(stderr, "%s\n", err);
-        CHECK_STR_CONTAINS(err, "laser 1's plane would turn by");
+        CHECK_STR_CONTAINS(err, "plane would turn by");
         CHECK(s.c.pts[s.c.n_pts - 1].x[0] == x);
         scan_close(&s);
         cal_camera_clear(&e.cam);
+}
+
+/* The gem with lasers at azimuths 0 and 70 (either side of the camera, at 30). */
+static void test_two_lasers(void)
+{
+        expect_lasers(&(struct rig){"gem", 25, 30, {0, 70}, 2}, scan_plane_dist, ANGLES * 40);
+}
+
+/* The gem with a third laser at -20 (50 deg from the camera). */
+static void test_three_lasers(void)
+{
+        expect_lasers(&(struct rig){"gem", 25, 30, {0, 70, -20}, 3}, scan_plane_dist,
+                      ANGLES * 40);
 }
 
 /* cal_plane_to_turntable against the rig's truth: the true laser plane (azimuth 70) in the
@@ -474,6 +504,7 @@ int main(int argc, char **argv)
                                                  {"gem", test_gem},
                                                  {"relief", test_relief},
                                                  {"two-lasers", test_two_lasers},
+                                                 {"three-lasers", test_three_lasers},
                                                  {"plane-to-turntable", test_plane_to_turntable}};
 
         return TEST_RUN_CASES(cases, argc, argv);
