@@ -7,7 +7,7 @@
  * object is scanned with those estimates and scored against the true surface (RMS <= 0.1
  * mm). Two lasers are refined jointly (cal_lasers_refine) so their surfaces agree. The
  * estimated turntable frame is tied to the renderer's world by the calibration board's known
- * pose at turntable angle 0 (docs/scanning.md, "With the estimated calibration"). */
+ * pose at turntable angle 0 (docs/scanning.md, "With the calibration gonio estimated"). */
 #include <math.h>
 #include <stdio.h>
 #include <time.h>
