@@ -9,8 +9,8 @@
  * between two sampled points. Gauss-Newton on three parameters per laser (its normal turned
  * in two directions, its offset) but the reference laser's: a scan tells how the surfaces
  * disagree, not which is right, and letting every plane move lets them drift together (in
- * the tests, both surfaces 0.05 mm outwards) towards whatever the matching's own small biases
- * prefer. A weak damping towards the calibrated planes settles what the scan cannot tell.
+ * the tests, both surfaces about 0.04 mm outwards) towards whatever the matching's own small
+ * biases prefer. A weak damping towards the calibrated planes settles what the scan cannot tell.
  * Matches are redone every iteration; residuals beyond 3 robust sigmas are left out. */
 #include <errno.h>
 #include <math.h>
@@ -484,15 +484,16 @@ int cal_lasers_refine(struct sec_ctx *c, const struct cal_lr_opts *o, struct cal
         size_t n = lr_rays(c, -1, rays);
         lr_init(c, &P);
         P.reference = ref;
-        if ((np = lr_iterate(&P, rays, n, h, iters, pairs, abs_r, out)) < 0) {
+        if ((np = lr_iterate(&P, rays, n, h, iters, pairs, abs_r, out)) == -ENODATA)
                 snprintf(err, errlen,
-                         np == -ENODATA ? "the lasers' clouds overlap in fewer than %d points "
-                                          "within %.1f mm: scan the same surface with each "
-                                          "laser, and compute the normals (sec_normals) first"
-                                        : "the refinement failed (%d, %.1f mm)",
-                         np == -ENODATA ? LR_MIN_PAIR : (int)np, h);
+                         "the lasers' clouds overlap in fewer than %d points within %.1f mm: "
+                         "scan the same surface with each laser, and compute the normals "
+                         "(sec_normals) first",
+                         LR_MIN_PAIR, h);
+        else if (np < 0)
+                snprintf(err, errlen, "the refinement failed: %s", strerror((int)-np));
+        if (np < 0)
                 return (int)np;
-        }
         lr_changes(&P, rays, n, out);
         if ((e = lr_check(out, err, errlen)) < 0)
                 return e;
