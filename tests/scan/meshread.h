@@ -26,8 +26,13 @@ size_t mr_border_vertices(const struct cal_mesh *m, uint64_t **keys);
 /* Whether m has the vertex of key (mr_border_vertices). */
 bool mr_has_vertex(const struct cal_mesh *m, uint64_t key);
 
-/* Reads the PLY file dir_fd/name (any of the three formats' headers, binary little-endian
- * data) and checks it holds m: positions, normals, colours, faces. */
+/* Reads the PLY file dir_fd/name (binary little-endian; a vertex element of x y z nx ny nz
+ * red green blue in any order and types, an optional face element of vertex_indices lists)
+ * into *out (free with cal_mesh_free). Exits the test on anything else. */
+void mr_read_ply(int dir_fd, const char *name, struct cal_mesh *out);
+
+/* Reads the PLY file dir_fd/name (mr_read_ply) and checks it holds m: positions, normals,
+ * colours, faces. */
 void mr_expect_ply(int dir_fd, const char *name, const struct cal_mesh *m);
 
 /* Reads the OBJ file dir_fd/name (v with optional colour, vn, f with v, v/vt, v//vn, v/vt/vn

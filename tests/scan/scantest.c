@@ -7,7 +7,7 @@
 
 static const char lamps_yaml[] =
         "lamps:\n  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, elevation: 40, "
-        "radius: 400, azimuth: 20, intensity: 4.0e4 }\n";
+        "radius: 400, azimuth: 20, intensity: 2.0e5 }\n";
 static const char laser_yaml[] =
         "laser: { name: laser, modbus-coil: { bus: relays, coil: 7 }, azimuth: 0,\n"
         "         origin: [500, 0, 60], width: 0.5, power: 1.2e3, channel: red }\n";
