@@ -28,6 +28,7 @@ enum opt_id {
         O_FROM,
         O_BOARD,
         O_FORCE,
+        O_TRIANGLES,
 };
 
 static const struct {
@@ -52,6 +53,7 @@ static const struct {
         {"from", O_FROM, true, ARG_FROM},
         {"board", O_BOARD, true, ARG_BOARD},
         {"force", O_FORCE, false, ARG_FORCE},
+        {"triangles", O_TRIANGLES, true, ARG_TRIANGLES},
 };
 
 int args_usage_error(const char *what, const char *fmt, ...)
@@ -136,6 +138,8 @@ static int set_value(struct args *a, enum opt_id id, const char *v)
         case O_BOARD:
                 a->board = v;
                 return 0;
+        case O_TRIANGLES:
+                return args_parse_long(v, 1, INT_MAX, &a->triangles) < 0 ? -EINVAL : 0;
         default:
                 break;
         }

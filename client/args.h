@@ -17,6 +17,7 @@ enum arg_opt {
         ARG_FROM = 1 << 7,
         ARG_BOARD = 1 << 8,
         ARG_FORCE = 1 << 9,
+        ARG_TRIANGLES = 1 << 10,
 };
 
 struct args {
@@ -31,6 +32,7 @@ struct args {
         long count;         /* --count */
         const char *from;   /* --from: a dataset directory */
         const char *board;  /* --board: a board description (calib/camera.h) */
+        long triangles;     /* --triangles: a mesh's target triangle count */
         char **words;       /* positional words (command first); borrowed from argv */
         int nwords;
 };

@@ -13,6 +13,7 @@
 #include "client/cmd.h"
 #include "client/conn.h"
 #include "client/output.h"
+#include "client/scan.h"
 #include "client/session.h"
 #include "common/cleanup.h"
 #include "protocol/proto.h"
@@ -254,6 +255,10 @@ static const struct cmd commands[] = {
          "solve a camera's intrinsics from a dataset's board views (no goniod)", NULL, 0, 0,
          ARG_FROM | ARG_BOARD | ARG_CAMERA | ARG_FORCE, TIMEOUT_S, NULL, calibrate_print_camera,
          .local = calibrate_camera},
+        {NULL, "scan", "--from DATASET [--camera NAME] [--triangles N] [--force]",
+         "a dataset's laser frames to scan.ply, mesh.ply and mesh.obj in it (no goniod)", NULL, 0,
+         0, ARG_FROM | ARG_CAMERA | ARG_TRIANGLES | ARG_FORCE, TIMEOUT_S, NULL, scan_print,
+         .local = scan_reconstruct},
         {NULL, "call", "METHOD [JSON-PARAMS]", "send any request, print its result", NULL, 1, 2, 0,
          TIMEOUT_S, p_call, out_print_pretty},
 };
