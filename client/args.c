@@ -28,6 +28,8 @@ enum opt_id {
         O_FROM,
         O_BOARD,
         O_FORCE,
+        O_LASER,
+        O_CALIBRATION,
 };
 
 static const struct {
@@ -52,6 +54,8 @@ static const struct {
         {"from", O_FROM, true, ARG_FROM},
         {"board", O_BOARD, true, ARG_BOARD},
         {"force", O_FORCE, false, ARG_FORCE},
+        {"laser", O_LASER, true, ARG_LASER},
+        {"calibration", O_CALIBRATION, true, ARG_CALIBRATION},
 };
 
 int args_usage_error(const char *what, const char *fmt, ...)
@@ -135,6 +139,12 @@ static int set_value(struct args *a, enum opt_id id, const char *v)
                 return 0;
         case O_BOARD:
                 a->board = v;
+                return 0;
+        case O_LASER:
+                a->laser = v;
+                return 0;
+        case O_CALIBRATION:
+                a->calibration = v;
                 return 0;
         default:
                 break;

@@ -20,7 +20,8 @@
 #define TIMEOUT_S      30  /* connect, hello and quick requests */
 #define TIMEOUT_LONG_S 120 /* home, move, capture */
 #define USAGE_COL      36  /* width of the synopsis column of --help */
-#define STOP_WAIT_S    2   /* for the replies to stop and status after an interrupted wait */
+#define CALIBRATE_OPTS (ARG_FROM | ARG_BOARD | ARG_CAMERA | ARG_FORCE | ARG_CALIBRATION)
+#define STOP_WAIT_S    2 /* for the replies to stop and status after an interrupted wait */
 
 struct cmd;
 
@@ -252,8 +253,14 @@ static const struct cmd commands[] = {
          NULL, 0, 0, 0, TIMEOUT_S, NULL, out_print_devices, .local = discover_here},
         {"calibrate", "camera", "--from DATASET --board SPEC [--camera NAME] [--force]",
          "solve a camera's intrinsics from a dataset's board views (no goniod)", NULL, 0, 0,
-         ARG_FROM | ARG_BOARD | ARG_CAMERA | ARG_FORCE, TIMEOUT_S, NULL, calibrate_print_camera,
-         .local = calibrate_camera},
+         CALIBRATE_OPTS, TIMEOUT_S, NULL, calibrate_print_camera, .local = calibrate_camera},
+        {"calibrate", "turntable", "--from DATASET --board SPEC [--camera NAME] [--force]",
+         "solve the turntable axis and a camera's pose (no goniod)", NULL, 0, 0, CALIBRATE_OPTS,
+         TIMEOUT_S, NULL, calibrate_print_turntable, .local = calibrate_turntable},
+        {"calibrate", "laser", "--from DATASET --board SPEC [--laser NAME] [--force]",
+         "solve the laser plane in the turntable frame (no goniod)", NULL, 0, 0,
+         CALIBRATE_OPTS | ARG_LASER, TIMEOUT_S, NULL, calibrate_print_laser,
+         .local = calibrate_laser},
         {NULL, "call", "METHOD [JSON-PARAMS]", "send any request, print its result", NULL, 1, 2, 0,
          TIMEOUT_S, p_call, out_print_pretty},
 };

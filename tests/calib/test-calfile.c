@@ -4,12 +4,15 @@
  * and malformed files refused with where. */
 #include <fcntl.h>
 #include <math.h>
+#include <stdarg.h>
+#include <sys/wait.h>
 
 #include "calib/calfile.h"
+#include "calib/turntable_geom.h"
 #include "common/cleanup.h"
 #include "common/fileio.h"
 #include "tests/dataset/ds-util.h"
-#include "tests/test.h"
+#include "tests/render/rtest.h"
 
 struct fixture {
         char *tmp;
@@ -254,13 +257,184 @@ static void test_malformed(void)
         fx_close(&fx);
 }
 
+/* ---- gonioctl calibrate turntable|laser --from, on views rendered here ---- */
+
+static const char lamps[] =
+        "lamps:\n  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, elevation: 35, "
+        "radius: 800, azimuth: 20, intensity: 1.5e6 }\n";
+static const char laser_yaml[] =
+        "laser: { name: line, modbus-coil: { bus: relays, coil: 7 }, azimuth: 0,\n"
+        "         origin: [600, 0, 70], width: 0.5, power: 2.0e3, channel: red }\n";
+static const char cams[] =
+        "cameras:\n"
+        "  - { name: c0, sim: { bus: frames }, elevation: 20, distance: 420, azimuth: 40,\n"
+        "      target: [0, 0, 70], width: 1280, height: 960, fx: 1200, fy: 1192, cx: 642.6,\n"
+        "      cy: 477.4, distortion: [-0.12, 0.08, 0.0011, -0.0007, -0.02], exposure_us: 20000 "
+        "}\n";
+
+/* Renders the 9x6 board (16 mm squares) at translate x, y, z, turned rotate_x (-90: standing,
+ * facing +x; -135: tilted 45 deg up) at turntable angle tt, laser on or off, into dataset d;
+ * the world z axis in the camera frame into axis (may be NULL). */
+static void store_view(struct ds *d, const double pose[4], double tt, bool laser, double axis[3])
+{
+        struct gn_pose st = {{tt, 0, 0}, 1, laser};
+        struct ds_capture c = {.pose = st, .camera = "c0", .lamps = "l0", .exposure_us = 20000};
+        struct sim_cam_geom g;
+        struct gn_frame f;
+        struct rtest t;
+        char scene[512];
+
+        snprintf(scene, sizeof(scene),
+                 "scene:\n  seed: 9\n  targets:\n"
+                 "    - { type: chessboard, squares: [9, 6], square: 16,\n"
+                 "        pose: { translate: [%g, %g, %g], rotate_x: %g, rotate_z: 90 } }\n"
+                 "  turntable: { radius: 0 }\n  sensor: { black_level: 0.02 }\n",
+                 pose[0], pose[1], pose[2], pose[3]);
+        rt_open(&t, lamps, laser_yaml, cams, scene);
+        rt_render(&t, &st, NULL, 1, &f, 0, NULL);
+        CHECK_INT(ds_store(d, &f, &c), 0);
+        CHECK_INT(sim_camera_geom(t.s, &(struct gn_pose){{0, 0, 0}, 1, false}, 0, &g), 0);
+        for (int i = 0; axis && i < 3; i++)
+                axis[i] = g.R[i * 3 + 2];
+        gn_frame_free_data(&f);
+        rt_close(&t);
+}
+
+/* Runs gonioctl (path in $GONIOCTL) with args; its stdout and stderr into out. Returns its
+ * exit code. */
+static int gonioctl(char *out, size_t len, const char *fmt, ...)
+{
+        char args[2048], cmd[2600];
+        va_list ap;
+        FILE *p;
+        size_t n;
+        int st;
+
+        va_start(ap, fmt);
+        vsnprintf(args, sizeof(args), fmt, ap);
+        va_end(ap);
+        snprintf(cmd, sizeof(cmd), "%s %s 2>&1", getenv("GONIOCTL"), args);
+        p = popen(cmd, "r");
+        CHECK(p);
+        n = fread(out, 1, len - 1, p);
+        out[n] = 0;
+        st = pclose(p);
+        fprintf(stderr, "$ gonioctl %s -> %d\n%s", args, WEXITSTATUS(st), out);
+        return WEXITSTATUS(st);
+}
+
+/* A dataset at dir/name made of views of the tilted board at 9 turntable angles 7.5 deg
+ * apart (all at angle 0 when still), or of the standing board at 5 poses, laser off and on. */
+static void make_dataset(const char *dir, const char *name, char kind, double axis[3])
+{
+        static const double standing[5][4] = {{20, -72, 120, -90},
+                                              {-10, -72, 120, -75},
+                                              {50, -72, 120, -105},
+                                              {-40, -72, 120, -70},
+                                              {60, -72, 120, -80}};
+        static const double tilted[4] = {10, -72, 110, -135};
+        static const double tt[5] = {0, 15, -10, 0, 30};
+        char path[600];
+        struct ds *d;
+
+        snprintf(path, sizeof(path), "%s/%s", dir, name);
+        CHECK_INT(ds_create(path, name, "rig: test\nlaser: { name: line, channel: red }\n", &d), 0);
+        for (int i = 0; kind != 'l' && i < 9; i++)
+                store_view(d, tilted, kind == 's' ? 0 : -30 + 7.5 * i, false, axis);
+        for (int i = 0; kind == 'l' && i < 5; i++)
+                for (int on = 0; on < 2; on++)
+                        store_view(d, standing[i], tt[i], on, NULL);
+        ds_close(d);
+}
+
+/* The turntable, then the laser, solved by gonioctl from datasets and written into the
+ * file; the errors of a missing camera section, a turntable that did not turn. */
+static void test_gonioctl(void)
+{
+        _cleanup_free_ char *tmp = tu_tmpdir(), *before = NULL, *after = NULL;
+        struct cal_file *f = malloc(sizeof(*f));
+        char out[8192], file[600], err[1024];
+        const struct cal_file_turntable *t;
+        const struct cal_file_laser *l;
+        size_t n1, n2;
+        double axis[3];
+
+        if (!getenv("GONIOCTL")) {
+                fprintf(stderr, "GONIOCTL not set: skipped\n");
+                exit(TEST_SKIP);
+        }
+        make_dataset(tmp, "tt", 't', axis);
+        make_dataset(tmp, "lp", 'l', NULL);
+        make_dataset(tmp, "still", 's', NULL);
+        snprintf(file, sizeof(file), "%s/tt/calibration.yaml", tmp);
+        CHECK_INT(gonioctl(out, sizeof(out),
+                           "calibrate turntable --from %s/tt --board "
+                           "chessboard:9x6:16",
+                           tmp),
+                  6);
+        CHECK_STR_CONTAINS(out, "no intrinsics of camera c0");
+        CHECK_STR_CONTAINS(out, "run gonioctl calibrate camera first");
+        CHECK_INT(gonioctl(out, sizeof(out),
+                           "calibrate camera --from %s/tt --board "
+                           "chessboard:9x6:16",
+                           tmp),
+                  0);
+        CHECK_INT(gonioctl(out, sizeof(out),
+                           "calibrate laser --from %s/lp --board "
+                           "chessboard:9x6:16 --calibration %s",
+                           tmp, file),
+                  6);
+        CHECK_STR_CONTAINS(out, "calibrate the turntable first");
+        CHECK_INT(gonioctl(out, sizeof(out),
+                           "calibrate turntable --from %s/tt --board "
+                           "chessboard:9x6:16",
+                           tmp),
+                  0);
+        CHECK_STR_CONTAINS(out, "turntable seen by camera c0: board found in 9 of 9 views over "
+                                "60.0 deg");
+        CHECK_STR_CONTAINS(out, "written to ");
+        CHECK_INT(gonioctl(out, sizeof(out),
+                           "--json calibrate laser --from %s/lp --board "
+                           "chessboard:9x6:16 --calibration %s",
+                           tmp, file),
+                  0);
+        CHECK_STR_CONTAINS(out, "\"laser\":\"line\"");
+        CHECK_STR_CONTAINS(out, "\"axis_dist_mm\":");
+        CHECK_INT(cal_file_read(file, f, err, sizeof(err)), 0);
+        t = cal_file_turntable(f, "c0");
+        l = cal_file_laser(f, "line");
+        CHECK(t && l && cal_file_camera(f, "c0"));
+        fprintf(stderr, "axis %.4f deg from the truth; laser %.4f deg, %.4f mm from the axis\n",
+                acos(fmin(cal_dot(axis, t->tt.axis), 1)) * 180 / M_PI, l->axis_angle_deg,
+                l->axis_dist_mm);
+        CHECK(acos(fmin(cal_dot(axis, t->tt.axis), 1)) * 180 / M_PI < 0.2);
+        CHECK(fabs(l->axis_angle_deg) < 0.2 && fabs(l->axis_dist_mm) < 0.5);
+        CHECK_NEAR(fabs(l->plane.n[2]), 0, 0.005); /* contains the axis: vertical */
+        /* the turntable that did not turn: said, and the file kept as it was */
+        CHECK_INT(gn_read_file_at(AT_FDCWD, file, 1 << 20, (void **)&before, &n1), 0);
+        CHECK_INT(gonioctl(out, sizeof(out),
+                           "calibrate turntable --from %s/still --board "
+                           "chessboard:9x6:16 --calibration %s --force",
+                           tmp, file),
+                  6);
+        CHECK_STR_CONTAINS(out, "the turntable did not turn");
+        CHECK_INT(gonioctl(out, sizeof(out),
+                           "calibrate turntable --from %s/tt --board "
+                           "chessboard:6x5:16 --calibration %s --force",
+                           tmp, file),
+                  6);
+        CHECK_INT(gn_read_file_at(AT_FDCWD, file, 1 << 20, (void **)&after, &n2), 0);
+        CHECK(n1 == n2 && memcmp(before, after, n1) == 0);
+        free(f);
+        tu_rm_rf(tmp);
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
-                {"sections", test_sections},
-                {"never-worse", test_never_worse},
-                {"laser-first", test_laser_first},
-                {"malformed", test_malformed},
+                {"sections", test_sections},       {"never-worse", test_never_worse},
+                {"laser-first", test_laser_first}, {"malformed", test_malformed},
+                {"gonioctl", test_gonioctl},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
