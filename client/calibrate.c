@@ -14,7 +14,11 @@
 #include "common/cleanup.h"
 
 #ifdef GONIOCTL_CALIB
+#include <time.h>
+
 #include "calib/calfile.h"
+#include "client/conn.h"
+#include "client/session.h"
 #include "common/yconf.h"
 #include "dataset/ds.h"
 
@@ -55,6 +59,8 @@ static int pick_camera(struct solve *s)
         struct ds_summary sum;
         int r;
 
+        if (s->camera[0]) /* the rig's */
+                return 0;
         if (s->a->camera) {
                 snprintf(s->camera, sizeof(s->camera), "%s", s->a->camera);
                 return 0;
@@ -107,16 +113,172 @@ static int prepare(struct solve *s, const char *dataset, const char *file, bool 
         return EXIT_OK;
 }
 
-/* Checks the command line and prepares s from --from DATASET. */
-static int start(struct solve *s, bool intrinsics)
+/* ---- on the rig: the capture session ---- */
+
+#define RIG_TIMEOUT_S 30
+
+/* What a calibration capture needs of the rig, from describe. */
+struct rig_info {
+        char camera[DS_NAME_MAX], lamp[DS_NAME_MAX], laser[DS_NAME_MAX];
+        bool camera_arm;
+        char calibration[PATH_MAX]; /* the rig's calibration file, "" if none */
+};
+
+/* Calls method with params (stolen); its result into *res. Returns an exit code. */
+static int call(struct solve *s, struct conn *c, const char *method, json_t *params, json_t **res)
+{
+        struct conn_error e;
+        int r = conn_call(c, method, params, conn_now_ms() + RIG_TIMEOUT_S * 1000, -1, NULL, NULL,
+                          res, &e);
+
+        if (r == -EREMOTEIO) {
+                out_error(s->o, s->what, "%s: %s", method, e.message);
+                return cmd_exit_for_code(e.code);
+        }
+        if (r < 0)
+                out_error(s->o, s->what, "%s: %s", method, e.message[0] ? e.message : strerror(-r));
+        return r < 0 ? EXIT_PROTOCOL : EXIT_OK;
+}
+
+/* Copies the name of the first device of class cls (or the one named want) into out;
+ * counts them into *n. */
+static void find_device(json_t *devs, const char *cls, const char *want, char *out, size_t len,
+                        int *n)
+{
+        json_t *d;
+        size_t i;
+
+        *n = 0;
+        json_array_foreach(devs, i, d)
+        {
+                const char *name = json_string_value(json_object_get(d, "name")) ?: "";
+
+                if (strcmp(json_string_value(json_object_get(d, "class")) ?: "", cls) != 0)
+                        continue;
+                if (!want ? !*n : strcmp(name, want) == 0)
+                        snprintf(out, len, "%s", name);
+                ++*n;
+        }
+}
+
+/* The rig's camera (--camera or its only one), first lamp, laser, camera arm and calibration
+ * file (--calibration or the rig file's), from describe. Returns an exit code. */
+static int rig_info(struct solve *s, struct conn *c, struct rig_info *ri)
+{
+        _cleanup_(json_decrefp) json_t *d = NULL;
+        json_t *devs;
+        char arm[DS_NAME_MAX] = "";
+        int r = call(s, c, "describe", json_object(), &d), n;
+
+        if (r != EXIT_OK)
+                return r;
+        devs = json_object_get(d, "devices");
+        find_device(devs, "camera", s->a->camera, ri->camera, sizeof(ri->camera), &n);
+        if (!ri->camera[0] || (n > 1 && !s->a->camera)) {
+                out_error(s->o, s->what, "%s: name one of the rig's %d cameras with --camera",
+                          s->a->camera ? "no such camera" : "which camera?", n);
+                return EXIT_INVALID;
+        }
+        find_device(devs, "lamp", NULL, ri->lamp, sizeof(ri->lamp), &n);
+        find_device(devs, "laser", s->a->laser, ri->laser, sizeof(ri->laser), &n);
+        find_device(devs, "axis", "camera_arm", arm, sizeof(arm), &n);
+        ri->camera_arm = arm[0];
+        snprintf(ri->calibration, sizeof(ri->calibration), "%s",
+                 s->a->calibration ?: json_string_value(json_object_get(
+                                              json_object_get(d, "calibration"), "path"))
+                                    ?: "");
+        if (!ri->calibration[0]) {
+                out_error(s->o, s->what,
+                          "the rig file names no calibration file: add "
+                          "'calibration: PATH' to it, or give --calibration FILE");
+                return EXIT_INVALID;
+        }
+        return EXIT_OK;
+}
+
+/* The session file of the capture of kind ("camera", "turntable", "laser") named name. */
+static char *session_text(const char *kind, const char *name, const struct rig_info *ri)
+{
+        char *text = NULL;
+        bool camera = strcmp(kind, "camera") == 0, laser = strcmp(kind, "laser") == 0;
+
+        if (asprintf(&text,
+                     "# gonioctl calibrate %s: the board on the turntable\n"
+                     "name: %s\ndataset: %s\ncameras: [%s]\nlamps: [%s]\nlaser: %s\n"
+                     "skip_occluded: false\nskip_glare: false\n"
+                     "sweep:\n  turntable: { from: 0, to: 330, step: 30 }\n%s",
+                     kind, name, name, ri->camera, ri->lamp, laser ? "true" : "false",
+                     camera && ri->camera_arm ? "  camera_arm: [-15, 0, 15]\n" : "") < 0)
+                return NULL;
+        return text;
+}
+
+/* Runs the calibration capture of kind on the rig as a session, following it; the path of
+ * its dataset into path. Returns an exit code. */
+static int capture(struct solve *s, struct conn *c, const char *kind, const struct rig_info *ri,
+                   char *path, size_t len)
+{
+        _cleanup_(json_decrefp) json_t *st = NULL, *info = NULL;
+        _cleanup_free_ char *text = NULL;
+        _cleanup_close_ int sfd = cmd_intr_fd();
+        char name[DS_NAME_MAX], stamp[32];
+        /* the session's progress on a terminal; with --json only the summary on stdout */
+        struct out follow = {.quiet = s->o->quiet || s->o->json, .progress = s->o->progress};
+        time_t now = time(NULL);
+        struct tm tm;
+        int r;
+
+        strftime(stamp, sizeof(stamp), "%Y%m%d-%H%M%S", gmtime_r(&now, &tm));
+        snprintf(name, sizeof(name), "calib-%s-%s", kind, stamp);
+        text = session_text(kind, name, ri);
+        if (!text || sfd < 0)
+                return EXIT_PROTOCOL;
+        r = call(s, c, "session.run", json_pack("{s:s,s:s}", "file", name, "text", text), &st);
+        if (r != EXIT_OK)
+                return r;
+        r = csession_follow(&follow, c, sfd, st);
+        if (r != EXIT_OK)
+                return r;
+        r = call(s, c, "dataset.info", json_pack("{s:s}", "name", name), &info);
+        if (r == EXIT_OK)
+                snprintf(path, len, "%s", json_string_value(json_object_get(info, "path")) ?: "");
+        return r;
+}
+
+/* Without --from: runs the capture on the rig, then prepares s from its dataset and the
+ * rig's calibration file. */
+static int start_rig(struct solve *s, const char *kind, bool intrinsics)
+{
+        _cleanup_(conn_freep) struct conn *c = NULL;
+        struct rig_info ri = {0};
+        char path[PATH_MAX];
+        int r = cmd_connect(s->a, s->o, &c);
+
+        if (r == EXIT_OK)
+                r = rig_info(s, c, &ri);
+        if (r != EXIT_OK)
+                return r;
+        snprintf(s->camera, sizeof(s->camera), "%s", ri.camera);
+        snprintf(s->file, sizeof(s->file), "%s", ri.calibration);
+        if (intrinsics && (r = load_intrinsics(s)) < 0) /* before the rig moves */
+                return failed(s, r);
+        r = capture(s, c, kind, &ri, path, sizeof(path));
+        return r == EXIT_OK ? prepare(s, path, ri.calibration, intrinsics) : r;
+}
+
+/* Checks the command line and prepares s: from --from DATASET, or from a capture of kind on
+ * the rig. */
+static int start(struct solve *s, const char *kind, bool intrinsics)
 {
         const struct args *a = s->a;
 
-        if (!a->from || !a->board || cal_board_parse(a->board, &s->board) < 0) {
-                args_usage_error(s->what, "needs --from DATASET and --board chessboard:XxY:SQUARE "
-                                          "or charuco:XxY:SQUARE:MARKER (squares, mm)");
+        if (!a->board || cal_board_parse(a->board, &s->board) < 0) {
+                args_usage_error(s->what, "needs --board chessboard:XxY:SQUARE or "
+                                          "charuco:XxY:SQUARE:MARKER (squares, mm)");
                 return EXIT_USAGE;
         }
+        if (!a->from)
+                return start_rig(s, kind, intrinsics);
         return prepare(s, a->from, a->calibration, intrinsics);
 }
 
@@ -274,11 +436,15 @@ static int solve_laser(struct solve *s, json_t **ret)
 /* ---- the commands ---- */
 
 /* Runs one calibration command: prepare, solve (fn), summary into *ret. */
-static int run(const struct args *a, struct out *o, const char *what, bool intrinsics,
+static int run(const struct args *a, struct out *o, const char *kind, bool intrinsics,
                int (*fn)(struct solve *, json_t **), json_t **ret)
 {
+        char what[32];
         struct solve s = {.a = a, .o = o, .what = what};
-        int r = start(&s, intrinsics);
+        int r;
+
+        snprintf(what, sizeof(what), "calibrate %s", kind);
+        r = start(&s, kind, intrinsics);
 
         if (r == EXIT_OK) {
                 r = fn(&s, ret);
@@ -290,17 +456,17 @@ static int run(const struct args *a, struct out *o, const char *what, bool intri
 
 int calibrate_camera(const struct args *a, struct out *o, json_t **ret)
 {
-        return run(a, o, "calibrate camera", false, solve_camera, ret);
+        return run(a, o, "camera", false, solve_camera, ret);
 }
 
 int calibrate_turntable(const struct args *a, struct out *o, json_t **ret)
 {
-        return run(a, o, "calibrate turntable", true, solve_turntable, ret);
+        return run(a, o, "turntable", true, solve_turntable, ret);
 }
 
 int calibrate_laser(const struct args *a, struct out *o, json_t **ret)
 {
-        return run(a, o, "calibrate laser", true, solve_laser, ret);
+        return run(a, o, "laser", true, solve_laser, ret);
 }
 #else
 static int no_opencv(struct out *o, const char *what)
