@@ -237,8 +237,14 @@ static int capture(struct solve *s, struct conn *c, const char *kind, const stru
         if (r != EXIT_OK)
                 return r;
         r = csession_follow(&follow, c, sfd, st);
-        if (r != EXIT_OK)
+        if (r != EXIT_OK) {
+                out_error(s->o, s->what,
+                          "the capture session %s did not finish, nothing was solved: see "
+                          "gonioctl session status; once resumed and done, solve with --from "
+                          "and the dataset %s",
+                          name, name);
                 return r;
+        }
         r = call(s, c, "dataset.info", json_pack("{s:s}", "name", name), &info);
         if (r == EXIT_OK)
                 snprintf(path, len, "%s", json_string_value(json_object_get(info, "path")) ?: "");
