@@ -176,7 +176,10 @@ static int rig_info(struct solve *s, struct conn *c, struct rig_info *ri)
         find_device(devs, "camera", s->a->camera, ri->camera, sizeof(ri->camera), &n);
         if (!ri->camera[0] || (n > 1 && !s->a->camera)) {
                 out_error(s->o, s->what, "%s: name one of the rig's %d cameras with --camera",
-                          s->a->camera ? "no such camera" : "which camera?", n);
+                          s->a->camera ? "no such camera"
+                          : n          ? "which camera?"
+                                       : "no camera",
+                          n);
                 return EXIT_INVALID;
         }
         find_device(devs, "lamp", NULL, ri->lamp, sizeof(ri->lamp), &n);
@@ -187,13 +190,24 @@ static int rig_info(struct solve *s, struct conn *c, struct rig_info *ri)
                  s->a->calibration ?: json_string_value(json_object_get(
                                               json_object_get(d, "calibration"), "path"))
                                     ?: "");
-        if (!ri->calibration[0]) {
-                out_error(s->o, s->what,
-                          "the rig file names no calibration file: add "
-                          "'calibration: PATH' to it, or give --calibration FILE");
-                return EXIT_INVALID;
-        }
         return EXIT_OK;
+}
+
+/* Says what the capture of kind needs that the rig lacks (exit 6), or EXIT_OK. */
+static int rig_check(struct solve *s, const char *kind, const struct rig_info *ri)
+{
+        const char *lack = !ri->calibration[0]
+                                   ? "calibration file: add 'calibration: PATH' to the rig "
+                                     "file, or give --calibration FILE"
+                           : !ri->lamp[0] ? "lamp to light the board"
+                           : strcmp(kind, "laser") == 0 && !ri->laser[0]
+                                   ? (s->a->laser ? "laser of that name" : "laser")
+                                   : NULL;
+
+        if (!lack)
+                return EXIT_OK;
+        out_error(s->o, s->what, "the rig has no %s", lack);
+        return EXIT_INVALID;
 }
 
 /* The session file of the capture of kind ("camera", "turntable", "laser") named name. */
@@ -262,6 +276,8 @@ static int start_rig(struct solve *s, const char *kind, bool intrinsics)
 
         if (r == EXIT_OK)
                 r = rig_info(s, c, &ri);
+        if (r == EXIT_OK)
+                r = rig_check(s, kind, &ri);
         if (r != EXIT_OK)
                 return r;
         snprintf(s->camera, sizeof(s->camera), "%s", ri.camera);

@@ -167,6 +167,12 @@ static void test_rig(struct rigenv *e)
         CHECK(mkdir(cal, 0755) == 0);
         snprintf(cal, sizeof(cal), "%s/cal/rig-calibration.yaml", e->dir);
         CHECK_INT(calibrate(e, "turntable", &res), 6);
+        CHECK_INT(ctl(e, &res, "calibrate", "laser", "--board", "chessboard:9x6:16", "--laser",
+                      "nosuch", NULL),
+                  6);
+        CHECK_INT(ctl(e, &res, "calibrate", "camera", "--board", "chessboard:9x6:16", "--camera",
+                      "c9", NULL),
+                  6);
         list = ctl_ok(e, "dataset", "list", NULL);
         CHECK_INT(json_array_size(json_object_get(list, "datasets")), 0); /* nothing captured */
         json_decref(list);
