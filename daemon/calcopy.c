@@ -8,6 +8,7 @@
 #include "calcopy.h"
 #include "common/fileio.h"
 #include "common/log.h"
+#include "common/sha256.h"
 #include "common/yconf.h"
 #include "datasets.h"
 #include "manager.h"
@@ -42,13 +43,16 @@ static const char *check_file(const char *path, char *msg, size_t len)
 json_t *calcopy_check(const struct rig_config *rc)
 {
         char msg[600] = "";
-        const char *state = rc->calibration[0] ? check_file(rc->calibration, msg, sizeof(msg))
-                                               : "none";
+        const char *state =
+                rc->calibration[0] ? check_file(rc->calibration, msg, sizeof(msg)) : "none";
         json_t *j = json_pack("{s:s?,s:s}", "path", rc->calibration[0] ? rc->calibration : NULL,
                               "state", state);
+        char hex[GN_SHA256_HEX];
 
         if (j && strcmp(state, "ok") != 0 && msg[0])
                 json_object_set_new(j, "message", json_string(msg));
+        if (j && strcmp(state, "ok") == 0 && gn_sha256_file_at(AT_FDCWD, rc->calibration, hex) == 0)
+                json_object_set_new(j, "sha256", json_string(hex));
         return j;
 }
 
@@ -65,7 +69,8 @@ void calcopy_warn(const struct rig_config *rc)
 
 int calcopy_into(const struct rig_config *rc, const char *ds_dir)
 {
-        char dest[PATH_MAX];
+        _cleanup_(gn_sha256_freep) struct gn_sha256 *sha = NULL;
+        char dest[PATH_MAX], hex[GN_SHA256_HEX] = "";
         void *text = NULL;
         size_t len = 0;
         int r;
@@ -75,13 +80,17 @@ int calcopy_into(const struct rig_config *rc, const char *ds_dir)
         if ((size_t)snprintf(dest, sizeof(dest), "%s/calibration.yaml", ds_dir) >= sizeof(dest))
                 return -ENAMETOOLONG;
         r = gn_read_file_at(AT_FDCWD, rc->calibration, CALCOPY_MAX, &text, &len);
-        if (r >= 0)
-                r = gn_write_atomic(AT_FDCWD, dest, text, len, NULL);
+        if (r >= 0 && (r = gn_sha256_new(&sha)) >= 0 &&
+            (r = gn_write_atomic(AT_FDCWD, dest, text, len, sha)) >= 0)
+                (void)gn_sha256_final(sha, hex);
         free(text);
         if (r < 0)
-                log_warning_errno(r, "Cannot copy the calibration file %s into dataset %s: %m",
-                                  rc->calibration, ds_dir);
-        return r;
+                return log_warning_errno(r,
+                                         "Cannot copy the calibration file %s into dataset %s: %m",
+                                         rc->calibration, ds_dir);
+        log_info("Copied the calibration file %s (sha256 %s) into dataset %s", rc->calibration, hex,
+                 ds_dir);
+        return 0;
 }
 
 /* describe on the dataset worker. */

@@ -8,6 +8,7 @@
 
 #include "common/cleanup.h"
 #include "common/fileio.h"
+#include "common/sha256.h"
 #include "harness.h"
 #include "tests/test.h"
 
@@ -92,7 +93,7 @@ static void check_copy(struct rigenv *e, const char *dataset, const char *text)
 /* The file missing at start, then written; copied at dataset create and session begin. */
 static void test_copy(struct rigenv *e)
 {
-        char cal[400], dir[400], file[400];
+        char cal[400], dir[400], file[400], hex[GN_SHA256_HEX];
         json_t *r;
 
         snprintf(dir, sizeof(dir), "%s/cal", e->dir);
@@ -110,6 +111,12 @@ static void test_copy(struct rigenv *e)
         check_state(e, "ok", NULL);
         json_decref(ctl_ok(e, "dataset", "create", "d1", NULL));
         check_copy(e, "d1", CAL_TEXT);
+        /* describe's sha256 is the copy's */
+        snprintf(file, sizeof(file), "%s/d1/calibration.yaml", e->data);
+        CHECK_INT(gn_sha256_file_at(AT_FDCWD, file, hex), 0);
+        r = calibration_state(e);
+        CHECK_STR(json_string_value(json_object_get(r, "sha256")), hex);
+        json_decref(r);
         /* a session begun on an existing dataset carries the file as it is then */
         write_file(cal, CAL_TEXT "# changed\n");
         sess_write(e, "s.yaml", "name: s\ndataset: d1\nsweep: { turntable: [0] }\nlamps: [l0]\n",
