@@ -106,9 +106,10 @@ static int need_int(struct yconf *yc, struct fy_node *m, const char *key, long *
 
 /* ---- the document ---- */
 
-static int bad_file(struct yconf *yc, struct fy_node *node, const char *key, const char *why)
+/* Records why the file is malformed at node (key) and returns -EBADMSG. */
+static int malformed(struct yconf *yc, struct fy_node *node, const char *key, const char *why)
 {
-        yconf_error(yc, node, key, "not a calibration file: %s", why);
+        yconf_error(yc, node, key, "%s", why);
         return -EBADMSG;
 }
 
@@ -124,16 +125,16 @@ int cal_file_open(struct yconf *yc, const char *path, bool create, char *err, si
                 return r == -EINVAL ? -EBADMSG : r;
         root = yconf_root(yc);
         if (!root || fy_node_get_type(root) != FYNT_MAPPING)
-                return bad_file(yc, root, NULL, "expected a mapping");
+                return malformed(yc, root, NULL, "not a calibration file: expected a mapping");
         if (yconf_str(yc, root, "format", format, sizeof(format)) < 0 ||
             strcmp(format, CAL_FILE_FORMAT) != 0)
-                return bad_file(yc, yconf_get(root, "format") ?: root, "format",
-                                "expected 'format: " CAL_FILE_FORMAT "'");
+                return malformed(yc, yconf_get(root, "format") ?: root, "format",
+                                 "not a calibration file: expected 'format: " CAL_FILE_FORMAT "'");
         for (size_t i = 0; i < ELEMENTSOF(tops); i++) {
                 struct fy_node *t = yconf_get(root, tops[i]);
 
                 if (t && fy_node_get_type(t) != FYNT_MAPPING)
-                        return bad_file(yc, t, tops[i], "expected a mapping of named sections");
+                        return malformed(yc, t, tops[i], "expected a mapping of named sections");
         }
         return 0;
 }
@@ -444,10 +445,13 @@ static int lamp_from_yaml(struct yconf *yc, struct fy_node *m, const char *name,
 
 /* ---- the whole file ---- */
 
+/* Reads section m named name into out (a struct of its kind). Returns 0 or -EINVAL. */
+typedef int (*section_fn)(struct yconf *yc, struct fy_node *m, const char *name, void *out);
+
 /* Reads every section of top into the array at base (elements of size, at most
  * CAL_FILE_MAX), *n of them, each with fn. */
 static int read_top(struct yconf *yc, const char *top, void *base, size_t size, size_t *n,
-                    int (*fn)(struct yconf *, struct fy_node *, const char *, void *))
+                    section_fn fn)
 {
         struct fy_node *t = yconf_get(yconf_root(yc), top);
         struct fy_node_pair *pair;
@@ -458,21 +462,19 @@ static int read_top(struct yconf *yc, const char *top, void *base, size_t size, 
                 const char *name = fy_node_get_scalar0(key);
 
                 if (!name || strlen(name) >= DS_NAME_MAX)
-                        return bad_file(yc, key, top, "a section name must be a short string");
+                        return malformed(yc, key, top, "a section name must be a short string");
                 if (*n >= CAL_FILE_MAX) {
                         yconf_error(yc, key, name, "more than %d %s", CAL_FILE_MAX, top);
                         return -E2BIG;
                 }
                 if (!m || fy_node_get_type(m) != FYNT_MAPPING)
-                        return bad_file(yc, m ?: key, name, "a section must be a mapping");
+                        return malformed(yc, m ?: key, name, "a section must be a mapping");
                 if (fn(yc, m, name, (char *)base + *n * size) < 0)
                         return -EBADMSG;
                 ++*n;
         }
         return 0;
 }
-
-typedef int (*section_fn)(struct yconf *, struct fy_node *, const char *, void *);
 
 int cal_file_read(const char *path, struct cal_file *out, char *err, size_t errlen)
 {
