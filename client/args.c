@@ -29,6 +29,8 @@ enum opt_id {
         O_BOARD,
         O_FORCE,
         O_TRIANGLES,
+        O_LASER,
+        O_CALIBRATION,
 };
 
 static const struct {
@@ -54,6 +56,8 @@ static const struct {
         {"board", O_BOARD, true, ARG_BOARD},
         {"force", O_FORCE, false, ARG_FORCE},
         {"triangles", O_TRIANGLES, true, ARG_TRIANGLES},
+        {"laser", O_LASER, true, ARG_LASER},
+        {"calibration", O_CALIBRATION, true, ARG_CALIBRATION},
 };
 
 int args_usage_error(const char *what, const char *fmt, ...)
@@ -140,6 +144,12 @@ static int set_value(struct args *a, enum opt_id id, const char *v)
                 return 0;
         case O_TRIANGLES:
                 return args_parse_long(v, 1, INT_MAX, &a->triangles) < 0 ? -EINVAL : 0;
+        case O_LASER:
+                a->laser = v;
+                return 0;
+        case O_CALIBRATION:
+                a->calibration = v;
+                return 0;
         default:
                 break;
         }

@@ -29,5 +29,15 @@ int cmd_exit_for_code(int code);
  * printed to stderr as "gonioctl: <method>: <message>". */
 int cmd_run(const struct args *a);
 
+struct conn;
+struct out;
+
+/* Connects to goniod (--socket, else the default path) and says hello (checks the protocol
+ * version). Returns EXIT_OK with a new connection in *ret, or the exit code (error printed). */
+int cmd_connect(const struct args *a, struct out *o, struct conn **ret);
+
+/* Blocks SIGINT and SIGTERM and returns a signalfd that reports them, or -errno. */
+int cmd_intr_fd(void);
+
 /* Prints the usage text (generated from the command table) to f. */
 void cmd_usage(FILE *f);

@@ -8,8 +8,10 @@
  * parsed by its backend (struct rig_backend), found in the caller's table by the map's
  * key. */
 #include <errno.h>
+#include <limits.h>
 #include <libfyaml.h>
 #include <math.h>
+#include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -770,11 +772,46 @@ static int check_references(struct yconf *yc, const struct rig_config *rc)
         return r;
 }
 
+/* The directory of the rig file, absolute, into real. */
+static int rig_dir(const struct rig_config *rc, char real[PATH_MAX])
+{
+        char dir[RIG_PATH_MAX];
+        char *slash;
+
+        snprintf(dir, sizeof(dir), "%s", rc->path);
+        slash = strrchr(dir, '/');
+        if (!slash)
+                snprintf(dir, sizeof(dir), ".");
+        else
+                slash[slash == dir] = '\0'; /* "/rig.yaml": "/" */
+        return realpath(dir, real) ? 0 : -errno;
+}
+
+/* The key `calibration`: a path relative to the rig file's directory, made absolute. */
+static int read_calibration(struct rig_config *rc, struct fy_node *root)
+{
+        struct fy_node *node = yconf_get(root, "calibration");
+        char rel[RIG_PATH_MAX] = "", dir[PATH_MAX] = "";
+        int r = yconf_str(&rc->yc, root, "calibration", rel, sizeof(rel));
+
+        if (r <= 0)
+                return r;
+        if (!rel[0])
+                return yconf_error(&rc->yc, node, "calibration", "empty path");
+        if (rel[0] != '/' && (r = rig_dir(rc, dir)) < 0)
+                return yconf_error(&rc->yc, node, "calibration",
+                                   "cannot resolve the rig file's directory: %s", strerror(-r));
+        if ((size_t)snprintf(rc->calibration, sizeof(rc->calibration), "%s%s%s", dir,
+                             dir[0] ? "/" : "", rel) >= sizeof(rc->calibration))
+                return yconf_error(&rc->yc, node, "calibration", "path too long");
+        return 0;
+}
+
 static int parse_root(struct rig_config *rc)
 {
         struct yconf *yc = &rc->yc;
-        static const char *const keys[] = {"rig",   "profiles", "buses", "axes", "lamps",
-                                           "laser", "cameras",  "scene", NULL};
+        static const char *const keys[] = {"rig",   "profiles", "buses", "axes",        "lamps",
+                                           "laser", "cameras",  "scene", "calibration", NULL};
         struct fy_node *root = yconf_root(yc), *laser;
         int r;
 
@@ -804,7 +841,7 @@ static int parse_root(struct rig_config *rc)
                         return r;
                 rc->has_laser = true;
         }
-        if ((r = check_unique(yc, rc)) < 0)
+        if ((r = read_calibration(rc, root)) < 0 || (r = check_unique(yc, rc)) < 0)
                 return r;
         return check_references(yc, rc);
 }

@@ -185,6 +185,9 @@ struct rig_config {
         bool has_laser;
         struct rig_camera_conf cameras[RIG_MAX_CAMERAS];
         size_t n_cameras;
+        /* the calibration file (key `calibration`), an absolute path; "" when the rig file
+         * names none. Not read by rigconf: it may not exist yet. */
+        char calibration[RIG_PATH_MAX];
         const struct rig_backend *const *backends; /* the table given to rigconf_load() */
         char *text;                                /* the file's bytes, stored with every dataset */
         struct yconf yc;                           /* open document, for rigconf_scene() */

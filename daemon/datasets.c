@@ -23,6 +23,7 @@
 #include <string.h>
 
 #include "common/log.h"
+#include "calcopy.h"
 #include "common/workq.h"
 #include "datasets.h"
 #include "manager.h"
@@ -89,6 +90,8 @@ static int open_job(void *userdata)
                 j->d = ds_close(j->d);
                 return r;
         }
+        if (j->create)
+                (void)calcopy_into(j->m->rc, ds_path(j->d)); /* a warning when it fails */
         j->count = ds_count(j->d);
         j->old = ds_close(j->old);
         return 0;

@@ -9,6 +9,7 @@
 
 #include "common/log.h"
 #include "drivers/registry.h"
+#include "calcopy.h"
 #include "datasets.h"
 #include "manager.h"
 #include "protocol/proto.h"
@@ -114,6 +115,7 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
                 log_error("%s", err);
                 goto fail;
         }
+        calcopy_warn(m->rc);
         if ((r = make_dir(data_dir)) < 0) {
                 log_error_errno(r, "Cannot create data directory %s: %m", data_dir);
                 goto fail;

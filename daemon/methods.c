@@ -7,6 +7,7 @@
 
 #include "common/clock.h"
 #include "common/log.h"
+#include "calcopy.h"
 #include "datasets.h"
 #include "manager.h"
 #include "protocol/proto.h"
@@ -156,8 +157,7 @@ static int m_describe(struct srv_req *req, json_t *params, void *userdata)
 {
         struct manager *m = userdata;
 
-        srv_reply(req, rig_describe(m->rig));
-        return 0;
+        return calcopy_describe(m, req, rig_describe(m->rig));
 }
 
 static int m_home(struct srv_req *req, json_t *params, void *userdata)
