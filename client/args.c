@@ -28,6 +28,10 @@ enum opt_id {
         O_FROM,
         O_BOARD,
         O_FORCE,
+        O_TO,
+        O_STEP,
+        O_MODE,
+        O_LAMPS,
 };
 
 static const struct {
@@ -52,6 +56,10 @@ static const struct {
         {"from", O_FROM, true, ARG_FROM},
         {"board", O_BOARD, true, ARG_BOARD},
         {"force", O_FORCE, false, ARG_FORCE},
+        {"to", O_TO, true, ARG_TO},
+        {"step", O_STEP, true, ARG_STEP},
+        {"mode", O_MODE, true, ARG_MODE},
+        {"lamps", O_LAMPS, true, ARG_LAMPS},
 };
 
 int args_usage_error(const char *what, const char *fmt, ...)
@@ -135,6 +143,18 @@ static int set_value(struct args *a, enum opt_id id, const char *v)
                 return 0;
         case O_BOARD:
                 a->board = v;
+                return 0;
+        case O_TO:
+                return args_parse_double(v, &a->to);
+        case O_STEP:
+                if (args_parse_double(v, &a->step) < 0 || a->step <= 0)
+                        break;
+                return 0;
+        case O_MODE:
+                a->mode = v;
+                return 0;
+        case O_LAMPS:
+                a->lamps = v;
                 return 0;
         default:
                 break;

@@ -17,6 +17,10 @@ enum arg_opt {
         ARG_FROM = 1 << 7,
         ARG_BOARD = 1 << 8,
         ARG_FORCE = 1 << 9,
+        ARG_TO = 1 << 10,
+        ARG_STEP = 1 << 11,
+        ARG_MODE = 1 << 12,
+        ARG_LAMPS = 1 << 13,
 };
 
 struct args {
@@ -31,6 +35,9 @@ struct args {
         long count;         /* --count */
         const char *from;   /* --from: a dataset directory */
         const char *board;  /* --board: a board description (calib/camera.h) */
+        double to, step;    /* --to, --step: degrees (scan) */
+        const char *mode;   /* --mode (scan) */
+        const char *lamps;  /* --lamps: comma-separated names (scan) */
         char **words;       /* positional words (command first); borrowed from argv */
         int nwords;
 };

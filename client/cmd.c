@@ -10,6 +10,7 @@
 
 #include "drivers/discover.h"
 #include "client/calibrate.h"
+#include "client/scan_capture.h"
 #include "client/cmd.h"
 #include "client/conn.h"
 #include "client/output.h"
@@ -254,6 +255,10 @@ static const struct cmd commands[] = {
          "solve a camera's intrinsics from a dataset's board views (no goniod)", NULL, 0, 0,
          ARG_FROM | ARG_BOARD | ARG_CAMERA | ARG_FORCE, TIMEOUT_S, NULL, calibrate_print_camera,
          .local = calibrate_camera},
+        {NULL, "scan", "DATASET [--mode continuous|stop] [--from A --to B --step S] ...",
+         "capture a laser scan into DATASET (docs/scanning.md)", NULL, 1, 1,
+         ARG_MODE | ARG_FROM | ARG_TO | ARG_STEP | ARG_CAMERA | ARG_EXPOSURE | ARG_GAIN | ARG_LAMPS,
+         TIMEOUT_S, NULL, scan_capture_print, .local = scan_capture},
         {NULL, "call", "METHOD [JSON-PARAMS]", "send any request, print its result", NULL, 1, 2, 0,
          TIMEOUT_S, p_call, out_print_pretty},
 };
@@ -351,7 +356,7 @@ int cmd_exit_for_code(int code)
 }
 
 /* Prints why a call of method failed and returns the exit code. */
-static int call_failed(struct out *o, const char *method, int r, const struct conn_error *e)
+int cmd_call_failed(struct out *o, const char *method, int r, const struct conn_error *e)
 {
         if (r == -EREMOTEIO) {
                 out_error(o, method, "%s", e->message);
@@ -383,8 +388,7 @@ static int64_t deadline_after(double timeout_s)
         return conn_now_ms() + (int64_t)(timeout_s * 1000);
 }
 
-/* Connects and says hello. Returns EXIT_OK with *ret, or the exit code (error printed). */
-static int connect_hello(const struct args *a, struct out *o, struct conn **ret)
+int cmd_connect(const struct args *a, struct out *o, struct conn **ret)
 {
         char path[108];
         struct conn_error e;
@@ -408,7 +412,7 @@ static int connect_hello(const struct args *a, struct out *o, struct conn **ret)
                            PROTO_VERSION);
         r = conn_call(*ret, "hello", params, deadline, -1, NULL, NULL, &res, &e);
         if (r < 0)
-                return call_failed(o, "hello", r, &e);
+                return cmd_call_failed(o, "hello", r, &e);
         proto = (int)json_integer_value(json_object_get(res, "protocol"));
         json_decref(res);
         if (proto != PROTO_VERSION) {
@@ -419,8 +423,7 @@ static int connect_hello(const struct args *a, struct out *o, struct conn **ret)
         return EXIT_OK;
 }
 
-/* Blocks SIGINT and SIGTERM and returns a signalfd that reports them, or -errno. */
-static int open_intr_fd(void)
+int cmd_intr_fd(void)
 {
         sigset_t mask;
         int fd;
@@ -438,7 +441,7 @@ static int open_intr_fd(void)
 static int run_watch(const struct args *a, struct out *o, struct conn *conn)
 {
         int64_t deadline = a->timeout_s > 0 ? deadline_after(a->timeout_s) : CONN_NO_DEADLINE;
-        _cleanup_close_ int sfd = open_intr_fd();
+        _cleanup_close_ int sfd = cmd_intr_fd();
         struct conn_error e;
         long n = 0;
 
@@ -452,7 +455,7 @@ static int run_watch(const struct args *a, struct out *o, struct conn *conn)
                 if (r == -EINTR || r == -ETIMEDOUT)
                         return EXIT_OK;
                 if (r < 0)
-                        return call_failed(o, "watch", r, &e);
+                        return cmd_call_failed(o, "watch", r, &e);
                 if (a->count > 0 && ++n >= a->count)
                         return EXIT_OK;
         }
@@ -569,7 +572,7 @@ static int run_method(const struct cmd *c, const struct args *a, struct out *o, 
 {
         double timeout_s = a->timeout_s > 0 ? a->timeout_s : c->timeout_s;
         bool stops = (c->stops && !(a->given & ARG_NO_WAIT)) || c->follows;
-        _cleanup_close_ int sfd = stops ? open_intr_fd() : -EBADF;
+        _cleanup_close_ int sfd = stops ? cmd_intr_fd() : -EBADF;
         _cleanup_(json_decrefp) json_t *sent = json_incref(params);
         struct interruption why;
         struct conn_error e;
@@ -583,7 +586,7 @@ static int run_method(const struct cmd *c, const struct args *a, struct out *o, 
                 return stop_interrupted(o, conn, method, sent, &why);
         }
         if (r < 0)
-                return call_failed(o, method, r, &e);
+                return cmd_call_failed(o, method, r, &e);
         if (c->follows) {
                 if (o->json)
                         out_notification(o, "session.state", res);
@@ -635,7 +638,7 @@ int cmd_run(const struct args *a)
         out_init(&o, a->json, a->quiet);
         if (c->local)
                 return run_local(c, a, &o, params);
-        r = connect_hello(a, &o, &conn);
+        r = cmd_connect(a, &o, &conn);
         if (r != EXIT_OK) {
                 json_decref(params);
                 return r;
