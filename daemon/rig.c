@@ -135,7 +135,8 @@ static int poll_call(struct job *j, struct rig_axis *a)
         uint64_t t0 = gn_realtime_ns();
         int r = axis_poll(a->ax);
 
-        j->t_ns = t0 + (gn_realtime_ns() - t0) / 2;
+        j->rtt_ns = gn_realtime_ns() - t0;
+        j->t_ns = t0 + j->rtt_ns / 2;
         j->st = a->ax->state;
         return r;
 }
@@ -522,7 +523,7 @@ static void axis_job_done(struct job *j, int result)
         if (result >= 0 && (j->kind == J_POLL || j->kind == J_OPEN_AXIS || j->kind == J_RESET))
                 a->st = j->st;
         if (result >= 0 && j->kind == J_POLL && rig->track_axis == j->idx && rig->track_fn)
-                rig->track_fn(rig->track_ud, j->idx, j->st.position_deg, j->t_ns);
+                rig->track_fn(rig->track_ud, j->idx, j->st.position_deg, j->t_ns, j->rtt_ns);
         if (j->kind == J_OPEN_AXIS)
                 a->open = result >= 0;
         if (j->kind == J_POLL && !j->exp && a->op == AX_IDLE)

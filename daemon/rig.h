@@ -73,9 +73,11 @@ typedef void (*rig_expose_fn)(struct rig *rig, struct rig_exposure *e, void *use
 typedef void (*rig_frame_fn)(struct rig *rig, int result, struct gn_frame *frame, const char *msg,
                              void *userdata);
 
-/* A state read back from a drive, on the loop thread, with the CLOCK_REALTIME mid-way through
- * the drive's answer (rig_track). */
-typedef void (*rig_track_fn)(void *userdata, int axis, double position_deg, uint64_t t_ns);
+/* A position read back from a drive, on the loop thread, with the CLOCK_REALTIME mid-way
+ * through the drive's answer and that answer's round trip (the time's uncertainty), ns
+ * (rig_track). */
+typedef void (*rig_track_fn)(void *userdata, int axis, double position_deg, uint64_t t_ns,
+                             uint64_t rtt_ns);
 
 /* Builds the devices of rc (which must outlive the rig) and opens them, running the
  * loop until every device answered (a device that does not puts the rig in fault state

@@ -105,8 +105,9 @@ struct job {
         int idx; /* device index; -1 = the laser for switch jobs */
         unsigned gen;
         double arg;
-        double speed;  /* J_MOVE: deg/s, 0: max_speed */
-        uint64_t t_ns; /* J_POLL: CLOCK_REALTIME mid-way through the drive's answer */
+        double speed;    /* J_MOVE: deg/s, 0: max_speed */
+        uint64_t t_ns;   /* J_POLL: CLOCK_REALTIME mid-way through the drive's answer */
+        uint64_t rtt_ns; /* J_POLL: the answer's round trip */
         bool on;
         struct axis_state st;
         struct cam_request creq;

@@ -25,12 +25,13 @@
 #include "manager.h"
 #include "scan.h"
 
-#define SCAN_SAMPLES  8192 /* turntable read-backs kept (about 16 s at 2 ms) */
-#define SCAN_PENDING  32   /* frames waiting for a later read-back */
-#define SCAN_MAX_LEGS 8
-#define SCAN_LEG_DEG  170.0 /* a leg's move, run-up and run-out included, stays below this */
-#define SCAN_MARGIN_S 0.1   /* run-up beyond the acceleration: time at speed before lo */
-#define SCAN_RUN_MAX  40.0  /* deg: a longer run-up means a speed the axis cannot reach */
+#define SCAN_SAMPLES   8192 /* turntable read-backs kept (about 16 s at 2 ms) */
+#define SCAN_PENDING   32   /* frames waiting for a later read-back */
+#define SCAN_MAX_LEGS  8
+#define SCAN_LEG_DEG   170.0   /* a leg's move, run-up and run-out included, stays below this */
+#define SCAN_MARGIN_S  0.1     /* run-up beyond the acceleration: time at speed before lo */
+#define SCAN_RUN_MAX   40.0    /* deg: a longer run-up means a speed the axis cannot reach */
+#define SCAN_RTT_SLACK 2000000 /* ns: read-backs slower than the fastest by more are not used */
 
 struct sample {
         uint64_t t_ns;
@@ -66,6 +67,7 @@ struct scan {
         struct sample *samples; /* ring of SCAN_SAMPLES */
         size_t n_samples, head; /* head: index of the next write */
         double last_raw;
+        uint64_t min_rtt;
         struct pend pending[SCAN_PENDING];
         size_t n_pending;
         double *angles; /* stored angles, n_pos + extra room */
@@ -352,7 +354,10 @@ static void resolve(struct scan *s)
                 ;
 }
 
-static void on_track(void *userdata, int axis, double position_deg, uint64_t t_ns)
+/* A read-back of the turntable: kept unless its round trip leaves its time uncertain (a
+ * descheduled worker, a busy emulator), so that the interpolation bridges only well-timed
+ * read-backs; on a constant-speed leg a longer bridge costs nothing. */
+static void on_track(void *userdata, int axis, double position_deg, uint64_t t_ns, uint64_t rtt_ns)
 {
         struct scan *s = userdata;
         struct sample *prev = &s->samples[(s->head + SCAN_SAMPLES - 1) % SCAN_SAMPLES];
@@ -362,7 +367,8 @@ static void on_track(void *userdata, int axis, double position_deg, uint64_t t_n
 
         if (client_gone(s))
                 return;
-        if (s->n_samples && t_ns <= prev->t_ns)
+        s->min_rtt = s->min_rtt && s->min_rtt < rtt_ns ? s->min_rtt : rtt_ns;
+        if ((s->n_samples && t_ns <= prev->t_ns) || rtt_ns > s->min_rtt + SCAN_RTT_SLACK)
                 return;
         s->samples[s->head] = (struct sample){t_ns, deg};
         s->head = (s->head + 1) % SCAN_SAMPLES;
