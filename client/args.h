@@ -20,6 +20,11 @@ enum arg_opt {
         ARG_TRIANGLES = 1 << 10,
         ARG_LASER = 1 << 11,
         ARG_CALIBRATION = 1 << 12,
+        ARG_START = 1 << 13,
+        ARG_END = 1 << 14,
+        ARG_STEP = 1 << 15,
+        ARG_MODE = 1 << 16,
+        ARG_LAMPS = 1 << 17,
 };
 
 struct args {
@@ -37,6 +42,9 @@ struct args {
         const char *laser;       /* --laser: a laser's name */
         const char *calibration; /* --calibration: a calibration file */
         long triangles;          /* --triangles: a mesh's target triangle count */
+        double start, end, step; /* --start, --end, --step: degrees (scan) */
+        const char *mode;        /* --mode (scan) */
+        const char *lamps;       /* --lamps: comma-separated names (scan) */
         char **words;            /* positional words (command first); borrowed from argv */
         int nwords;
 };

@@ -10,6 +10,7 @@
 
 #include "drivers/discover.h"
 #include "client/calibrate.h"
+#include "client/scan_capture.h"
 #include "client/cmd.h"
 #include "client/conn.h"
 #include "client/output.h"
@@ -256,10 +257,15 @@ static const struct cmd commands[] = {
          "solve a camera's intrinsics from a dataset's board views (no goniod)", NULL, 0, 0,
          ARG_FROM | ARG_BOARD | ARG_CAMERA | ARG_FORCE, TIMEOUT_S, NULL, calibrate_print_camera,
          .local = calibrate_camera},
-        {NULL, "scan", "--from DATASET [--camera NAME] [--triangles N] [--force]",
-         "a dataset's laser frames to scan.ply, mesh.ply and mesh.obj in it (no goniod)", NULL, 0,
-         0, ARG_FROM | ARG_CAMERA | ARG_TRIANGLES | ARG_FORCE, TIMEOUT_S, NULL, scan_print,
-         .local = scan_reconstruct},
+        {NULL, "scan",
+         "DATASET [--mode continuous|stop] [--start A --end B --step S] [--camera NAME] ... | "
+         "--from DIR [--triangles N] [--force]",
+         "capture a laser scan into DATASET (docs/scanning.md), or rebuild the point cloud and "
+         "mesh of the dataset at DIR (no goniod)",
+         NULL, 0, 1,
+         ARG_MODE | ARG_FROM | ARG_START | ARG_END | ARG_STEP | ARG_CAMERA | ARG_EXPOSURE |
+                 ARG_GAIN | ARG_LAMPS | ARG_TRIANGLES | ARG_FORCE,
+         TIMEOUT_S, NULL, scan_command_print, .local = scan_command},
         {"calibrate", "camera", "--board SPEC [--from DATASET] [CALIBRATE-OPTS]",
          "capture board views on the rig (or take DATASET's) and solve a camera's intrinsics", NULL,
          0, 0, CALIBRATE_OPTS, TIMEOUT_S, NULL, calibrate_print_camera, .local = calibrate_camera},
@@ -368,7 +374,7 @@ int cmd_exit_for_code(int code)
 }
 
 /* Prints why a call of method failed and returns the exit code. */
-static int call_failed(struct out *o, const char *method, int r, const struct conn_error *e)
+int cmd_call_failed(struct out *o, const char *method, int r, const struct conn_error *e)
 {
         if (r == -EREMOTEIO) {
                 out_error(o, method, "%s", e->message);
@@ -424,7 +430,7 @@ int cmd_connect(const struct args *a, struct out *o, struct conn **ret)
                            PROTO_VERSION);
         r = conn_call(*ret, "hello", params, deadline, -1, NULL, NULL, &res, &e);
         if (r < 0)
-                return call_failed(o, "hello", r, &e);
+                return cmd_call_failed(o, "hello", r, &e);
         proto = (int)json_integer_value(json_object_get(res, "protocol"));
         json_decref(res);
         if (proto != PROTO_VERSION) {
@@ -467,7 +473,7 @@ static int run_watch(const struct args *a, struct out *o, struct conn *conn)
                 if (r == -EINTR || r == -ETIMEDOUT)
                         return EXIT_OK;
                 if (r < 0)
-                        return call_failed(o, "watch", r, &e);
+                        return cmd_call_failed(o, "watch", r, &e);
                 if (a->count > 0 && ++n >= a->count)
                         return EXIT_OK;
         }
@@ -598,7 +604,7 @@ static int run_method(const struct cmd *c, const struct args *a, struct out *o, 
                 return stop_interrupted(o, conn, method, sent, &why);
         }
         if (r < 0)
-                return call_failed(o, method, r, &e);
+                return cmd_call_failed(o, method, r, &e);
         if (c->follows) {
                 if (o->json)
                         out_notification(o, "session.state", res);

@@ -6,6 +6,8 @@
 #include <stdio.h>
 
 #include "client/args.h"
+#include "client/conn.h"
+#include "client/output.h"
 
 /* gonioctl's exit codes. */
 enum gonioctl_exit {
@@ -38,6 +40,11 @@ int cmd_connect(const struct args *a, struct out *o, struct conn **ret);
 
 /* Blocks SIGINT and SIGTERM and returns a signalfd that reports them, or -errno. */
 int cmd_intr_fd(void);
+
+struct conn_error;
+
+/* Prints a failed call's error (r from conn_call, e its error) and returns the exit code. */
+int cmd_call_failed(struct out *o, const char *method, int r, const struct conn_error *e);
 
 /* Prints the usage text (generated from the command table) to f. */
 void cmd_usage(FILE *f);

@@ -8,6 +8,7 @@
 #include "calib/scan.h"
 #include "client/cmd.h"
 #include "client/scan.h"
+#include "client/scan_capture.h"
 #include "common/cleanup.h"
 #include "dataset/ds.h"
 #include "drivers/registry.h"
@@ -107,4 +108,24 @@ void scan_print(json_t *res)
         printf("  %.1f s\n", json_real_value(json_object_get(res, "seconds")));
         json_array_foreach(json_object_get(res, "files"), i, f)
                 printf("written to %s/%s\n", dir, json_string_value(f));
+}
+
+int scan_command(const struct args *a, struct out *o, json_t **ret)
+{
+        if (a->nwords < 2)
+                return scan_reconstruct(a, o, ret);
+        if (a->from) {
+                args_usage_error(WHAT, "--from DIR rebuilds a dataset's scan: give no DATASET "
+                                       "(the capture's first angle is --start)");
+                return EXIT_USAGE;
+        }
+        return scan_capture(a, o, ret);
+}
+
+void scan_command_print(json_t *result)
+{
+        if (json_object_get(result, "triangles"))
+                scan_print(result);
+        else
+                scan_capture_print(result);
 }

@@ -18,3 +18,10 @@ int scan_reconstruct(const struct args *a, struct out *o, json_t **ret);
 
 /* Prints the summary of scan_reconstruct for people. */
 void scan_print(json_t *result);
+
+/* gonioctl scan: without a DATASET word, scan_reconstruct (--from DIR); with one,
+ * scan_capture (client/scan_capture.h). Returns an enum gonioctl_exit value. */
+int scan_command(const struct args *a, struct out *o, json_t **ret);
+
+/* Prints the result of scan_command: a reconstruction's or a capture's summary. */
+void scan_command_print(json_t *result);

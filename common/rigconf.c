@@ -488,7 +488,7 @@ static int parse_camera(struct rig_config *rc, struct fy_node *m, struct rig_cam
                 "name",       "elevation",     "distance",    "azimuth", "target",
                 "width",      "height",        "fx",          "fy",      "cx",
                 "cy",         "distortion",    "exposure_us", "gain",    "bits",
-                "readout_ms", "occlusion_deg", NULL};
+                "readout_ms", "occlusion_deg", "frame_rate",  NULL};
         struct yconf *yc = &rc->yc;
         int r;
 
@@ -501,6 +501,7 @@ static int parse_camera(struct rig_config *rc, struct fy_node *m, struct rig_cam
                                       .gain = 1,
                                       .bits = 8,
                                       .readout_ms = 30,
+                                      .frame_rate = 30,
                                       .occlusion_deg = 5};
         if ((r = parse_backend(rc, m, RIG_CLASS_CAMERA, keys, c->bus, &c->backend)) < 0 ||
             (r = read_name(yc, m, c->name, sizeof(c->name))) < 0 ||
@@ -510,6 +511,7 @@ static int parse_camera(struct rig_config *rc, struct fy_node *m, struct rig_cam
             (r = yconf_double(yc, m, "gain", RIG_GAIN_MIN, RIG_GAIN_MAX, &c->gain)) < 0 ||
             (r = read_int(yc, m, "bits", 8, 16, &c->bits)) < 0 ||
             (r = read_int(yc, m, "readout_ms", 0, 10000, &c->readout_ms)) < 0 ||
+            (r = yconf_double(yc, m, "frame_rate", 0.1, 1000, &c->frame_rate)) < 0 ||
             (r = yconf_double(yc, m, "occlusion_deg", 0, 90, &c->occlusion_deg)) < 0)
                 return r;
         if (c->bits != 8 && c->bits != 16)

@@ -165,6 +165,8 @@ struct rig_camera_conf {
         double gain;
         int bits;             /* 8 or 16 */
         int readout_ms;       /* planning: time per frame beyond the exposure (default 30) */
+        double frame_rate;    /* frames/s at most: exposures start >= 1/frame_rate apart
+                               * (default 30) */
         double occlusion_deg; /* planning: angular radius of the camera and its mount seen
                                * from the turntable centre; a lamp within it and farther away
                                * is hidden (default 5) */

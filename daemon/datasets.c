@@ -84,7 +84,7 @@ static int open_job(void *userdata)
         }
         if (j->old && strcmp(ds_path(j->old), ds_path(j->d)) == 0)
                 j->old = ds_close(j->old); /* reopened: its lock would refuse the claim */
-        if ((r = ds_claim(j->d)) < 0) { /* what a crash left goes now */
+        if ((r = ds_claim(j->d)) < 0) {    /* what a crash left goes now */
                 snprintf(j->msg, sizeof(j->msg), "cannot open dataset '%s': %s", j->name,
                          r == -EBUSY ? "another process is writing it" : ds_last_error(j->d));
                 j->d = ds_close(j->d);
@@ -367,6 +367,8 @@ static int busy(struct srv_req *req, const struct manager *m)
 {
         if (session_active(m->session))
                 return srv_req_errmsg(req, -EBUSY, "%s", session_busy_reason(m->session));
+        if (scan_active(m->scan))
+                return srv_req_errmsg(req, -EBUSY, "%s", scan_busy_reason(m->scan));
         if (m->ds_busy)
                 return srv_req_errmsg(req, -EBUSY, "another dataset.open or close is running");
         if (capture_in_flight(m->capture) > 0)

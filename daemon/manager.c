@@ -140,6 +140,9 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
         r = session_runner_new(m, &m->session);
         if (r < 0)
                 goto fail;
+        r = scan_new(m, &m->scan);
+        if (r < 0)
+                goto fail;
         if (strcmp(rig_state(m->rig), "fault") == 0)
                 log_warning("rig starts in fault state; fix it and call fault.clear");
         r = server_start(m->server);
@@ -170,6 +173,7 @@ struct manager *manager_free(struct manager *m)
                 return NULL;
         datasets_free(m);
         m->server = server_free(m->server);
+        m->scan = scan_free(m->scan);
         m->capture = capture_free(m->capture);        /* completes pending stores */
         m->rig = rig_free(m->rig);                    /* safe state */
         m->session = session_runner_free(m->session); /* last: the above may call it back */
