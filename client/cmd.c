@@ -253,18 +253,13 @@ static const struct cmd commands[] = {
          ARG_COUNT, TIMEOUT_S, NULL, NULL, NULL, true},
         {NULL, "devices", "", "serial ports, V4L2 nodes, gpiochips, USB devices here (no goniod)",
          NULL, 0, 0, 0, TIMEOUT_S, NULL, out_print_devices, .local = discover_here},
-        {"calibrate", "camera", "--from DATASET --board SPEC [--camera NAME] [--force]",
-         "solve a camera's intrinsics from a dataset's board views (no goniod)", NULL, 0, 0,
-         ARG_FROM | ARG_BOARD | ARG_CAMERA | ARG_FORCE, TIMEOUT_S, NULL, calibrate_print_camera,
-         .local = calibrate_camera},
         {NULL, "scan",
-         "DATASET [--mode continuous|stop] [--start A --end B --step S] [--camera NAME] ... | "
-         "--from DIR [--triangles N] [--force]",
+         "DATASET [--mode continuous|stop] [--start A --end B --step S] ... | --from DIR ...",
          "capture a laser scan into DATASET (docs/scanning.md), or rebuild the point cloud and "
          "mesh of the dataset at DIR (no goniod)",
          NULL, 0, 1,
          ARG_MODE | ARG_FROM | ARG_START | ARG_END | ARG_STEP | ARG_CAMERA | ARG_EXPOSURE |
-                 ARG_GAIN | ARG_LAMPS | ARG_TRIANGLES | ARG_FORCE,
+                 ARG_GAIN | ARG_LAMPS | ARG_TRIANGLES | ARG_FORCE | ARG_CALIBRATION,
          TIMEOUT_S, NULL, scan_command_print, .local = scan_command},
         {"calibrate", "camera", "--board SPEC [--from DATASET] [CALIBRATE-OPTS]",
          "capture board views on the rig (or take DATASET's) and solve a camera's intrinsics", NULL,

@@ -2,10 +2,14 @@
  * (calib/scan.h) with its rig file's nominal calibration, the summary as text or JSON
  * (docs/scanning.md, "gonioctl scan --from"). */
 #include <errno.h>
+#include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "calib/scan.h"
+#ifdef GONIOCTL_CALIB
+#include "calib/scan_cal.h"
+#endif
 #include "client/cmd.h"
 #include "client/scan.h"
 #include "client/scan_capture.h"
@@ -17,6 +21,54 @@
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ds *, ds_close);
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct rig_config *, rigconf_free);
+
+/* The calibration to triangulate with: the sections of the calibration file (--calibration,
+ * else the dataset's calibration.yaml) for the camera and the rig's laser, or NULL (the rig
+ * file's nominal geometry) when the dataset has no calibration file or with --calibration
+ * nominal. How it was chosen goes to
+ * *source. Returns 0, or EXIT_INVALID after printing why a file given or found cannot serve. */
+static int pick_calib(const struct args *a, struct out *o, struct ds *d,
+                      const struct rig_config *rc, struct scan_calib *cal,
+                      const struct scan_calib **use, const char **source)
+{
+#ifdef GONIOCTL_CALIB
+        _cleanup_free_ struct cal_file *f = calloc(1, sizeof(*f));
+        const char *camera = a->camera;
+        char path[4096], err[1024] = "";
+        int r;
+
+        snprintf(path, sizeof(path), "%s/calibration.yaml", ds_path(d));
+        if (a->calibration)
+                snprintf(path, sizeof(path), "%s", a->calibration);
+        *use = NULL;
+        *source = "nominal: the rig file's geometry (no calibration file)";
+        if (a->calibration && strcmp(a->calibration, "nominal") == 0) {
+                *source = "nominal: the rig file's geometry (--calibration nominal)";
+                return 0;
+        }
+        if (!f)
+                return EXIT_PROTOCOL;
+        r = cal_file_read(path, f, err, sizeof(err));
+        if (r == -ENOENT && !a->calibration)
+                return 0;
+        for (size_t i = 0; r >= 0 && !camera && i < rc->n_cameras; i++)
+                if (cal_file_turntable(f, rc->cameras[i].name))
+                        camera = rc->cameras[i].name;
+        if (r >= 0)
+                r = scan_calib_from_file(f, camera ?: rc->cameras[0].name, rc->laser.name, cal, err,
+                                         sizeof(err));
+        if (r < 0) {
+                out_error(o, WHAT, "calibration %s: %s", path, *err ? err : strerror(-r));
+                return EXIT_INVALID;
+        }
+        *use = cal;
+        *source = a->calibration ? a->calibration : "calibration.yaml";
+#else
+        *use = NULL;
+        *source = "nominal: the rig file's geometry (gonioctl built without OpenCV)";
+#endif
+        return 0;
+}
 
 static json_t *summary_json(const struct scan_result *s, const struct scan_opts *o, const char *dir)
 {
@@ -50,6 +102,9 @@ int scan_reconstruct(const struct args *a, struct out *o, json_t **ret)
         _cleanup_(rigconf_freep) struct rig_config *rc = NULL;
         struct scan_opts opts;
         struct scan_result res;
+        struct scan_calib cal;
+        const struct scan_calib *use;
+        const char *source;
         char err[1024];
         int r;
 
@@ -70,11 +125,15 @@ int scan_reconstruct(const struct args *a, struct out *o, json_t **ret)
                 out_error(o, WHAT, "cannot read the rig file of dataset %s: %s", a->from, err);
                 return EXIT_INVALID;
         }
-        if ((r = scan_dataset(d, rc, &opts, NULL, &res, err, sizeof(err))) < 0) {
+        if ((r = pick_calib(a, o, d, rc, &cal, &use, &source)) != 0)
+                return r;
+        if ((r = scan_dataset(d, rc, &opts, use, &res, err, sizeof(err))) < 0) {
                 out_error(o, WHAT, "%s", err);
                 return exit_for(r);
         }
         *ret = summary_json(&res, &opts, ds_path(d));
+        if (*ret)
+                json_object_set_new(*ret, "calibration", json_string(source));
         return *ret ? EXIT_OK : EXIT_PROTOCOL;
 }
 
@@ -105,6 +164,7 @@ void scan_print(json_t *res)
                json_is_true(json_object_get(res, "seam_closed")) ? " (closed round the turn)" : "",
                num(res, "triangles_simplified"), num(res, "target"),
                json_real_value(json_object_get(res, "error_mm")));
+        printf("  calibration: %s\n", json_string_value(json_object_get(res, "calibration")));
         printf("  %.1f s\n", json_real_value(json_object_get(res, "seconds")));
         json_array_foreach(json_object_get(res, "files"), i, f)
                 printf("written to %s/%s\n", dir, json_string_value(f));
