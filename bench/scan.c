@@ -92,8 +92,9 @@ static double timed_scan(struct rigenv *e, const char *dataset, const char *mode
 {
         double t0 = bench_now_ms();
 
-        CHECK_INT(ctl(e, NULL, "--timeout", "3600", "scan", dataset, "--mode", mode, "--start", "0",
-                      "--end", to, "--step", STEP, "--camera", "cam0", "--exposure", EXPOSURE, NULL),
+        CHECK_INT(ctl(e, NULL, "--timeout", "3600", "scan", dataset, "--no-mesh", "--mode", mode,
+                      "--start", "0", "--end", to, "--step", STEP, "--camera", "cam0", "--exposure",
+                      EXPOSURE, NULL),
                   0);
         return (bench_now_ms() - t0) / 1e3;
 }

@@ -25,6 +25,7 @@ enum arg_opt {
         ARG_STEP = 1 << 15,
         ARG_MODE = 1 << 16,
         ARG_LAMPS = 1 << 17,
+        ARG_NO_MESH = 1 << 18,
 };
 
 struct args {

@@ -259,7 +259,7 @@ static const struct cmd commands[] = {
          "mesh of the dataset at DIR (no goniod)",
          NULL, 0, 1,
          ARG_MODE | ARG_FROM | ARG_START | ARG_END | ARG_STEP | ARG_CAMERA | ARG_EXPOSURE |
-                 ARG_GAIN | ARG_LAMPS | ARG_TRIANGLES | ARG_FORCE | ARG_CALIBRATION,
+                 ARG_GAIN | ARG_LAMPS | ARG_TRIANGLES | ARG_FORCE | ARG_CALIBRATION | ARG_NO_MESH,
          TIMEOUT_S, NULL, scan_command_print, .local = scan_command},
         {"calibrate", "camera", "--board SPEC [--from DATASET] [CALIBRATE-OPTS]",
          "capture board views on the rig (or take DATASET's) and solve a camera's intrinsics", NULL,

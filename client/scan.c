@@ -172,6 +172,10 @@ void scan_print(json_t *res)
 
 int scan_command(const struct args *a, struct out *o, json_t **ret)
 {
+        struct args rebuild = *a;
+        json_t *capture = NULL, *scan = NULL;
+        int r;
+
         if (a->nwords < 2)
                 return scan_reconstruct(a, o, ret);
         if (a->from) {
@@ -179,13 +183,29 @@ int scan_command(const struct args *a, struct out *o, json_t **ret)
                                        "(the capture's first angle is --start)");
                 return EXIT_USAGE;
         }
-        return scan_capture(a, o, ret);
+        if ((r = scan_capture(a, o, &capture)) != EXIT_OK)
+                return r;
+        if (a->given & ARG_NO_MESH) {
+                *ret = capture;
+                return EXIT_OK;
+        }
+        rebuild.from = json_string_value(json_object_get(capture, "path"));
+        rebuild.given |= ARG_FORCE; /* the capture's rows are new: its old scan files are not */
+        r = scan_reconstruct(&rebuild, o, &scan);
+        if (r != EXIT_OK)
+                out_error(o, WHAT,
+                          "the capture is stored in %s: rebuild with gonioctl scan --from %s",
+                          a->words[1], rebuild.from ?: "DIR");
+        *ret = json_pack("{s:o,s:o*}", "capture", capture, "scan", scan);
+        return r;
 }
 
 void scan_command_print(json_t *result)
 {
-        if (json_object_get(result, "triangles"))
-                scan_print(result);
-        else
-                scan_capture_print(result);
+        json_t *capture = json_object_get(result, "capture");
+
+        if (!capture)
+                return scan_print(result);
+        scan_capture_print(capture);
+        scan_print(json_object_get(result, "scan"));
 }

@@ -20,7 +20,8 @@ int scan_reconstruct(const struct args *a, struct out *o, json_t **ret);
 void scan_print(json_t *result);
 
 /* gonioctl scan: without a DATASET word, scan_reconstruct (--from DIR); with one,
- * scan_capture (client/scan_capture.h). Returns an enum gonioctl_exit value. */
+ * scan_capture (client/scan_capture.h) and then, unless --no-mesh, scan_reconstruct of the
+ * captured dataset. Returns an enum gonioctl_exit value. */
 int scan_command(const struct args *a, struct out *o, json_t **ret);
 
 /* Prints the result of scan_command: a reconstruction's or a capture's summary. */

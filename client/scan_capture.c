@@ -36,8 +36,9 @@ static void read_range(const struct args *a, struct range *rg)
                 rg->step = a->step;
 }
 
-/* Opens DATASET in goniod, creating it when it does not exist. */
-static int open_dataset(struct out *o, struct conn *conn, const char *name)
+/* Opens DATASET in goniod, creating it when it does not exist; its directory into *path
+ * (a new reference). */
+static int open_dataset(struct out *o, struct conn *conn, const char *name, json_t **path)
 {
         struct conn_error e;
         json_t *res = NULL;
@@ -52,6 +53,7 @@ static int open_dataset(struct out *o, struct conn *conn, const char *name)
                 if (r < 0)
                         return cmd_call_failed(o, "dataset.open", r, &e);
         }
+        *path = json_incref(json_object_get(res, "path"));
         json_decref(res);
         return EXIT_OK;
 }
@@ -138,6 +140,7 @@ int scan_capture(const struct args *a, struct out *o, json_t **ret)
 {
         _cleanup_(conn_freep) struct conn *conn = NULL;
         const char *dataset = a->words[1], *mode = a->mode ?: "continuous";
+        json_t *path = NULL;
         struct range rg;
         int r;
 
@@ -149,10 +152,16 @@ int scan_capture(const struct args *a, struct out *o, json_t **ret)
         if ((r = cmd_connect(a, o, &conn)) != EXIT_OK)
                 return r;
         if (strcmp(mode, "stop") == 0)
-                return scan_stop(a, o, conn, dataset, &rg, ret);
-        if ((r = open_dataset(o, conn, dataset)) != EXIT_OK)
-                return r;
-        return scan_continuous(a, o, conn, dataset, &rg, ret);
+                r = scan_stop(a, o, conn, dataset, &rg, ret);
+        else if ((r = open_dataset(o, conn, dataset, &path)) == EXIT_OK)
+                r = scan_continuous(a, o, conn, dataset, &rg, ret);
+        if (r == EXIT_OK && !path)
+                r = open_dataset(o, conn, dataset, &path);
+        if (r == EXIT_OK)
+                json_object_set_new(*ret, "path", path);
+        else
+                json_decref(path);
+        return r;
 }
 
 void scan_capture_print(json_t *r)

@@ -137,8 +137,8 @@ static void test_continuous(void)
         json_t *r;
 
         start(&e, 1); /* at the speed of a real rig: the read-backs' timing as it will be */
-        r = ctl_ok(&e, "scan", "c1", "--start", "0", "--end", "200", "--step", "0.45", "--camera",
-                   "cam0", "--exposure", "2000", NULL);
+        r = ctl_ok(&e, "scan", "c1", "--no-mesh", "--start", "0", "--end", "200", "--step", "0.45",
+                   "--camera", "cam0", "--exposure", "2000", NULL);
         print_json("scan", r);
         CHECK_INT(json_integer_value(json_object_get(r, "positions")), 445);
         CHECK_INT(json_integer_value(json_object_get(r, "legs")), 2);
@@ -171,9 +171,9 @@ static void test_stop_and_go(void)
         struct ds *d = NULL;
 
         start(&e, TIME_SCALE);
-        CHECK_INT(ctl(&e, NULL, "scan", "s1", "--mode", "stop", "--start", "0", "--end", "18",
-                      "--step", "4.5", "--camera", "cam0", "--exposure", "2000", "--lamps", "lamp0",
-                      NULL),
+        CHECK_INT(ctl(&e, NULL, "scan", "s1", "--no-mesh", "--mode", "stop", "--start", "0",
+                      "--end", "18", "--step", "4.5", "--camera", "cam0", "--exposure", "2000",
+                      "--lamps", "lamp0", NULL),
                   0);
         CHECK_INT(check_dataset_roles(&e, "s1", (1u << GN_ROLE_COUNT) - 1), 10);
         snprintf(path, sizeof(path), "%s/s1", e.data);
