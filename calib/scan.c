@@ -49,7 +49,7 @@ int scan_load_rig(struct ds *d, const struct rig_backend *const *backends, struc
         char path[4096];
 
         snprintf(path, sizeof(path), "%s/rig.yaml", ds_path(d));
-        return rigconf_load(path, backends, rc, err, errlen);
+        return rigconf_load_stored(path, backends, rc, err, errlen);
 }
 
 int scan_nominal_calib(const struct rig_config *rc, const char *camera, double camera_arm_deg,

@@ -864,8 +864,8 @@ static int read_text(const char *path, char **ret)
         return 0;
 }
 
-int rigconf_load(const char *path, const struct rig_backend *const *backends,
-                 struct rig_config **ret, char *err, size_t errlen)
+static int load(const char *path, const struct rig_backend *const *backends, bool stored,
+                struct rig_config **ret, char *err, size_t errlen)
 {
         struct rig_config *rc = calloc(1, sizeof(*rc));
         int r;
@@ -881,6 +881,7 @@ int rigconf_load(const char *path, const struct rig_backend *const *backends,
                 return r;
         }
         r = yconf_open_string(&rc->yc, rc->path, rc->text, err, errlen);
+        rc->yc.keep_unset_vars = stored;
         if (r >= 0)
                 r = parse_root(rc);
         if (r < 0) {
@@ -889,6 +890,18 @@ int rigconf_load(const char *path, const struct rig_backend *const *backends,
         }
         *ret = rc;
         return 0;
+}
+
+int rigconf_load(const char *path, const struct rig_backend *const *backends,
+                 struct rig_config **ret, char *err, size_t errlen)
+{
+        return load(path, backends, false, ret, err, errlen);
+}
+
+int rigconf_load_stored(const char *path, const struct rig_backend *const *backends,
+                        struct rig_config **ret, char *err, size_t errlen)
+{
+        return load(path, backends, true, ret, err, errlen);
 }
 
 struct rig_config *rigconf_free(struct rig_config *rc)

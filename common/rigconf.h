@@ -202,6 +202,12 @@ struct rig_config {
 int rigconf_load(const char *path, const struct rig_backend *const *backends,
                  struct rig_config **ret, char *err, size_t errlen);
 
+/* rigconf_load() of the rig file stored with a dataset (its rig.yaml), read offline: a
+ * ${VAR} that is unset here is kept as written, not an error (the ports it names are not
+ * opened). */
+int rigconf_load_stored(const char *path, const struct rig_backend *const *backends,
+                        struct rig_config **ret, char *err, size_t errlen);
+
 /* Frees a rig config; NULL is a no-op. Returns NULL. */
 struct rig_config *rigconf_free(struct rig_config *rc);
 
