@@ -144,7 +144,7 @@ static int set_value(struct args *a, enum opt_id id, const char *v)
                 a->laser = v;
                 return 0;
         case O_CALIBRATION:
-                a->calibration = v;
+                a->calib = v;
                 return 0;
         default:
                 break;

@@ -24,18 +24,18 @@ enum arg_opt {
 struct args {
         const char *socket; /* --socket, NULL for the default path */
         bool json, quiet, help, version;
-        double timeout_s;        /* --timeout, 0 when not given */
-        unsigned given;          /* enum arg_opt bits seen */
-        const char *camera;      /* --camera */
-        long exposure_us;        /* --exposure */
-        double gain;             /* --gain */
-        int bits;                /* --bits */
-        long count;              /* --count */
-        const char *from;        /* --from: a dataset directory */
-        const char *board;       /* --board: a board description (calib/camera.h) */
-        const char *laser;       /* --laser: a laser's name */
-        const char *calibration; /* --calibration: a calibration file */
-        char **words;            /* positional words (command first); borrowed from argv */
+        double timeout_s;   /* --timeout, 0 when not given */
+        unsigned given;     /* enum arg_opt bits seen */
+        const char *camera; /* --camera */
+        long exposure_us;   /* --exposure */
+        double gain;        /* --gain */
+        int bits;           /* --bits */
+        long count;         /* --count */
+        const char *from;   /* --from: a dataset directory */
+        const char *board;  /* --board: a board description (calib/camera.h) */
+        const char *laser;  /* --laser: a laser's name */
+        const char *calib;  /* --calibration: a calibration file */
+        char **words;       /* positional words (command first); borrowed from argv */
         int nwords;
 };
 
