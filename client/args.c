@@ -160,7 +160,7 @@ static int set_value(struct args *a, enum opt_id id, const char *v)
                 a->laser = v;
                 return 0;
         case O_CALIBRATION:
-                a->calibration = v;
+                a->calib = v;
                 return 0;
         case O_START:
                 return args_parse_double(v, &a->start);

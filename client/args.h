@@ -41,7 +41,7 @@ struct args {
         const char *from;        /* --from: a dataset directory */
         const char *board;       /* --board: a board description (calib/camera.h) */
         const char *laser;       /* --laser: a laser's name */
-        const char *calibration; /* --calibration: a calibration file */
+        const char *calib;       /* --calibration: a calibration file */
         long triangles;          /* --triangles: a mesh's target triangle count */
         double start, end, step; /* --start, --end, --step: degrees (scan) */
         const char *mode;        /* --mode (scan) */

@@ -187,7 +187,7 @@ static int rig_info(struct solve *s, struct conn *c, struct rig_info *ri)
         find_device(devs, "axis", "camera_arm", arm, sizeof(arm), &n);
         ri->camera_arm = arm[0];
         snprintf(ri->calibration, sizeof(ri->calibration), "%s",
-                 s->a->calibration ?: json_string_value(json_object_get(
+                 s->a->calib ?: json_string_value(json_object_get(
                                               json_object_get(d, "calibration"), "path"))
                                     ?: "");
         return EXIT_OK;
@@ -301,7 +301,7 @@ static int start(struct solve *s, const char *kind, bool intrinsics)
         }
         if (!a->from)
                 return start_rig(s, kind, intrinsics);
-        return prepare(s, a->from, a->calibration, intrinsics);
+        return prepare(s, a->from, a->calib, intrinsics);
 }
 
 static void finish(struct solve *s)

@@ -38,18 +38,18 @@ static int pick_calib(const struct args *a, struct out *o, struct ds *d,
         int r;
 
         snprintf(path, sizeof(path), "%s/calibration.yaml", ds_path(d));
-        if (a->calibration)
-                snprintf(path, sizeof(path), "%s", a->calibration);
+        if (a->calib)
+                snprintf(path, sizeof(path), "%s", a->calib);
         *use = NULL;
         *source = "nominal: the rig file's geometry (no calibration file)";
-        if (a->calibration && strcmp(a->calibration, "nominal") == 0) {
+        if (a->calib && strcmp(a->calib, "nominal") == 0) {
                 *source = "nominal: the rig file's geometry (--calibration nominal)";
                 return 0;
         }
         if (!f)
                 return EXIT_PROTOCOL;
         r = cal_file_read(path, f, err, sizeof(err));
-        if (r == -ENOENT && !a->calibration)
+        if (r == -ENOENT && !a->calib)
                 return 0;
         for (size_t i = 0; r >= 0 && !camera && i < rc->n_cameras; i++)
                 if (cal_file_turntable(f, rc->cameras[i].name))
@@ -62,7 +62,7 @@ static int pick_calib(const struct args *a, struct out *o, struct ds *d,
                 return EXIT_INVALID;
         }
         *use = cal;
-        *source = a->calibration ? a->calibration : "calibration.yaml";
+        *source = a->calib ? a->calib : "calibration.yaml";
 #else
         *use = NULL;
         *source = "nominal: the rig file's geometry (gonioctl built without OpenCV)";

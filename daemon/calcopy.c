@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "calcopy.h"
+#include "common/cleanup.h"
 #include "common/fileio.h"
 #include "common/log.h"
 #include "common/sha256.h"
@@ -16,22 +17,31 @@
 #define CALCOPY_FORMAT "gonio-calibration 1" /* calib/calfile.h CAL_FILE_FORMAT */
 #define CALCOPY_MAX    (4 << 20)             /* bytes of a calibration file */
 
+/* Why gn_read_file_at or gn_write_atomic failed with r. */
+static const char *io_error(int r)
+{
+        return r == -EBADMSG ? "not a regular file" : strerror(-r);
+}
+
 /* "ok", or why the file at path cannot be used, with message. */
 static const char *check_file(const char *path, char *msg, size_t len)
 {
+        _cleanup_free_ void *text = NULL;
         struct yconf yc;
         char format[64] = "";
-        int r = yconf_open(&yc, path, msg, len);
+        size_t n;
+        int r = gn_read_file_at(AT_FDCWD, path, CALCOPY_MAX, &text, &n);
 
         if (r == -ENOENT) {
                 snprintf(msg, len, "%s does not exist (yet): calibrate with gonioctl calibrate",
                          path);
                 return "missing";
         }
-        if (r < 0 && r != -EINVAL) {
-                snprintf(msg, len, "cannot read %s: %s", path, strerror(-r));
+        if (r < 0) {
+                snprintf(msg, len, "cannot read %s: %s", path, io_error(r));
                 return "unreadable";
         }
+        r = yconf_open_string(&yc, path, text, msg, len);
         if (r == 0 && yconf_str(&yc, yconf_root(&yc), "format", format, sizeof(format)) >= 0 &&
             strcmp(format, CALCOPY_FORMAT) != 0)
                 snprintf(msg, len, "%s: not a calibration file (no 'format: " CALCOPY_FORMAT "')",
@@ -71,7 +81,7 @@ int calcopy_into(const struct rig_config *rc, const char *ds_dir)
 {
         _cleanup_(gn_sha256_freep) struct gn_sha256 *sha = NULL;
         char dest[PATH_MAX], hex[GN_SHA256_HEX] = "";
-        void *text = NULL;
+        _cleanup_free_ void *text = NULL;
         size_t len = 0;
         int r;
 
@@ -83,11 +93,11 @@ int calcopy_into(const struct rig_config *rc, const char *ds_dir)
         if (r >= 0 && (r = gn_sha256_new(&sha)) >= 0 &&
             (r = gn_write_atomic(AT_FDCWD, dest, text, len, sha)) >= 0)
                 (void)gn_sha256_final(sha, hex);
-        free(text);
-        if (r < 0)
-                return log_warning_errno(r,
-                                         "Cannot copy the calibration file %s into dataset %s: %m",
-                                         rc->calibration, ds_dir);
+        if (r < 0) {
+                log_warning("Cannot copy the calibration file %s into dataset %s: %s",
+                            rc->calibration, ds_dir, io_error(r));
+                return r;
+        }
         log_info("Copied the calibration file %s (sha256 %s) into dataset %s", rc->calibration, hex,
                  ds_dir);
         return 0;

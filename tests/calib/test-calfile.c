@@ -429,12 +429,47 @@ static void test_gonioctl(void)
         tu_rm_rf(tmp);
 }
 
+/* The rig file's key calibration: relative to the rig file's directory, absolute as is,
+ * ${VAR} expanded; an empty path refused with file, line and key. */
+static void test_rigkey(void)
+{
+        static const struct {
+                const char *value, *want;
+        } cases[] = {
+                {"cal/rig.yaml", "/tmp/cal/rig.yaml"},
+                {"/var/lib/gonio/c.yaml", "/var/lib/gonio/c.yaml"},
+                {"${CALFILE_TEST_DIR}/c.yaml", "/tmp/d/c.yaml"},
+                {"", NULL},
+        };
+        struct rtest t;
+        char scene[256], err[512];
+
+        setenv("CALFILE_TEST_DIR", "d", 1);
+        for (size_t i = 0; i < ELEMENTSOF(cases); i++) {
+                snprintf(scene, sizeof(scene), "calibration: \"%s\"\n", cases[i].value);
+                int r = rt_try_open(&t, lamps, "", cams, scene, err, sizeof(err));
+
+                if (cases[i].want) {
+                        CHECK_INT(r, 0);
+                        CHECK_STR(t.rc->calibration, cases[i].want);
+                } else {
+                        CHECK_INT(r, -EINVAL);
+                        CHECK_STR_CONTAINS(err, ".yaml:14: key 'calibration': empty path");
+                }
+                rt_close(&t);
+        }
+        /* no key: none */
+        rt_open(&t, lamps, "", cams, "");
+        CHECK_STR(t.rc->calibration, "");
+        rt_close(&t);
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
                 {"sections", test_sections},       {"never-worse", test_never_worse},
                 {"laser-first", test_laser_first}, {"malformed", test_malformed},
-                {"gonioctl", test_gonioctl},
+                {"gonioctl", test_gonioctl},       {"rigkey", test_rigkey},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);

@@ -105,6 +105,11 @@ static void test_copy(struct rigenv *e)
         json_decref(ctl_ok(e, "dataset", "create", "d0", NULL));
         check_copy(e, "d0", NULL);
         CHECK(mkdir(dir, 0755) == 0);
+        CHECK(mkdir(cal, 0755) == 0); /* a directory where the file should be */
+        check_state(e, "unreadable", "cannot read");
+        json_decref(ctl_ok(e, "dataset", "create", "d2", NULL));
+        check_copy(e, "d2", NULL);
+        CHECK(rmdir(cal) == 0);
         write_file(cal, "cameras: {}\n");
         check_state(e, "invalid", "not a calibration file");
         write_file(cal, CAL_TEXT);
