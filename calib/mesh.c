@@ -268,7 +268,8 @@ int cal_mesh_from_grid(const struct sec_ctx *c, const struct cal_mesh_opts *o, s
                 cal_mesh_free(out);
                 return -ENOMEM;
         }
-        memcpy(out->v, c->pts, c->n_pts * sizeof(*out->v));
+        if (c->n_pts) /* pts is NULL in an empty context */
+                memcpy(out->v, c->pts, c->n_pts * sizeof(*out->v));
         out->n_v = c->n_pts;
         for (int l = 0; l < c->n_lasers && r >= 0; l++)
                 r = mesh_laser(c, o, l, line, out);

@@ -141,15 +141,19 @@ static bool same_view(const struct ds_capture *a, const struct ds_capture *b)
                same_angle(a->pose.deg[GN_ROLE_CAMERA_ARM], b->pose.deg[GN_ROLE_CAMERA_ARM]);
 }
 
-/* The laser-off row of the view of row i: with no lamp lit (lit false) or, for colour, a
- * lamp-lit image of the base exposure (lit true); -1 if none. */
+/* The laser-off row of the view of row i: with no lamp lit and the same exposure and gain
+ * (lit false: to subtract), or a lamp-lit image of the base exposure (lit true: colour);
+ * -1 if none. */
 static ssize_t partner(const struct rows *r, size_t i, bool lit)
 {
+        const struct ds_capture *on = &r->c[i];
+
         for (size_t k = 0; k < r->n; k++) {
                 const struct ds_capture *c = &r->c[k];
-                if (c->pose.laser || (c->pose.lamps != 0) != lit || !same_view(c, &r->c[i]))
+                if (c->pose.laser || (c->pose.lamps != 0) != lit || !same_view(c, on))
                         continue;
-                if (!lit || (c->bracket == 0 && strcmp(c->kind, "laser") != 0))
+                if (lit ? c->bracket == 0 && strcmp(c->kind, "laser") != 0
+                        : c->exposure_us == on->exposure_us && c->gain == on->gain)
                         return (ssize_t)k;
         }
         return -1;
@@ -359,6 +363,7 @@ static int write_outputs(int dir_fd, struct sec_ctx *c, const struct scan_opts *
                 out->seams_closed = m.seams_closed;
                 r = cal_mesh_simplify(&m, o->triangles, o->max_error_mm, &out->error_mm);
                 out->triangles_simplified = m.n_tri;
+                out->folds = m.folds;
         }
         if (r >= 0 && (r = ply_write_mesh(dir_fd, what = SCAN_FILE_MESH_PLY, &m)) >= 0)
                 r = obj_write_mesh(dir_fd, what = SCAN_FILE_MESH_OBJ, &m);

@@ -57,6 +57,7 @@ struct scan_result {
         size_t triangles;  /* joined over the grid */
         size_t triangles_simplified;
         double error_mm;  /* the simplification's deviation */
+        size_t folds;     /* faces dropped as folds after it (cal_mesh_simplify) */
         int seams_closed; /* 1 when the scan covered the full turn and the mesh closed it */
         double seconds;   /* wall time of the whole reconstruction */
 };

@@ -79,13 +79,14 @@ static json_t *summary_json(const struct scan_result *s, const struct scan_opts 
                 (json_int_t)s->no_line, "skipped", "unreadable", (json_int_t)s->unreadable,
                 "wrong_size", (json_int_t)s->wrong_size, "other_view", (json_int_t)s->other_view);
 
-        return json_pack("{s:s,s:s,s:I,s:I,s:I,s:I,s:I,s:f,s:b,s:o,s:f,s:[sss]}", "dataset", dir,
-                         "camera", s->camera, "points", (json_int_t)s->points, "rejected",
+        return json_pack("{s:s,s:s,s:I,s:I,s:I,s:I,s:I,s:f,s:I,s:b,s:o,s:f,s:[sss]}", "dataset",
+                         dir, "camera", s->camera, "points", (json_int_t)s->points, "rejected",
                          (json_int_t)s->rejected, "triangles", (json_int_t)s->triangles,
                          "triangles_simplified", (json_int_t)s->triangles_simplified, "target",
-                         (json_int_t)o->triangles, "error_mm", s->error_mm, "seam_closed",
-                         s->seams_closed > 0, "rows", rows, "seconds", s->seconds, "files",
-                         SCAN_FILE_POINTS, SCAN_FILE_MESH_PLY, SCAN_FILE_MESH_OBJ);
+                         (json_int_t)o->triangles, "error_mm", s->error_mm, "folds",
+                         (json_int_t)s->folds, "seam_closed", s->seams_closed > 0, "rows", rows,
+                         "seconds", s->seconds, "files", SCAN_FILE_POINTS, SCAN_FILE_MESH_PLY,
+                         SCAN_FILE_MESH_OBJ);
 }
 
 /* The exit code of a failed reconstruction. */
@@ -159,11 +160,11 @@ void scan_print(json_t *res)
                "angle\n",
                num(skip, "unreadable"), num(skip, "wrong_size"), num(skip, "other_view"));
         printf("  mesh: %lld triangles over the grid%s, %lld after simplification (target %lld, "
-               "error %.3f mm)\n",
+               "error %.3f mm, %lld folds dropped)\n",
                num(res, "triangles"),
                json_is_true(json_object_get(res, "seam_closed")) ? " (closed round the turn)" : "",
                num(res, "triangles_simplified"), num(res, "target"),
-               json_real_value(json_object_get(res, "error_mm")));
+               json_real_value(json_object_get(res, "error_mm")), num(res, "folds"));
         printf("  calibration: %s\n", json_string_value(json_object_get(res, "calibration")));
         printf("  %.1f s\n", json_real_value(json_object_get(res, "seconds")));
         json_array_foreach(json_object_get(res, "files"), i, f)

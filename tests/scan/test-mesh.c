@@ -272,6 +272,32 @@ static void test_grid(void)
         expect_grid(36, 330, 20, -1, -1, 99, 2 * 35 * 19, 0);   /* a 30-degree gap */
 }
 
+/* Simplified as far as it goes (no error limit to speak of), the synthetic cylinder keeps
+ * its two rims: every border vertex. */
+static void test_border(void)
+{
+        _cleanup_free_ uint64_t *border = NULL;
+        struct sec_ctx c;
+        struct cal_mesh m;
+        struct cal_mesh_opts o;
+        size_t n;
+        double err;
+
+        cal_mesh_opts_default(&o);
+        synth(&c, 36, 360, 20, -1, -1, 99);
+        CHECK_INT(cal_mesh_from_grid(&c, &o, &m), 0);
+        n = mr_border_vertices(&m, &border);
+        CHECK_INT(n, 2 * 36);
+        CHECK_INT(cal_mesh_simplify(&m, 10, 100, &err), 0);
+        fprintf(stderr, "cylinder simplified to %zu faces, %zu vertices, error %.3f mm\n", m.n_tri,
+                m.n_v, err);
+        CHECK(m.n_tri < 2 * 36 * 19 / 4 && m.folds == 0);
+        for (size_t i = 0; i < n; i++)
+                CHECK(mr_has_vertex(&m, border[i]));
+        cal_mesh_free(&m);
+        sec_free(&c);
+}
+
 /* Writes m as PLY and OBJ into a new directory and reads both back. */
 static void expect_files(const struct cal_mesh *m)
 {
@@ -376,8 +402,9 @@ static void test_args(void)
 }
 
 static const struct test_case cases[] = {
-        {"sphere", test_sphere}, {"gap", test_gap},       {"grid", test_grid},
-        {"files", test_files},   {"open3d", test_open3d}, {"args", test_args},
+        {"sphere", test_sphere}, {"gap", test_gap},     {"grid", test_grid},
+        {"border", test_border}, {"files", test_files}, {"open3d", test_open3d},
+        {"args", test_args},
 };
 
 int main(int argc, char **argv)

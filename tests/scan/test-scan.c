@@ -1,9 +1,10 @@
 /* test-scan.c - calib/scan.c and gonioctl scan --from against datasets of frames rendered
  * in-process: a 100 mm sphere at 60 turntable angles, each with a laser frame (lamps off),
  * a lamp frame and, at every other angle, a laser-off frame with no lamp; one laser frame
- * unreadable and one at another camera-arm angle. The reconstruction's counts, its cloud and
- * mesh against the true sphere, its colours, its files, the calibration it is given, and
- * its errors: no laser frames, no such camera, a scan there already. */
+ * unreadable, one at another camera-arm angle, one laser-off frame of another exposure. The
+ * reconstruction's counts, its cloud and mesh against the true sphere, its colours, its files, the
+ * calibration it is given, and its errors: no laser frames, no such camera, a scan there already.
+ */
 #include <fcntl.h>
 #include <jansson.h>
 #include <stdio.h>
@@ -26,11 +27,12 @@
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ds *, ds_close);
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct rig_config *, rigconf_free);
 
-/* Renders and stores one capture of camera c0 at turntable angle deg (camera arm arm_deg). */
+/* Renders and stores one capture of camera c0 at turntable angle deg (camera arm arm_deg),
+ * recorded as exposed exposure_us. */
 static void store(struct ds *d, struct rtest *t, double deg, double arm_deg, bool laser,
-                  uint32_t lamps, uint64_t seq, char *file, size_t len)
+                  uint32_t lamps, int exposure_us, uint64_t seq, char *file, size_t len)
 {
-        struct ds_capture c = {.camera = "c0", .exposure_us = 20000, .gain = 1};
+        struct ds_capture c = {.camera = "c0", .exposure_us = exposure_us, .gain = 1};
         struct gn_frame f;
 
         c.pose = (struct gn_pose){.deg = {deg, NAN, arm_deg}, .lamps = lamps, .laser = laser};
@@ -55,14 +57,17 @@ static char *make_dataset(const char *dir, const char *name, struct rtest *t, in
         for (int i = 0; i < n; i++) {
                 double deg = 360.0 * i / n;
                 if (!(flags & NO_LASER))
-                        store(d, t, deg, NAN, true, 0, 3 * (uint64_t)i, i == BROKEN ? lost : NULL,
-                              sizeof(lost));
-                store(d, t, deg, NAN, false, 1, 3 * (uint64_t)i + 1, NULL, 0);
-                if (i % 2 == 0)
-                        store(d, t, deg, NAN, false, 0, 3 * (uint64_t)i + 2, NULL, 0);
+                        store(d, t, deg, NAN, true, 0, 20000, 3 * (uint64_t)i,
+                              i == BROKEN ? lost : NULL, sizeof(lost));
+                store(d, t, deg, NAN, false, 1, 20000, 3 * (uint64_t)i + 1, NULL, 0);
+                if (i % 2 == 0) /* laser off, lamps off */
+                        store(d, t, deg, NAN, false, 0, 20000, 3 * (uint64_t)i + 2, NULL, 0);
         }
-        if (!(flags & NO_LASER)) /* at another camera-arm angle: not this scan's view */
-                store(d, t, 0, 10, true, 0, 9999, NULL, 0);
+        if (!(flags & NO_LASER)) { /* at another camera-arm angle: not this scan's view */
+                store(d, t, 0, 10, true, 0, 20000, 9999, NULL, 0);
+                /* of another exposure: not to subtract from the laser frame */
+                store(d, t, 360.0 / n, NAN, false, 0, 10000, 9998, NULL, 0);
+        }
         if (lost[0]) {
                 snprintf(file, sizeof(file), "%s/%s", path, lost);
                 CHECK_INT(unlink(file), 0);
