@@ -108,13 +108,23 @@ struct scan *scan_free(struct scan *s)
 {
         if (!s)
                 return NULL;
-        if (s->step != S_IDLE)
-                rig_track(s->m->rig, -1, NULL, NULL);
         drop_pending(s);
         free(s->angles);
         free(s->samples);
         free(s);
         return NULL;
+}
+
+void scan_abandon(struct scan *s)
+{
+        if (s->step == S_IDLE)
+                return;
+        if (s->streaming)
+                rig_stream_stop(s->m->rig, s->p.cam);
+        rig_track(s->m->rig, -1, NULL, NULL);
+        s->streaming = false;
+        s->step = S_IDLE;
+        s->req = NULL; /* the server is gone */
 }
 
 void scan_cancel(struct scan *s)
@@ -195,6 +205,8 @@ static void on_laser_off(struct rig *rig, int result, const char *msg, void *use
 {
         struct scan *s = userdata;
 
+        if (s->step == S_IDLE)
+                return; /* abandoned */
         s->waiting = false;
         if (result < 0 && s->error == 0)
                 fail(s, result, "switching the laser off failed: %s", msg ?: strerror(-result));
@@ -287,6 +299,8 @@ static void on_stored(struct capture *cp, const struct capture_result *res, void
         struct scan *s = userdata;
         const struct capture_shot *sh = &res->shots[0];
 
+        if (s->step == S_IDLE)
+                return; /* abandoned */
         s->stores--;
         if (sh->result < 0)
                 fail(s, sh->result, "%s", sh->msg);
@@ -406,6 +420,8 @@ static void on_rig_done(struct rig *rig, int result, const char *msg, void *user
 {
         struct scan *s = userdata;
 
+        if (s->step == S_IDLE)
+                return; /* abandoned */
         s->waiting = false;
         if (s->step == S_LEG)
                 s->legs[s->leg].t_end = gn_realtime_ns();
