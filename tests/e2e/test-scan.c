@@ -12,6 +12,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "common/clock.h"
 #include "common/pose.h"
 #include "dataset/ds.h"
 #include "harness.h"
@@ -291,8 +292,8 @@ static void test_disconnect(void)
         rigenv_stop(&e);
 }
 
-/* SIGTERM to goniod during a scan: it stops the rig and exits cleanly (rigenv_stop checks the
- * exit status), the laser off in gonio-sim. */
+/* SIGTERM to goniod during a scan: the scan ends with the rig's safe state, goniod exits
+ * cleanly and at once, the laser off in gonio-sim. */
 static void test_shutdown(void)
 {
         struct rigenv e;
@@ -301,9 +302,13 @@ static void test_shutdown(void)
 
         start(&e, TIME_SCALE);
         fd = scan_raw(&e);
+        double t0 = gn_monotonic_ns() * 1e-9;
+
         CHECK(kill(e.daemon, SIGTERM) == 0);
         CHECK(waitpid(e.daemon, &status, 0) == e.daemon);
         CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+        /* the scan ended with the safe state: goniod did not wait out its 5 s shutdown limit */
+        CHECK(gn_monotonic_ns() * 1e-9 - t0 < 4.0);
         e.daemon = 0;
         st = sim_query(&e, "{\"cmd\":\"state\"}\n");
         CHECK(!json_is_true(json_object_get(json_object_get(st, "state"), "laser")));
