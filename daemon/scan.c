@@ -567,18 +567,14 @@ static int refusal(struct scan *s, char *msg, size_t len)
         return 0;
 }
 
-/* Resets everything of the last scan. */
-static int reset(struct scan *s, struct srv_req *req, const struct scan_params *p)
+/* Forgets the last scan (its results), keeping the read-back ring. */
+static void reset(struct scan *s, struct srv_req *req, const struct scan_params *p, int axis)
 {
         struct sample *samples = s->samples;
-        double *angles = s->angles;
         struct manager *m = s->m;
 
-        free(angles);
-        *s = (struct scan){.m = m, .req = req, .p = *p, .samples = samples};
-        s->cap_angles = 4096;
-        s->angles = malloc(s->cap_angles * sizeof(double));
-        return s->angles ? 0 : -ENOMEM;
+        free(s->angles);
+        *s = (struct scan){.m = m, .req = req, .p = *p, .samples = samples, .axis = axis};
 }
 
 int scan_start(struct scan *s, struct srv_req *req, const struct scan_params *p, char *msg,
@@ -590,14 +586,12 @@ int scan_start(struct scan *s, struct srv_req *req, const struct scan_params *p,
         if ((r = refusal(s, msg, len)) < 0)
                 return r;
         axis = s->axis;
-        if ((r = reset(s, req, p)) < 0)
-                return snprintf(msg, len, "out of memory"), r;
-        s->axis = axis;
+        reset(s, req, p, axis);
         s->continuous = rc->axes[axis].continuous;
         if ((r = plan_legs(s, &rc->axes[axis], msg, len)) < 0)
                 return r;
         s->cap_angles = s->n_pos * 2 + 64;
-        if (!(s->angles = realloc(s->angles, s->cap_angles * sizeof(double))))
+        if (!(s->angles = malloc(s->cap_angles * sizeof(double))))
                 return snprintf(msg, len, "out of memory"), -ENOMEM;
         r = move_to(s, s->legs[0].lo - s->run, 0);
         if (r < 0)
