@@ -120,7 +120,7 @@ int main(int argc, char **argv)
         printf("stop-and-go: %.1f s for %d angles%s (%.1fx the continuous scan)\n", stop, POSITIONS,
                full ? "" : ", extrapolated from the first 100", stop / cont);
         printf("{\"bench\":\"scan\",\"continuous_s\":%.2f,\"stop_and_go_s\":%.2f,"
-               "\"camera_bound_s\":%.2f,\"points\":%ld,\"stop_and_go_measured\":%d}\n",
-               cont, stop, bound, points, stop_n);
+               "\"camera_bound_s\":%.2f,\"points\":%ld}\n",
+               cont, stop, bound, points);
         return 0;
 }

@@ -172,11 +172,13 @@ struct manager *manager_free(struct manager *m)
         if (!m)
                 return NULL;
         datasets_free(m);
+        if (m->scan)
+                scan_abandon(m->scan);
         m->server = server_free(m->server);
-        m->scan = scan_free(m->scan);
         m->capture = capture_free(m->capture);        /* completes pending stores */
         m->rig = rig_free(m->rig);                    /* safe state */
         m->session = session_runner_free(m->session); /* last: the above may call it back */
+        m->scan = scan_free(m->scan);
         rigconf_free(m->rc);
         sd_event_unref(m->event);
         free(m);

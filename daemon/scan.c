@@ -108,13 +108,23 @@ struct scan *scan_free(struct scan *s)
 {
         if (!s)
                 return NULL;
-        if (s->step != S_IDLE)
-                rig_track(s->m->rig, -1, NULL, NULL);
         drop_pending(s);
         free(s->angles);
         free(s->samples);
         free(s);
         return NULL;
+}
+
+void scan_abandon(struct scan *s)
+{
+        if (s->step == S_IDLE)
+                return;
+        if (s->streaming)
+                rig_stream_stop(s->m->rig, s->p.cam);
+        rig_track(s->m->rig, -1, NULL, NULL);
+        s->streaming = false;
+        s->step = S_IDLE;
+        s->req = NULL; /* the server is gone */
 }
 
 void scan_cancel(struct scan *s)
@@ -195,6 +205,8 @@ static void on_laser_off(struct rig *rig, int result, const char *msg, void *use
 {
         struct scan *s = userdata;
 
+        if (s->step == S_IDLE)
+                return; /* abandoned */
         s->waiting = false;
         if (result < 0 && s->error == 0)
                 fail(s, result, "switching the laser off failed: %s", msg ?: strerror(-result));
@@ -287,6 +299,8 @@ static void on_stored(struct capture *cp, const struct capture_result *res, void
         struct scan *s = userdata;
         const struct capture_shot *sh = &res->shots[0];
 
+        if (s->step == S_IDLE)
+                return; /* abandoned */
         s->stores--;
         if (sh->result < 0)
                 fail(s, sh->result, "%s", sh->msg);
@@ -406,6 +420,8 @@ static void on_rig_done(struct rig *rig, int result, const char *msg, void *user
 {
         struct scan *s = userdata;
 
+        if (s->step == S_IDLE)
+                return; /* abandoned */
         s->waiting = false;
         if (s->step == S_LEG)
                 s->legs[s->leg].t_end = gn_realtime_ns();
@@ -551,18 +567,14 @@ static int refusal(struct scan *s, char *msg, size_t len)
         return 0;
 }
 
-/* Resets everything of the last scan. */
-static int reset(struct scan *s, struct srv_req *req, const struct scan_params *p)
+/* Forgets the last scan (its results), keeping the read-back ring. */
+static void reset(struct scan *s, struct srv_req *req, const struct scan_params *p, int axis)
 {
         struct sample *samples = s->samples;
-        double *angles = s->angles;
         struct manager *m = s->m;
 
-        free(angles);
-        *s = (struct scan){.m = m, .req = req, .p = *p, .samples = samples};
-        s->cap_angles = 4096;
-        s->angles = malloc(s->cap_angles * sizeof(double));
-        return s->angles ? 0 : -ENOMEM;
+        free(s->angles);
+        *s = (struct scan){.m = m, .req = req, .p = *p, .samples = samples, .axis = axis};
 }
 
 int scan_start(struct scan *s, struct srv_req *req, const struct scan_params *p, char *msg,
@@ -574,14 +586,12 @@ int scan_start(struct scan *s, struct srv_req *req, const struct scan_params *p,
         if ((r = refusal(s, msg, len)) < 0)
                 return r;
         axis = s->axis;
-        if ((r = reset(s, req, p)) < 0)
-                return snprintf(msg, len, "out of memory"), r;
-        s->axis = axis;
+        reset(s, req, p, axis);
         s->continuous = rc->axes[axis].continuous;
         if ((r = plan_legs(s, &rc->axes[axis], msg, len)) < 0)
                 return r;
         s->cap_angles = s->n_pos * 2 + 64;
-        if (!(s->angles = realloc(s->angles, s->cap_angles * sizeof(double))))
+        if (!(s->angles = malloc(s->cap_angles * sizeof(double))))
                 return snprintf(msg, len, "out of memory"), -ENOMEM;
         r = move_to(s, s->legs[0].lo - s->run, 0);
         if (r < 0)

@@ -29,9 +29,14 @@ struct scan_params {
 /* Creates the scanner of m (idle). Returns 0 or -ENOMEM. */
 int scan_new(struct manager *m, struct scan **ret);
 
-/* Forgets a running scan (goniod is exiting: the rig's safe state follows). NULL is a no-op;
- * returns NULL. */
+/* Forgets a running scan without touching the rig: goniod is exiting, after rig_free (whose
+ * completions may still call the scan back). NULL is a no-op; returns NULL. */
 struct scan *scan_free(struct scan *s);
+
+/* Forgets a running scan at shutdown, before the capture pipeline and the rig are freed: its
+ * stream and tracking stop, its pending completions are ignored, its request gets no answer
+ * (the rig's safe state follows). */
+void scan_abandon(struct scan *s);
 
 /* Ends a running scan (stop was called): its reply is -ECANCELED. */
 void scan_cancel(struct scan *s);

@@ -410,6 +410,10 @@ static void case_camera_ranges(void)
                 {"readout_ms", 0, true},
                 {"readout_ms", 10000, true},
                 {"readout_ms", -1, false},
+                {"frame_rate", 0.1, true},
+                {"frame_rate", 1000, true},
+                {"frame_rate", 0, false},
+                {"frame_rate", 1001, false},
                 {"occlusion_deg", 90, true},
                 {"occlusion_deg", 91, false},
         };
@@ -428,6 +432,7 @@ static void case_camera_ranges(void)
         rc = expect_ok(BUS "cameras:\n  - { name: c, sim: { bus: f } }\n"
                            "axes:\n  - { name: a, modbus: { bus: b } }\n");
         CHECK_INT(rc->cameras[0].readout_ms, 30);
+        CHECK_NEAR(rc->cameras[0].frame_rate, 30, 0);
         CHECK_NEAR(rc->cameras[0].occlusion_deg, 5, 0);
         CHECK_INT(rc->axes[0].move_overhead_ms, 35);
         rigconf_free(rc);

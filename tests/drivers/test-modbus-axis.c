@@ -1,7 +1,7 @@
 /* test-modbus-axis.c - the "modbus" axis driver against gonio-sim's emulated drives,
  * over a real pty (RTU) and loopback TCP through libmodbus: open, home, move timing,
- * soft limits, shortest way round, stop mid-move (also as an urgent job on a bus worker
- * with an sd-event loop), and injected faults: timeout, bad CRC, exception, stall, and a
+ * a speed of its own, soft limits, shortest way round, stop mid-move (also as an urgent job on a
+ * bus worker with an sd-event loop), and injected faults: timeout, bad CRC, exception, stall, and a
  * move that ends short of its target without a fault. */
 #include <errno.h>
 #include <math.h>
@@ -113,6 +113,34 @@ static void test_move_timing(struct fixture *f)
         CHECK(took <= expect + 3.0);  /* generous: loaded machines */
         wait_in_position(f->arm);
         CHECK_NEAR(f->arm->state.position_deg, 150.0, POS_TOL);
+}
+
+/* A speed for the following moves: the drive's speed register, and a move that takes the
+ * profile at that speed; 0 restores max_speed, above it is refused. */
+static void test_set_speed(struct fixture *f)
+{
+        const struct mbax_conf *c = f->arm->conf->backend.conf;
+        double expect = axis_move_time(50.0, 5.0, 20.0) / TESTRIG_TIME_SCALE, took;
+        uint16_t reg;
+
+        CHECK_INT(axis_set_speed(f->arm, 20.0), -ERANGE);
+        CHECK_INT(axis_set_speed(f->arm, 5.0), 0);
+        CHECK_INT(
+                mbus_read_regs(bus_transport(f->arm->bus), c->unit, c->profile->reg_speed, 1, &reg),
+                1);
+        CHECK_INT(reg, 50);
+        CHECK_INT(axis_move_abs(f->arm, 100.0), 0);
+        took = wait_stopped(f->arm, 10.0);
+        fprintf(stderr, "move 50 deg at 5 deg/s: %.3f s, model %.3f s\n", took, expect);
+        CHECK(took >= 0.85 * expect); /* at 10 deg/s it would take 0.54 of this */
+        wait_in_position(f->arm);
+        CHECK_INT(axis_set_speed(f->arm, 0), 0);
+        CHECK_INT(
+                mbus_read_regs(bus_transport(f->arm->bus), c->unit, c->profile->reg_speed, 1, &reg),
+                1);
+        CHECK_INT(reg, 100); /* max_speed 10 deg/s */
+        CHECK_INT(axis_move_abs(f->arm, 150.0), 0);
+        wait_in_position(f->arm);
 }
 
 static void test_soft_limits(struct fixture *f)
@@ -282,6 +310,7 @@ static void run_sync(struct fixture *f)
 
         test_home(f);
         test_move_timing(f);
+        test_set_speed(f);
         test_soft_limits(f);
         test_shortest_way(f);
         test_stop_mid_move(f);
