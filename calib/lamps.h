@@ -1,12 +1,14 @@
 /* lamps.h - lamp positions from their highlights on a mirror sphere lying on the turntable,
  * seen by one or several calibrated cameras at several turntable angles, one lamp lit per
  * frame. Per view: the sphere's silhouette (Hough candidates refined on radial edges, the
- * cone of rays tangent to the sphere fitted to them), the one bright highlight inside it (its
- * sub-pixel centroid), the highlight's camera ray reflected on the sphere. The sphere's
- * centre is triangulated across views from the cones' axes (it turns with the turntable; one
- * view alone takes its distance from the known diameter). Per lamp: the point closest to its
- * reflected rays (least squares, outlier rays rejected, refit), against the rig file's
- * nominal position. Plain C but for the Hough candidates (cv_shim.h).
+ * cone of rays tangent to the sphere fitted to them by RANSAC and least squares), the one
+ * bright highlight inside it (its sub-pixel centroid), the highlight's camera ray reflected on
+ * the sphere. The sphere's centre is triangulated across views from the cones' axes (it turns
+ * with the turntable; one view alone takes its distance from the known diameter). Per lamp:
+ * the point closest to its reflected rays (least squares, outlier rays rejected, refit).
+ * Then the sphere's centre and every lamp are refined jointly on the highlights' positions
+ * (lamps_ba.c), and each lamp is reported against the rig file's nominal position. Plain C but
+ * for the Hough candidates (cv_shim.h).
  *
  * Frames (common/riggeom.h): the world is the turntable frame at angle 0, mm; an object-frame
  * point p is at Rz(turntable angle) p in the world; a lamp turns with the light arm about z,
@@ -92,7 +94,7 @@ struct cal_lamps {
         struct cal_lamp_pos lamps[RIG_MAX_LAMPS]; /* pos NAN and n_obs 0 where not solved */
         int index[RIG_MAX_LAMPS];                 /* each one's index in the rig file */
         double sphere[3];      /* the sphere's centre, object frame (turntable frame at 0) */
-        double sphere_rms_mm;  /* RMS distance of the silhouettes' axes from it */
+        double sphere_rms_mm;  /* RMS distance of the silhouettes' axes used from it */
         double sphere_diam_mm; /* the diameter the silhouettes' sizes give at that distance */
         size_t n_views, n_used;
         struct cal_lamp_view *views; /* cal_lamps_solve_ds: the rows read (images not kept),
@@ -108,7 +110,7 @@ int cal_lamps_find_sphere(const struct cal_image *im, const struct sec_camera *c
                           double sphere_mm, double reach_mm, struct cal_sphere_image *out);
 
 /* Finds the highlights inside the sphere's image s: blobs above half-way between the disc's
- * median and its brightest pixel, peaking at least 3/4 of the way up. Returns their number
+ * median and its brightest pixel, peaking at least 9/10 of the way up. Returns their number
  * (uv: the centroid of the brightest one's pixels weighted by their excess, NAN when none):
  * 0 when the brightest pixel is not twice the disc's median (no lamp reflected). */
 int cal_lamps_find_highlight(const struct cal_image *im, const struct cal_sphere_image *s,
