@@ -206,6 +206,11 @@ static void test_dataset(void)
         print_result(r, &l, err);
         CHECK_INT(r, 0);
         CHECK_INT(l.n_views, 2 * ANGLES * 3);
+        for (size_t i = 0; i < l.n_views; i++) { /* the rows, without their images */
+                CHECK_INT(l.views[i].row_id, (int64_t)i + 1);
+                CHECK(!l.views[i].im.data);
+                CHECK(l.views[i].used == !l.views[i].reason[0]);
+        }
         check_sphere(&l);
         CHECK_NEAR(l.sphere_diam_mm, SPHERE_MM, 1.0);
         check_lamps(&fx, &l);
