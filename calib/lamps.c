@@ -70,13 +70,6 @@ static int fit_point(const struct line *l, size_t n, struct point_fit *f)
         return 0;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-        double x = *(const double *)a, y = *(const double *)b;
-
-        return (x > y) - (x < y);
-}
-
 /* fit_point, then drops the farthest line while it is farther than CAL_LAMPS_OUTLIER_FACTOR
  * times the median distance and floor_mm, and more than min_used lines remain. */
 static int fit_robust(struct line *l, size_t n, int min_used, double floor_mm, struct point_fit *f)
@@ -99,7 +92,7 @@ static int fit_robust(struct line *l, size_t n, int min_used, double floor_mm, s
                                 worst = i;
                         }
                 }
-                qsort(d, m, sizeof(*d), cmp_double);
+                qsort(d, m, sizeof(*d), cal_lamps_cmp_double);
                 if (far <= fmax(CAL_LAMPS_OUTLIER_FACTOR * d[m / 2], floor_mm))
                         break;
                 l[worst].used = false;
@@ -110,12 +103,11 @@ static int fit_robust(struct line *l, size_t n, int min_used, double floor_mm, s
 /* Camera centre c (world) and the world direction d (unit) of camera-frame ray x. */
 static void camera_ray(const struct sec_camera *cam, const double x[3], double c[3], double d[3])
 {
-        const double *R = cam->R, *t = cam->t;
+        const double *R = cam->R;
 
-        for (int i = 0; i < 3; i++) {
-                c[i] = -(R[i] * t[0] + R[3 + i] * t[1] + R[6 + i] * t[2]);
+        cal_lamps_camera_centre(cam, c);
+        for (int i = 0; i < 3; i++)
                 d[i] = R[i] * x[0] + R[3 + i] * x[1] + R[6 + i] * x[2];
-        }
         cal_normalize(d);
 }
 

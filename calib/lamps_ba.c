@@ -163,9 +163,7 @@ static int view_residuals(const struct ba *b, size_t i, const double *p, double 
         if (b->slot[i] < 0)
                 return k;
         cal_lamps_rot_z(p + 3 + 3 * b->slot[i], cal_lamps_angle(v->light_arm_deg), l);
-        for (int j = 0; j < 3; j++) /* camera centre: -R^T t */
-                c[j] = -(cam->R[j] * cam->t[0] + cam->R[3 + j] * cam->t[1] +
-                         cam->R[6 + j] * cam->t[2]);
+        cal_lamps_camera_centre(cam, c);
         specular(s, b->o->sphere_mm / 2, c, l, q);
         to_camera(cam, q, x);
         r[k++] = cam->k.fx * (x[0] / x[2] + b->off[i][0] - b->h[i][0]);

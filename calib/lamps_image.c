@@ -7,11 +7,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "calib/lamps.h"
+#include "calib/lamps_internal.h"
 #include "calib/turntable_geom.h"
 #include "common/cleanup.h"
 
-#define DEG            (M_PI / 180)
+#define DEG            CAL_LAMPS_DEG
 #define MAX_CANDIDATES 8
 #define SCAN_STEP      0.5   /* px between the samples of a radial profile */
 #define SCAN_PAD       3     /* samples each side of an edge: inside and outside levels */
@@ -106,13 +106,6 @@ static int cone_fit(const struct edges *e, double w[3])
         return cal_solve(A, w, 3);
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-        double x = *(const double *)a, y = *(const double *)b;
-
-        return (x > y) - (x < y);
-}
-
 /* Residuals res (px at focal length f) of every edge point from cone w; *half its
  * half-angle. Returns 0 or -ENOENT (not a cone: |w| <= 1). */
 static int cone_residuals(const struct edges *e, const double w[3], double f, double *res,
@@ -188,7 +181,7 @@ static int cone_robust(struct edges *e, double f, struct cal_sphere_image *out)
                                 sorted[m++] = res[i];
                 if (m < MIN_EDGES)
                         return -ENOENT;
-                qsort(sorted, m, sizeof(*sorted), cmp_double);
+                qsort(sorted, m, sizeof(*sorted), cal_lamps_cmp_double);
                 double thr = fmax(3 * 1.4826 * sorted[m / 2], FIT_FLOOR_PX);
                 for (int i = 0; i < e->n; i++)
                         e->in[i] = res[i] <= thr;
@@ -273,14 +266,6 @@ static int refine(const struct cal_image *im, const struct cal_intrinsics *k, do
         return out->rms_px <= FIT_MAX_PX ? 0 : -ENOENT;
 }
 
-/* Camera centre c of cam in the world: -R^T t. */
-static void camera_centre(const struct sec_camera *cam, double c[3])
-{
-        for (int i = 0; i < 3; i++)
-                c[i] = -(cam->R[i] * cam->t[0] + cam->R[3 + i] * cam->t[1] +
-                         cam->R[6 + i] * cam->t[2]);
-}
-
 int cal_lamps_find_sphere(const struct cal_image *im, const struct sec_camera *cam,
                           double sphere_mm, double reach_mm, struct cal_sphere_image *out)
 {
@@ -290,7 +275,7 @@ int cal_lamps_find_sphere(const struct cal_image *im, const struct sec_camera *c
         if (!im || !im->data || !cam || !(sphere_mm > 0) || !(cam->k.fx > 0))
                 return -EINVAL;
         reach_mm = reach_mm > 0 ? reach_mm : CAL_LAMPS_REACH_MM;
-        camera_centre(cam, c);
+        cal_lamps_camera_centre(cam, c);
         dist = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
         rmin = fmax(4, cam->k.fx * rs / (dist + reach_mm));
         rmax = fmin(0.5 * fmin(im->width, im->height),
@@ -354,7 +339,7 @@ static int region_load(const struct cal_image *im, const struct cal_sphere_image
                 }
         if (!n)
                 return -ENOENT;
-        qsort(vals, n, sizeof(*vals), cmp_double);
+        qsort(vals, n, sizeof(*vals), cal_lamps_cmp_double);
         *median = vals[n / 2];
         return 0;
 }

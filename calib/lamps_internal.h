@@ -23,6 +23,22 @@ static inline double cal_lamps_angle(double deg)
         return isnan(deg) ? 0 : deg;
 }
 
+/* qsort comparison of doubles, ascending. */
+static inline int cal_lamps_cmp_double(const void *a, const void *b)
+{
+        double x = *(const double *)a, y = *(const double *)b;
+
+        return (x > y) - (x < y);
+}
+
+/* The centre c of camera cam in the world: -R^T t. */
+static inline void cal_lamps_camera_centre(const struct sec_camera *cam, double c[3])
+{
+        for (int i = 0; i < 3; i++)
+                c[i] = -(cam->R[i] * cam->t[0] + cam->R[3 + i] * cam->t[1] +
+                         cam->R[6 + i] * cam->t[2]);
+}
+
 /* Refines the sphere's centre and the solved lamps' positions of out jointly (Levenberg-
  * Marquardt): each used view's highlight against the specular point of its lamp on the
  * sphere (plus the offset of a lamp's reflection's centroid, set in v->offset), each view's
