@@ -275,12 +275,13 @@ static int reflected_ray(struct cal_lamp_view *v, const struct cal_lamps_opts *o
 }
 
 /* The reflected rays of lamp `lamp` from the views that light it into l; *lit gets the number
- * of those views and *why the reason of the first one without a ray. Returns the rays. */
+ * of those views and *why the reason of the first one without a ray (or that the sphere was
+ * found in none of them). Returns the rays. */
 static size_t lamp_rays(struct cal_lamp_view *v, size_t n, const struct cal_lamps_opts *o,
                         const double sphere[3], int lamp, struct line *l, size_t *lit,
                         const char **why)
 {
-        size_t m = 0;
+        size_t m = 0, seen = 0;
 
         *lit = 0;
         *why = NULL;
@@ -288,6 +289,7 @@ static size_t lamp_rays(struct cal_lamp_view *v, size_t n, const struct cal_lamp
                 if (v[i].lamp != lamp)
                         continue;
                 (*lit)++;
+                seen += v[i].sphere.n_edges > 0;
                 if (!v[i].reason[0] && reflected_ray(&v[i], o, sphere, &l[m]) == 0) {
                         l[m++].view = i;
                         continue;
@@ -295,6 +297,8 @@ static size_t lamp_rays(struct cal_lamp_view *v, size_t n, const struct cal_lamp
                 if (!*why)
                         *why = v[i].reason;
         }
+        if (*lit && !seen) /* while other lamps' views show it: the frames are dark */
+                *why = "the sphere found in none of them: dark frames, is the lamp off?";
         return m;
 }
 

@@ -267,6 +267,85 @@ static void test_light_arm(void)
         fx_close(&fx);
 }
 
+/* The specular point q of the lamp at l on the true sphere (world centre s) seen from c: the
+ * normal bisects the directions to c and l. */
+static void true_specular(const double s[3], const double c[3], const double l[3], double q[3])
+{
+        double n[3] = {0, 0, 1};
+
+        for (int it = 0; it < 100; it++) {
+                double a[3], b[3], la, lb, ln;
+                for (int k = 0; k < 3; k++) {
+                        q[k] = s[k] + SPHERE_MM / 2 * n[k];
+                        a[k] = c[k] - q[k];
+                        b[k] = l[k] - q[k];
+                }
+                la = hypot(hypot(a[0], a[1]), a[2]);
+                lb = hypot(hypot(b[0], b[1]), b[2]);
+                for (int k = 0; k < 3; k++)
+                        n[k] = a[k] / la + b[k] / lb;
+                ln = hypot(hypot(n[0], n[1]), n[2]);
+                for (int k = 0; k < 3; k++)
+                        n[k] /= ln;
+        }
+}
+
+/* One view of the finders against the truth: the silhouette's axis through the sphere's true
+ * centre (0.5 px), the highlight at the true specular point of its lamp (0.3 px). */
+static void check_image(struct fixture *fx, int cam, double tt)
+{
+        struct gn_pose st = {{tt, 0, NAN}, 1, false};
+        struct sim_cam_geom g;
+        struct cal_sphere_image si;
+        struct gn_frame f;
+        double s[3], l[3], c[3], q[3], x[3], uv[2], hl[2], len;
+
+        render(fx, cam, tt, 0, 1, &f);
+        CHECK_INT(sim_camera_geom(fx->t.s, &st, cam, &g), 0);
+        CHECK_INT(sim_lamp_position(fx->t.s, &st, 0, l), 0);
+        s[0] = SPHERE_TRUE[0] * cos(tt * DEG);
+        s[1] = SPHERE_TRUE[0] * sin(tt * DEG);
+        s[2] = SPHERE_TRUE[2];
+        for (int k = 0; k < 3; k++) {
+                c[k] = -(g.R[k] * g.t[0] + g.R[3 + k] * g.t[1] + g.R[6 + k] * g.t[2]);
+                x[k] = g.R[3 * k] * s[0] + g.R[3 * k + 1] * s[1] + g.R[3 * k + 2] * s[2] + g.t[k];
+        }
+        true_specular(s, c, l, q);
+        CHECK_INT(sim_cam_project(&g, q, uv), 0);
+        struct cal_image im = {f.data, f.width, f.height, f.channels, f.bits, f.stride};
+        CHECK_INT(cal_lamps_find_sphere(&im, &fx->cams[cam].cal, SPHERE_MM, 0, &si), 0);
+        CHECK_INT(cal_lamps_find_highlight(&im, &si, hl), 1);
+        len = hypot(hypot(x[0], x[1]), x[2]);
+        double axis_px =
+                g.fx *
+                acos(fmin(1, (si.axis[0] * x[0] + si.axis[1] * x[1] + si.axis[2] * x[2]) / len));
+        fprintf(stderr, "cam %d tt %3.0f: axis %.3f px off, highlight %.3f px off\n", cam, tt,
+                axis_px, hypot(hl[0] - uv[0], hl[1] - uv[1]));
+        CHECK(axis_px <= 0.5);
+        CHECK(hypot(hl[0] - uv[0], hl[1] - uv[1]) <= 0.3);
+        gn_frame_free_data(&f);
+}
+
+/* The finders against the truth, and two lamps lit at once: two highlights. */
+static void test_image(void)
+{
+        struct fixture fx;
+        struct cal_sphere_image si;
+        struct gn_frame f;
+        double hl[2];
+
+        fx_open(&fx, scene_sphere, 30);
+        for (int cam = 0; cam < 2; cam++)
+                for (int a = 0; a < 4; a++)
+                        check_image(&fx, cam, 90.0 * a);
+        render(&fx, 0, 0, 0, 3, &f);
+        struct cal_image im = {f.data, f.width, f.height, f.channels, f.bits, f.stride};
+        CHECK_INT(cal_lamps_find_sphere(&im, &fx.cams[0].cal, SPHERE_MM, 0, &si), 0);
+        CHECK_INT(cal_lamps_find_highlight(&im, &si, hl), 2);
+        gn_frame_free_data(&f);
+        fx_close(&fx);
+}
+
 /* No sphere in view: -ENODATA saying so. */
 static void test_no_sphere(void)
 {
@@ -308,6 +387,7 @@ static void test_lamp_off(void)
         snprintf(want, sizeof(want), "lamp 'l2' gave a reflected ray in 0 of the %d views",
                  2 * ANGLES);
         CHECK_STR_CONTAINS(err, want);
+        CHECK_STR_CONTAINS(err, "is the lamp off?");
         CHECK_STR_CONTAINS(err, "check that the lamp lights");
         CHECK_INT(l.n_lamps, 3);
         CHECK(isnan(l.lamps[2].pos[0]));
@@ -409,6 +489,7 @@ int main(int argc, char **argv)
                 {"single-view", test_single_view},
                 {"nominal", test_nominal},
                 {"args", test_args},
+                {"image", test_image},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
