@@ -550,6 +550,10 @@ int cal_lamps_solve_ds(struct ds *d, const struct cal_lamps_opts *o, struct cal_
         int e;
 
         memset(out, 0, sizeof(*out));
+        if (!d) {
+                snprintf(err, errlen, "lamps: no dataset");
+                return -EINVAL;
+        }
         if ((e = check_args(NULL, 0, o, err, errlen)) < 0)
                 return e;
         e = ds_rows(d, 0, -1, add_row, &r);

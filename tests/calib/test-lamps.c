@@ -476,6 +476,7 @@ static void test_args(void)
         CHECK_STR_CONTAINS(err, "diameter");
         CHECK_INT(cal_lamps_solve(&v, 1, &fx.o, &l, err, sizeof(err)), -EINVAL);
         CHECK_STR_CONTAINS(err, "view 0 names camera 2");
+        CHECK_INT(cal_lamps_solve_ds(NULL, &fx.o, &l, err, sizeof(err)), -EINVAL);
         fx_close(&fx);
 }
 
