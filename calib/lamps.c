@@ -159,18 +159,12 @@ static void sphere_line(const struct cal_lamp_view *v, size_t i, const struct ca
 static void sphere_from_size(const struct line *l, size_t m, const struct cal_lamp_view *v,
                              double rs, struct point_fit *f)
 {
-        double ss = 0;
-
         memset(f, 0, sizeof(*f));
         for (size_t i = 0; i < m; i++)
                 for (int k = 0; k < 3; k++)
                         f->p[k] += (l[i].o[k] +
                                     l[i].d[k] * rs / sin(v[l[i].view].sphere.half_deg * DEG)) /
                                    m;
-        for (size_t i = 0; i < m; i++)
-                ss += pow(line_dist(&l[i], f->p), 2);
-        f->rms = sqrt(ss / m);
-        f->used = (int)m;
 }
 
 /* Triangulates the sphere's centre (object frame) from the views where it was found into

@@ -5,8 +5,8 @@
  * silhouettes alone, whose error of a tenth of a pixel across the view turns the normals; the
  * highlights pin the centre where the lamps' reflections put it. */
 #include <errno.h>
-#include <stdbool.h>
 #include <math.h>
+#include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 
