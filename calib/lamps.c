@@ -15,6 +15,7 @@
 #define DEG                   CAL_LAMPS_DEG
 #define SPHERE_MIN_SPREAD_DEG 1.0 /* silhouette axes spread less: the diameter gives depth */
 #define SPHERE_OUTLIER_MM     0.5 /* floor of the outlier test of the silhouette axes */
+#define CONSENSUS_FACTOR      5.0 /* lines this many outlier floors from a pair's point agree */
 
 /* A line o + s d (|d| = 1) of one view. */
 struct line {
@@ -70,8 +71,50 @@ static int fit_point(const struct line *l, size_t n, struct point_fit *f)
         return 0;
 }
 
-/* fit_point, then drops the farthest line while it is farther than CAL_LAMPS_OUTLIER_FACTOR
- * times the median distance and floor_mm, and more than min_used lines remain. */
+/* The middle of the common perpendicular of lines a and b into p. Returns 0 or -EDOM
+ * (nearly parallel). */
+static int pair_point(const struct line *a, const struct line *b, double p[3])
+{
+        double w[3], ab = cal_dot(a->d, b->d), den = 1 - ab * ab, s, t;
+
+        if (den < 1e-6)
+                return -EDOM;
+        for (int k = 0; k < 3; k++)
+                w[k] = a->o[k] - b->o[k];
+        s = (ab * cal_dot(b->d, w) - cal_dot(a->d, w)) / den;
+        t = (cal_dot(b->d, w) - ab * cal_dot(a->d, w)) / den;
+        for (int k = 0; k < 3; k++)
+                p[k] = (a->o[k] + s * a->d[k] + b->o[k] + t * b->d[k]) / 2;
+        return 0;
+}
+
+/* Keeps as used the lines within thr_mm of the point of the pair of lines that most lines
+ * pass near (every pair tried), so that one wild line cannot drag the least-squares point
+ * away from the others; leaves them all used when no pair has 3 lines near it. */
+static void consensus(struct line *l, size_t n, double thr_mm)
+{
+        double p[3], best_p[3] = {0};
+        size_t best = 0;
+
+        for (size_t i = 0; i < n; i++)
+                for (size_t j = i + 1; j < n; j++) {
+                        size_t m = 0;
+                        if (pair_point(&l[i], &l[j], p) < 0)
+                                continue;
+                        for (size_t k = 0; k < n; k++)
+                                m += line_dist(&l[k], p) <= thr_mm;
+                        if (m > best) {
+                                best = m;
+                                memcpy(best_p, p, sizeof(p));
+                        }
+                }
+        for (size_t k = 0; best >= 3 && k < n; k++)
+                l[k].used = line_dist(&l[k], best_p) <= thr_mm;
+}
+
+/* The lines that agree (consensus within CONSENSUS_FACTOR x floor_mm), fit_point, then drops
+ * the farthest line while it is farther than CAL_LAMPS_OUTLIER_FACTOR times the median
+ * distance and floor_mm, and more than min_used lines remain. */
 static int fit_robust(struct line *l, size_t n, int min_used, double floor_mm, struct point_fit *f)
 {
         _cleanup_free_ double *d = calloc(n ? n : 1, sizeof(*d));
@@ -79,6 +122,7 @@ static int fit_robust(struct line *l, size_t n, int min_used, double floor_mm, s
 
         if (!d)
                 return -ENOMEM;
+        consensus(l, n, CONSENSUS_FACTOR * floor_mm);
         while ((r = fit_point(l, n, f)) == 0 && f->used > min_used) {
                 size_t worst = n, m = 0;
                 double far = -1;

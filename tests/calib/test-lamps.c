@@ -346,6 +346,56 @@ static void test_image(void)
         fx_close(&fx);
 }
 
+/* A view of the sphere moved by 8 mm and a view filed under the wrong lamp among good ones:
+ * the first's silhouette and the second's ray are rejected with their reasons, the lamps
+ * still found. */
+static void test_outliers(void)
+{
+        static const char moved[] = "translate: [78, 0, ";
+        struct fixture fx, mv;
+        struct cal_lamp_view v[2 * (ANGLES / 2) * 3 + 3]; /* + the moved view's three */
+        struct gn_frame f[ELEMENTSOF(v)];
+        struct cal_lamps l;
+        char scene[sizeof(scene_sphere)], err[512];
+        size_t n;
+
+        snprintf(scene, sizeof(scene), "%s", scene_sphere);
+        memcpy(strstr(scene, "translate: [70, 0, "), moved, strlen(moved));
+        fx_open(&fx, scene_sphere, 30);
+        fx_open(&mv, scene, 30);
+        n = add_views(&fx, v, f, 0, ANGLES / 2, 0);
+        n += add_views(&fx, v + n, f + n, 1, ANGLES / 2, 0);
+        add_views(&mv, v + n, f + n, 0, 1, 0); /* its lamp 0 view only */
+        gn_frame_free_data(&f[n + 1]);
+        gn_frame_free_data(&f[n + 2]);
+        render(&fx, 1, 45, 0, 1u << 1, &f[n + 1]); /* lamp 1 lit, filed as lamp 0 */
+        v[n + 1] = (struct cal_lamp_view){{f[n + 1].data, f[n + 1].width, f[n + 1].height,
+                                           f[n + 1].channels, f[n + 1].bits, f[n + 1].stride},
+                                          1,
+                                          0,
+                                          45,
+                                          0};
+        n += 2;
+        CHECK_INT(cal_lamps_solve(v, n, &fx.o, &l, err, sizeof(err)), 0);
+        l.views = v;
+        l.n_views = n;
+        print_result(0, &l, err);
+        l.views = NULL;
+        CHECK(!v[n - 2].sphere_used);
+        CHECK_STR_CONTAINS(v[n - 2].reason, "silhouette points");
+        CHECK(!v[n - 1].used);
+        CHECK_STR_CONTAINS(v[n - 1].reason, "outlier");
+        for (size_t k = 0; k < l.n_lamps; k++)
+                fprintf(stderr, "lamp %s: %.3f mm from the truth\n", l.lamps[k].name,
+                        lamp_error(&fx, &l, k));
+        for (size_t k = 0; k < l.n_lamps; k++)
+                CHECK(lamp_error(&fx, &l, k) <= TOL_MM);
+        for (size_t i = 0; i < n; i++)
+                gn_frame_free_data(&f[i]);
+        fx_close(&mv);
+        fx_close(&fx);
+}
+
 /* No sphere in view: -ENODATA saying so. */
 static void test_no_sphere(void)
 {
@@ -491,6 +541,7 @@ int main(int argc, char **argv)
                 {"nominal", test_nominal},
                 {"args", test_args},
                 {"image", test_image},
+                {"outliers", test_outliers},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
