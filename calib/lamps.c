@@ -16,6 +16,7 @@
 #define SPHERE_MIN_SPREAD_DEG 1.0 /* silhouette axes spread less: the diameter gives depth */
 #define SPHERE_OUTLIER_MM     0.5 /* floor of the outlier test of the silhouette axes */
 #define CONSENSUS_FACTOR      5.0 /* lines this many outlier floors from a pair's point agree */
+#define CONSENSUS_LINES       64  /* lines whose pairs are tried, at most (about) */
 
 /* A line o + s d (|d| = 1) of one view. */
 struct line {
@@ -89,15 +90,16 @@ static int pair_point(const struct line *a, const struct line *b, double p[3])
 }
 
 /* Keeps as used the lines within thr_mm of the point of the pair of lines that most lines
- * pass near (every pair tried), so that one wild line cannot drag the least-squares point
- * away from the others; leaves them all used when no pair has 3 lines near it. */
+ * pass near (every pair of up to CONSENSUS_LINES lines spread over them), so that one wild line
+ * cannot drag the least-squares point away from the others; leaves them all used when no pair has 3
+ * lines near it. */
 static void consensus(struct line *l, size_t n, double thr_mm)
 {
         double p[3], best_p[3] = {0};
-        size_t best = 0;
+        size_t best = 0, step = n / CONSENSUS_LINES + 1; /* at most about 64 x 64 / 2 pairs */
 
-        for (size_t i = 0; i < n; i++)
-                for (size_t j = i + 1; j < n; j++) {
+        for (size_t i = 0; i < n; i += step)
+                for (size_t j = i + 1; j < n; j += step) {
                         size_t m = 0;
                         if (pair_point(&l[i], &l[j], p) < 0)
                                 continue;
