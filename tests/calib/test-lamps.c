@@ -1,13 +1,14 @@
 /* test-lamps.c - lamp positions from a mirror sphere (calib/lamps.h) against the simulator's
- * ground truth: an 80 mm mirror sphere 80 mm off the axis of a white turntable, three lamps
- * 400-500 mm away lit one at a time, two cameras, eight turntable angles, noise on, rendered
- * in-process, stored in a dataset and solved through the dataset library with the true
- * calibration of the rig file (intrinsics and distortion, riggeom_camera_pose). Every lamp
- * must come within TOL_MM of its true position (sim_lamp_position), the sphere within
+ * ground truth: a 100 mm mirror sphere 70 mm off the axis of a white turntable, three lamps
+ * 420-500 mm away lit one at a time, two cameras, sixteen turntable angles, noise on,
+ * rendered in-process, stored in a dataset and solved through the dataset library with the
+ * true calibration of the rig file (intrinsics and distortion, riggeom_camera_pose). Every
+ * lamp must come within TOL_MM of its true position (sim_lamp_position), the sphere within
  * SPHERE_TOL_MM. Also: the same through the in-memory API with the light arm turned, the
- * nominal geometry (truth against an independent formula, and a rig file whose nominal lamp
- * is off by a known amount), and bad input: no sphere in view, a lamp that stays off, a
- * single view, bad arguments. */
+ * sphere and highlight finders against the true geometry, a moved sphere and a mislabelled
+ * frame rejected, the nominal geometry (truth against an independent formula, and a rig file
+ * whose nominal lamp is off by a known amount), and bad input: no sphere in view, a lamp
+ * that stays off, a single view, bad arguments. */
 #include <math.h>
 
 #include "calib/lamps.h"
