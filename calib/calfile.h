@@ -120,13 +120,13 @@ int cal_laser_write(const char *path, const char *name, const char *camera,
 
 /* ---- lamps.<lamp> ---- */
 
-/* A lamp's position, as the lamp solver gives it. */
+/* A lamp's position with its error figures (calib/lamps.h solves it). */
 struct cal_lamp_pos {
         char name[DS_NAME_MAX];
-        double pos[3]; /* mm, turntable frame at angle 0 */
-        double rms_mm;
-        int n_obs;
-        double nominal_dist_mm; /* distance from the rig file's nominal position */
+        double pos[3];          /* mm, turntable frame at angle 0, with the light arm at 0 */
+        double rms_mm;          /* RMS distance of the reflected rays used from pos */
+        int n_obs;              /* reflected rays used */
+        double nominal_dist_mm; /* distance from the rig file's position (riggeom) */
 };
 
 /* Writes l as lamps.<l->name> of the file at path (solved: now), never over a section with

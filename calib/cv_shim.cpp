@@ -265,3 +265,25 @@ extern "C" int cal_cv_undistort(const double *uv, int n, const struct cal_intrin
                 return fail(e.what());
         }
 }
+
+extern "C" int cal_cv_find_circles(const struct cal_image *im, double min_r, double max_r,
+                                   double *xyr, int max)
+{
+        if (!im->data || min_r < 1 || max_r < min_r || max < 1)
+                return -EINVAL;
+        try {
+                std::vector<cv::Vec3f> c;
+                cv::Mat g = gray8(im), s;
+
+                cv::GaussianBlur(g, s, cv::Size(5, 5), 1.5);
+                cv::HoughCircles(s, c, cv::HOUGH_GRADIENT, 1.0, min_r, 40, 30, (int)min_r,
+                                 (int)ceil(max_r));
+                int n = std::min((int)c.size(), max);
+                for (int k = 0; k < n; k++)
+                        for (int j = 0; j < 3; j++)
+                                xyr[3 * k + j] = c[k][j];
+                return n;
+        } catch (const std::exception &e) {
+                return fail(e.what());
+        }
+}

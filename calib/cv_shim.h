@@ -1,10 +1,10 @@
 /* cv_shim.h - the one door from calib/ to OpenCV (cv_shim.cpp, the only C++ of calib/):
  * calibration-board corner detection (chessboard and ChArUco), calibrateCamera with
- * per-view errors, solvePnP and projectPoints, on plain C arrays. No C++ type crosses
- * this header; every OpenCV exception is caught and returned as -errno, its text kept
- * for cal_cv_last_error(). Boards follow OpenCV 4.6's board frame (docs/sim-render.md):
- * x right, y down on the printed side, origin at the top-left corner of the squares,
- * z = 0 on the board. */
+ * per-view errors, solvePnP and projectPoints, Hough circles (the mirror sphere), on plain
+ * C arrays. No C++ type crosses this header; every OpenCV exception is caught and returned
+ * as -errno, its text kept for cal_cv_last_error(). Boards follow OpenCV 4.6's board frame
+ * (docs/sim-render.md): x right, y down on the printed side, origin at the top-left corner
+ * of the squares, z = 0 on the board. */
 #pragma once
 
 #include <stdbool.h>
@@ -96,6 +96,13 @@ int cal_cv_project(const double *obj, int n, const double rvec[3], const double 
 /* undistortPoints of n pixels uv (2n) into normalised image coordinates xy (2n: x/z, y/z
  * of the ray in the camera frame), iterated to 1e-12. Returns 0, -EINVAL or -EIO. */
 int cal_cv_undistort(const double *uv, int n, const struct cal_intrinsics *k, double *xy);
+
+/* Circles in im by the Hough gradient transform (the gray image smoothed, OpenCV's
+ * HOUGH_GRADIENT) of radius min_r..max_r px: up to max as centre x, y and radius in xyr (3
+ * each), most votes first. Candidates only: the caller refines and checks them. Returns the
+ * number found, -EINVAL or -EIO. */
+int cal_cv_find_circles(const struct cal_image *im, double min_r, double max_r, double *xyr,
+                        int max);
 
 /* The text of the last OpenCV exception caught on this thread, "" if none. */
 const char *cal_cv_last_error(void);
