@@ -65,11 +65,13 @@ int sec_init(struct sec_ctx *c, const struct sec_camera *cam)
         const double *R = cam->R;
 
         memset(c, 0, sizeof(*c));
-        if (!(cam->k.fx > 0 && cam->k.fy > 0) || cam->width <= 0 || cam->height <= 0)
+        if (!(cam->k.fx > 0 && cam->k.fy > 0) || cam->width <= 0 || cam->height <= 0 ||
+            !(isfinite(cam->k.fx * cam->k.fy * cam->k.cx * cam->k.cy) &&
+              isfinite(cam->t[0] + cam->t[1] + cam->t[2])))
                 return -EINVAL;
-        for (int i = 0; i < 3; i++)
+        for (int i = 0; i < 3; i++) /* a rotation (NAN fails every comparison) */
                 for (int j = 0; j < 3; j++)
-                        if (fabs(dot3(R + 3 * i, R + 3 * j) - (i == j)) > 1e-6)
+                        if (!(fabs(dot3(R + 3 * i, R + 3 * j) - (i == j)) <= 1e-6))
                                 return -EINVAL;
         c->cam = *cam;
         for (int i = 0; i < 3; i++) /* C = -R^T t */

@@ -60,7 +60,7 @@ struct sec_ctx {
 };
 
 /* Starts a context for camera cam (copied). Returns 0 or -EINVAL (no positive focal length or
- * image size, or R not a rotation). */
+ * image size, a principal point or t not finite, or R not a rotation: NAN included). */
 int sec_init(struct sec_ctx *c, const struct sec_camera *cam);
 
 /* Frees the cloud and zeroes c. Safe on a zeroed context. */

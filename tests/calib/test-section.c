@@ -185,7 +185,12 @@ static void test_args(void)
                 centre[i] = NAN;
         cam.R[0] = 2;
         CHECK_INT(sec_init(&c, &cam), -EINVAL);
+        cam.R[0] = NAN; /* riggeom_camera_pose of a NAN arm angle */
+        CHECK_INT(sec_init(&c, &cam), -EINVAL);
         cam.R[0] = 1;
+        cam.t[1] = NAN;
+        CHECK_INT(sec_init(&c, &cam), -EINVAL);
+        cam.t[1] = 0;
         CHECK_INT(sec_init(&c, &cam), 0);
         CHECK_INT(sec_add_laser(&c, p, n0), -EINVAL);
         CHECK_INT(sec_add_laser(&c, p, nz), 0);
