@@ -22,7 +22,7 @@
 /* The image and laser rows of the dataset (all cameras). */
 struct rows {
         struct ds_capture *c;
-        size_t n, cap;
+        size_t n;
 };
 
 /* A laser row to use, sorted by turntable angle. */
@@ -77,22 +77,10 @@ int scan_nominal_calib(const struct rig_config *rc, const char *camera, double c
         return 0;
 }
 
-static int add_row(const struct ds_capture *c, void *userdata)
+/* Images and laser frames: not darks and flats. */
+static bool keep_row(const struct ds_capture *c, void *userdata)
 {
-        struct rows *r = userdata;
-
-        if (c->kind[0] && strcmp(c->kind, "image") && strcmp(c->kind, "laser"))
-                return 0; /* darks and flats */
-        if (r->n == r->cap) {
-                size_t cap = r->cap ? 2 * r->cap : 64;
-                struct ds_capture *p = reallocarray(r->c, cap, sizeof(*p));
-                if (!p)
-                        return -ENOMEM;
-                r->c = p;
-                r->cap = cap;
-        }
-        r->c[r->n++] = *c;
-        return 0;
+        return !c->kind[0] || !strcmp(c->kind, "image") || !strcmp(c->kind, "laser");
 }
 
 /* Number of rows of camera in r, or of its laser rows with laser. */
@@ -309,7 +297,7 @@ static int reconstruct(struct ds *d, const struct rig_config *rc, const struct s
         double arm = NAN;
         size_t n;
 
-        if ((e = ds_rows(d, 0, -1, add_row, &r)) < 0) {
+        if ((e = ds_rows_collect(d, keep_row, NULL, &r.c, &r.n)) < 0) {
                 snprintf(err, errlen, "cannot read dataset %s: %s", ds_name(d), ds_last_error(d));
                 return e;
         }

@@ -18,28 +18,18 @@
 /* A camera's image rows and, once loaded, their frames. */
 struct rows {
         const char *camera;
-        size_t n, cap;
+        size_t n;
         struct ds_capture *c;
         struct gn_frame *f;
 };
 
-static int add_row(const struct ds_capture *c, void *userdata)
+/* The camera's laser-on and laser-off images, bracket 0. */
+static bool keep_row(const struct ds_capture *c, void *userdata)
 {
-        struct rows *r = userdata;
+        const char *camera = userdata;
 
-        if (strcmp(c->camera, r->camera) || (c->kind[0] && strcmp(c->kind, "image")) ||
-            c->bracket != 0)
-                return 0;
-        if (r->n == r->cap) {
-                size_t cap = r->cap ? 2 * r->cap : 16;
-                struct ds_capture *p = reallocarray(r->c, cap, sizeof(*p));
-                if (!p)
-                        return -ENOMEM;
-                r->c = p;
-                r->cap = cap;
-        }
-        r->c[r->n++] = *c;
-        return 0;
+        return !strcmp(c->camera, camera) && (!c->kind[0] || !strcmp(c->kind, "image")) &&
+               c->bracket == 0;
 }
 
 static void rows_free(struct rows *r)
@@ -53,7 +43,7 @@ static void rows_free(struct rows *r)
 /* Reads the rows of camera r->camera and their images. */
 static int rows_load(struct ds *d, struct rows *r, char *err, size_t errlen)
 {
-        int e = ds_rows(d, 0, -1, add_row, r);
+        int e = ds_rows_collect(d, keep_row, (void *)r->camera, &r->c, &r->n);
 
         if (e < 0) {
                 snprintf(err, errlen, "cannot read dataset %s: %s", ds_name(d), ds_last_error(d));

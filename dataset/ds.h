@@ -160,6 +160,15 @@ typedef int (*ds_row_fn)(const struct ds_capture *c, void *userdata);
  * passed to fn, fn's negative value, or -errno. */
 int ds_rows(struct ds *d, int64_t after_id, int limit, ds_row_fn fn, void *userdata);
 
+/* Decides whether ds_rows_collect() keeps row c. */
+typedef bool (*ds_keep_fn)(const struct ds_capture *c, void *userdata);
+
+/* Collects the rows keep accepts (keep NULL: every row), in id order, into *rows (malloc'd,
+ * the caller frees it; NULL when none) and their number into *n. Returns 0, -ENOMEM or the
+ * -errno of the query (ds_last_error), with *rows NULL and *n 0. */
+int ds_rows_collect(struct ds *d, ds_keep_fn keep, void *userdata, struct ds_capture **rows,
+                    size_t *n);
+
 /* Calls fn, in id order, for each row taken at the pose p: for each role p has (angle
  * not NAN), the row has an axis of that role within tol_deg of p's angle (modulo 360);
  * roles p lacks match any row. p's lamps and laser are not compared: the result is one

@@ -4,6 +4,7 @@
  * on the key. */
 #include <fcntl.h>
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "common/fileio.h"
@@ -133,6 +134,48 @@ int ds_rows(struct ds *d, int64_t after_id, int limit, ds_row_fn fn, void *userd
         sqlite3_bind_int64(s, 1, after_id);
         sqlite3_bind_int(s, 2, limit < 0 ? -1 : limit);
         return run_rows(d, s, fn, userdata);
+}
+
+/* The growing result of ds_rows_collect. */
+struct collect {
+        ds_keep_fn keep;
+        void *userdata;
+        struct ds_capture *rows;
+        size_t n, cap;
+};
+
+static int collect_row(const struct ds_capture *c, void *userdata)
+{
+        struct collect *k = userdata;
+
+        if (k->keep && !k->keep(c, k->userdata))
+                return 0;
+        if (k->n == k->cap) {
+                size_t cap = k->cap ? 2 * k->cap : 64;
+                struct ds_capture *p = reallocarray(k->rows, cap, sizeof(*p));
+
+                if (!p)
+                        return -ENOMEM;
+                k->rows = p;
+                k->cap = cap;
+        }
+        k->rows[k->n++] = *c;
+        return 0;
+}
+
+int ds_rows_collect(struct ds *d, ds_keep_fn keep, void *userdata, struct ds_capture **rows,
+                    size_t *n)
+{
+        struct collect k = {.keep = keep, .userdata = userdata};
+        int r = ds_rows(d, 0, -1, collect_row, &k);
+
+        if (r < 0) {
+                free(k.rows);
+                k = (struct collect){0};
+        }
+        *rows = k.rows;
+        *n = k.n;
+        return r < 0 ? r : 0;
 }
 
 int ds_rows_by_pose(struct ds *d, const struct gn_pose *p, double tol_deg, ds_row_fn fn,
