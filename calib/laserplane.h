@@ -77,9 +77,11 @@ void cal_plane_to_turntable(const struct cal_plane *cam, const struct cal_turnta
 #define CAL_LR_ITERATIONS 20
 
 struct cal_lr_opts {
-        double match_mm; /* 0: CAL_LR_MATCH_MM (about the spacing of a laser's lines) */
-        int iterations;  /* 0: CAL_LR_ITERATIONS */
-        int reference;   /* the laser that stays (the best calibrated); the others move */
+        double match_mm;   /* 0: CAL_LR_MATCH_MM (about the spacing of a laser's lines) */
+        int iterations;    /* 0: CAL_LR_ITERATIONS */
+        int reference;     /* the laser that stays (the best calibrated); the others move */
+        bool through_axis; /* the rig's lasers contain the turntable axis: every plane is moved
+                            * to the nearest that does, then turns only about it */
 };
 
 /* What cal_lasers_refine changed, and how well the lasers' surfaces agree before and after:

@@ -376,7 +376,7 @@ static double worst_bias(const struct scan *s, const char *label)
  * the others'), that each laser's points still lie within RMS_MAX of the truth, their mean
  * distances from it within 0.05 mm of each other and, on average, no farther from it than
  * the farthest laser's were before (+0.01 mm: they do not drift together). */
-static void expect_refined(struct scan *s, const char *label)
+static void expect_refined(struct scan *s, const struct cal_lr_opts *o, const char *label)
 {
         double before = worst_bias(s, label);
         struct cal_lr_result r;
@@ -385,7 +385,7 @@ static void expect_refined(struct scan *s, const char *label)
         char err[512];
 
         clock_gettime(CLOCK_MONOTONIC, &t0);
-        CHECK_INT(cal_lasers_refine(&s->c, NULL, &r, err, sizeof(err)), 0);
+        CHECK_INT(cal_lasers_refine(&s->c, o, &r, err, sizeof(err)), 0);
         fprintf(stderr,
                 "%s: %zu points refined in %d iterations, %.3f s; the surfaces' RMS distance "
                 "%.4f mm before (%zu points), %.4f mm after (%zu points)\n",
@@ -398,8 +398,12 @@ static void expect_refined(struct scan *s, const char *label)
                         l, r.angle_deg[l], r.shift_mm[l], r.offset_before[l], r.offset_after[l]);
                 CHECK(fabs(r.offset_after[l]) < 0.02);
         }
-        CHECK(r.angle_deg[0] < 1e-6 && fabs(r.shift_mm[0]) < 1e-6); /* the reference */
-        CHECK(r.rms_after <= r.rms_before + 0.005);                 /* the matching's noise stays */
+        if (!o->through_axis) /* the reference stays */
+                CHECK(r.angle_deg[0] < 1e-6 && fabs(r.shift_mm[0]) < 1e-6);
+        for (int l = 0; l < s->lasers && o->through_axis; l++) /* every plane contains z */
+                CHECK(fabs(s->c.plane_n[l][2]) < 1e-12 &&
+                      fabs(cal_dot(s->c.plane_n[l], s->c.plane_p[l])) < 1e-9);
+        CHECK(r.rms_after <= r.rms_before + 0.005); /* the matching's noise stays */
         for (int l = 0; l < s->lasers; l++) {
                 sc[l] = scan_rescore(s, l, "refined");
                 CHECK(sc[l].rms <= RMS_MAX);
@@ -408,7 +412,8 @@ static void expect_refined(struct scan *s, const char *label)
         }
 }
 
-/* cal_lasers_refine's refusals: no normals yet, one laser, no such reference laser. */
+/* cal_lasers_refine's refusals: no normals yet, one laser, no such reference laser, a plane
+ * across the axis to be made to contain it. */
 static void expect_refine_errors(struct scan *s)
 {
         struct cal_lr_result r;
@@ -424,6 +429,14 @@ static void expect_refine_errors(struct scan *s)
         CHECK_INT(cal_lasers_refine(&s->c, NULL, &r, err, sizeof(err)), -EINVAL);
         s->c.n_lasers = n;
         CHECK_INT(cal_laser_replane(&s->c, n, &(struct cal_plane){{0, 1, 0}, 0}), -EINVAL);
+        double keep[3]; /* a plane across the axis cannot be made to contain it */
+        memcpy(keep, s->c.plane_n[1], sizeof(keep));
+        memcpy(s->c.plane_n[1], (double[3]){0, 0.1, 1}, sizeof(keep));
+        CHECK_INT(cal_lasers_refine(&s->c, &(struct cal_lr_opts){.through_axis = true}, &r, err,
+                                    sizeof(err)),
+                  -EINVAL);
+        CHECK_STR_CONTAINS(err, "across the turntable axis");
+        memcpy(s->c.plane_n[1], keep, sizeof(keep));
 }
 
 /* Knocks every laser of s but laser 0 off its estimated plane (e) by 0.3 deg (about an axis
@@ -459,15 +472,18 @@ static void expect_lasers(const struct rig *r, truth_fn fn, int min_points)
                 scan_expect(&s, l, r->shape, fn, min_points, RMS_MAX);
         expect_refine_errors(&s);
         CHECK(sec_normals(&s.c) > s.c.n_pts * 8 / 10);
-        expect_refined(&s, "as calibrated");
+        expect_refined(&s, &(struct cal_lr_opts){0}, "as calibrated");
         knock(&s, &e, 0);
-        expect_refined(&s, "knocked");
+        expect_refined(&s, &(struct cal_lr_opts){0}, "knocked");
         knock(&s, &e, 2.5);
         float x = s.c.pts[s.c.n_pts - 1].x[0];
         CHECK_INT(cal_lasers_refine(&s.c, NULL, &res, err, sizeof(err)), -EDOM);
         fprintf(stderr, "%s\n", err);
         CHECK_STR_CONTAINS(err, "plane would turn by");
         CHECK(s.c.pts[s.c.n_pts - 1].x[0] == x);
+        for (int l = 0; l < r->lasers; l++) /* as calibrated, with the axis constraint */
+                CHECK_INT(cal_laser_replane(&s.c, l, &e.plane[l]), 0);
+        expect_refined(&s, &(struct cal_lr_opts){.through_axis = true}, "through the axis");
         scan_close(&s);
         cal_camera_clear(&e.cam);
 }
