@@ -14,12 +14,13 @@
 #include "common/pose.h"
 #include "tests/test.h"
 
-void bench_start(struct rigenv *e, double time_scale, bool log)
+/* The programs of the build tree this program lives in, as the harness takes them. */
+static char **tools(void)
 {
         static const char *const rel[] = {"daemon/goniod", "client/gonioctl", "sim/gonio-sim"};
         static char paths[3][PATH_MAX];
+        static char *argv[] = {"bench", paths[0], paths[1], paths[2], NULL};
         char self[PATH_MAX];
-        char *argv[] = {"bench", paths[0], paths[1], paths[2], NULL};
         ssize_t n = readlink("/proc/self/exe", self, sizeof(self) - 1);
         const char *build;
 
@@ -28,10 +29,20 @@ void bench_start(struct rigenv *e, double time_scale, bool log)
         build = dirname(dirname(self)); /* BUILD/bench/NAME -> BUILD */
         for (int i = 0; i < 3; i++)
                 snprintf(paths[i], PATH_MAX, "%s/%s", build, rel[i]);
+        return argv;
+}
+
+void bench_start(struct rigenv *e, double time_scale, bool log)
+{
         if (log)
-                rigenv_start_logged(e, argv, time_scale);
+                rigenv_start_logged(e, tools(), time_scale);
         else
-                rigenv_start(e, argv, time_scale);
+                rigenv_start(e, tools(), time_scale);
+}
+
+void bench_start_rig(struct rigenv *e, double time_scale, const char *rig_text)
+{
+        rigenv_start_rig(e, tools(), time_scale, rig_text);
 }
 
 double bench_now_ms(void)

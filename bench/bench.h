@@ -14,6 +14,9 @@
  * true (rigenv_start_logged). Exits on failure. */
 void bench_start(struct rigenv *e, double time_scale, bool log);
 
+/* Like bench_start on the rig file rig_text (YAML), goniod's log not kept. */
+void bench_start_rig(struct rigenv *e, double time_scale, const char *rig_text);
+
 /* CLOCK_MONOTONIC in milliseconds. */
 double bench_now_ms(void);
 

@@ -73,11 +73,12 @@ int cal_camera_solve(struct ds *d, const struct cal_camera_opts *o, struct cal_c
 /* Frees c->views and zeroes c. */
 void cal_camera_clear(struct cal_camera *c);
 
-/* Writes c as the section cameras.<c->camera> of the calibration file at path, keeping
- * the file's other sections, atomically (common/fileio). When the file already holds a
+/* Writes c as the section cameras.<c->camera> of the calibration file at path (calfile.h),
+ * keeping the file's other sections, atomically (common/fileio). When the file already holds a
  * section for this camera that is better (CAL_WORSE: c's RMS above 1.1 x its RMS + 0.01 px),
  * that section is kept and -EEXIST returned with both results in err, unless force. Returns 0,
- * -EEXIST, -EBADMSG (the existing file is not a calibration file) or -errno. */
+ * -EEXIST, -EBADMSG (the existing file is not a calibration file: err says where) or
+ * -errno. */
 int cal_camera_write(const char *path, const struct cal_camera *c, bool force, char *err,
                      size_t errlen);
 

@@ -28,6 +28,15 @@ enum opt_id {
         O_FROM,
         O_BOARD,
         O_FORCE,
+        O_NO_MESH,
+        O_TRIANGLES,
+        O_LASER,
+        O_CALIBRATION,
+        O_START,
+        O_END,
+        O_STEP,
+        O_MODE,
+        O_LAMPS,
 };
 
 static const struct {
@@ -52,6 +61,15 @@ static const struct {
         {"from", O_FROM, true, ARG_FROM},
         {"board", O_BOARD, true, ARG_BOARD},
         {"force", O_FORCE, false, ARG_FORCE},
+        {"no-mesh", O_NO_MESH, false, ARG_NO_MESH},
+        {"triangles", O_TRIANGLES, true, ARG_TRIANGLES},
+        {"laser", O_LASER, true, ARG_LASER},
+        {"calibration", O_CALIBRATION, true, ARG_CALIBRATION},
+        {"start", O_START, true, ARG_START},
+        {"end", O_END, true, ARG_END},
+        {"step", O_STEP, true, ARG_STEP},
+        {"mode", O_MODE, true, ARG_MODE},
+        {"lamps", O_LAMPS, true, ARG_LAMPS},
 };
 
 int args_usage_error(const char *what, const char *fmt, ...)
@@ -135,6 +153,28 @@ static int set_value(struct args *a, enum opt_id id, const char *v)
                 return 0;
         case O_BOARD:
                 a->board = v;
+                return 0;
+        case O_TRIANGLES:
+                return args_parse_long(v, 1, INT_MAX, &a->triangles) < 0 ? -EINVAL : 0;
+        case O_LASER:
+                a->laser = v;
+                return 0;
+        case O_CALIBRATION:
+                a->calib = v;
+                return 0;
+        case O_START:
+                return args_parse_double(v, &a->start);
+        case O_END:
+                return args_parse_double(v, &a->end);
+        case O_STEP:
+                if (args_parse_double(v, &a->step) < 0 || a->step <= 0)
+                        break;
+                return 0;
+        case O_MODE:
+                a->mode = v;
+                return 0;
+        case O_LAMPS:
+                a->lamps = v;
                 return 0;
         default:
                 break;

@@ -17,21 +17,36 @@ enum arg_opt {
         ARG_FROM = 1 << 7,
         ARG_BOARD = 1 << 8,
         ARG_FORCE = 1 << 9,
+        ARG_TRIANGLES = 1 << 10,
+        ARG_LASER = 1 << 11,
+        ARG_CALIBRATION = 1 << 12,
+        ARG_START = 1 << 13,
+        ARG_END = 1 << 14,
+        ARG_STEP = 1 << 15,
+        ARG_MODE = 1 << 16,
+        ARG_LAMPS = 1 << 17,
+        ARG_NO_MESH = 1 << 18,
 };
 
 struct args {
         const char *socket; /* --socket, NULL for the default path */
         bool json, quiet, help, version;
-        double timeout_s;   /* --timeout, 0 when not given */
-        unsigned given;     /* enum arg_opt bits seen */
-        const char *camera; /* --camera */
-        long exposure_us;   /* --exposure */
-        double gain;        /* --gain */
-        int bits;           /* --bits */
-        long count;         /* --count */
-        const char *from;   /* --from: a dataset directory */
-        const char *board;  /* --board: a board description (calib/camera.h) */
-        char **words;       /* positional words (command first); borrowed from argv */
+        double timeout_s;        /* --timeout, 0 when not given */
+        unsigned given;          /* enum arg_opt bits seen */
+        const char *camera;      /* --camera */
+        long exposure_us;        /* --exposure */
+        double gain;             /* --gain */
+        int bits;                /* --bits */
+        long count;              /* --count */
+        const char *from;        /* --from: a dataset directory */
+        const char *board;       /* --board: a board description (calib/camera.h) */
+        const char *laser;       /* --laser: a laser's name */
+        const char *calib;       /* --calibration: a calibration file */
+        long triangles;          /* --triangles: a mesh's target triangle count */
+        double start, end, step; /* --start, --end, --step: degrees (scan) */
+        const char *mode;        /* --mode (scan) */
+        const char *lamps;       /* --lamps: comma-separated names (scan) */
+        char **words;            /* positional words (command first); borrowed from argv */
         int nwords;
 };
 

@@ -1,7 +1,10 @@
-/* calibrate.c - gonioctl calibrate camera --from DATASET: the offline solve of a camera's
- * intrinsics (calib/camera.h) from a dataset's board views, its summary, and the dataset's
- * calibration.yaml (docs/calibration.md). Built with calib/ only where OpenCV is. */
+/* calibrate.c - gonioctl calibrate camera|turntable|laser: the solves of calib/ on a
+ * dataset's calibration captures (--from DATASET, offline), their summaries, and the
+ * calibration file they are written into (calib/calfile.h, docs/calibration.md). Every
+ * command shares one preparation (board, dataset, camera, intrinsics, file) and one error
+ * path. Built with calib/ only where OpenCV is. */
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -10,17 +13,307 @@
 #include "client/cmd.h"
 #include "common/cleanup.h"
 
-#define WHAT "calibrate camera"
-
 #ifdef GONIOCTL_CALIB
-#include "calib/camera.h"
+#include <time.h>
+
+#include "calib/calfile.h"
+#include "client/conn.h"
+#include "client/session.h"
+#include "common/yconf.h"
 #include "dataset/ds.h"
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ds *, ds_close);
 
-static json_t *summary_json(const struct cal_camera *c, const char *file)
+/* One calibration command on its way: what it solves from and writes into. */
+struct solve {
+        const struct args *a;
+        struct out *o;
+        const char *what; /* "calibrate turntable", for messages */
+        struct ds *d;
+        char file[PATH_MAX]; /* the calibration file */
+        char camera[DS_NAME_MAX];
+        struct cal_board board;
+        struct cal_intrinsics k; /* from the file's cameras section (turntable, laser) */
+        char err[1024];
+};
+
+/* The exit code of a failed solve or write. */
+static int exit_for(int r)
 {
-        json_t *rej = json_array(), *r;
+        return r == -ENODATA || r == -ENOENT || r == -EINVAL || r == -EEXIST || r == -EBADMSG ||
+                               r == -EDOM || r == -E2BIG
+                       ? EXIT_INVALID
+                       : EXIT_STORAGE;
+}
+
+/* Prints s->err (or strerror) for r and returns its exit code. */
+static int failed(struct solve *s, int r)
+{
+        out_error(s->o, s->what, "%s", s->err[0] ? s->err : strerror(-r));
+        return exit_for(r);
+}
+
+/* The camera: --camera, else the dataset's only one. */
+static int pick_camera(struct solve *s)
+{
+        struct ds_summary sum;
+        int r;
+
+        if (s->camera[0]) /* the rig's */
+                return 0;
+        if (s->a->camera) {
+                snprintf(s->camera, sizeof(s->camera), "%s", s->a->camera);
+                return 0;
+        }
+        r = ds_summary(s->d, &sum);
+        if (r < 0)
+                return r;
+        if (sum.n_cameras == 1) {
+                snprintf(s->camera, sizeof(s->camera), "%s", sum.cameras[0].name);
+                return 0;
+        }
+        snprintf(s->err, sizeof(s->err), "dataset %s has %s cameras: name one with --camera",
+                 ds_path(s->d), sum.n_cameras ? "several" : "no");
+        return sum.n_cameras ? -EINVAL : -ENODATA;
+}
+
+/* The intrinsics of s->camera from the calibration file. */
+static int load_intrinsics(struct solve *s)
+{
+        struct cal_camera c;
+        int r = cal_camera_read(s->file, s->camera, &c, s->err, sizeof(s->err));
+
+        if (r == -ENOENT)
+                snprintf(s->err, sizeof(s->err),
+                         "no intrinsics of camera %s in %s: run gonioctl calibrate camera first "
+                         "(or name the file that has them with --calibration)",
+                         s->camera, s->file);
+        if (r < 0)
+                return r;
+        s->k = c.k;
+        return 0;
+}
+
+/* Opens dataset and fills s (file: the calibration file, NULL for DATASET/calibration.yaml);
+ * intrinsics: the camera's are needed. Returns an exit code, the error printed. */
+static int prepare(struct solve *s, const char *dataset, const char *file, bool intrinsics)
+{
+        int r = ds_open(dataset, &s->d);
+
+        if (r < 0) {
+                out_error(s->o, s->what, "cannot open dataset %s: %s", dataset, strerror(-r));
+                return EXIT_INVALID;
+        }
+        if (file)
+                snprintf(s->file, sizeof(s->file), "%s", file);
+        else
+                snprintf(s->file, sizeof(s->file), "%s/calibration.yaml", ds_path(s->d));
+        if ((r = pick_camera(s)) < 0 || (intrinsics && (r = load_intrinsics(s)) < 0))
+                return failed(s, r);
+        return EXIT_OK;
+}
+
+/* ---- on the rig: the capture session ---- */
+
+#define RIG_TIMEOUT_S 30
+
+/* What a calibration capture needs of the rig, from describe. */
+struct rig_info {
+        char camera[DS_NAME_MAX], lamp[DS_NAME_MAX], laser[DS_NAME_MAX];
+        bool camera_arm;
+        char calibration[PATH_MAX]; /* the rig's calibration file, "" if none */
+};
+
+/* Calls method with params (stolen); its result into *res. Returns an exit code. */
+static int call(struct solve *s, struct conn *c, const char *method, json_t *params, json_t **res)
+{
+        struct conn_error e;
+        int r = conn_call(c, method, params, conn_now_ms() + RIG_TIMEOUT_S * 1000, -1, NULL, NULL,
+                          res, &e);
+
+        if (r == -EREMOTEIO) {
+                out_error(s->o, s->what, "%s: %s", method, e.message);
+                return cmd_exit_for_code(e.code);
+        }
+        if (r < 0)
+                out_error(s->o, s->what, "%s: %s", method, e.message[0] ? e.message : strerror(-r));
+        return r < 0 ? EXIT_PROTOCOL : EXIT_OK;
+}
+
+/* Copies the name of the first device of class cls (or the one named want) into out;
+ * counts them into *n. */
+static void find_device(json_t *devs, const char *cls, const char *want, char *out, size_t len,
+                        int *n)
+{
+        json_t *d;
+        size_t i;
+
+        *n = 0;
+        json_array_foreach(devs, i, d)
+        {
+                const char *name = json_string_value(json_object_get(d, "name")) ?: "";
+
+                if (strcmp(json_string_value(json_object_get(d, "class")) ?: "", cls) != 0)
+                        continue;
+                if (!want ? !*n : strcmp(name, want) == 0)
+                        snprintf(out, len, "%s", name);
+                ++*n;
+        }
+}
+
+/* The rig's camera (--camera or its only one), first lamp, laser, camera arm and calibration
+ * file (--calibration or the rig file's), from describe. Returns an exit code. */
+static int rig_info(struct solve *s, struct conn *c, struct rig_info *ri)
+{
+        _cleanup_(json_decrefp) json_t *d = NULL;
+        json_t *devs;
+        char arm[DS_NAME_MAX] = "";
+        int r = call(s, c, "describe", json_object(), &d), n;
+
+        if (r != EXIT_OK)
+                return r;
+        devs = json_object_get(d, "devices");
+        find_device(devs, "camera", s->a->camera, ri->camera, sizeof(ri->camera), &n);
+        if (!ri->camera[0] || (n > 1 && !s->a->camera)) {
+                out_error(s->o, s->what, "%s: name one of the rig's %d cameras with --camera",
+                          s->a->camera ? "no such camera"
+                          : n          ? "which camera?"
+                                       : "no camera",
+                          n);
+                return EXIT_INVALID;
+        }
+        find_device(devs, "lamp", NULL, ri->lamp, sizeof(ri->lamp), &n);
+        find_device(devs, "laser", s->a->laser, ri->laser, sizeof(ri->laser), &n);
+        find_device(devs, "axis", "camera_arm", arm, sizeof(arm), &n);
+        ri->camera_arm = arm[0];
+        snprintf(ri->calibration, sizeof(ri->calibration), "%s",
+                 s->a->calib ?: json_string_value(json_object_get(
+                                              json_object_get(d, "calibration"), "path"))
+                                    ?: "");
+        return EXIT_OK;
+}
+
+/* Says what the capture of kind needs that the rig lacks (exit 6), or EXIT_OK. */
+static int rig_check(struct solve *s, const char *kind, const struct rig_info *ri)
+{
+        const char *lack = !ri->calibration[0]
+                                   ? "calibration file: add 'calibration: PATH' to the rig "
+                                     "file, or give --calibration FILE"
+                           : !ri->lamp[0] ? "lamp to light the board"
+                           : strcmp(kind, "laser") == 0 && !ri->laser[0]
+                                   ? (s->a->laser ? "laser of that name" : "laser")
+                                   : NULL;
+
+        if (!lack)
+                return EXIT_OK;
+        out_error(s->o, s->what, "the rig has no %s", lack);
+        return EXIT_INVALID;
+}
+
+/* The session file of the capture of kind ("camera", "turntable", "laser") named name. */
+static char *session_text(const char *kind, const char *name, const struct rig_info *ri)
+{
+        char *text = NULL;
+        bool camera = strcmp(kind, "camera") == 0, laser = strcmp(kind, "laser") == 0;
+
+        if (asprintf(&text,
+                     "# gonioctl calibrate %s: the board on the turntable\n"
+                     "name: %s\ndataset: %s\ncameras: [%s]\nlamps: [%s]\nlaser: %s\n"
+                     "skip_occluded: false\nskip_glare: false\n"
+                     "sweep:\n  turntable: { from: 0, to: 330, step: 30 }\n%s",
+                     kind, name, name, ri->camera, ri->lamp, laser ? "true" : "false",
+                     camera && ri->camera_arm ? "  camera_arm: [-15, 0, 15]\n" : "") < 0)
+                return NULL;
+        return text;
+}
+
+/* Runs the calibration capture of kind on the rig as a session, following it; the path of
+ * its dataset into path. Returns an exit code. */
+static int capture(struct solve *s, struct conn *c, const char *kind, const struct rig_info *ri,
+                   char *path, size_t len)
+{
+        _cleanup_(json_decrefp) json_t *st = NULL, *info = NULL;
+        _cleanup_free_ char *text = NULL;
+        _cleanup_close_ int sfd = cmd_intr_fd();
+        char name[DS_NAME_MAX], stamp[32];
+        /* the session's progress on a terminal; with --json only the summary on stdout */
+        struct out follow = {.quiet = s->o->quiet || s->o->json, .progress = s->o->progress};
+        time_t now = time(NULL);
+        struct tm tm;
+        int r;
+
+        strftime(stamp, sizeof(stamp), "%Y%m%d-%H%M%S", gmtime_r(&now, &tm));
+        snprintf(name, sizeof(name), "calib-%s-%s", kind, stamp);
+        text = session_text(kind, name, ri);
+        if (!text || sfd < 0)
+                return EXIT_PROTOCOL;
+        r = call(s, c, "session.run", json_pack("{s:s,s:s}", "file", name, "text", text), &st);
+        if (r != EXIT_OK)
+                return r;
+        r = csession_follow(&follow, c, sfd, st);
+        if (r != EXIT_OK) {
+                out_error(s->o, s->what,
+                          "the capture session %s did not finish, nothing was solved: see "
+                          "gonioctl session status; once resumed and done, solve with --from "
+                          "and the dataset %s",
+                          name, name);
+                return r;
+        }
+        r = call(s, c, "dataset.info", json_pack("{s:s}", "name", name), &info);
+        if (r == EXIT_OK)
+                snprintf(path, len, "%s", json_string_value(json_object_get(info, "path")) ?: "");
+        return r;
+}
+
+/* Without --from: runs the capture on the rig, then prepares s from its dataset and the
+ * rig's calibration file. */
+static int start_rig(struct solve *s, const char *kind, bool intrinsics)
+{
+        _cleanup_(conn_freep) struct conn *c = NULL;
+        struct rig_info ri = {0};
+        char path[PATH_MAX];
+        int r = cmd_connect(s->a, s->o, &c);
+
+        if (r == EXIT_OK)
+                r = rig_info(s, c, &ri);
+        if (r == EXIT_OK)
+                r = rig_check(s, kind, &ri);
+        if (r != EXIT_OK)
+                return r;
+        snprintf(s->camera, sizeof(s->camera), "%s", ri.camera);
+        snprintf(s->file, sizeof(s->file), "%s", ri.calibration);
+        if (intrinsics && (r = load_intrinsics(s)) < 0) /* before the rig moves */
+                return failed(s, r);
+        r = capture(s, c, kind, &ri, path, sizeof(path));
+        return r == EXIT_OK ? prepare(s, path, ri.calibration, intrinsics) : r;
+}
+
+/* Checks the command line and prepares s: from --from DATASET, or from a capture of kind on
+ * the rig. */
+static int start(struct solve *s, const char *kind, bool intrinsics)
+{
+        const struct args *a = s->a;
+
+        if (!a->board || cal_board_parse(a->board, &s->board) < 0) {
+                args_usage_error(s->what, "needs --board chessboard:XxY:SQUARE or "
+                                          "charuco:XxY:SQUARE:MARKER (squares, mm)");
+                return EXIT_USAGE;
+        }
+        if (!a->from)
+                return start_rig(s, kind, intrinsics);
+        return prepare(s, a->from, a->calib, intrinsics);
+}
+
+static void finish(struct solve *s)
+{
+        s->d = ds_close(s->d);
+}
+
+/* ---- camera ---- */
+
+static json_t *camera_json(const struct cal_camera *c, const char *file)
+{
+        json_t *rej = json_array();
 
         for (size_t i = 0; rej && i < c->n_views; i++)
                 if (!c->views[i].used)
@@ -30,84 +323,260 @@ static json_t *summary_json(const struct cal_camera *c, const char *file)
                                                         isnan(c->views[i].rms)
                                                                 ? NULL
                                                                 : json_real(c->views[i].rms)));
-        r = json_pack("{s:s,s:i,s:i,s:f,s:f,s:f,s:f,s:[fffff],s:[ffff],s:f,s:i,s:i,s:o,s:s}",
-                      "camera", c->camera, "width", c->width, "height", c->height, "fx", c->k.fx,
-                      "fy", c->k.fy, "cx", c->k.cx, "cy", c->k.cy, "dist", c->k.dist[0],
-                      c->k.dist[1], c->k.dist[2], c->k.dist[3], c->k.dist[4], "std_px", c->std[0],
-                      c->std[1], c->std[2], c->std[3], "rms_px", c->rms, "views_used",
-                      (int)c->n_used, "views_rejected", (int)(c->n_views - c->n_used), "rejected",
-                      rej, "file", file);
+        return json_pack("{s:s,s:i,s:i,s:f,s:f,s:f,s:f,s:[fffff],s:[ffff],s:f,s:i,s:i,s:o,s:s}",
+                         "camera", c->camera, "width", c->width, "height", c->height, "fx", c->k.fx,
+                         "fy", c->k.fy, "cx", c->k.cx, "cy", c->k.cy, "dist", c->k.dist[0],
+                         c->k.dist[1], c->k.dist[2], c->k.dist[3], c->k.dist[4], "std_px",
+                         c->std[0], c->std[1], c->std[2], c->std[3], "rms_px", c->rms, "views_used",
+                         (int)c->n_used, "views_rejected", (int)(c->n_views - c->n_used),
+                         "rejected", rej, "file", file);
+}
+
+static int solve_camera(struct solve *s, json_t **ret)
+{
+        struct cal_camera_opts opts = {.board = s->board, .camera = s->camera};
+        struct cal_camera c = {0};
+        int r = cal_camera_solve(s->d, &opts, &c, s->err, sizeof(s->err));
+
+        if (r >= 0)
+                r = cal_camera_write(s->file, &c, s->a->given & ARG_FORCE, s->err, sizeof(s->err));
+        if (r >= 0)
+                *ret = camera_json(&c, s->file);
+        cal_camera_clear(&c);
         return r;
 }
 
-/* The exit code of a failed solve or write. */
-static int exit_for(int r)
+/* ---- turntable ---- */
+
+static json_t *vec_json(const double *v, size_t n)
 {
-        return r == -ENODATA || r == -ENOENT || r == -EINVAL || r == -EEXIST || r == -EBADMSG
-                       ? EXIT_INVALID
-                       : EXIT_STORAGE;
+        json_t *a = json_array();
+
+        for (size_t i = 0; a && i < n; i++)
+                json_array_append_new(a, json_real(v[i]));
+        return a;
 }
 
-int calibrate_camera(const struct args *a, struct out *o, json_t **ret)
+static json_t *turntable_json(const struct cal_file_turntable *t, const char *file)
 {
-        _cleanup_(ds_closep) struct ds *d = NULL;
-        struct cal_camera_opts opts = {.camera = a->camera};
-        struct cal_camera c = {0};
-        char err[1024], file[4096];
+        const struct cal_turntable *tt = &t->tt;
+
+        return json_pack("{s:s,s:o,s:o,s:o,s:o,s:f,s:f,s:f,s:f,s:i,s:i,s:s}", "camera", t->camera,
+                         "axis", vec_json(tt->axis, 3), "origin", vec_json(tt->origin, 3), "R",
+                         vec_json(tt->R, 9), "t", vec_json(tt->t, 3), "rms_px", tt->rms_px,
+                         "circle_rms_mm", tt->circle_rms_mm, "tilt_deg", tt->tilt_deg, "span_deg",
+                         tt->span_deg, "views_used", tt->n_used, "views_given", tt->n_views, "file",
+                         file);
+}
+
+static int solve_turntable(struct solve *s, json_t **ret)
+{
+        struct cal_tt_opts opts = {.board = s->board, .k = s->k};
+        struct cal_file_turntable t = {.board = s->board};
         int r;
 
-        if (!a->from || !a->board || cal_board_parse(a->board, &opts.board) < 0) {
-                args_usage_error(WHAT, "needs --from DATASET and --board chessboard:XxY:SQUARE "
-                                       "or charuco:XxY:SQUARE:MARKER (squares, mm)");
-                return EXIT_USAGE;
-        }
-        r = ds_open(a->from, &d);
-        if (r < 0) {
-                out_error(o, WHAT, "cannot open dataset %s: %s", a->from, strerror(-r));
-                return EXIT_INVALID;
-        }
-        r = cal_camera_solve(d, &opts, &c, err, sizeof(err));
-        snprintf(file, sizeof(file), "%s/calibration.yaml", ds_path(d));
+        snprintf(t.camera, sizeof(t.camera), "%s", s->camera);
+        snprintf(t.dataset, sizeof(t.dataset), "%s", ds_path(s->d));
+        r = cal_turntable_solve_ds(s->d, s->camera, &opts, &t.tt, s->err, sizeof(s->err));
         if (r >= 0)
-                r = cal_camera_write(file, &c, a->given & ARG_FORCE, err, sizeof(err));
+                r = cal_turntable_write(s->file, &t, s->a->given & ARG_FORCE, s->err,
+                                        sizeof(s->err));
         if (r >= 0)
-                *ret = summary_json(&c, file);
-        cal_camera_clear(&c);
-        if (r < 0) {
-                out_error(o, WHAT, "%s", err);
-                return exit_for(r);
-        }
-        return *ret ? EXIT_OK : EXIT_PROTOCOL;
+                *ret = turntable_json(&t, s->file);
+        return r;
 }
-#else
+
+/* ---- laser ---- */
+
+/* The laser's name (--laser, else the dataset's rig file's, else "laser") and channel (the
+ * rig file's when it names that laser, else red). */
+static void laser_of_rig(struct solve *s, char *name, size_t len, int *channel)
+{
+        static const char *const channels[] = {"red", "green", "blue"};
+        char path[PATH_MAX + 16], rig_name[DS_NAME_MAX] = "laser", ch[16] = "red", err[256];
+        struct yconf yc = {0};
+        struct fy_node *m = NULL;
+
+        snprintf(path, sizeof(path), "%s/rig.yaml", ds_path(s->d));
+        if (yconf_open(&yc, path, err, sizeof(err)) == 0)
+                m = yconf_get(yconf_root(&yc), "laser");
+        if (m && (yconf_str(&yc, m, "name", rig_name, sizeof(rig_name)) < 0 ||
+                  yconf_str(&yc, m, "channel", ch, sizeof(ch)) < 0))
+                snprintf(ch, sizeof(ch), "red");
+        yconf_close(&yc);
+        snprintf(name, len, "%s", s->a->laser ?: rig_name);
+        *channel = 0;
+        for (int i = 0; i < 3 && strcmp(name, rig_name) == 0; i++)
+                if (strcmp(ch, channels[i]) == 0)
+                        *channel = i;
+}
+
+static json_t *laser_json(const struct cal_file_laser *l, const char *unused, const char *file)
+{
+        return json_pack("{s:s,s:s,s:{s:o,s:f},s:f,s:f,s:i,s:i,s:i,s:i,s:f,s:f,s:s,s:s}", "laser",
+                         l->name, "camera", l->camera, "plane", "n", vec_json(l->plane.n, 3), "d",
+                         l->plane.d, "rms_mm", l->rms_mm, "spread_mm", l->spread_mm, "points",
+                         (int)l->points, "inliers", (int)l->inliers, "views_used", l->n_used,
+                         "views_given", l->n_views, "axis_angle_deg", l->axis_angle_deg,
+                         "axis_dist_mm", l->axis_dist_mm, "unused", unused, "file", file);
+}
+
+/* The laser's section as written (in the turntable frame) into a summary. */
+static int laser_summary(struct solve *s, const char *name, const char *unused, json_t **ret)
+{
+        _cleanup_free_ struct cal_file *f = malloc(sizeof(*f));
+        const struct cal_file_laser *l;
+        int r;
+
+        if (!f)
+                return -ENOMEM;
+        r = cal_file_read(s->file, f, s->err, sizeof(s->err));
+        if (r < 0)
+                return r;
+        l = cal_file_laser(f, name);
+        *ret = l ? laser_json(l, unused, s->file) : NULL;
+        return 0;
+}
+
+static int solve_laser(struct solve *s, json_t **ret)
+{
+        struct cal_lp_opts opts = {.board = s->board, .k = s->k};
+        struct cal_laser l = {0};
+        char name[DS_NAME_MAX];
+        int r;
+
+        laser_of_rig(s, name, sizeof(name), &opts.channel);
+        r = cal_laser_solve_ds(s->d, s->camera, &opts, &l, s->err, sizeof(s->err));
+        if (r >= 0)
+                r = cal_laser_write(s->file, name, s->camera, &l, ds_path(s->d),
+                                    s->a->given & ARG_FORCE, s->err, sizeof(s->err));
+        if (r >= 0)
+                r = laser_summary(s, name, l.unused, ret);
+        return r;
+}
+
+/* ---- the commands ---- */
+
+/* Runs one calibration command: prepare, solve (fn), summary into *ret. */
+static int run(const struct args *a, struct out *o, const char *kind, bool intrinsics,
+               int (*fn)(struct solve *, json_t **), json_t **ret)
+{
+        char what[32];
+        struct solve s = {.a = a, .o = o, .what = what};
+        int r;
+
+        snprintf(what, sizeof(what), "calibrate %s", kind);
+        r = start(&s, kind, intrinsics);
+
+        if (r == EXIT_OK) {
+                r = fn(&s, ret);
+                r = r < 0 ? failed(&s, r) : *ret ? EXIT_OK : EXIT_PROTOCOL;
+        }
+        finish(&s);
+        return r;
+}
+
 int calibrate_camera(const struct args *a, struct out *o, json_t **ret)
 {
-        out_error(o, WHAT, "gonioctl was built without OpenCV (-Dopencv=disabled)");
+        return run(a, o, "camera", false, solve_camera, ret);
+}
+
+int calibrate_turntable(const struct args *a, struct out *o, json_t **ret)
+{
+        return run(a, o, "turntable", true, solve_turntable, ret);
+}
+
+int calibrate_laser(const struct args *a, struct out *o, json_t **ret)
+{
+        return run(a, o, "laser", true, solve_laser, ret);
+}
+#else
+static int no_opencv(struct out *o, const char *what)
+{
+        out_error(o, what, "gonioctl was built without OpenCV (-Dopencv=disabled)");
         return EXIT_INVALID;
 }
+
+int calibrate_camera(const struct args *a, struct out *o, json_t **ret)
+{
+        return no_opencv(o, "calibrate camera");
+}
+
+int calibrate_turntable(const struct args *a, struct out *o, json_t **ret)
+{
+        return no_opencv(o, "calibrate turntable");
+}
+
+int calibrate_laser(const struct args *a, struct out *o, json_t **ret)
+{
+        return no_opencv(o, "calibrate laser");
+}
 #endif
+
+/* ---- summaries for people ---- */
+
+static double num(json_t *o, const char *key)
+{
+        return json_number_value(json_object_get(o, key));
+}
+
+static void print_vec(const char *what, json_t *v)
+{
+        json_t *x;
+        size_t i;
+
+        printf("%s [", what);
+        json_array_foreach(v, i, x) printf("%s%.4f", i ? " " : "", json_number_value(x));
+        printf("]");
+}
 
 void calibrate_print_camera(json_t *res)
 {
         json_t *rej = json_object_get(res, "rejected"), *v;
         size_t i;
 
-        printf("camera %s: %lldx%lld, %lld views used, %lld rejected\n",
-               json_string_value(json_object_get(res, "camera")),
-               json_integer_value(json_object_get(res, "width")),
-               json_integer_value(json_object_get(res, "height")),
-               json_integer_value(json_object_get(res, "views_used")),
-               json_integer_value(json_object_get(res, "views_rejected")));
-        printf("  fx %.3f  fy %.3f  cx %.3f  cy %.3f px\n",
-               json_real_value(json_object_get(res, "fx")),
-               json_real_value(json_object_get(res, "fy")),
-               json_real_value(json_object_get(res, "cx")),
-               json_real_value(json_object_get(res, "cy")));
+        printf("camera %s: %.0fx%.0f, %.0f views used, %.0f rejected\n",
+               json_string_value(json_object_get(res, "camera")), num(res, "width"),
+               num(res, "height"), num(res, "views_used"), num(res, "views_rejected"));
+        printf("  fx %.3f  fy %.3f  cx %.3f  cy %.3f px\n", num(res, "fx"), num(res, "fy"),
+               num(res, "cx"), num(res, "cy"));
         printf("  dist k1 k2 p1 p2 k3:");
         json_array_foreach(json_object_get(res, "dist"), i, v) printf(" %.5g", json_real_value(v));
-        printf("\n  reprojection RMS %.3f px\n", json_real_value(json_object_get(res, "rms_px")));
+        printf("\n  reprojection RMS %.3f px\n", num(res, "rms_px"));
         json_array_foreach(rej, i, v)
                 printf("  rejected %s: %s\n", json_string_value(json_object_get(v, "file")),
                        json_string_value(json_object_get(v, "reason")));
+        printf("written to %s\n", json_string_value(json_object_get(res, "file")));
+}
+
+void calibrate_print_turntable(json_t *res)
+{
+        printf("turntable seen by camera %s: board found in %.0f of %.0f views over %.1f deg\n",
+               json_string_value(json_object_get(res, "camera")), num(res, "views_used"),
+               num(res, "views_given"), num(res, "span_deg"));
+        print_vec("  axis (camera frame)", json_object_get(res, "axis"));
+        print_vec(", origin", json_object_get(res, "origin"));
+        printf(" mm\n  reprojection RMS %.3f px, circle RMS %.3f mm, board tilt %.2f deg\n",
+               num(res, "rms_px"), num(res, "circle_rms_mm"), num(res, "tilt_deg"));
+        printf("written to %s\n", json_string_value(json_object_get(res, "file")));
+}
+
+void calibrate_print_laser(json_t *res)
+{
+        json_t *plane = json_object_get(res, "plane");
+        const char *unused = json_string_value(json_object_get(res, "unused"));
+
+        printf("laser %s seen by camera %s: %.0f of %.0f views used, %.0f of %.0f points "
+               "inliers\n",
+               json_string_value(json_object_get(res, "laser")),
+               json_string_value(json_object_get(res, "camera")), num(res, "views_used"),
+               num(res, "views_given"), num(res, "inliers"), num(res, "points"));
+        print_vec("  plane (turntable frame) n", json_object_get(plane, "n"));
+        printf(" d %.4f mm\n  RMS %.4f mm, spread %.1f mm; %.3f deg and %.3f mm from the "
+               "turntable axis\n",
+               num(plane, "d"), num(res, "rms_mm"), num(res, "spread_mm"),
+               num(res, "axis_angle_deg"), num(res, "axis_dist_mm"));
+        if (unused && unused[0])
+                printf("  not used: %s\n", unused);
         printf("written to %s\n", json_string_value(json_object_get(res, "file")));
 }

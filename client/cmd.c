@@ -10,9 +10,11 @@
 
 #include "drivers/discover.h"
 #include "client/calibrate.h"
+#include "client/scan_capture.h"
 #include "client/cmd.h"
 #include "client/conn.h"
 #include "client/output.h"
+#include "client/scan.h"
 #include "client/session.h"
 #include "common/cleanup.h"
 #include "protocol/proto.h"
@@ -20,7 +22,8 @@
 #define TIMEOUT_S      30  /* connect, hello and quick requests */
 #define TIMEOUT_LONG_S 120 /* home, move, capture */
 #define USAGE_COL      36  /* width of the synopsis column of --help */
-#define STOP_WAIT_S    2   /* for the replies to stop and status after an interrupted wait */
+#define CALIBRATE_OPTS (ARG_FROM | ARG_BOARD | ARG_CAMERA | ARG_FORCE | ARG_CALIBRATION)
+#define STOP_WAIT_S    2 /* for the replies to stop and status after an interrupted wait */
 
 struct cmd;
 
@@ -250,10 +253,24 @@ static const struct cmd commands[] = {
          ARG_COUNT, TIMEOUT_S, NULL, NULL, NULL, true},
         {NULL, "devices", "", "serial ports, V4L2 nodes, gpiochips, USB devices here (no goniod)",
          NULL, 0, 0, 0, TIMEOUT_S, NULL, out_print_devices, .local = discover_here},
-        {"calibrate", "camera", "--from DATASET --board SPEC [--camera NAME] [--force]",
-         "solve a camera's intrinsics from a dataset's board views (no goniod)", NULL, 0, 0,
-         ARG_FROM | ARG_BOARD | ARG_CAMERA | ARG_FORCE, TIMEOUT_S, NULL, calibrate_print_camera,
-         .local = calibrate_camera},
+        {NULL, "scan",
+         "DATASET [--mode continuous|stop] [--start A --end B --step S] ... | --from DIR ...",
+         "capture a laser scan into DATASET (docs/scanning.md), or rebuild the point cloud and "
+         "mesh of the dataset at DIR (no goniod)",
+         NULL, 0, 1,
+         ARG_MODE | ARG_FROM | ARG_START | ARG_END | ARG_STEP | ARG_CAMERA | ARG_EXPOSURE |
+                 ARG_GAIN | ARG_LAMPS | ARG_TRIANGLES | ARG_FORCE | ARG_CALIBRATION | ARG_NO_MESH,
+         TIMEOUT_S, NULL, scan_command_print, .local = scan_command},
+        {"calibrate", "camera", "--board SPEC [--from DATASET] [CALIBRATE-OPTS]",
+         "capture board views on the rig (or take DATASET's) and solve a camera's intrinsics", NULL,
+         0, 0, CALIBRATE_OPTS, TIMEOUT_S, NULL, calibrate_print_camera, .local = calibrate_camera},
+        {"calibrate", "turntable", "--board SPEC [--from DATASET] [CALIBRATE-OPTS]",
+         "... and solve the turntable axis and the camera's pose", NULL, 0, 0, CALIBRATE_OPTS,
+         TIMEOUT_S, NULL, calibrate_print_turntable, .local = calibrate_turntable},
+        {"calibrate", "laser", "--board SPEC [--from DATASET] [--laser NAME] [CALIBRATE-OPTS]",
+         "... and solve the laser plane in the turntable frame", NULL, 0, 0,
+         CALIBRATE_OPTS | ARG_LASER, TIMEOUT_S, NULL, calibrate_print_laser,
+         .local = calibrate_laser},
         {NULL, "call", "METHOD [JSON-PARAMS]", "send any request, print its result", NULL, 1, 2, 0,
          TIMEOUT_S, p_call, out_print_pretty},
 };
@@ -279,6 +296,7 @@ void cmd_usage(FILE *f)
                    "  --json          print results as one line of JSON\n"
                    "  --timeout SEC   reply timeout (default 30, home/move/capture 120)\n"
                    "  --quiet         print nothing on success\n"
+                   "  CALIBRATE-OPTS  [--camera NAME] [--calibration FILE] [--force]\n"
                    "  --help, --version\n"
                    "\nExit codes: 0 ok, 2 usage, 3 cannot connect, 4 protocol error or timeout,\n"
                    "5 device fault, 6 invalid/not found/out of range, 7 storage, 8 canceled,\n"
@@ -351,7 +369,7 @@ int cmd_exit_for_code(int code)
 }
 
 /* Prints why a call of method failed and returns the exit code. */
-static int call_failed(struct out *o, const char *method, int r, const struct conn_error *e)
+int cmd_call_failed(struct out *o, const char *method, int r, const struct conn_error *e)
 {
         if (r == -EREMOTEIO) {
                 out_error(o, method, "%s", e->message);
@@ -383,8 +401,7 @@ static int64_t deadline_after(double timeout_s)
         return conn_now_ms() + (int64_t)(timeout_s * 1000);
 }
 
-/* Connects and says hello. Returns EXIT_OK with *ret, or the exit code (error printed). */
-static int connect_hello(const struct args *a, struct out *o, struct conn **ret)
+int cmd_connect(const struct args *a, struct out *o, struct conn **ret)
 {
         char path[108];
         struct conn_error e;
@@ -408,7 +425,7 @@ static int connect_hello(const struct args *a, struct out *o, struct conn **ret)
                            PROTO_VERSION);
         r = conn_call(*ret, "hello", params, deadline, -1, NULL, NULL, &res, &e);
         if (r < 0)
-                return call_failed(o, "hello", r, &e);
+                return cmd_call_failed(o, "hello", r, &e);
         proto = (int)json_integer_value(json_object_get(res, "protocol"));
         json_decref(res);
         if (proto != PROTO_VERSION) {
@@ -419,8 +436,7 @@ static int connect_hello(const struct args *a, struct out *o, struct conn **ret)
         return EXIT_OK;
 }
 
-/* Blocks SIGINT and SIGTERM and returns a signalfd that reports them, or -errno. */
-static int open_intr_fd(void)
+int cmd_intr_fd(void)
 {
         sigset_t mask;
         int fd;
@@ -438,7 +454,7 @@ static int open_intr_fd(void)
 static int run_watch(const struct args *a, struct out *o, struct conn *conn)
 {
         int64_t deadline = a->timeout_s > 0 ? deadline_after(a->timeout_s) : CONN_NO_DEADLINE;
-        _cleanup_close_ int sfd = open_intr_fd();
+        _cleanup_close_ int sfd = cmd_intr_fd();
         struct conn_error e;
         long n = 0;
 
@@ -452,7 +468,7 @@ static int run_watch(const struct args *a, struct out *o, struct conn *conn)
                 if (r == -EINTR || r == -ETIMEDOUT)
                         return EXIT_OK;
                 if (r < 0)
-                        return call_failed(o, "watch", r, &e);
+                        return cmd_call_failed(o, "watch", r, &e);
                 if (a->count > 0 && ++n >= a->count)
                         return EXIT_OK;
         }
@@ -569,7 +585,7 @@ static int run_method(const struct cmd *c, const struct args *a, struct out *o, 
 {
         double timeout_s = a->timeout_s > 0 ? a->timeout_s : c->timeout_s;
         bool stops = (c->stops && !(a->given & ARG_NO_WAIT)) || c->follows;
-        _cleanup_close_ int sfd = stops ? open_intr_fd() : -EBADF;
+        _cleanup_close_ int sfd = stops ? cmd_intr_fd() : -EBADF;
         _cleanup_(json_decrefp) json_t *sent = json_incref(params);
         struct interruption why;
         struct conn_error e;
@@ -583,7 +599,7 @@ static int run_method(const struct cmd *c, const struct args *a, struct out *o, 
                 return stop_interrupted(o, conn, method, sent, &why);
         }
         if (r < 0)
-                return call_failed(o, method, r, &e);
+                return cmd_call_failed(o, method, r, &e);
         if (c->follows) {
                 if (o->json)
                         out_notification(o, "session.state", res);
@@ -635,7 +651,7 @@ int cmd_run(const struct args *a)
         out_init(&o, a->json, a->quiet);
         if (c->local)
                 return run_local(c, a, &o, params);
-        r = connect_hello(a, &o, &conn);
+        r = cmd_connect(a, &o, &conn);
         if (r != EXIT_OK) {
                 json_decref(params);
                 return r;

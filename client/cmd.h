@@ -6,6 +6,8 @@
 #include <stdio.h>
 
 #include "client/args.h"
+#include "client/conn.h"
+#include "client/output.h"
 
 /* gonioctl's exit codes. */
 enum gonioctl_exit {
@@ -28,6 +30,21 @@ int cmd_exit_for_code(int code);
 /* Runs the command named by a->words. Returns an enum gonioctl_exit value; errors are
  * printed to stderr as "gonioctl: <method>: <message>". */
 int cmd_run(const struct args *a);
+
+struct conn;
+struct out;
+
+/* Connects to goniod (--socket, else the default path) and says hello (checks the protocol
+ * version). Returns EXIT_OK with a new connection in *ret, or the exit code (error printed). */
+int cmd_connect(const struct args *a, struct out *o, struct conn **ret);
+
+/* Blocks SIGINT and SIGTERM and returns a signalfd that reports them, or -errno. */
+int cmd_intr_fd(void);
+
+struct conn_error;
+
+/* Prints a failed call's error (r from conn_call, e its error) and returns the exit code. */
+int cmd_call_failed(struct out *o, const char *method, int r, const struct conn_error *e);
 
 /* Prints the usage text (generated from the command table) to f. */
 void cmd_usage(FILE *f);

@@ -8,8 +8,10 @@
  * parsed by its backend (struct rig_backend), found in the caller's table by the map's
  * key. */
 #include <errno.h>
+#include <limits.h>
 #include <libfyaml.h>
 #include <math.h>
+#include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -486,7 +488,7 @@ static int parse_camera(struct rig_config *rc, struct fy_node *m, struct rig_cam
                 "name",       "elevation",     "distance",    "azimuth", "target",
                 "width",      "height",        "fx",          "fy",      "cx",
                 "cy",         "distortion",    "exposure_us", "gain",    "bits",
-                "readout_ms", "occlusion_deg", NULL};
+                "readout_ms", "occlusion_deg", "frame_rate",  NULL};
         struct yconf *yc = &rc->yc;
         int r;
 
@@ -499,6 +501,7 @@ static int parse_camera(struct rig_config *rc, struct fy_node *m, struct rig_cam
                                       .gain = 1,
                                       .bits = 8,
                                       .readout_ms = 30,
+                                      .frame_rate = 30,
                                       .occlusion_deg = 5};
         if ((r = parse_backend(rc, m, RIG_CLASS_CAMERA, keys, c->bus, &c->backend)) < 0 ||
             (r = read_name(yc, m, c->name, sizeof(c->name))) < 0 ||
@@ -508,6 +511,7 @@ static int parse_camera(struct rig_config *rc, struct fy_node *m, struct rig_cam
             (r = yconf_double(yc, m, "gain", RIG_GAIN_MIN, RIG_GAIN_MAX, &c->gain)) < 0 ||
             (r = read_int(yc, m, "bits", 8, 16, &c->bits)) < 0 ||
             (r = read_int(yc, m, "readout_ms", 0, 10000, &c->readout_ms)) < 0 ||
+            (r = yconf_double(yc, m, "frame_rate", 0.1, 1000, &c->frame_rate)) < 0 ||
             (r = yconf_double(yc, m, "occlusion_deg", 0, 90, &c->occlusion_deg)) < 0)
                 return r;
         if (c->bits != 8 && c->bits != 16)
@@ -770,11 +774,46 @@ static int check_references(struct yconf *yc, const struct rig_config *rc)
         return r;
 }
 
+/* The directory of the rig file, absolute, into real. */
+static int rig_dir(const struct rig_config *rc, char real[PATH_MAX])
+{
+        char dir[RIG_PATH_MAX];
+        char *slash;
+
+        snprintf(dir, sizeof(dir), "%s", rc->path);
+        slash = strrchr(dir, '/');
+        if (!slash)
+                snprintf(dir, sizeof(dir), ".");
+        else
+                slash[slash == dir] = '\0'; /* "/rig.yaml": "/" */
+        return realpath(dir, real) ? 0 : -errno;
+}
+
+/* The key `calibration`: a path relative to the rig file's directory, made absolute. */
+static int read_calibration(struct rig_config *rc, struct fy_node *root)
+{
+        struct fy_node *node = yconf_get(root, "calibration");
+        char rel[RIG_PATH_MAX] = "", dir[PATH_MAX] = "";
+        int r = yconf_str(&rc->yc, root, "calibration", rel, sizeof(rel));
+
+        if (r <= 0)
+                return r;
+        if (!rel[0])
+                return yconf_error(&rc->yc, node, "calibration", "empty path");
+        if (rel[0] != '/' && (r = rig_dir(rc, dir)) < 0)
+                return yconf_error(&rc->yc, node, "calibration",
+                                   "cannot resolve the rig file's directory: %s", strerror(-r));
+        if ((size_t)snprintf(rc->calibration, sizeof(rc->calibration), "%s%s%s", dir,
+                             dir[0] ? "/" : "", rel) >= sizeof(rc->calibration))
+                return yconf_error(&rc->yc, node, "calibration", "path too long");
+        return 0;
+}
+
 static int parse_root(struct rig_config *rc)
 {
         struct yconf *yc = &rc->yc;
-        static const char *const keys[] = {"rig",   "profiles", "buses", "axes", "lamps",
-                                           "laser", "cameras",  "scene", NULL};
+        static const char *const keys[] = {"rig",   "profiles", "buses", "axes",        "lamps",
+                                           "laser", "cameras",  "scene", "calibration", NULL};
         struct fy_node *root = yconf_root(yc), *laser;
         int r;
 
@@ -804,7 +843,7 @@ static int parse_root(struct rig_config *rc)
                         return r;
                 rc->has_laser = true;
         }
-        if ((r = check_unique(yc, rc)) < 0)
+        if ((r = read_calibration(rc, root)) < 0 || (r = check_unique(yc, rc)) < 0)
                 return r;
         return check_references(yc, rc);
 }
@@ -825,8 +864,8 @@ static int read_text(const char *path, char **ret)
         return 0;
 }
 
-int rigconf_load(const char *path, const struct rig_backend *const *backends,
-                 struct rig_config **ret, char *err, size_t errlen)
+static int load(const char *path, const struct rig_backend *const *backends, bool stored,
+                struct rig_config **ret, char *err, size_t errlen)
 {
         struct rig_config *rc = calloc(1, sizeof(*rc));
         int r;
@@ -842,6 +881,7 @@ int rigconf_load(const char *path, const struct rig_backend *const *backends,
                 return r;
         }
         r = yconf_open_string(&rc->yc, rc->path, rc->text, err, errlen);
+        rc->yc.keep_unset_vars = stored;
         if (r >= 0)
                 r = parse_root(rc);
         if (r < 0) {
@@ -850,6 +890,18 @@ int rigconf_load(const char *path, const struct rig_backend *const *backends,
         }
         *ret = rc;
         return 0;
+}
+
+int rigconf_load(const char *path, const struct rig_backend *const *backends,
+                 struct rig_config **ret, char *err, size_t errlen)
+{
+        return load(path, backends, false, ret, err, errlen);
+}
+
+int rigconf_load_stored(const char *path, const struct rig_backend *const *backends,
+                        struct rig_config **ret, char *err, size_t errlen)
+{
+        return load(path, backends, true, ret, err, errlen);
 }
 
 struct rig_config *rigconf_free(struct rig_config *rc)

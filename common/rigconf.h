@@ -165,6 +165,8 @@ struct rig_camera_conf {
         double gain;
         int bits;             /* 8 or 16 */
         int readout_ms;       /* planning: time per frame beyond the exposure (default 30) */
+        double frame_rate;    /* frames/s at most: exposures start >= 1/frame_rate apart
+                               * (default 30) */
         double occlusion_deg; /* planning: angular radius of the camera and its mount seen
                                * from the turntable centre; a lamp within it and farther away
                                * is hidden (default 5) */
@@ -185,6 +187,9 @@ struct rig_config {
         bool has_laser;
         struct rig_camera_conf cameras[RIG_MAX_CAMERAS];
         size_t n_cameras;
+        /* the calibration file (key `calibration`), an absolute path; "" when the rig file
+         * names none. Not read by rigconf: it may not exist yet. */
+        char calibration[RIG_PATH_MAX];
         const struct rig_backend *const *backends; /* the table given to rigconf_load() */
         char *text;                                /* the file's bytes, stored with every dataset */
         struct yconf yc;                           /* open document, for rigconf_scene() */
@@ -196,6 +201,12 @@ struct rig_config {
  * err. *ret must be freed with rigconf_free(). */
 int rigconf_load(const char *path, const struct rig_backend *const *backends,
                  struct rig_config **ret, char *err, size_t errlen);
+
+/* rigconf_load() of the rig file stored with a dataset (its rig.yaml), read offline: a
+ * ${VAR} that is unset here is kept as written, not an error (the ports it names are not
+ * opened). */
+int rigconf_load_stored(const char *path, const struct rig_backend *const *backends,
+                        struct rig_config **ret, char *err, size_t errlen);
 
 /* Frees a rig config; NULL is a no-op. Returns NULL. */
 struct rig_config *rigconf_free(struct rig_config *rc);

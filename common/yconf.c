@@ -263,6 +263,8 @@ int yconf_str(struct yconf *ctx, struct fy_node *map, const char *key, char *out
         if (r <= 0)
                 return r;
         r = yconf_expand(text, out, outlen, var, sizeof(var));
+        if ((r == -ENOENT || r == -ENODATA) && ctx->keep_unset_vars)
+                r = snprintf(out, outlen, "%s", text) < (int)outlen ? 0 : -ENAMETOOLONG;
         if (r == -ENOENT)
                 return yconf_error(ctx, n, key,
                                    "environment variable %s is not set (write ${%s:-default} for "

@@ -19,6 +19,9 @@ struct yconf {
         struct fy_document *doc;
         char *err; /* caller's buffer for the first error */
         size_t errlen;
+        /* ${VAR} unset or empty is kept as written instead of an error: for a file stored
+         * with a dataset and read elsewhere, where the variables of its ports do not matter */
+        bool keep_unset_vars;
 };
 
 /* Parses the YAML file at path into ctx->doc. Returns 0 or -errno (message in ctx->err). */

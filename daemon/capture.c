@@ -240,18 +240,25 @@ static void store_shot(struct take *t, struct rig_exposure *e, size_t i)
                                 : strerror(-r));
 }
 
-static void on_exposed(struct rig *rig, struct rig_exposure *e, void *userdata)
+/* Hands every frame of e to the storage pool; t completes when the last is stored. */
+static void hand_over(struct take *t, struct rig_exposure *e)
 {
-        struct take *t = userdata;
         struct capture *cp = t->cp;
 
-        unlink_exposing(cp, t);
         t->pending = 1; /* held until every shot is handed over */
         for (size_t i = 0; i < e->n_shots; i++)
                 store_shot(t, e, i);
         if (t->tag.exposed)
                 t->tag.exposed(cp, t->ud);
         take_part_done(t);
+}
+
+static void on_exposed(struct rig *rig, struct rig_exposure *e, void *userdata)
+{
+        struct take *t = userdata;
+
+        unlink_exposing(t->cp, t);
+        hand_over(t, e);
 }
 
 size_t capture_store_room(const struct capture *cp)
@@ -263,22 +270,16 @@ size_t capture_store_room(const struct capture *cp)
         return cp->pool && used < POOL_CAPACITY ? POOL_CAPACITY - used : 0;
 }
 
-int capture_take(struct capture *cp, const int *cams, size_t n, const struct cam_request *req,
-                 const struct capture_tag *tag, capture_done_fn done, void *userdata)
+/* A take of cams[0..n) labelled by tag (copied; may be NULL), not linked anywhere yet. */
+static struct take *take_new(struct capture *cp, const int *cams, size_t n,
+                             const struct capture_tag *tag, capture_done_fn done, void *userdata)
 {
         const struct rig_config *rc = rig_config(cp->rig);
-        struct take *t;
-        int r;
+        struct take *t = calloc(1, sizeof(*t));
 
-        if (!cp->pool)
-                return -ESTALE;
-        if (n == 0 || n > RIG_MAX_CAMERAS)
-                return -EINVAL;
-        if (capture_store_room(cp) < n)
-                return -EAGAIN;
-        if (!(t = calloc(1, sizeof(*t))))
-                return -ENOMEM;
-        *t = (struct take){.cp = cp, .done = done, .ud = userdata, .next = cp->exposing};
+        if (!t)
+                return NULL;
+        *t = (struct take){.cp = cp, .done = done, .ud = userdata};
         if (tag)
                 t->tag = *tag;
         if (tag && tag->planned) {
@@ -291,6 +292,24 @@ int capture_take(struct capture *cp, const int *cams, size_t n, const struct cam
         for (size_t i = 0; i < n; i++)
                 snprintf(t->res.shots[i].row.camera, sizeof(t->res.shots[i].row.camera), "%s",
                          rc->cameras[cams[i]].name);
+        return t;
+}
+
+int capture_take(struct capture *cp, const int *cams, size_t n, const struct cam_request *req,
+                 const struct capture_tag *tag, capture_done_fn done, void *userdata)
+{
+        struct take *t;
+        int r;
+
+        if (!cp->pool)
+                return -ESTALE;
+        if (n == 0 || n > RIG_MAX_CAMERAS)
+                return -EINVAL;
+        if (capture_store_room(cp) < n)
+                return -EAGAIN;
+        if (!(t = take_new(cp, cams, n, tag, done, userdata)))
+                return -ENOMEM;
+        t->next = cp->exposing;
         cp->exposing = t;
         r = rig_expose(cp->rig, cams, n, req, on_exposed, t);
         if (r < 0) {
@@ -298,4 +317,24 @@ int capture_take(struct capture *cp, const int *cams, size_t n, const struct cam
                 free(t);
         }
         return r;
+}
+
+int capture_store_frame(struct capture *cp, int cam, struct gn_frame *frame,
+                        const struct gn_pose *pose, const struct capture_tag *tag,
+                        capture_done_fn done, void *userdata)
+{
+        struct rig_exposure e = {.pose = *pose, .t_request_ns = frame->timestamp_ns, .n_shots = 1};
+        struct take *t;
+
+        if (!cp->pool)
+                return -ESTALE;
+        if (capture_store_room(cp) < 1)
+                return -EAGAIN;
+        if (!(t = take_new(cp, &cam, 1, tag, done, userdata)))
+                return -ENOMEM;
+        e.shots[0] = (struct rig_shot){.cam = cam, .frame = *frame};
+        *frame = (struct gn_frame){0};
+        hand_over(t, &e);
+        gn_frame_free_data(&e.shots[0].frame);
+        return 0;
 }

@@ -85,6 +85,14 @@ int64_t capture_dataset_count(const struct capture *cp);
 int capture_take(struct capture *cp, const int *cams, size_t n, const struct cam_request *req,
                  const struct capture_tag *tag, capture_done_fn done, void *userdata);
 
+/* Stores frame (its data taken over), a frame of camera cam streamed outside rig_expose (a
+ * continuous scan), with pose as its row's pose, labelled by tag (may be NULL; copied); done
+ * gets the outcome once stored or failed. Returns 0, -ESTALE (no dataset open), -EAGAIN (the
+ * storage queue is full: frame left to the caller) or -ENOMEM. */
+int capture_store_frame(struct capture *cp, int cam, struct gn_frame *frame,
+                        const struct gn_pose *pose, const struct capture_tag *tag,
+                        capture_done_fn done, void *userdata);
+
 /* Frames the storage queue can take now. */
 size_t capture_store_room(const struct capture *cp);
 

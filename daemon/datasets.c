@@ -23,6 +23,7 @@
 #include <string.h>
 
 #include "common/log.h"
+#include "calcopy.h"
 #include "common/workq.h"
 #include "datasets.h"
 #include "manager.h"
@@ -83,12 +84,14 @@ static int open_job(void *userdata)
         }
         if (j->old && strcmp(ds_path(j->old), ds_path(j->d)) == 0)
                 j->old = ds_close(j->old); /* reopened: its lock would refuse the claim */
-        if ((r = ds_claim(j->d)) < 0) { /* what a crash left goes now */
+        if ((r = ds_claim(j->d)) < 0) {    /* what a crash left goes now */
                 snprintf(j->msg, sizeof(j->msg), "cannot open dataset '%s': %s", j->name,
                          r == -EBUSY ? "another process is writing it" : ds_last_error(j->d));
                 j->d = ds_close(j->d);
                 return r;
         }
+        if (j->create)
+                (void)calcopy_into(j->m->rc, ds_path(j->d)); /* a warning when it fails */
         j->count = ds_count(j->d);
         j->old = ds_close(j->old);
         return 0;
@@ -364,6 +367,8 @@ static int busy(struct srv_req *req, const struct manager *m)
 {
         if (session_active(m->session))
                 return srv_req_errmsg(req, -EBUSY, "%s", session_busy_reason(m->session));
+        if (scan_active(m->scan))
+                return srv_req_errmsg(req, -EBUSY, "%s", scan_busy_reason(m->scan));
         if (m->ds_busy)
                 return srv_req_errmsg(req, -EBUSY, "another dataset.open or close is running");
         if (capture_in_flight(m->capture) > 0)

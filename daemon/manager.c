@@ -9,6 +9,7 @@
 
 #include "common/log.h"
 #include "drivers/registry.h"
+#include "calcopy.h"
 #include "datasets.h"
 #include "manager.h"
 #include "protocol/proto.h"
@@ -114,6 +115,7 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
                 log_error("%s", err);
                 goto fail;
         }
+        calcopy_warn(m->rc);
         if ((r = make_dir(data_dir)) < 0) {
                 log_error_errno(r, "Cannot create data directory %s: %m", data_dir);
                 goto fail;
@@ -136,6 +138,9 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
         if (r < 0)
                 goto fail;
         r = session_runner_new(m, &m->session);
+        if (r < 0)
+                goto fail;
+        r = scan_new(m, &m->scan);
         if (r < 0)
                 goto fail;
         if (strcmp(rig_state(m->rig), "fault") == 0)
@@ -168,6 +173,7 @@ struct manager *manager_free(struct manager *m)
                 return NULL;
         datasets_free(m);
         m->server = server_free(m->server);
+        m->scan = scan_free(m->scan);
         m->capture = capture_free(m->capture);        /* completes pending stores */
         m->rig = rig_free(m->rig);                    /* safe state */
         m->session = session_runner_free(m->session); /* last: the above may call it back */

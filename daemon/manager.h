@@ -8,6 +8,7 @@
 #include "capture.h"
 #include "rig.h"
 #include "server.h"
+#include "scan.h"
 #include "session.h"
 
 typedef struct sd_event sd_event;
@@ -21,6 +22,7 @@ struct manager {
         char data_dir[PATH_MAX];
         struct capture *capture;        /* the capture pipeline and its open dataset */
         struct session_runner *session; /* the scripted capture session, if any */
+        struct scan *scan;              /* the continuous scan */
         struct workq *ds_worker;        /* runs dataset.* off the loop (datasets.c) */
         bool ds_busy;                   /* a dataset.open or close is running */
         uint64_t shutdown_deadline;     /* set once SIGTERM/SIGINT arrived */

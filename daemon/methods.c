@@ -7,6 +7,7 @@
 
 #include "common/clock.h"
 #include "common/log.h"
+#include "calcopy.h"
 #include "datasets.h"
 #include "manager.h"
 #include "protocol/proto.h"
@@ -107,10 +108,11 @@ static json_t *axes_result(struct op *o)
         return json_pack("{so}", "axes", out);
 }
 
-/* Refuses a request that would move, switch or capture while a session owns the rig. */
+/* Refuses a request that would move, switch or capture while a session or a scan owns the
+ * rig. */
 static int session_refuses(struct srv_req *req, struct manager *m)
 {
-        const char *why = session_busy_reason(m->session);
+        const char *why = session_busy_reason(m->session) ?: scan_busy_reason(m->scan);
 
         return why ? srv_req_errmsg(req, -EBUSY, "%s", why) : 0;
 }
@@ -156,8 +158,7 @@ static int m_describe(struct srv_req *req, json_t *params, void *userdata)
 {
         struct manager *m = userdata;
 
-        srv_reply(req, rig_describe(m->rig));
-        return 0;
+        return calcopy_describe(m, req, rig_describe(m->rig));
 }
 
 static int m_home(struct srv_req *req, json_t *params, void *userdata)
@@ -268,6 +269,8 @@ static int m_stop(struct srv_req *req, json_t *params, void *userdata)
         json_t *names = json_array();
         int stopped[RIG_MAX_AXES];
         size_t n = rig_stop(m->rig, stopped);
+
+        scan_cancel(m->scan);
 
         for (size_t i = 0; i < n; i++)
                 json_array_append_new(names, json_string(m->rc->axes[stopped[i]].name));
@@ -443,6 +446,61 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
         return 0;
 }
 
+/* ---- scan.continuous ---- */
+
+/* Refuses a session while a scan owns the rig. */
+static int scan_refuses(struct srv_req *req, struct manager *m)
+{
+        const char *why = scan_busy_reason(m->scan);
+
+        return why ? srv_req_errmsg(req, -EBUSY, "%s", why) : 0;
+}
+
+/* Reads the scan's camera, angles and controls; the dataset must be the open one. */
+static int read_scan_params(struct srv_req *req, json_t *params, struct manager *m,
+                            struct scan_params *p)
+{
+        const char *dataset = NULL, *camera = NULL, *open = capture_dataset_name(m->capture);
+        int r;
+
+        *p = (struct scan_params){.cam = 0, .from = 0, .to = 360, .step = 0.45};
+        if ((r = srv_params_check(req, params,
+                                  KEYS("dataset", "camera", "from", "to", "step", "exposure_us",
+                                       "gain", "bits"))) < 0 ||
+            (r = srv_param_str(req, params, "dataset", &dataset)) < 0 ||
+            (r = srv_param_str(req, params, "camera", &camera)) < 0 ||
+            (r = srv_param_double(req, params, "from", &p->from)) < 0 ||
+            (r = srv_param_double(req, params, "to", &p->to)) < 0 ||
+            (r = srv_param_double(req, params, "step", &p->step)) < 0 ||
+            (r = read_cam_request(req, params, &p->req)) < 0)
+                return r;
+        if (!dataset)
+                return srv_req_errmsg(req, -EINVAL, "param 'dataset' is required");
+        if (!open || strcmp(open, dataset) != 0)
+                return srv_req_errmsg(req, -ESTALE,
+                                      "dataset '%s' is not the open dataset "
+                                      "(dataset.open it first)",
+                                      dataset);
+        if (m->rc->n_cameras == 0)
+                return srv_req_errmsg(req, -ENOENT, "this rig has no camera");
+        if (camera && (p->cam = rig_camera_index(m->rig, camera)) < 0)
+                return srv_req_errmsg(req, -ENOENT, "no camera named '%s'", camera);
+        return check_cameras(req, m, &p->cam, 1, &p->req);
+}
+
+static int m_scan_continuous(struct srv_req *req, json_t *params, void *userdata)
+{
+        struct manager *m = userdata;
+        struct scan_params p;
+        char msg[256];
+        int r;
+
+        if ((r = read_scan_params(req, params, m, &p)) < 0)
+                return r;
+        r = scan_start(m->scan, req, &p, msg, sizeof(msg));
+        return r < 0 ? srv_req_errmsg(req, r, "%s", msg) : 0;
+}
+
 /* ---- session.* ---- */
 
 /* Reads the session file's name and text (gonioctl sends the file's bytes). */
@@ -497,7 +555,8 @@ static int m_session_run(struct srv_req *req, json_t *params, void *userdata)
         char msg[512];
         int r;
 
-        if ((r = read_session_file(req, params, &file, &text)) < 0)
+        if ((r = read_session_file(req, params, &file, &text)) < 0 ||
+            (r = scan_refuses(req, m)) < 0)
                 return r;
         r = session_start(m->session, file, text, on_session_started, req, msg, sizeof(msg));
         return r < 0 ? srv_req_errmsg(req, r, "%s", msg) : 0;
@@ -511,7 +570,8 @@ static int m_session_resume(struct srv_req *req, json_t *params, void *userdata)
         int r;
 
         if ((r = srv_params_check(req, params, KEYS("dataset"))) < 0 ||
-            (r = srv_param_str(req, params, "dataset", &dataset)) < 0)
+            (r = srv_param_str(req, params, "dataset", &dataset)) < 0 ||
+            (r = scan_refuses(req, m)) < 0)
                 return r;
         r = session_resume(m->session, dataset, on_session_started, req, msg, sizeof(msg));
         return r < 0 ? srv_req_errmsg(req, r, "%s", msg) : 0;
@@ -587,5 +647,6 @@ const struct srv_method manager_methods[] = {
         {"session.pause", m_session_pause},
         {"session.abort", m_session_abort},
         {"session.status", m_session_status},
+        {"scan.continuous", m_scan_continuous},
         {NULL, NULL},
 };

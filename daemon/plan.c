@@ -80,14 +80,21 @@ double plan_shot_gain(const struct rig_config *rc, const struct plan_shot *s, in
         return s->gain > 0 ? s->gain : rc->cameras[cam].gain;
 }
 
+/* One frame of camera c in shot s: exposure and readout, no shorter than the camera's
+ * frame period. */
+static double frame_time(const struct rig_config *rc, const struct plan_shot *s, size_t c)
+{
+        return fmax(plan_shot_exposure_us(rc, s, c) / 1e6 + rc->cameras[c].readout_ms / 1e3,
+                    rc->cameras[c].frame_rate > 0 ? 1.0 / rc->cameras[c].frame_rate : 0);
+}
+
 double plan_shot_time(const struct rig_config *rc, const struct plan_shot *s)
 {
         double t = 0;
 
         for (size_t c = 0; c < rc->n_cameras; c++)
                 if (s->cameras & (1u << c))
-                        t = fmax(t, plan_shot_exposure_us(rc, s, c) / 1e6 +
-                                            rc->cameras[c].readout_ms / 1e3);
+                        t = fmax(t, frame_time(rc, s, c));
         return t;
 }
 
@@ -644,8 +651,7 @@ static double exposure_bound(const struct rig_config *rc, const struct plan_shot
 
                 for (size_t c = 0; c < rc->n_cameras; c++)
                         if (s[i].cameras & (1u << c))
-                                sum[c] += plan_shot_exposure_us(rc, &s[i], c) / 1e6 +
-                                          rc->cameras[c].readout_ms / 1e3;
+                                sum[c] += frame_time(rc, &s[i], c);
                 if (i + 1 < n && same_state(&s[i].pose, &s[i + 1].pose))
                         continue;
                 for (size_t c = 0; c < rc->n_cameras; c++) {

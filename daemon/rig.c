@@ -18,11 +18,13 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "common/clock.h"
 #include "common/log.h"
 #include "drivers/registry.h"
 #include "rig_internal.h"
 
 #define POLL_USEC          (20 * 1000)
+#define TRACK_POLL_USEC    (2 * 1000) /* a tracked axis: about as often as a bus answers */
 #define NOTIFY_USEC        (100 * 1000)
 #define IDLE_POLL_USEC     (1000 * 1000)
 #define TIMER_ACCURACY     1000 /* usec: sd-event's default (250 ms) would delay every move */
@@ -34,6 +36,11 @@
 static bool is_axis_job(enum job_kind kind)
 {
         return kind <= J_RESET;
+}
+
+bool rig_is_camera_job(enum job_kind kind)
+{
+        return kind >= J_OPEN_CAM;
 }
 
 void rig_emit(struct rig *rig, const struct rig_event *ev)
@@ -66,26 +73,21 @@ static const char *job_device(const struct job *j)
 {
         const struct rig_config *rc = j->rig->rc;
 
-        switch (j->kind) {
-        case J_OPEN_SW:
-        case J_CHECK_SW:
-        case J_SWITCH:
-                return switch_name(j->rig, j->idx);
-        case J_OPEN_CAM:
-        case J_CAPTURE:
+        if (rig_is_camera_job(j->kind))
                 return rc->cameras[j->idx].name;
-        default:
-                return rc->axes[j->idx].name;
-        }
+        return is_axis_job(j->kind) ? rc->axes[j->idx].name : switch_name(j->rig, j->idx);
 }
 
 static const char *job_operation(const struct job *j)
 {
         static const char *const names[] = {
-                [J_OPEN_AXIS] = "open",  [J_HOME] = "home",           [J_MOVE] = "move",
-                [J_POLL] = "read state", [J_STOP] = "stop",           [J_RESET] = "reset",
-                [J_OPEN_SW] = "open",    [J_CHECK_SW] = "read state", [J_SWITCH] = "switch",
-                [J_OPEN_CAM] = "open",   [J_CAPTURE] = "capture",
+                [J_OPEN_AXIS] = "open",     [J_HOME] = "home",
+                [J_MOVE] = "move",          [J_POLL] = "read state",
+                [J_STOP] = "stop",          [J_RESET] = "reset",
+                [J_OPEN_SW] = "open",       [J_CHECK_SW] = "read state",
+                [J_SWITCH] = "switch",      [J_OPEN_CAM] = "open",
+                [J_CAPTURE] = "capture",    [J_STREAM_START] = "stream",
+                [J_STREAM_NEXT] = "stream", [J_STREAM_STOP] = "stop streaming",
         };
         return names[j->kind];
 }
@@ -94,17 +96,9 @@ static struct bus *job_bus(const struct job *j)
 {
         struct rig *rig = j->rig;
 
-        switch (j->kind) {
-        case J_OPEN_SW:
-        case J_CHECK_SW:
-        case J_SWITCH:
-                return switch_slot(rig, j->idx)->sw->bus;
-        case J_OPEN_CAM:
-        case J_CAPTURE:
+        if (rig_is_camera_job(j->kind))
                 return rig->cams[j->idx]->bus;
-        default:
-                return rig->axes[j->idx].ax->bus;
-        }
+        return is_axis_job(j->kind) ? rig->axes[j->idx].ax->bus : switch_slot(rig, j->idx)->sw->bus;
 }
 
 /* After a successful open or reset, reads the drive's state into the job (worker). */
@@ -117,6 +111,36 @@ static int poll_after(struct job *j, struct rig_axis *a, int r)
         return r;
 }
 
+/* Runs on the bus worker: a move (or homing) at the job's speed, written to the drive when it
+ * changes. */
+static int move_call(struct job *j, struct rig_axis *a)
+{
+        int r = 0;
+
+        if (j->speed != a->speed_set) {
+                r = axis_set_speed(a->ax, j->speed);
+                if (r == -EOPNOTSUPP && j->speed == 0)
+                        r = 0;
+                if (r >= 0)
+                        a->speed_set = j->speed;
+        }
+        if (r < 0)
+                return r;
+        return j->kind == J_HOME ? axis_home(a->ax) : axis_move_abs(a->ax, j->arg);
+}
+
+/* Runs on the bus worker: a read-back, timed mid-way through the drive's answer. */
+static int poll_call(struct job *j, struct rig_axis *a)
+{
+        uint64_t t0 = gn_realtime_ns();
+        int r = axis_poll(a->ax);
+
+        j->rtt_ns = gn_realtime_ns() - t0;
+        j->t_ns = t0 + j->rtt_ns / 2;
+        j->st = a->ax->state;
+        return r;
+}
+
 /* Runs on the bus worker: the blocking driver call for one job. */
 static int job_call(struct bus *b, struct job *j)
 {
@@ -126,16 +150,15 @@ static int job_call(struct bus *b, struct job *j)
 
         switch (j->kind) {
         case J_OPEN_AXIS:
+                a->speed_set = 0; /* open writes max_speed */
                 return poll_after(j, a, axis_open(a->ax));
         case J_HOME:
         case J_MOVE:
                 if (j->gen != atomic_load(&a->gen))
                         return -ECANCELED;
-                return j->kind == J_HOME ? axis_home(a->ax) : axis_move_abs(a->ax, j->arg);
+                return move_call(j, a);
         case J_POLL:
-                r = axis_poll(a->ax);
-                j->st = a->ax->state;
-                return r;
+                return poll_call(j, a);
         case J_STOP:
                 return axis_stop(a->ax);
         case J_RESET:
@@ -151,6 +174,10 @@ static int job_call(struct bus *b, struct job *j)
                 return cam_open(rig->cams[j->idx]);
         case J_CAPTURE:
                 return cam_capture(rig->cams[j->idx], &j->creq, &j->frame);
+        case J_STREAM_START:
+        case J_STREAM_NEXT:
+        case J_STREAM_STOP:
+                return rig_stream_job_call(j);
         }
         return -EINVAL;
 }
@@ -162,7 +189,7 @@ static const char *device_error(const struct job *j)
 
         if (is_axis_job(j->kind))
                 return rig->axes[j->idx].ax->last_error;
-        if (j->kind == J_OPEN_CAM || j->kind == J_CAPTURE)
+        if (rig_is_camera_job(j->kind))
                 return rig->cams[j->idx]->last_error;
         return switch_slot(rig, j->idx)->sw->last_error;
 }
@@ -282,10 +309,10 @@ static const char *job_error(struct job *j, int result)
                 return snprintf(rig->last_error, sizeof(rig->last_error), "%s", j->why),
                        rig->last_error;
         snprintf(rig->last_error, sizeof(rig->last_error), "%s '%s': %s failed: %s",
-                 is_axis_job(j->kind)                            ? "axis"
-                 : j->kind == J_OPEN_CAM || j->kind == J_CAPTURE ? "camera"
-                 : j->idx < 0                                    ? "laser"
-                                                                 : "lamp",
+                 is_axis_job(j->kind)         ? "axis"
+                 : rig_is_camera_job(j->kind) ? "camera"
+                 : j->idx < 0                 ? "laser"
+                                              : "lamp",
                  job_device(j), job_operation(j), strerror(-result));
         return rig->last_error;
 }
@@ -317,6 +344,8 @@ static void axis_finish(struct rig_axis *a, int result, const char *msg)
 
 static void arm(struct rig_axis *a, uint64_t usec)
 {
+        if (usec == POLL_USEC && a->rig->track_axis == a->idx)
+                usec = TRACK_POLL_USEC;
         sd_event_source_set_time_relative(a->timer, usec);
         sd_event_source_set_enabled(a->timer, SD_EVENT_ONESHOT);
 }
@@ -344,10 +373,26 @@ void rig_axis_stop_and_follow(struct rig_axis *a, const char *why)
         rig_update_state(rig);
 }
 
+/* Queues a homing (J_HOME) or a move of a to leg degrees at speed (0: max_speed). */
+static int submit_motion(struct rig_axis *a, enum job_kind kind, double leg, double speed)
+{
+        struct job *j = calloc(1, sizeof(*j));
+
+        if (!j)
+                return -ENOMEM;
+        *j = (struct job){.rig = a->rig,
+                          .kind = kind,
+                          .idx = a->idx,
+                          .arg = leg,
+                          .speed = speed,
+                          .gen = atomic_load(&a->gen)};
+        return rig_submit(j, false);
+}
+
 /* Commands the next leg of the move of a (to leg degrees) and follows it. */
 static void submit_leg(struct rig_axis *a, double leg)
 {
-        int r = rig_submit_new(a->rig, J_MOVE, a->idx, leg, false, false);
+        int r = submit_motion(a, J_MOVE, leg, a->speed);
 
         a->leg = leg;
         a->settling = false;
@@ -473,9 +518,12 @@ static void axis_job_failed(struct job *j, struct rig_axis *a, int result)
 static void axis_job_done(struct job *j, int result)
 {
         struct rig_axis *a = &j->rig->axes[j->idx];
+        struct rig *rig = j->rig;
 
         if (result >= 0 && (j->kind == J_POLL || j->kind == J_OPEN_AXIS || j->kind == J_RESET))
                 a->st = j->st;
+        if (result >= 0 && j->kind == J_POLL && rig->track_axis == j->idx && rig->track_fn)
+                rig->track_fn(rig->track_ud, j->idx, j->st.position_deg, j->t_ns, j->rtt_ns);
         if (j->kind == J_OPEN_AXIS)
                 a->open = result >= 0;
         if (j->kind == J_POLL && !j->exp && a->op == AX_IDLE)
@@ -603,7 +651,9 @@ static void job_done(struct bus *b, int result, void *userdata)
                 rig->cam_open[j->idx] = result >= 0;
                 if (result < 0 && result != -ECANCELED)
                         rig_fault(rig, job_device(j), result, "%s", job_error(j, result));
-        } else if (j->kind >= J_OPEN_SW)
+        } else if (rig_is_camera_job(j->kind))
+                rig_stream_job_done(j, result);
+        else if (j->kind >= J_OPEN_SW)
                 switch_job_done(j, result);
         else
                 axis_job_done(j, result);
@@ -613,13 +663,13 @@ static void job_done(struct bus *b, int result, void *userdata)
         free(j);
 }
 
-static int start_motion(struct rig *rig, int i, enum axis_op op, double target, rig_done_fn done,
-                        void *ud)
+static int start_motion(struct rig *rig, int i, enum axis_op op, double target, double speed,
+                        rig_done_fn done, void *ud)
 {
         struct rig_axis *a = &rig->axes[i];
         const struct rig_axis_conf *c = a->ax->conf;
         double t = axis_move_time(op == AX_HOMING ? 360 : fabs(target - a->st.position_deg),
-                                  c->max_speed, c->accel),
+                                  speed > 0 ? speed : c->max_speed, c->accel),
                leg;
         int r;
 
@@ -634,10 +684,11 @@ static int start_motion(struct rig *rig, int i, enum axis_op op, double target, 
         if (!a->open)
                 return -ENODEV;
         leg = op == AX_HOMING ? 0 : axis_takeup_target(c, a->st.position_deg, target);
-        r = rig_submit_new(rig, op == AX_HOMING ? J_HOME : J_MOVE, i, leg, false, false);
+        r = submit_motion(a, op == AX_HOMING ? J_HOME : J_MOVE, leg, speed);
         if (r < 0)
                 return r;
         a->op = op;
+        a->speed = speed;
         a->target = target;
         a->leg = leg;
         a->retries_left = c->move_retries;
@@ -654,11 +705,12 @@ static int start_motion(struct rig *rig, int i, enum axis_op op, double target, 
 
 int rig_home(struct rig *rig, int i, rig_done_fn done, void *userdata)
 {
-        return start_motion(rig, i, AX_HOMING, 0, done, userdata);
+        return start_motion(rig, i, AX_HOMING, 0, 0, done, userdata);
 }
 
-int rig_move(struct rig *rig, int i, double *target, bool relative, rig_done_fn done,
-             void *userdata)
+/* A move of axis i to *target (relative: by it) at speed (0: max_speed). */
+static int move(struct rig *rig, int i, double *target, bool relative, double speed,
+                rig_done_fn done, void *userdata)
 {
         struct rig_axis *a = &rig->axes[i];
         double deg = *target;
@@ -674,7 +726,35 @@ int rig_move(struct rig *rig, int i, double *target, bool relative, rig_done_fn 
         if (r < 0)
                 return r;
         *target = deg;
-        return start_motion(rig, i, AX_MOVING, deg, done, userdata);
+        return start_motion(rig, i, AX_MOVING, deg, speed, done, userdata);
+}
+
+int rig_move(struct rig *rig, int i, double *target, bool relative, rig_done_fn done,
+             void *userdata)
+{
+        return move(rig, i, target, relative, 0, done, userdata);
+}
+
+bool rig_axis_speed_settable(const struct rig *rig, int i)
+{
+        return rig->axes[i].ax->ops->set_speed != NULL;
+}
+
+int rig_move_at(struct rig *rig, int i, double *target, double speed, rig_done_fn done,
+                void *userdata)
+{
+        if (speed > 0 && !rig_axis_speed_settable(rig, i))
+                return -EOPNOTSUPP;
+        if (speed > rig->rc->axes[i].max_speed)
+                return -ERANGE;
+        return move(rig, i, target, false, speed, done, userdata);
+}
+
+void rig_track(struct rig *rig, int i, rig_track_fn fn, void *userdata)
+{
+        rig->track_axis = fn ? i : -1;
+        rig->track_fn = fn;
+        rig->track_ud = userdata;
 }
 
 size_t rig_stop(struct rig *rig, int *stopped)
@@ -892,6 +972,7 @@ int rig_new(sd_event *event, struct rig_config *rc, rig_event_fn notify, void *u
                 return -ENOMEM;
         rig->event = event;
         rig->rc = rc;
+        rig->track_axis = -1;
         r = build_devices(rig);
         if (r < 0) {
                 rig_free(rig);

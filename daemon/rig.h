@@ -67,6 +67,18 @@ struct rig_exposure {
 /* Completion of rig_expose on the loop thread. e is valid during the call only. */
 typedef void (*rig_expose_fn)(struct rig *rig, struct rig_exposure *e, void *userdata);
 
+/* A frame of a camera stream on the loop thread: result 0 and frame (the callee may take
+ * frame->data, setting it NULL), or -errno and msg (device, operation, cause): the stream has
+ * ended. */
+typedef void (*rig_frame_fn)(struct rig *rig, int result, struct gn_frame *frame, const char *msg,
+                             void *userdata);
+
+/* A position read back from a drive, on the loop thread, with the CLOCK_REALTIME mid-way
+ * through the drive's answer and that answer's round trip (the time's uncertainty), ns
+ * (rig_track). */
+typedef void (*rig_track_fn)(void *userdata, int axis, double position_deg, uint64_t t_ns,
+                             uint64_t rtt_ns);
+
 /* Builds the devices of rc (which must outlive the rig) and opens them, running the
  * loop until every device answered (a device that does not puts the rig in fault state
  * rather than failing). A drive found moving (goniod restarted during a move) is stopped
@@ -91,6 +103,28 @@ int rig_home(struct rig *rig, int i, rig_done_fn done, void *userdata);
  * outside soft limits, -ESTALE when not homed or faulted, -EBUSY when moving. */
 int rig_move(struct rig *rig, int i, double *target, bool relative, rig_done_fn done,
              void *userdata);
+
+/* Like rig_move (absolute) at speed deg/s (0: the axis's max_speed), for this move only.
+ * -EOPNOTSUPP when the drive cannot set a speed (rig_axis_speed_settable). */
+int rig_move_at(struct rig *rig, int i, double *target, double speed, rig_done_fn done,
+                void *userdata);
+
+/* True when axis i's drive can move at a speed other than its max_speed. */
+bool rig_axis_speed_settable(const struct rig *rig, int i);
+
+/* Hands every state read back from axis i to fn (NULL: none), and while it moves reads it
+ * back as often as its bus allows. One axis at a time. */
+void rig_track(struct rig *rig, int i, rig_track_fn fn, void *userdata);
+
+/* Starts streaming camera i with req: fn gets every frame until rig_stream_stop, or one error
+ * (the stream has then ended). Returns 0, -EBUSY (streaming already), -ESTALE (fault), -ENODEV
+ * (the camera failed to open), -ENOMEM. Exposures of the camera are not refused meanwhile:
+ * the caller owns the rig. */
+int rig_stream_start(struct rig *rig, int i, const struct cam_request *req, rig_frame_fn fn,
+                     void *userdata);
+
+/* Stops camera i's stream: fn is not called again; the frame in flight is dropped. */
+void rig_stream_stop(struct rig *rig, int i);
 
 /* Stops every axis at once (urgent); pending moves complete with -ECANCELED, and axes in
  * motion are followed until they stand still. Writes the indices of the axes that were

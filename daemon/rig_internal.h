@@ -30,7 +30,9 @@ struct rig_axis {
         bool missed;      /* the last move ended outside its deadband */
         uint64_t started, deadline, last_notify;
         bool settling;
-        bool polling; /* an idle poll is queued */
+        bool polling;     /* an idle poll is queued */
+        double speed;     /* of the running move, deg/s; 0: max_speed */
+        double speed_set; /* the speed last written to the drive (bus worker only); 0: max */
 };
 
 struct rig_switch {
@@ -40,6 +42,14 @@ struct rig_switch {
 };
 
 struct exposure;
+
+/* A camera's frame stream (rig_stream.c). */
+struct rig_stream {
+        bool on;   /* started and not stopped: dequeue jobs follow each other */
+        bool next; /* a dequeue job is queued */
+        rig_frame_fn fn;
+        void *ud;
+};
 
 struct rig {
         sd_event *event;
@@ -52,6 +62,10 @@ struct rig {
         unsigned pending;           /* jobs in flight */
         struct exposure *exposure;  /* the exposure running, or NULL */
         sd_event_source *idle_poll; /* reads idle drives back periodically */
+        struct rig_stream streams[RIG_MAX_CAMERAS];
+        int track_axis; /* the axis whose every read-back goes to track_fn, or -1 */
+        rig_track_fn track_fn;
+        void *track_ud;
         rig_event_fn notify;
         void *notify_ud;
         bool fault, freeing;
@@ -79,7 +93,10 @@ enum job_kind {
         J_CHECK_SW,
         J_SWITCH,
         J_OPEN_CAM,
-        J_CAPTURE
+        J_CAPTURE,
+        J_STREAM_START,
+        J_STREAM_NEXT,
+        J_STREAM_STOP
 };
 
 struct job {
@@ -88,6 +105,9 @@ struct job {
         int idx; /* device index; -1 = the laser for switch jobs */
         unsigned gen;
         double arg;
+        double speed;    /* J_MOVE: deg/s, 0: max_speed */
+        uint64_t t_ns;   /* J_POLL: CLOCK_REALTIME mid-way through the drive's answer */
+        uint64_t rtt_ns; /* J_POLL: the answer's round trip */
         bool on;
         struct axis_state st;
         struct cam_request creq;
@@ -117,6 +137,15 @@ void rig_axis_stop_and_follow(struct rig_axis *a, const char *why);
 
 /* Completion of an exposure's poll or capture job (rig_expose.c). */
 void rig_expose_job_done(struct job *j, int result);
+
+/* True for the camera jobs (open, capture, streaming). */
+bool rig_is_camera_job(enum job_kind kind);
+
+/* Runs a streaming job on the bus worker (rig_stream.c). */
+int rig_stream_job_call(struct job *j);
+
+/* Completion of a streaming job (rig_stream.c). */
+void rig_stream_job_done(struct job *j, int result);
 
 /* Fails the exposure in flight at rig_free: its completion is dropped (rig_expose.c). */
 void rig_expose_abandon(struct rig *rig);

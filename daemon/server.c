@@ -257,6 +257,11 @@ int srv_req_errmsg(struct srv_req *req, int err, const char *fmt, ...)
         return err;
 }
 
+bool srv_req_connected(const struct srv_req *req)
+{
+        return req->client->fd >= 0;
+}
+
 const char *srv_req_method(const struct srv_req *req)
 {
         return req->method;

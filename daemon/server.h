@@ -79,6 +79,9 @@ void srv_fail_data(struct srv_req *req, int err, json_t *data, const char *fmt, 
 int srv_req_errmsg(struct srv_req *req, int err, const char *fmt, ...)
         __attribute__((format(printf, 3, 4)));
 
+/* True while the client that sent req is connected. */
+bool srv_req_connected(const struct srv_req *req);
+
 /* The method name of req; valid until answered. */
 const char *srv_req_method(const struct srv_req *req);
 

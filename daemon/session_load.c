@@ -16,6 +16,7 @@
 #include "common/riggeom.h"
 #include "common/sessconf.h"
 #include "dataset/ds_session.h"
+#include "calcopy.h"
 #include "datasets.h"
 #include "plan.h"
 #include "session_internal.h"
@@ -357,6 +358,8 @@ static int load(struct load_job *j)
             (r = ds_plan_pending(j->d, j->name, collect_pending, j)) < 0)
                 return job_fail(j, r, "dataset '%s', session '%s': %s", j->dataset, j->name,
                                 ds_last_error(j->d)[0] ? ds_last_error(j->d) : strerror(-r));
+        if (j->begin)
+                (void)calcopy_into(rc, ds_path(j->d)); /* a warning when it fails */
         find_darks(j, rc);
         for (size_t i = 0; i < rc->n_cameras; i++)
                 j->flats[i] = MAX(ds_find_flat(j->d, rc->cameras[i].name), 0);

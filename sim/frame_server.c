@@ -59,6 +59,7 @@ struct sim_frame_server {
         double time_scale;
         FILE *render_log; /* NULL: none */
         uint64_t seq[RIG_MAX_CAMERAS];
+        uint64_t next_start_ns[RIG_MAX_CAMERAS]; /* CLOCK_MONOTONIC: the frame rate's bound */
         atomic_bool stop;
         pthread_t thread;
         bool started;
@@ -261,18 +262,38 @@ static int send_frame(struct fs_req *rq, const struct exposure *x, const struct 
         return r;
 }
 
-/* Sleeps on the server thread for the exposure's wall time (exposure_us of emulated
- * time), in slices so that sim_frame_server_free() is not held up. */
-static void expose_wait(struct sim_frame_server *fs, int exposure_us)
+/* Sleeps on the server thread until CLOCK_MONOTONIC end, in slices so that
+ * sim_frame_server_free() is not held up. */
+static void sleep_until(struct sim_frame_server *fs, uint64_t end)
 {
-        uint64_t end = gn_monotonic_ns() + (uint64_t)(exposure_us * 1e3 / fs->time_scale);
-
         for (uint64_t now; !atomic_load(&fs->stop) && (now = gn_monotonic_ns()) < end;) {
                 uint64_t ns = MIN(end - now, FS_POLL_MS * UINT64_C(1000000));
                 struct timespec ts = {.tv_sec = (time_t)(ns / 1000000000u),
                                       .tv_nsec = (long)(ns % 1000000000u)};
                 (void)nanosleep(&ts, NULL);
         }
+}
+
+/* Sleeps for the exposure's wall time (exposure_us of emulated time). */
+static void expose_wait(struct sim_frame_server *fs, int exposure_us)
+{
+        sleep_until(fs, gn_monotonic_ns() + (uint64_t)(exposure_us * 1e3 / fs->time_scale));
+}
+
+/* Waits until camera cam may start its next exposure: successive exposures of one camera
+ * start at least 1/frame_rate of emulated time apart, as a real sensor's frames do. */
+static void frame_rate_wait(struct sim_frame_server *fs, int cam)
+{
+        double fps = fs->rc->cameras[cam].frame_rate;
+        uint64_t period = fps > 0 ? (uint64_t)(1e9 / (fps * fs->time_scale)) : 0, now;
+
+        sleep_until(fs, fs->next_start_ns[cam]);
+        now = gn_monotonic_ns();
+        /* A steady cadence while frames are asked for in time; after a pause, from now. */
+        if (now < fs->next_start_ns[cam] + period)
+                fs->next_start_ns[cam] += period;
+        else
+                fs->next_start_ns[cam] = now + period;
 }
 
 /* The request's camera, exposure and truth flags, and its pending camera fault. */
@@ -304,6 +325,7 @@ static int do_render(struct fs_req *rq)
         int r = render_args(rq, &x, &flags);
         if (r < 0)
                 return r;
+        frame_rate_wait(fs, x.cam);
         sim_emu_snapshot(fs->emu, &x.start);
         x.timestamp_ns = gn_realtime_ns();
         x.seq = fs->seq[x.cam]++;

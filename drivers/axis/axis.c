@@ -163,6 +163,26 @@ int axis_poll(struct axis *ax)
         return 0;
 }
 
+int axis_set_speed(struct axis *ax, double deg_s)
+{
+        char what[64];
+        int r;
+
+        if (!ax->ops->set_speed)
+                return -EOPNOTSUPP;
+        if (deg_s <= 0)
+                deg_s = ax->conf->max_speed;
+        if (deg_s > ax->conf->max_speed)
+                return -ERANGE;
+        ax->cause[0] = '\0';
+        r = ax->ops->set_speed(ax, deg_s);
+        if (r < 0) {
+                snprintf(what, sizeof(what), "set the speed to %.3f deg/s", deg_s);
+                return fail(ax, r, what);
+        }
+        return 0;
+}
+
 double axis_travel(const struct rig_axis_conf *c, double pos, double target)
 {
         double d;

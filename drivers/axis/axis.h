@@ -35,6 +35,8 @@ struct axis_ops {
         int (*stop)(struct axis *ax);                 /* immediate stop */
         int (*reset)(struct axis *ax);                /* clear a drive fault */
         int (*poll)(struct axis *ax, struct axis_state *st);
+        /* Optional: the speed of the following moves, deg/s (at most conf->max_speed). */
+        int (*set_speed)(struct axis *ax, double deg_s);
 };
 
 struct axis {
@@ -72,6 +74,9 @@ int axis_move_abs(struct axis *ax, double deg); /* checks limits first: -ERANGE 
 int axis_stop(struct axis *ax);
 int axis_reset(struct axis *ax);
 int axis_poll(struct axis *ax); /* refreshes ax->state */
+/* Sets the cruise speed of the following moves (0: the rig file's max_speed); -EOPNOTSUPP
+ * when the backend cannot, -ERANGE above max_speed. */
+int axis_set_speed(struct axis *ax, double deg_s);
 
 /* Logs "axis 'NAME' [BACKEND@PORT#UNIT]: message" at level (GN_LOG_*); %m prints err.
  * Returns -abs(err). At warning level or worse also fills last_error: the ops' thread. */

@@ -292,6 +292,28 @@ static void case_addresses(void)
                                                              "bus: b, unit: 10, coil: 2 } }\n"));
 }
 
+/* A dataset's stored rig file read offline: unset and empty variables stay as written. */
+static void case_env_stored(void)
+{
+        const char *text =
+                "rig: \"a${GONIO_TEST_EMPTY}\"\nbuses:\n"
+                "  - { name: b, type: modbus-rtu, port: \"${GONIO_TEST_UNSET}/drives\" }\n";
+        struct rig_config *rc = NULL;
+        char err[512] = "", path[] = "/tmp/gonio-rigconf-XXXXXX";
+        int fd = mkstemp(path);
+
+        CHECK(fd >= 0);
+        CHECK(write(fd, text, strlen(text)) == (ssize_t)strlen(text));
+        close(fd);
+        if (rigconf_load_stored(path, backends, &rc, err, sizeof(err)) < 0)
+                fprintf(stderr, "%s\n", err);
+        CHECK(rc);
+        unlink(path);
+        CHECK_STR(rc->name, "a${GONIO_TEST_EMPTY}");
+        CHECK_STR(rc->buses[0].port, "${GONIO_TEST_UNSET}/drives");
+        rigconf_free(rc);
+}
+
 static void case_env(void)
 {
         struct rig_config *rc;
@@ -313,6 +335,7 @@ static void case_env(void)
         CHECK_STR(rc->name, "xy-/tmp/d-/tmp/d$HOME{}");
         CHECK_STR(rc->buses[0].port, "/tmp/d/f.sock");
         rigconf_free(rc);
+        case_env_stored();
 }
 
 static void case_duplicates(void)

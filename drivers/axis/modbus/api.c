@@ -110,6 +110,13 @@ static int mbax_open(struct axis *ax)
         return write_rate(ax, "write acceleration", c->profile->reg_accel, ax->conf->accel);
 }
 
+static int mbax_set_speed(struct axis *ax, double deg_s)
+{
+        if (!ax->priv)
+                return -ENOTCONN;
+        return write_rate(ax, "write max speed", prof(ax)->reg_speed, deg_s);
+}
+
 static void mbax_close(struct axis *ax)
 {
         free(ax->priv);
@@ -229,4 +236,5 @@ const struct axis_ops mbax_ops = {
         .stop = mbax_stop,
         .reset = mbax_reset,
         .poll = mbax_poll,
+        .set_speed = mbax_set_speed,
 };

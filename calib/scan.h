@@ -1,0 +1,90 @@
+/* scan.h - a dataset's laser captures to a point cloud and a mesh, offline: for one camera,
+ * each row with the laser on, minus the laser-off row of the same view with no lamp lit
+ * when there is one (else alone: a dark room), coloured from a lamp-lit row of the same view
+ * (else the off frame), in turntable-angle order; the line found (calib/laserline.h),
+ * triangulated with a calibration (calib/section.h), meshed and simplified (calib/mesh.h),
+ * written into the dataset folder as scan.ply, mesh.ply and mesh.obj.
+ * Reads through the dataset library only; never touches devices. docs/scanning.md,
+ * "Reconstruction from a dataset". */
+#pragma once
+
+#include <stdbool.h>
+#include <stddef.h>
+
+#include "calib/mesh.h"
+#include "calib/section.h"
+#include "common/rigconf.h"
+#include "dataset/ds.h"
+
+#define SCAN_TRIANGLES_DEFAULT 200000 /* simplification target */
+#define SCAN_MAX_ERROR_MM      0.05   /* simplification limit: no face moves farther, mm */
+
+/* The files a scan writes into the dataset folder. */
+#define SCAN_FILE_POINTS   "scan.ply"
+#define SCAN_FILE_MESH_PLY "mesh.ply"
+#define SCAN_FILE_MESH_OBJ "mesh.obj"
+
+/* The calibration a scan triangulates with: the camera (intrinsics, distortion, its
+ * world-to-camera pose) and the laser planes in the world (turntable) frame. The dataset
+ * records one laser per row (on or off), so its rows use plane 0. */
+struct scan_calib {
+        struct sec_camera cam;
+        int n_lasers;
+        double plane_p[SEC_MAX_LASERS][3], plane_n[SEC_MAX_LASERS][3];
+};
+
+struct scan_opts {
+        const char *camera;  /* NULL: the first of the rig's cameras with laser rows */
+        size_t triangles;    /* simplification target (faces) */
+        double max_error_mm; /* simplification limit */
+        bool force;          /* replace scan files already in the dataset folder */
+        struct cal_mesh_opts mesh;
+};
+
+/* What a scan did. */
+struct scan_result {
+        char camera[DS_NAME_MAX];
+        size_t laser_rows; /* the camera's rows with the laser on */
+        size_t used;       /* of those, triangulated (one line each) */
+        size_t paired;     /*   with a laser-off frame of the same view (on minus off) */
+        size_t textured;   /*   coloured from a lamp-lit frame (else the off frame, or none) */
+        size_t no_line;    /*   in which no line was found */
+        size_t unreadable; /* skipped: a frame that could not be loaded */
+        size_t wrong_size; /* skipped: a frame of another size than the calibrated camera */
+        size_t other_view; /* skipped: taken at another camera-arm angle than the first */
+        size_t points;     /* in the cloud */
+        size_t rejected;   /* line centres without a usable ray (sec_ctx.rejected) */
+        size_t triangles;  /* joined over the grid */
+        size_t triangles_simplified;
+        double error_mm;  /* the simplification's deviation */
+        int seams_closed; /* 1 when the scan covered the full turn and the mesh closed it */
+        double seconds;   /* wall time of the whole reconstruction */
+};
+
+/* Fills o with the defaults: camera NULL, SCAN_TRIANGLES_DEFAULT, SCAN_MAX_ERROR_MM, no
+ * force, cal_mesh_opts_default. Never fails. */
+void scan_opts_default(struct scan_opts *o);
+
+/* Loads the dataset's rig.yaml (the rig it was captured with) into *rc, its device maps
+ * parsed by backends (drivers/registry.h's registry_backends). Returns 0 or -errno with
+ * the cause in err; free *rc with rigconf_free. */
+int scan_load_rig(struct ds *d, const struct rig_backend *const *backends, struct rig_config **rc,
+                  char *err, size_t errlen);
+
+/* The nominal calibration of camera `camera` of rig rc with the camera arm at
+ * camera_arm_deg (NAN: none): intrinsics from the rig file, the pose of
+ * riggeom_camera_pose, the laser's plane through the turntable axis at its azimuth
+ * (sec_rig_laser_plane). Returns 0, -ENOENT (no such camera) or -ENODATA (no laser). */
+int scan_nominal_calib(const struct rig_config *rc, const char *camera, double camera_arm_deg,
+                       struct scan_calib *out);
+
+/* Reconstructs the scan of dataset d, captured with rig rc (the laser's channel, the camera
+ * names; the nominal calibration when cal is NULL), and writes SCAN_FILE_POINTS (the cloud,
+ * normals from the grid) and the simplified mesh as SCAN_FILE_MESH_PLY and
+ * SCAN_FILE_MESH_OBJ into its folder. Rows that cannot be used are skipped and counted in
+ * *out, never fatal. Returns 0 or -errno with the cause in err: -ENODATA (no laser rows of
+ * the camera, or no line in any of them), -ENOENT (no such camera), -EEXIST (a scan file
+ * there already and not o->force), -EINVAL (a calibration that sec_init refuses), -ENOMEM,
+ * or a write's -errno. Call from a worker (blocking I/O). */
+int scan_dataset(struct ds *d, const struct rig_config *rc, const struct scan_opts *o,
+                 const struct scan_calib *cal, struct scan_result *out, char *err, size_t errlen);

@@ -1,0 +1,48 @@
+/* scan_cal.c - a scan's calibration from a calibration file's sections (scan_cal.h). */
+#include <errno.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "calib/scan_cal.h"
+
+/* -ENOENT with what to calibrate first. */
+static int missing(char *err, size_t errlen, const char *section, const char *name,
+                   const char *what)
+{
+        snprintf(err, errlen, "no section %s.%s in the calibration file: run gonioctl calibrate %s",
+                 section, name, what);
+        return -ENOENT;
+}
+
+int scan_calib_from_file(const struct cal_file *f, const char *camera, const char *laser,
+                         struct scan_calib *out, char *err, size_t errlen)
+{
+        const struct cal_camera *c = cal_file_camera(f, camera);
+        const struct cal_file_turntable *t = cal_file_turntable(f, camera);
+        const struct cal_file_laser *l = cal_file_laser(f, laser);
+
+        if (!c)
+                return missing(err, errlen, "cameras", camera, "camera");
+        if (!t)
+                return missing(err, errlen, "turntables", camera, "turntable");
+        if (!l)
+                return missing(err, errlen, "lasers", laser, "laser");
+        if (strcmp(l->camera, camera) != 0) {
+                snprintf(err, errlen,
+                         "laser %s was calibrated through camera %s, not %s: its plane "
+                         "is in that camera's turntable frame",
+                         laser, l->camera, camera);
+                return -EINVAL;
+        }
+        *out = (struct scan_calib){.n_lasers = 1};
+        out->cam.k = c->k;
+        out->cam.width = c->width;
+        out->cam.height = c->height;
+        memcpy(out->cam.R, t->tt.R, sizeof(out->cam.R));
+        memcpy(out->cam.t, t->tt.t, sizeof(out->cam.t));
+        for (int k = 0; k < 3; k++) { /* the plane n.x + d = 0 through p = -d n */
+                out->plane_n[0][k] = l->plane.n[k];
+                out->plane_p[0][k] = -l->plane.d * l->plane.n[k];
+        }
+        return 0;
+}
