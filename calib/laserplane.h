@@ -77,9 +77,11 @@ void cal_plane_to_turntable(const struct cal_plane *cam, const struct cal_turnta
 #define CAL_LR_ITERATIONS 20
 
 struct cal_lr_opts {
-        double match_mm; /* 0: CAL_LR_MATCH_MM (about the spacing of a laser's lines) */
-        int iterations;  /* 0: CAL_LR_ITERATIONS */
-        int reference;   /* the laser that stays (the best calibrated); the others move */
+        double match_mm;   /* 0: CAL_LR_MATCH_MM (about the spacing of a laser's lines) */
+        int iterations;    /* 0: CAL_LR_ITERATIONS */
+        int reference;     /* the laser that stays (the best calibrated); the others move */
+        bool through_axis; /* the rig's lasers contain the turntable axis: every plane is moved
+                            * to the nearest that does, then turns only about it */
 };
 
 /* What cal_lasers_refine changed, and how well the lasers' surfaces agree before and after:
@@ -89,11 +91,9 @@ struct cal_lr_result {
         int n_lasers;
         double angle_deg[SEC_MAX_LASERS]; /* how far each plane's normal turned */
         double shift_mm[SEC_MAX_LASERS];  /* how far it moved at the centre of its points */
-        double offset_before[SEC_MAX_LASERS],
-                offset_after[SEC_MAX_LASERS]; /* each laser's mean
-                                               * signed distance from the others' surfaces (mm, +
-                                               * outside) */
-        double rms_before, rms_after;         /* RMS distance between the surfaces (mm) */
+        /* each laser's mean signed distance from the others' surfaces (mm, + outside) */
+        double offset_before[SEC_MAX_LASERS], offset_after[SEC_MAX_LASERS];
+        double rms_before, rms_after; /* RMS distance between the surfaces (mm) */
         size_t pairs_before, pairs_after;
         int iterations;
 };
@@ -102,12 +102,12 @@ struct cal_lr_result {
  * that their surfaces agree: each point moves along its camera ray as its plane changes, and
  * the distance from each laser's points to the other lasers' surfaces is minimised by
  * changing every plane but the reference laser's (o NULL: laser 0), all together
- * (Gauss-Newton, matches redone each iteration). Needs the
- * normals (sec_normals) first; they are not updated (call sec_normals again). On success c's
- * planes and points are the refined ones; on failure c is unchanged. Returns 0; -EINVAL (fewer
- * than two lasers, no such reference), -ENODATA (fewer than 100 matched points: the clouds do not
- * overlap, or no normals), -EDOM (a plane would change by more than 1 deg or 2 mm: a bad
- * calibration, not a small error) or -ENOMEM, with a sentence in err. */
+ * (Gauss-Newton, matches redone each iteration). Needs the normals (sec_normals) first; they
+ * are not updated (call sec_normals again). On success c's planes and points are the refined
+ * ones; on failure c is unchanged. Returns 0; -EINVAL (fewer than two lasers, no such
+ * reference), -ENODATA (fewer than 100 matched points: the clouds do not overlap, or no
+ * normals), -EDOM (a plane would change by more than 1 deg or 2 mm: a bad calibration, not a
+ * small error) or -ENOMEM, with a sentence in err. One thread; allocates its work arrays. */
 int cal_lasers_refine(struct sec_ctx *c, const struct cal_lr_opts *o, struct cal_lr_result *out,
                       char *err, size_t errlen);
 

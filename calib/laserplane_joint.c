@@ -13,6 +13,7 @@
  * biases prefer. A weak damping towards the calibrated planes settles what the scan cannot tell.
  * Matches are redone every iteration; residuals beyond 3 robust sigmas are left out. */
 #include <errno.h>
+#include <stdbool.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -43,10 +44,12 @@ struct lr_ray {
         size_t pt; /* index in the context */
 };
 
-/* The lasers' planes: initial normal n0 with its basis e1, e2 and offset d0; q the changes;
- * the plane of laser `reference` does not change. */
+/* The lasers' planes: initial normal n0 with its basis e1, e2 and offset d0; q the changes,
+ * those marked fixed stay 0 (the reference laser's; with the axis constraint, all but the
+ * turn about the axis). */
 struct lr_planes {
-        int n, reference;
+        int n;
+        bool fixed[LR_MAX_P];
         double n0[SEC_MAX_LASERS][3], e1[SEC_MAX_LASERS][3], e2[SEC_MAX_LASERS][3];
         double d0[SEC_MAX_LASERS], q[LR_MAX_P];
 };
@@ -348,7 +351,9 @@ static int lr_step(struct lr_planes *P, const struct lr_ray *rays, const struct 
                 H[a * n + a] += w;
                 g[a] = -(g[a] + w * P->q[a]);
         }
-        for (int a = 3 * P->reference; a < 3 * P->reference + 3; a++) { /* it stays */
+        for (int a = 0; a < n; a++) {
+                if (!P->fixed[a])
+                        continue;
                 for (int b = 0; b < n; b++)
                         H[a * n + b] = H[b * n + a] = 0;
                 H[a * n + a] = 1;
@@ -377,6 +382,31 @@ static void lr_init(const struct sec_ctx *c, struct lr_planes *P)
         }
 }
 
+/* Constrains the planes P: laser ref stays; with through_axis every plane is first moved to
+ * the nearest plane containing the turntable axis (z) and may then only turn about it.
+ * Returns 0, or -EINVAL for a plane that cannot contain the axis (its normal along it). */
+static int lr_constrain(struct lr_planes *P, int ref, bool through_axis)
+{
+        for (int p = 0; p < 3; p++)
+                P->fixed[3 * ref + p] = true;
+        for (int l = 0; l < P->n && through_axis; l++) {
+                double *n = P->n0[l], h = hypot(n[0], n[1]);
+                if (h < 0.5)
+                        return -EINVAL;
+                n[0] /= h;
+                n[1] /= h;
+                n[2] = 0;
+                P->d0[l] = 0;
+                P->e1[l][0] = -n[1];
+                P->e1[l][1] = n[0];
+                P->e1[l][2] = 0;
+                P->e2[l][0] = P->e2[l][1] = 0;
+                P->e2[l][2] = 1;
+                P->fixed[3 * l + 1] = P->fixed[3 * l + 2] = true;
+        }
+        return 0;
+}
+
 /* Writes the planes P and the rays' points into c. */
 static void lr_commit(struct sec_ctx *c, const struct lr_planes *P, const struct lr_ray *rays,
                       size_t n)
@@ -394,10 +424,10 @@ static void lr_commit(struct sec_ctx *c, const struct lr_planes *P, const struct
                         c->pts[rays[i].pt].x[k] = (float)rays[i].x[k];
 }
 
-/* Each plane's change: the angle its normal turned, and how far it moved at the centre of
- * its points (world, as captured: ew + dw, the points before the refinement). */
-static void lr_changes(const struct lr_planes *P, const struct lr_ray *rays, size_t n,
-                       struct cal_lr_result *out)
+/* Each plane's change from c's: the angle its normal turned, and how far it moved at the
+ * centre of its points (world, as captured: ew + dw, on c's plane). */
+static void lr_changes(const struct lr_planes *P, const struct sec_ctx *c,
+                       const struct lr_ray *rays, size_t n, struct cal_lr_result *out)
 {
         double ctr[SEC_MAX_LASERS][3] = {{0}};
         size_t cnt[SEC_MAX_LASERS] = {0};
@@ -412,13 +442,14 @@ static void lr_changes(const struct lr_planes *P, const struct lr_ray *rays, siz
                 lr_plane(P, l, nv, &d);
                 for (int k = 0; k < 3 && cnt[l]; k++)
                         ctr[l][k] /= (double)cnt[l];
-                out->angle_deg[l] = acos(fmin(cal_dot(nv, P->n0[l]), 1)) / DEG;
+                out->angle_deg[l] = acos(fmin(cal_dot(nv, c->plane_n[l]), 1)) / DEG;
                 out->shift_mm[l] = -(cal_dot(nv, ctr[l]) + d); /* the old plane's point */
         }
 }
 
-/* Gauss-Newton iterations from the calibrated planes; the matches before in out. Returns
- * the final number of pairs or -errno. */
+/* Gauss-Newton iterations from the calibrated planes (constrained first); the agreement
+ * before (as the points were) and after in out. Returns the final number of pairs or
+ * -errno. */
 static long lr_iterate(struct lr_planes *P, struct lr_ray *rays, size_t n, double h, int iters,
                        struct lr_pair *pairs, double *abs_r, struct cal_lr_result *out)
 {
@@ -430,6 +461,10 @@ static long lr_iterate(struct lr_planes *P, struct lr_ray *rays, size_t n, doubl
                 return np < 0 ? np : -ENODATA;
         out->pairs_before = (size_t)np;
         lr_stats(rays, pairs, (size_t)np, P->n, &out->rms_before, out->offset_before);
+        if ((e = lr_place(P, rays, n)) < 0) /* onto the constrained planes */
+                return e;
+        if ((np = lr_match_all(rays, n, P->n, h, pairs, abs_r)) < LR_MIN_PAIR)
+                return np < 0 ? np : -ENODATA;
         for (out->iterations = 0; out->iterations < iters && step > LR_DONE_MM; out->iterations++) {
                 if ((e = lr_step(P, rays, pairs, (size_t)np, &step)) < 0 ||
                     (e = lr_place(P, rays, n)) < 0)
@@ -474,6 +509,13 @@ int cal_lasers_refine(struct sec_ctx *c, const struct cal_lr_opts *o, struct cal
                          "reference one of them");
                 return -EINVAL;
         }
+        lr_init(c, &P);
+        if (lr_constrain(&P, ref, o && o->through_axis) < 0) {
+                snprintf(err, errlen,
+                         "a laser's plane is across the turntable axis: it cannot "
+                         "be made to contain it");
+                return -EINVAL;
+        }
         out->n_lasers = c->n_lasers;
         size_t cap = c->n_pts * (size_t)(c->n_lasers - 1) + 1;
         _cleanup_free_ struct lr_ray *rays = malloc((c->n_pts + 1) * sizeof(*rays));
@@ -482,8 +524,6 @@ int cal_lasers_refine(struct sec_ctx *c, const struct cal_lr_opts *o, struct cal
         if (!rays || !pairs || !abs_r)
                 return -ENOMEM;
         size_t n = lr_rays(c, -1, rays);
-        lr_init(c, &P);
-        P.reference = ref;
         if ((np = lr_iterate(&P, rays, n, h, iters, pairs, abs_r, out)) == -ENODATA)
                 snprintf(err, errlen,
                          "the lasers' clouds overlap in fewer than %d points within %.1f mm: "
@@ -494,7 +534,7 @@ int cal_lasers_refine(struct sec_ctx *c, const struct cal_lr_opts *o, struct cal
                 snprintf(err, errlen, "the refinement failed: %s", strerror((int)-np));
         if (np < 0)
                 return (int)np;
-        lr_changes(&P, rays, n, out);
+        lr_changes(&P, c, rays, n, out);
         if ((e = lr_check(out, err, errlen)) < 0)
                 return e;
         lr_commit(c, &P, rays, n);

@@ -5,9 +5,10 @@
  * angles -> cal_turntable_solve (the camera's pose in the turntable frame), the laser line on
  * a standing chessboard at 5 poses -> cal_laser_solve -> cal_plane_to_turntable; then the
  * object is scanned with those estimates and scored against the true surface (RMS <= 0.1
- * mm). Two lasers are refined jointly (cal_lasers_refine) so their surfaces agree. The
- * estimated turntable frame is tied to the renderer's world by the calibration board's known
- * pose at turntable angle 0 (docs/scanning.md, "With the calibration gonio estimated"). */
+ * mm). Two and three lasers are refined jointly (cal_lasers_refine) so their surfaces
+ * agree. The estimated turntable frame is tied to the renderer's world by the calibration
+ * board's known pose at turntable angle 0 (docs/scanning.md, "With the calibration gonio
+ * estimated"). */
 #include <math.h>
 #include <stdio.h>
 #include <time.h>
@@ -44,13 +45,13 @@ struct rig {
 struct estimate {
         struct cal_camera cam;
         struct cal_turntable tt;
-        struct cal_plane
-                plane[SCAN_MAX_LASERS]; /* each laser's, in the estimated turntable frame */
-        double T[12];                   /* estimated turntable frame -> renderer's world */
-        struct sim_cam_geom g;          /* the true camera */
+        /* each laser's plane, in the estimated turntable frame */
+        struct cal_plane plane[SCAN_MAX_LASERS];
+        double T[12];          /* estimated turntable frame -> renderer's world */
+        struct sim_cam_geom g; /* the true camera */
 };
 
-/* Writes the rig file sections of r's camera, a lamp beside it (lit = lamp) and laser l. */
+/* Writes the rig file sections of r's camera, a lamp above it and laser l. */
 static void rig_yaml(const struct rig *r, int l, char *cams, char *lamps, char *laser, size_t len)
 {
         scan_camera_yaml(cams, len, r->elevation, r->target_z);
@@ -126,9 +127,10 @@ static void true_camera(const struct rig *r, struct sim_cam_geom *g)
 }
 
 /* The intrinsics: 12 ChArUco views over the image (partly out of view at its edges), stored
- * in a dataset and solved by cal_camera_solve. */
+ * in a dataset and solved by cal_camera_solve; fx, fy, cx, cy within 0.2 % of the truth. */
 static void solve_intrinsics(const struct rig *r, struct estimate *e)
 {
+        /* the board's centre in the camera frame (mm), its tilts about x and y (deg) */
         static const double views[12][5] = {
                 {0, 0, 380, 0, 0},       {-50, -35, 380, 25, 20},  {50, -35, 380, 25, -20},
                 {-50, 35, 380, -25, 20}, {50, 35, 380, -25, -20},  {0, -40, 360, 30, 0},
@@ -162,6 +164,10 @@ static void solve_intrinsics(const struct rig *r, struct estimate *e)
                 e->g.fx, e->g.fy, e->g.cx, e->g.cy, e->cam.k.dist[0], e->cam.rms, e->cam.n_used,
                 e->cam.n_views);
         CHECK_INT(ret, 0);
+        CHECK_NEAR(e->cam.k.fx, e->g.fx, 0.002 * e->g.fx);
+        CHECK_NEAR(e->cam.k.fy, e->g.fy, 0.002 * e->g.fy);
+        CHECK_NEAR(e->cam.k.cx, e->g.cx, 0.002 * e->g.cx);
+        CHECK_NEAR(e->cam.k.cy, e->g.cy, 0.002 * e->g.cy);
         ds_close(d);
         tu_rm_rf(tmp);
 }
@@ -189,13 +195,15 @@ static void frame_truth(const double Rb[9], const double tb[3], double T[12])
 }
 
 /* The camera's pose in the turntable frame: the chessboard lying on the turntable, printed
- * side up, at 9 angles over 80 deg; T from its true pose. */
+ * side up, its centre 35 mm beyond the axis from the camera (in view at every angle of the
+ * lowest camera), at 9 angles over 80 deg; T from its true pose. */
 static void solve_turntable(const struct rig *r, struct estimate *e)
 {
-        static const char scene[] = "scene:\n  seed: 5\n  targets:\n"
-                                    "    - { type: chessboard, squares: [9, 6], square: 16,\n"
-                                    "        pose: { translate: [-60, 48, 0.5], rotate_x: 180 } }\n"
-                                    "  turntable: { radius: 0 }\n";
+        static const char scene[] =
+                "scene:\n  seed: 5\n  targets:\n"
+                "    - { type: chessboard, squares: [9, 6], square: 16,\n"
+                "        pose: { translate: [-102, 31, 0.5], rotate_x: 180 } }\n"
+                "  turntable: { radius: 0 }\n";
         struct gn_frame f[TT_VIEWS];
         struct cal_tt_view v[TT_VIEWS];
         struct cal_tt_opts o = {.board = CHESS, .k = e->cam.k};
@@ -272,7 +280,8 @@ static void solve_laser(const struct rig *r, int l, struct estimate *e)
                              &off[i], NULL, NULL);
                 render_scene(r, l, scene, &(struct gn_pose){{tt, 0, 0}, 1, true}, 201 + 2 * i,
                              &on[i], NULL, NULL);
-                rt_dump(&on[i], "laser");
+                snprintf(scene, sizeof(scene), "laser%d-%d", l, i);
+                rt_dump(&on[i], scene);
                 v[i] = (struct cal_lp_view){&off[i], &on[i]};
         }
         int ret = cal_laser_solve(v, LP_POSES, &o, &las, err, sizeof(err));
@@ -358,19 +367,31 @@ static double since(const struct timespec *t0)
         return (double)(t1.tv_sec - t0->tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0->tv_nsec);
 }
 
-/* Refines the lasers of s jointly (laser 0 the reference); prints what changed and checks
- * that the lasers' surfaces then agree within 0.02 mm (each one's mean distance from the
- * others'), that each laser's points still lie within RMS_MAX of the truth, and that their
- * mean distances from it are within 0.05 mm of each other. */
-static void expect_refined(struct scan *s, const char *label)
+/* The largest |mean distance| from the truth of the lasers of s as they are now. */
+static double worst_bias(const struct scan *s, const char *label)
 {
+        double worst = 0;
+
+        for (int l = 0; l < s->lasers; l++)
+                worst = fmax(worst, fabs(scan_rescore(s, l, label).bias));
+        return worst;
+}
+
+/* Refines the lasers of s jointly (laser 0 the reference, unchanged); prints what changed and
+ * checks that the lasers' surfaces then agree within 0.02 mm (each one's mean distance from
+ * the others'), that each laser's points still lie within RMS_MAX of the truth, their mean
+ * distances from it within 0.05 mm of each other and, on average, no farther from it than
+ * the farthest laser's were before (+0.01 mm: they do not drift together). */
+static void expect_refined(struct scan *s, const struct cal_lr_opts *o, const char *label)
+{
+        double before = worst_bias(s, label);
         struct cal_lr_result r;
         struct score sc[SCAN_MAX_LASERS];
         struct timespec t0;
         char err[512];
 
         clock_gettime(CLOCK_MONOTONIC, &t0);
-        CHECK_INT(cal_lasers_refine(&s->c, NULL, &r, err, sizeof(err)), 0);
+        CHECK_INT(cal_lasers_refine(&s->c, o, &r, err, sizeof(err)), 0);
         fprintf(stderr,
                 "%s: %zu points refined in %d iterations, %.3f s; the surfaces' RMS distance "
                 "%.4f mm before (%zu points), %.4f mm after (%zu points)\n",
@@ -383,15 +404,22 @@ static void expect_refined(struct scan *s, const char *label)
                         l, r.angle_deg[l], r.shift_mm[l], r.offset_before[l], r.offset_after[l]);
                 CHECK(fabs(r.offset_after[l]) < 0.02);
         }
-        CHECK(r.rms_after <= r.rms_before);
+        if (!o->through_axis) /* the reference stays */
+                CHECK(r.angle_deg[0] < 1e-6 && fabs(r.shift_mm[0]) < 1e-6);
+        for (int l = 0; l < s->lasers && o->through_axis; l++) /* every plane contains z */
+                CHECK(fabs(s->c.plane_n[l][2]) < 1e-12 &&
+                      fabs(cal_dot(s->c.plane_n[l], s->c.plane_p[l])) < 1e-9);
+        CHECK(r.rms_after <= r.rms_before + 0.005); /* the matching's noise stays */
         for (int l = 0; l < s->lasers; l++) {
-                sc[l] = scan_rescore(s, l, label);
+                sc[l] = scan_rescore(s, l, "refined");
                 CHECK(sc[l].rms <= RMS_MAX);
                 CHECK(fabs(sc[l].bias - sc[0].bias) <= 0.05);
+                CHECK(fabs(sc[l].bias) <= before + 0.01);
         }
 }
 
-/* cal_lasers_refine's refusals: no normals yet, one laser, no such reference laser. */
+/* cal_lasers_refine's refusals: no normals yet, one laser, no such reference laser, a plane
+ * across the axis to be made to contain it. */
 static void expect_refine_errors(struct scan *s)
 {
         struct cal_lr_result r;
@@ -407,6 +435,14 @@ static void expect_refine_errors(struct scan *s)
         CHECK_INT(cal_lasers_refine(&s->c, NULL, &r, err, sizeof(err)), -EINVAL);
         s->c.n_lasers = n;
         CHECK_INT(cal_laser_replane(&s->c, n, &(struct cal_plane){{0, 1, 0}, 0}), -EINVAL);
+        double keep[3]; /* a plane across the axis cannot be made to contain it */
+        memcpy(keep, s->c.plane_n[1], sizeof(keep));
+        memcpy(s->c.plane_n[1], (double[3]){0, 0.1, 1}, sizeof(keep));
+        CHECK_INT(cal_lasers_refine(&s->c, &(struct cal_lr_opts){.through_axis = true}, &r, err,
+                                    sizeof(err)),
+                  -EINVAL);
+        CHECK_STR_CONTAINS(err, "across the turntable axis");
+        memcpy(s->c.plane_n[1], keep, sizeof(keep));
 }
 
 /* Knocks every laser of s but laser 0 off its estimated plane (e) by 0.3 deg (about an axis
@@ -442,15 +478,18 @@ static void expect_lasers(const struct rig *r, truth_fn fn, int min_points)
                 scan_expect(&s, l, r->shape, fn, min_points, RMS_MAX);
         expect_refine_errors(&s);
         CHECK(sec_normals(&s.c) > s.c.n_pts * 8 / 10);
-        expect_refined(&s, "as calibrated");
+        expect_refined(&s, &(struct cal_lr_opts){0}, "as calibrated");
         knock(&s, &e, 0);
-        expect_refined(&s, "knocked");
+        expect_refined(&s, &(struct cal_lr_opts){0}, "knocked");
         knock(&s, &e, 2.5);
         float x = s.c.pts[s.c.n_pts - 1].x[0];
         CHECK_INT(cal_lasers_refine(&s.c, NULL, &res, err, sizeof(err)), -EDOM);
         fprintf(stderr, "%s\n", err);
         CHECK_STR_CONTAINS(err, "plane would turn by");
         CHECK(s.c.pts[s.c.n_pts - 1].x[0] == x);
+        for (int l = 0; l < r->lasers; l++) /* as calibrated, with the axis constraint */
+                CHECK_INT(cal_laser_replane(&s.c, l, &e.plane[l]), 0);
+        expect_refined(&s, &(struct cal_lr_opts){.through_axis = true}, "through the axis");
         scan_close(&s);
         cal_camera_clear(&e.cam);
 }
@@ -464,8 +503,7 @@ static void test_two_lasers(void)
 /* The gem with a third laser at -20 (50 deg from the camera). */
 static void test_three_lasers(void)
 {
-        expect_lasers(&(struct rig){"gem", 25, 30, {0, 70, -20}, 3}, scan_plane_dist,
-                      ANGLES * 40);
+        expect_lasers(&(struct rig){"gem", 25, 30, {0, 70, -20}, 3}, scan_plane_dist, ANGLES * 40);
 }
 
 /* cal_plane_to_turntable against the rig's truth: the true laser plane (azimuth 70) in the
