@@ -120,7 +120,7 @@ static int lp_view(const struct cal_lp_view *v, const struct cal_lp_opts *o, dou
 
         if (!c || !uv || !bxy)
                 return -ENOMEM;
-        if ((e = lp_board_pose(v->off, o, R, t)) <= 0) {
+        if ((e = lp_board_pose(v->board ?: v->off, o, R, t)) <= 0) {
                 snprintf(why, wlen, e < 0 ? "laser-off frame unusable" : "board not found");
                 return e;
         }
@@ -262,7 +262,7 @@ int cal_laser_solve(const struct cal_lp_view *v, size_t n, const struct cal_lp_o
         for (size_t i = 0; i < n; i++)
                 rows += v[i].on ? v[i].on->height : 0;
         for (size_t i = 0; i < n; i++)
-                if (!v[i].on || !v[i].off || !cal_board_valid(&o->board)) {
+                if (!v[i].on || !(v[i].off || v[i].board) || !cal_board_valid(&o->board)) {
                         snprintf(err, errlen, "view %zu: no frame, or a bad board", i);
                         return -EINVAL;
                 }

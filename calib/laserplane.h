@@ -19,9 +19,11 @@
 #define CAL_LP_MIN_POINTS 20  /* points on the board for a view to count */
 #define CAL_LP_INLIER_MM  0.3 /* RANSAC inlier distance */
 
-/* One pose of the board: the same view with the laser off (board lit) and on. */
+/* One pose of the board: the same view with the laser on, and with it off under the same
+ * light (subtracted: on minus off; NULL: the laser frame alone, for a dark room or a laser
+ * frame taken with the lamps off); the board's pose from `board` (the board lit; NULL: off). */
 struct cal_lp_view {
-        const struct gn_frame *off, *on;
+        const struct gn_frame *off, *on, *board;
 };
 
 struct cal_lp_opts {
@@ -50,9 +52,11 @@ struct cal_laser {
 int cal_laser_solve(const struct cal_lp_view *v, size_t n, const struct cal_lp_opts *o,
                     struct cal_laser *out, char *err, size_t errlen);
 
-/* cal_laser_solve on camera's rows of kind "image" (bracket 0) in dataset d: each row with
- * the laser on paired with the nearest (by row order) laser-off row of the same pose (angles
- * within 0.01 deg, same lamps). Returns as cal_laser_solve, or -ENODATA (no such pair: what was
+/* cal_laser_solve on camera's rows of kind "image" or "laser" (bracket 0) in dataset d: each
+ * row with the laser on paired with the nearest (by row order) laser-off row of the same pose
+ * (angles within 0.01 deg, same lamps); a laser row with no lamp lit and no such partner (a
+ * session's laser frame) is used alone with the board found in the nearest lit laser-off row
+ * of the same angles. Returns as cal_laser_solve, or -ENODATA (no such pair: what was
  * seen in err), -ENOENT (no images of camera), -EINVAL (camera NULL) or the dataset's -errno. */
 int cal_laser_solve_ds(struct ds *d, const char *camera, const struct cal_lp_opts *o,
                        struct cal_laser *out, char *err, size_t errlen);

@@ -23,13 +23,14 @@ struct rows {
         struct gn_frame *f;
 };
 
-/* The camera's laser-on and laser-off images, bracket 0. */
+/* The camera's images (bracket 0) and laser frames (a session's have no bracket: -1). */
 static bool keep_row(const struct ds_capture *c, void *userdata)
 {
         const char *camera = userdata;
 
-        return !strcmp(c->camera, camera) && (!c->kind[0] || !strcmp(c->kind, "image")) &&
-               c->bracket == 0;
+        return !strcmp(c->camera, camera) &&
+               (!c->kind[0] || !strcmp(c->kind, "image") || !strcmp(c->kind, "laser")) &&
+               c->bracket <= 0;
 }
 
 static void rows_free(struct rows *r)
@@ -108,28 +109,48 @@ int cal_turntable_solve_ds(struct ds *d, const char *camera, const struct cal_tt
         return cal_turntable_solve(v, n, o, out, err, errlen);
 }
 
-/* True when rows a and b were taken at the same pose (angles, lamps). */
-static bool same_pose(const struct ds_capture *a, const struct ds_capture *b)
+/* True when rows a and b were taken at the same angles, and with the same lamps unless
+ * any_light. */
+static bool same_pose(const struct ds_capture *a, const struct ds_capture *b, bool any_light)
 {
         for (int k = 0; k < GN_ROLE_COUNT; k++) {
                 double x = a->pose.deg[k], y = b->pose.deg[k];
                 if (isnan(x) != isnan(y) || (!isnan(x) && fabs(x - y) > POSE_TOL_DEG))
                         return false;
         }
-        return a->pose.lamps == b->pose.lamps;
+        return any_light ? b->pose.lamps != 0 : a->pose.lamps == b->pose.lamps;
 }
 
-/* The laser-off row of the same pose nearest to laser-on row i (the board may move between
- * poses of one turntable angle, never between a pose's two frames), or -1. */
-static ssize_t partner(const struct rows *r, size_t i)
+/* The laser-off row nearest to laser-on row i (the board may move between poses of one
+ * turntable angle, never between a pose's frames) of the same pose, or with any_light of
+ * the same angles and a lamp lit; -1 when none. */
+static ssize_t partner(const struct rows *r, size_t i, bool any_light)
 {
         for (size_t k = 1; k < r->n; k++) {
-                if (k <= i && !r->c[i - k].pose.laser && same_pose(&r->c[i], &r->c[i - k]))
+                if (k <= i && !r->c[i - k].pose.laser &&
+                    same_pose(&r->c[i], &r->c[i - k], any_light))
                         return i - k;
-                if (i + k < r->n && !r->c[i + k].pose.laser && same_pose(&r->c[i], &r->c[i + k]))
+                if (i + k < r->n && !r->c[i + k].pose.laser &&
+                    same_pose(&r->c[i], &r->c[i + k], any_light))
                         return i + k;
         }
         return -1;
+}
+
+/* The view of laser row i: on minus its laser-off partner, or a dark laser frame alone with
+ * the board from a lit frame of the same angles. Returns false when there is neither. */
+static bool laser_view(const struct rows *r, size_t i, struct cal_lp_view *v)
+{
+        ssize_t j = partner(r, i, false);
+
+        if (j >= 0) {
+                *v = (struct cal_lp_view){.off = &r->f[j], .on = &r->f[i]};
+                return true;
+        }
+        j = r->c[i].pose.lamps ? -1 : partner(r, i, true);
+        if (j >= 0)
+                *v = (struct cal_lp_view){.on = &r->f[i], .board = &r->f[j]};
+        return j >= 0;
 }
 
 int cal_laser_solve_ds(struct ds *d, const char *camera, const struct cal_lp_opts *o,
@@ -147,9 +168,7 @@ int cal_laser_solve_ds(struct ds *d, const char *camera, const struct cal_lp_opt
                 if (!r.c[i].pose.laser)
                         continue;
                 on++;
-                ssize_t j = partner(&r, i);
-                if (j >= 0)
-                        v[n++] = (struct cal_lp_view){&r.f[j], &r.f[i]};
+                n += laser_view(&r, i, &v[n]);
         }
         if (!n) {
                 snprintf(err, errlen,

@@ -45,6 +45,7 @@ static const struct pose beside[3] = {{20, 40, 0, 0}, {0, 40, 10, 0}, {30, 40, -
 
 struct views {
         struct gn_frame off[N_POSES], on[N_POSES];
+        struct gn_frame dark[N_POSES]; /* the laser on, the lamp off (a session's laser frame) */
         struct cal_lp_view v[N_POSES];
         struct cal_plane truth;    /* in the camera frame */
         struct cal_turntable axis; /* the true axis, in the camera frame */
@@ -86,6 +87,8 @@ static void render_pose(struct views *w, int i, const struct pose *p, double az,
         rt_open(&t, lamps, las, cams, scene);
         rt_render(&t, &off, NULL, 2 * i + 1, &w->off[i], 0, NULL);
         rt_render(&t, &on, NULL, 2 * i + 2, &w->on[i], 0, NULL);
+        on.lamps = 0;
+        rt_render(&t, &on, NULL, 2 * i + 2, &w->dark[i], 0, NULL);
         snprintf(name, sizeof(name), "laser-%02d", i);
         rt_dump(&w->on[i], name);
         w->v[i] = (struct cal_lp_view){&w->off[i], &w->on[i]};
@@ -99,6 +102,7 @@ static void release(struct views *w, int n)
         for (int i = 0; i < n; i++) {
                 gn_frame_free_data(&w->off[i]);
                 gn_frame_free_data(&w->on[i]);
+                gn_frame_free_data(&w->dark[i]);
         }
 }
 
@@ -239,6 +243,26 @@ static void test_dataset(void)
         fprintf(stderr, "%s\n", err);
         CHECK_STR_CONTAINS(err, "none of the 3 images of camera c0 has the laser on with a "
                                 "laser-off image of the same pose (3 with the laser on)");
+        ds_close(d);
+        /* a session's frames: the board lit (image), the laser with the lamp off (kind laser,
+         * no bracket): the laser frame alone, the board from the lit one */
+        snprintf(path, sizeof(path), "%s/ds3", tmp);
+        CHECK_INT(ds_create(path, "laser", "rig: test\n", &d), 0);
+        for (int i = 0; i < 3; i++)
+                for (int on = 0; on < 2; on++) {
+                        struct ds_capture c = {.pose = {{0, 0, 0}, on ? 0 : 1, on},
+                                               .camera = "c0",
+                                               .bracket = on ? -1 : 0,
+                                               .exposure_us = 20000};
+                        snprintf(c.lamps, sizeof(c.lamps), "%s", on ? "" : "l0");
+                        snprintf(c.kind, sizeof(c.kind), "%s", on ? "laser" : "image");
+                        CHECK_INT(ds_store(d, on ? &w.dark[i] : &w.off[i], &c), 0);
+                }
+        CHECK_INT(cal_laser_solve_ds(d, "c0", &o, &b, err, sizeof(err)), 0);
+        CHECK_INT(b.n_used, 3);
+        fprintf(stderr, "lamp-off laser frames: %.4f deg from the on-minus-off plane\n",
+                acos(fmin(fabs(cal_dot(a.plane.n, b.plane.n)), 1)) * 180 / M_PI);
+        CHECK(acos(fmin(fabs(cal_dot(a.plane.n, b.plane.n)), 1)) * 180 / M_PI < 0.02);
         ds_close(d);
         release(&w, 3);
         tu_rm_rf(tmp);

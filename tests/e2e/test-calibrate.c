@@ -165,9 +165,10 @@ static void check_dataset_copy(struct rigenv *e, const char *prefix, const char 
 }
 
 /* The calibration sessions on the rig: camera, then turntable, solved into the rig's file;
- * the turntable before the camera refused before anything moves; the laser refused with what
- * was seen (its session's laser frames, lamps off, have no laser-off partner: issue 9), the
- * file kept. */
+ * the turntable before the camera refused before anything moves; the laser's session (its
+ * laser frames, lamps off, used alone with the board from the lit frames of their angles:
+ * calib-laserplane-dataset) refused with what each view showed, since this board lies where
+ * the laser crosses it in one view only, and the file kept. */
 static void test_rig(struct rigenv *e)
 {
         _cleanup_free_ void *before = NULL, *after = NULL;
