@@ -100,6 +100,7 @@ static int stop_session_text(const struct args *a, const char *dataset, const st
                      "cameras: %s\n"
                      "lamps: %s\n"
                      "laser: true\n"
+                     "unlit: true\n"
                      "%s%s",
                      (long long)time(NULL), dataset, rg->from, rg->to, rg->step, cameras, lamps,
                      exposure, gain) < 0)

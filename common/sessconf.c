@@ -293,7 +293,8 @@ static int parse_devices(struct sparse *p, struct fy_node *root)
         sc->lamps = p->rc->n_lamps ? (uint32_t)((1ull << p->rc->n_lamps) - 1) : 0;
         if ((r = parse_names(p, root, "cameras", &cams, &sc->cameras)) < 0 ||
             (r = parse_names(p, root, "lamps", &lamps, &sc->lamps)) < 0 ||
-            (r = yconf_bool(&p->yc, root, "laser", &sc->laser)) < 0)
+            (r = yconf_bool(&p->yc, root, "laser", &sc->laser)) < 0 ||
+            (r = yconf_bool(&p->yc, root, "unlit", &sc->unlit)) < 0)
                 return r;
         sc->flat_lamps = sc->lamps ?: (uint32_t)((1ull << p->rc->n_lamps) - 1);
         if ((r = parse_names(p, root, "flat_lamps", &lamps, &sc->flat_lamps)) < 0)
@@ -304,9 +305,9 @@ static int parse_devices(struct sparse *p, struct fy_node *root)
         if (sc->laser && !p->rc->has_laser)
                 return yconf_error(&p->yc, yconf_get(root, "laser"), "laser",
                                    "rig '%s' has no laser", p->rc->name);
-        if (!sc->lamps && !sc->laser)
+        if (!sc->lamps && !sc->laser && !sc->unlit)
                 return yconf_error(&p->yc, at(root, "lamps"), "lamps",
-                                   "nothing to capture: no lamp and no laser");
+                                   "nothing to capture: no lamp, no laser and no unlit frame");
         return 0;
 }
 
@@ -513,10 +514,10 @@ static int parse_names_of_session(struct sparse *p, struct fy_node *root)
 static int parse_root(struct sparse *p)
 {
         static const char *const keys[] = {
-                "name",           "dataset",       "sweep",      "cameras",   "lamps",
-                "exposure_us",    "gain",          "brackets",   "laser",     "dark_frames",
-                "dark_max_age_s", "flat_frames",   "flat_lamps", "settle_ms", "skip_occluded",
-                "skip_glare",     "occlusion_deg", "metadata",   NULL};
+                "name",          "dataset",        "sweep",         "cameras",    "lamps",
+                "exposure_us",   "gain",           "brackets",      "laser",      "unlit",
+                "dark_frames",   "dark_max_age_s", "flat_frames",   "flat_lamps", "settle_ms",
+                "skip_occluded", "skip_glare",     "occlusion_deg", "metadata",   NULL};
         struct fy_node *root = yconf_root(&p->yc);
         int r;
 

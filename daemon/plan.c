@@ -288,8 +288,8 @@ static int add_frames(struct builder *b, enum plan_kind kind, uint32_t lamps, in
         return 0;
 }
 
-/* Darks at each exposure the session uses (each bracket, and 0 EV for the laser and flat
- * frames when no bracket is 0 EV), then flats. */
+/* Darks at each exposure the session uses (each bracket, and 0 EV for the laser, unlit and
+ * flat frames when no bracket is 0 EV), then flats. */
 static int add_calibration(struct builder *b)
 {
         const struct session_conf *sc = b->sc;
@@ -301,7 +301,7 @@ static int add_calibration(struct builder *b)
                 if ((r = add_frames(b, PLAN_DARK, 0, i, sc->dark_frames)) < 0)
                         return r;
         }
-        if (!ev0 && (sc->laser || sc->flat_frames) &&
+        if (!ev0 && (sc->laser || sc->unlit || sc->flat_frames) &&
             (r = add_frames(b, PLAN_DARK, 0, -1, sc->dark_frames)) < 0)
                 return r;
         return add_frames(b, PLAN_FLAT, sc->flat_lamps, -1, sc->flat_frames);
@@ -411,7 +411,8 @@ static int lamp_cameras(struct builder *b, const struct gn_pose *pose, int lamp,
         return 0;
 }
 
-/* The shots of one light (a lamp, or LIGHT_LASER) at pose for cameras. */
+/* The shots of one light (a lamp, LIGHT_LASER, or LIGHT_NONE: the unlit frame) at pose for
+ * cameras. The laser and unlit frames are taken once, at 0 EV (bracket -1). */
 static int add_light(struct builder *b, const struct gn_pose *pose, int light, uint32_t cameras)
 {
         struct gn_pose lit = *pose;
@@ -419,8 +420,9 @@ static int add_light(struct builder *b, const struct gn_pose *pose, int light, u
 
         lit.lamps = light >= 0 ? 1u << light : 0;
         lit.laser = light == LIGHT_LASER;
-        if (light == LIGHT_LASER) {
-                struct plan_shot s = shot_new(b, PLAN_LASER, &lit, cameras, -1);
+        if (light < 0) {
+                struct plan_shot s = shot_new(b, light == LIGHT_LASER ? PLAN_LASER : PLAN_IMAGE,
+                                              &lit, cameras, -1);
                 return add_shots(b, &s);
         }
         for (size_t k = 0; k < b->sc->n_brackets; k++) {
@@ -432,12 +434,12 @@ static int add_light(struct builder *b, const struct gn_pose *pose, int light, u
         return 0;
 }
 
-/* The shots at one pose: each lamp that lights a camera, then the laser; reversed when
- * that starts with the light still lit from the last pose. */
+/* The shots at one pose: each lamp that lights a camera, then the unlit frame, then the
+ * laser; reversed when that starts with the light still lit from the last pose. */
 static int add_pose(struct builder *b, const struct gn_pose *pose)
 {
-        int lights[RIG_MAX_LAMPS + 1], n = 0, r;
-        uint32_t masks[RIG_MAX_LAMPS + 1];
+        int lights[RIG_MAX_LAMPS + 2], n = 0, r;
+        uint32_t masks[RIG_MAX_LAMPS + 2];
         bool rev;
 
         for (size_t l = 0; l < b->rc->n_lamps; l++) {
@@ -447,6 +449,10 @@ static int add_pose(struct builder *b, const struct gn_pose *pose)
                         return r;
                 if (masks[n])
                         lights[n++] = l;
+        }
+        if (b->sc->unlit) {
+                masks[n] = b->sc->cameras;
+                lights[n++] = LIGHT_NONE;
         }
         if (b->sc->laser) {
                 masks[n] = b->sc->cameras;

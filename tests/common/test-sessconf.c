@@ -120,7 +120,7 @@ static void case_defaults(void)
         CHECK_NEAR(sc->gain, 0, 0);
         CHECK_INT(sc->n_brackets, 1);
         CHECK_NEAR(sc->bracket_ev[0], 0, 0);
-        CHECK(!sc->laser);
+        CHECK(!sc->laser && !sc->unlit);
         CHECK_INT(sc->dark_frames, 0);
         CHECK_INT(sc->dark_max_age_s, 86400);
         CHECK_INT(sc->flat_frames, 0);
@@ -131,8 +131,9 @@ static void case_defaults(void)
 
         sc = expect_ok(sim_rig, "name: n1\ndataset: d\ncameras: [cam1]\nlamps: [lamp2]\n"
                                 "flat_frames: 2\nbrackets: [-1, 0, 2]\nexposure_us: 1000\n"
-                                "gain: 2\nskip_glare: no\nlaser: yes\n");
+                                "gain: 2\nskip_glare: no\nlaser: yes\nunlit: true\n");
         CHECK_STR(sc->name, "n1");
+        CHECK(sc->unlit);
         CHECK_INT(sc->cameras, 0x2);
         CHECK_INT(sc->lamps, 0x4);
         CHECK_INT(sc->flat_lamps, 0x4); /* the session's lamps */
@@ -187,6 +188,7 @@ static const struct {
         {"dataset: d\ncameras: []\n", 2, "cameras", "no camera"},
         {"dataset: d\nlamps: [lamp0, lamp7]\n", 2, "lamps", "unknown lamp 'lamp7'"},
         {"dataset: d\nlamps: []\n", 2, "lamps", "nothing to capture"},
+        {"dataset: d\nlamps: []\nunlit: 3\n", 3, "unlit", ""},
         {"dataset: d\nflat_lamps: [bulb]\n", 2, "flat_lamps", "unknown lamp 'bulb'"},
         {"dataset: d\nsweep:\n  camera_arm: [0, 45,\n    200]\n", 4, "sweep.camera_arm",
          "200 deg is outside the soft limits [-170, 170] of axis 'camera_arm'"},

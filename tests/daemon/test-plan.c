@@ -169,6 +169,38 @@ static void check_calibration(const struct rig_config *rc)
         sessconf_free(sc);
 }
 
+/* unlit: a frame with lamps and laser off at each pose, right next to the laser frame, at
+ * 0 EV like it (bracket -1), with its darks. */
+static void check_unlit(const struct rig_config *rc)
+{
+        struct session_conf *sc;
+        struct plan *p;
+
+        sc = session(rc, "dataset: d\nsweep: { turntable: [0, 90, 180] }\ncameras: [cam1]\n"
+                         "lamps: [lamp0]\nbrackets: [1]\nlaser: true\nunlit: true\n"
+                         "dark_frames: 1\n");
+        p = build(rc, sc, NULL);
+        check_invariants(rc, p, NULL);
+        CHECK_INT(p->n_shots, 2 + 3 * 3); /* darks at +1 and 0 EV; lamp, unlit, laser */
+        for (size_t i = 2; i < p->n_shots; i++) {
+                const struct plan_shot *x = &p->shots[i];
+
+                if (x->kind == PLAN_LASER || x->pose.lamps)
+                        continue;
+                CHECK_INT(x->kind, PLAN_IMAGE); /* the unlit frame */
+                CHECK(!x->pose.laser);
+                CHECK_INT(x->bracket, -1);
+                const struct plan_shot *l = i + 1 < p->n_shots && p->shots[i + 1].kind == PLAN_LASER
+                                                    ? &p->shots[i + 1]
+                                                    : &p->shots[i - 1];
+                CHECK_INT(l->kind, PLAN_LASER); /* next to the laser, at its exposure */
+                CHECK_INT(plan_shot_exposure_us(rc, x, 1), plan_shot_exposure_us(rc, l, 1));
+        }
+        CHECK_INT(p->shots[1].bracket, -1);
+        plan_free(p);
+        sessconf_free(sc);
+}
+
 static void case_expansion(void)
 {
         struct rig_config *rc = rig_load(sim_rig_path);
@@ -202,6 +234,7 @@ static void case_expansion(void)
         plan_free(p);
         sessconf_free(sc);
         check_calibration(rc);
+        check_unlit(rc);
 
         /* 3600 x 3600 poses: refused before anything is built */
         sc = session(rc, "dataset: d\nsweep:\n  turntable: { from: 0, to: 359.9, step: 0.1 }\n"
