@@ -6,7 +6,8 @@
  * completions and frees the queue. workq_push() itself may be called from any thread.
  *
  * Queue: all storage is allocated at creation. A job is "in flight" from a successful
- * push until its done callback was called; at most capacity jobs are in flight, plus
+ * push until just before its done callback is called (a done sees its own job gone,
+ * whichever thread delivers it); at most capacity jobs are in flight, plus
  * WORKQ_URGENT_RESERVE slots that only urgent jobs may take. A push beyond that fails
  * with -EAGAIN: callers see back-pressure instead of unbounded memory.
  *
@@ -113,9 +114,11 @@ static int on_eventfd(sd_event_source *s, int fd, uint32_t revents, void *userda
 static void finish(struct workq *q, struct job *j)
 {
         if (q->efd < 0) {
+                pthread_mutex_lock(&q->lock);
+                q->in_flight--; /* before done, as on the loop (take_finished) */
+                pthread_mutex_unlock(&q->lock);
                 deliver(j);
                 pthread_mutex_lock(&q->lock);
-                q->in_flight--;
                 return;
         }
         pthread_mutex_lock(&q->lock);
@@ -210,12 +213,14 @@ int workq_new(sd_event *event, const char *name, size_t capacity, struct workq *
         return 0;
 }
 
-/* Calls done(-ECANCELED) for each job left in r; caller's thread, worker already joined. */
-static void cancel_ring(struct ring *r)
+/* Calls done(-ECANCELED) for each job left in r, its slot released first; caller's
+ * thread, worker already joined. */
+static void cancel_ring(struct workq *q, struct ring *r)
 {
         struct job j;
 
         while (ring_pop(r, &j)) {
+                q->in_flight--;
                 j.result = -ECANCELED;
                 deliver(&j);
         }
@@ -237,8 +242,8 @@ struct workq *workq_free(struct workq *q)
         q->source = sd_event_source_disable_unref(q->source);
         while (take_finished(q, &j))
                 deliver(&j);
-        cancel_ring(&q->urgent);
-        cancel_ring(&q->normal);
+        cancel_ring(q, &q->urgent);
+        cancel_ring(q, &q->normal);
 
         closep(&q->efd);
         free(q->urgent.v);

@@ -36,5 +36,6 @@ struct workq *workq_free(struct workq *q);
  * the queue is full, -ESHUTDOWN once workq_free() began. */
 int workq_push(struct workq *q, workq_fn fn, workq_done_fn done, void *userdata, bool urgent);
 
-/* Jobs pushed and not yet completed (queued, running or awaiting delivery). Any thread. */
+/* Jobs pushed and not yet completed (queued, running or awaiting delivery); a job no longer
+ * counts during its own done. Any thread. */
 size_t workq_in_flight(struct workq *q);

@@ -91,7 +91,7 @@ static int on_signal(sd_event_source *s, const struct signalfd_siginfo *si, void
         (void)sd_notify(false, "STOPPING=1");
         sd_event_now(m->event, CLOCK_MONOTONIC, &m->shutdown_deadline);
         m->shutdown_deadline += 5 * 1000 * 1000ULL;
-        rig_safe_state(m->rig);
+        rig_shutdown(m->rig); /* no new motion or light from a session, a scan or a client */
         if (sd_event_add_time_relative(m->event, &tick, CLOCK_MONOTONIC, 0, 0, on_shutdown_tick,
                                        m) < 0)
                 return sd_event_exit(m->event, 0);
@@ -171,12 +171,16 @@ struct manager *manager_free(struct manager *m)
 {
         if (!m)
                 return NULL;
-        datasets_free(m);
+        /* First the users of the others: from here on the session and the scan only count
+         * their completions down, whatever frees them (a store, a switch, a load). */
+        if (m->session)
+                session_runner_stop(m->session);
         if (m->scan)
                 scan_abandon(m->scan);
-        m->server = server_free(m->server);
+        datasets_free(m); /* answers the dataset jobs while the capture can take a dataset */
+        m->server = server_free(m->server);           /* pending requests outlive their clients */
         m->capture = capture_free(m->capture);        /* completes pending stores */
-        m->rig = rig_free(m->rig);                    /* safe state */
+        m->rig = rig_free(m->rig);                    /* safe state; drops its completions */
         m->session = session_runner_free(m->session); /* last: the above may call it back */
         m->scan = scan_free(m->scan);
         rigconf_free(m->rc);

@@ -169,6 +169,8 @@ static int job_call(struct bus *b, struct job *j)
         case J_CHECK_SW:
                 return sw_get(switch_slot(rig, j->idx)->sw, &j->on);
         case J_SWITCH:
+                if (j->on && j->gen != atomic_load(&switch_slot(rig, j->idx)->gen))
+                        return -ECANCELED; /* queued before the safe state */
                 return sw_set(switch_slot(rig, j->idx)->sw, j->on);
         case J_OPEN_CAM:
                 return cam_open(rig->cams[j->idx]);
@@ -240,6 +242,7 @@ static void switch_submit(struct rig *rig, struct job *j, bool urgent)
         struct rig_switch *s = switch_slot(rig, j->idx);
 
         s->changing++;
+        j->gen = atomic_load(&s->gen);
         if (rig_submit(j, urgent) < 0)
                 s->changing--;
 }
@@ -262,6 +265,7 @@ void rig_safe_state(struct rig *rig)
         }
         for (int i = rig->rc->has_laser ? -1 : 0; i < (int)rig->rc->n_lamps; i++) {
                 struct job *j;
+                atomic_fetch_add(&switch_slot(rig, i)->gen, 1);
                 if (!switch_slot(rig, i)->open || !(j = calloc(1, sizeof(*j))))
                         continue;
                 *j = (struct job){.rig = rig, .kind = J_SWITCH, .idx = i, .on = false};
@@ -673,6 +677,8 @@ static int start_motion(struct rig *rig, int i, enum axis_op op, double target, 
                leg;
         int r;
 
+        if (rig->closing)
+                return -ESHUTDOWN;
         if (rig->fault)
                 return -ESTALE;
         if (rig->exposure)
@@ -790,6 +796,8 @@ int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata
 
         if (i < 0 && !rig->rc->has_laser)
                 return -ENOENT;
+        if (on && rig->closing)
+                return -ESHUTDOWN;
         if (on && rig->fault)
                 return -ESTALE;
         if (rig->exposure)
@@ -873,6 +881,8 @@ static void open_devices(struct rig *rig)
 
 int rig_clear_fault(struct rig *rig, rig_done_fn done, void *userdata)
 {
+        if (rig->closing)
+                return -ESHUTDOWN;
         if (rig->clear_done)
                 return -EBUSY;
         rig->fault = false;
@@ -1017,6 +1027,12 @@ struct rig *rig_free(struct rig *rig)
                 cam_free(rig->cams[i]);
         free(rig);
         return NULL;
+}
+
+void rig_shutdown(struct rig *rig)
+{
+        rig->closing = true;
+        rig_safe_state(rig);
 }
 
 unsigned rig_pending(const struct rig *rig)

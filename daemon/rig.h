@@ -160,8 +160,14 @@ void rig_fault(struct rig *rig, const char *device, int err, const char *fmt, ..
         __attribute__((format(printf, 4, 5)));
 
 /* Stops every axis and switches lamps and laser off, urgently (asynchronous). Running
- * moves complete with -ECANCELED; axes in motion are followed until they stand still. */
+ * moves complete with -ECANCELED, as do moves and switch-ons queued before (they would run
+ * after the urgent stops); axes in motion are followed until they stand still. */
 void rig_safe_state(struct rig *rig);
+
+/* goniod is exiting: from now on moves, homing, switching on, exposures, streams and fault
+ * clears are refused with -ESHUTDOWN (stops and switching off still run), then the safe state.
+ * Loop thread. */
+void rig_shutdown(struct rig *rig);
 
 /* Device jobs in flight; 0 once the safe state has been reached. */
 unsigned rig_pending(const struct rig *rig);

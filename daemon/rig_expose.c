@@ -190,6 +190,8 @@ void rig_expose_abandon(struct rig *rig)
 /* Why an exposure cannot start now (writing rig->busy for -EBUSY), or 0. */
 static int refusal(struct rig *rig, const int *cams, size_t n)
 {
+        if (rig->closing)
+                return -ESHUTDOWN;
         if (rig->fault)
                 return -ESTALE;
         if (rig->exposure)

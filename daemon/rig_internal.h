@@ -39,6 +39,7 @@ struct rig_switch {
         struct sw *sw;
         bool open;
         unsigned changing; /* switch jobs in flight and warm-ups running */
+        atomic_uint gen;   /* bumped by the safe state; queued switch-ons of older ones drop */
 };
 
 struct exposure;
@@ -69,6 +70,7 @@ struct rig {
         rig_event_fn notify;
         void *notify_ud;
         bool fault, freeing;
+        bool closing; /* rig_shutdown: nothing new is started */
         char fault_device[RIG_NAME_MAX];
         char fault_msg[256];
         char last_error[256];

@@ -91,6 +91,8 @@ int rig_stream_start(struct rig *rig, int i, const struct cam_request *req, rig_
         struct rig_stream *st = &rig->streams[i];
         int r;
 
+        if (rig->closing)
+                return -ESHUTDOWN;
         if (rig->fault)
                 return -ESTALE;
         if (st->on || st->next)

@@ -240,6 +240,8 @@ void session_prepare(struct session_runner *s)
 {
         int r;
 
+        if (s->exiting)
+                return;
         s->positioned = false;
         s->pos_phase = 0;
         s->settle_pending_ms = 0;
@@ -543,7 +545,7 @@ void session_arm_retry(struct session_runner *s)
 {
         int r;
 
-        if (!retry_worth(s))
+        if (s->exiting || !retry_worth(s))
                 return;
         s->retry_timer = sd_event_source_disable_unref(s->retry_timer);
         r = sd_event_add_time_relative(s->m->event, &s->retry_timer, CLOCK_MONOTONIC, RETRY_USEC,
@@ -586,6 +588,8 @@ static void step_stopping(struct session_runner *s)
 
 static void step(struct session_runner *s)
 {
+        if (s->exiting)
+                return; /* goniod is exiting: the capture, the rig or the index may be gone */
         switch (s->state) {
         case S_PREPARING:
                 return step_preparing(s);
@@ -646,6 +650,14 @@ int session_runner_new(struct manager *m, struct session_runner **ret)
         s->m = m;
         *ret = s;
         return 0;
+}
+
+void session_runner_stop(struct session_runner *s)
+{
+        s->exiting = true;
+        s->settle_timer = sd_event_source_disable_unref(s->settle_timer);
+        s->retry_timer = sd_event_source_disable_unref(s->retry_timer);
+        session_answer(s, -ECANCELED, "goniod is shutting down");
 }
 
 struct session_runner *session_runner_free(struct session_runner *s)

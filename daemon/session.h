@@ -20,8 +20,14 @@ typedef void (*session_done_fn)(struct manager *m, int result, const char *msg, 
 /* Creates the runner of m (no session). Returns 0 or -ENOMEM. */
 int session_runner_new(struct manager *m, struct session_runner **ret);
 
+/* goniod is exiting: the session stops driving the rig, the capture pipeline and the index
+ * (its start or resume request is answered -ECANCELED, its timers stop); the completions still
+ * to come only count down. Call first in the shutdown, before anything it uses is freed. */
+void session_runner_stop(struct session_runner *s);
+
 /* Forgets the session without touching the rig or the index (goniod is exiting: the session
- * resumes from the index next time). NULL is a no-op; returns NULL. */
+ * resumes from the index next time). Call after session_runner_stop, once nothing can call it
+ * back (after rig_free). NULL is a no-op; returns NULL. */
 struct session_runner *session_runner_free(struct session_runner *s);
 
 /* True while a session is starting, running, pausing or paused: the rig and the open

@@ -53,6 +53,7 @@ struct session_runner {
         int settle_pending_ms; /* extra settle after the moves in flight */
         int error;             /* first failure of this run: pauses it */
         bool pause_req, abort_req;
+        bool exiting;    /* session_runner_stop: goniod is exiting, nothing more is started */
         bool lights_off; /* pausing or ending: lamps and laser were switched off */
         int64_t planned, captured, captured_run;
         uint64_t t_run_ns, t_progress_ns;

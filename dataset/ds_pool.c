@@ -8,9 +8,10 @@
  * I/O. A job's encode completion arrives on the loop, which hands the job to the
  * writer; the writer's completion arrives on the loop, which calls the caller's done.
  *
- * Capacity: the pool counts a job from ds_pool_store until its done; past capacity it
- * returns -EAGAIN. Every workq is sized for all jobs in flight, so the hand-over to
- * the writer never fails for lack of room.
+ * Capacity: the pool counts a job from ds_pool_store until just before its done is
+ * called (a done sees its own job finished, like every in-flight count of common/workq
+ * and daemon/); past capacity it returns -EAGAIN. Every workq is sized for all jobs
+ * in flight, so the hand-over to the writer never fails for lack of room.
  *
  * Order: with one encoder, rows are committed in submission order; with more, in the
  * order the encodes finish (row ids follow commit order; t_request_ns keeps the order
@@ -55,15 +56,17 @@ struct store_job {
         char error[256]; /* why the job failed, set by the thread that failed it */
 };
 
+/* Answers j and frees it. The job stops counting as in flight before its done runs, so
+ * that done sees the pool as it is after the job (idle after the last one). */
 static void job_finish(struct store_job *j, int result)
 {
         if (result == -ECANCELED && !j->error[0])
                 snprintf(j->error, sizeof(j->error), "cancelled before it was stored");
         if (result < 0)
                 j->capture.id = 0;
+        j->pool->in_flight--;
         if (j->done)
                 j->done(result, &j->capture, result < 0 ? j->error : "", j->userdata);
-        j->pool->in_flight--;
         free(j->png);
         gn_frame_free_data(&j->frame);
         free(j);

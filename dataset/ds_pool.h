@@ -42,5 +42,6 @@ struct ds_pool *ds_pool_free(struct ds_pool *p);
 int ds_pool_store(struct ds_pool *p, struct gn_frame *frame, const struct ds_capture *c,
                   ds_pool_done_fn done, void *userdata);
 
-/* Jobs accepted whose done has not been called yet. Loop thread. */
+/* Jobs accepted whose done has not been called yet; a job no longer counts during its own
+ * done (0 in the last job's done). Loop thread. */
 size_t ds_pool_in_flight(const struct ds_pool *p);

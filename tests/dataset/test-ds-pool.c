@@ -1,11 +1,13 @@
 /* test-ds-pool.c - the storage worker pool on a real sd-event loop: jobs are encoded on
  * worker threads, written by one writer, completed on the loop; the queue is bounded
- * (-EAGAIN) and freeing the pool with jobs pending completes every job exactly once. */
+ * (-EAGAIN) and freeing the pool with jobs pending completes every job exactly once; a done
+ * no longer counts its own job in flight (the last one sees the pool idle). */
 #include <errno.h>
 #include <stdio.h>
 #include <string.h>
 #include <systemd/sd-event.h>
 
+#include "common/cleanup.h"
 #include "dataset/ds.h"
 #include "dataset/ds_pool.h"
 #include "ds-util.h"
@@ -22,6 +24,8 @@ struct job_state {
 
 struct ctx {
         sd_event *event;
+        struct ds_pool *pool;
+        size_t max_seen; /* the largest ds_pool_in_flight() a done saw, plus done before */
         struct job_state jobs[2 * N_JOBS];
         int done, want;
 };
@@ -37,6 +41,8 @@ static void on_done(int result, const struct ds_capture *c, const char *error, v
         struct job_state *s = &ref->ctx->jobs[ref->index];
 
         CHECK(result < 0 ? error[0] && c->id == 0 : !error[0] && c->id > 0);
+        ref->ctx->max_seen =
+                MAX(ref->ctx->max_seen, ds_pool_in_flight(ref->ctx->pool) + ref->ctx->done + 1);
         s->calls++;
         s->result = result;
         s->c = *c;
@@ -107,6 +113,7 @@ int main(void)
         CHECK_INT(ds_create(path, "pool", NULL, &d), 0);
         CHECK_INT(ds_pool_new(ctx.event, d, 0, 4, &p), -EINVAL);
         CHECK_INT(ds_pool_new(ctx.event, d, 2, N_JOBS, &p), 0);
+        ctx.pool = p;
 
         /* a full batch, then back-pressure: completions only arrive on the loop */
         for (int i = 0; i < N_JOBS; i++)
@@ -116,6 +123,7 @@ int main(void)
         ctx.want = N_JOBS;
         CHECK_INT(sd_event_loop(ctx.event), 0);
         CHECK_INT(ds_pool_in_flight(p), 0);
+        CHECK_INT(ctx.max_seen, N_JOBS); /* the last done saw the pool idle */
         for (int i = 0; i < N_JOBS; i++)
                 check_stored(d, &ctx.jobs[i], i);
         CHECK_INT(ds_count(d), N_JOBS);
@@ -130,6 +138,7 @@ int main(void)
                 ok += ctx.jobs[i].result == 0;
         }
         CHECK_INT(ctx.done, 2 * N_JOBS);
+        CHECK_INT(ctx.max_seen, 2 * N_JOBS);
         CHECK_INT(ds_count(d), N_JOBS + ok);
         CHECK_INT(ds_verify(d), 0);
         CHECK_INT(tu_count_tmp(path), 0);

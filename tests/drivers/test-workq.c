@@ -1,6 +1,7 @@
 /* test-workq.c - the worker queue: execution order with urgent jobs, the bounded queue
  * (-EAGAIN, urgent reserve), completions on a real sd-event loop thread, completions on
- * the worker without a loop, and -ECANCELED for jobs dropped by workq_free(). */
+ * the worker without a loop, and -ECANCELED for jobs dropped by workq_free(); in each case
+ * a done no longer sees its own job in flight. */
 #include <errno.h>
 #include <pthread.h>
 #include <semaphore.h>
@@ -23,6 +24,7 @@ struct rec {
         int done_id[MAX_EVENTS], n_done; /* ids in completion order */
         int done_res[MAX_EVENTS];
         bool done_on_loop[MAX_EVENTS];
+        size_t done_in_flight[MAX_EVENTS]; /* workq_in_flight() during each done */
         int expect_done;
         pthread_mutex_t lock;
 };
@@ -56,10 +58,12 @@ static void done(int result, void *userdata)
 {
         struct item *it = userdata;
         struct rec *r = it->rec;
+        size_t in_flight = workq_in_flight(r->q);
         int k;
 
         pthread_mutex_lock(&r->lock);
         k = r->n_done++;
+        r->done_in_flight[k] = in_flight;
         r->done_id[k] = it->id;
         r->done_res[k] = result;
         r->done_on_loop[k] = pthread_equal(pthread_self(), r->loop_thread);
@@ -74,6 +78,13 @@ static void rec_init(struct rec *r, sd_event *event)
         sem_init(&r->started, 0, 0);
         sem_init(&r->gate, 0, 0);
         pthread_mutex_init(&r->lock, NULL);
+}
+
+/* Each done saw its own job and those done before it out of the count of pushed jobs. */
+static void check_done_in_flight(const struct rec *r, int pushed)
+{
+        for (int k = 0; k < r->n_done; k++)
+                CHECK((int)r->done_in_flight[k] <= pushed - k - 1);
 }
 
 static int on_timeout(sd_event_source *s, uint64_t usec, void *userdata)
@@ -120,6 +131,7 @@ static void test_loop_order(void)
                 CHECK(r.done_on_loop[i]);
         }
         CHECK_INT(workq_in_flight(r.q), 0);
+        check_done_in_flight(&r, 6);
         CHECK(workq_free(r.q) == NULL);
         sd_event_source_unref(timer);
         sd_event_unref(event);
@@ -146,6 +158,7 @@ static void test_no_loop(void)
                 CHECK_INT(r.done_res[i], (i + 1) * 10);
                 CHECK(!r.done_on_loop[i]);
         }
+        check_done_in_flight(&r, 3);
         CHECK(workq_free(r.q) == NULL);
 }
 
@@ -196,6 +209,7 @@ static void test_free_cancels(void)
                 CHECK_INT(r.done_res[i], -ECANCELED);
                 CHECK(r.done_on_loop[i]);
         }
+        check_done_in_flight(&r, n);
         sd_event_unref(event);
 }
 

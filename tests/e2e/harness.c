@@ -67,7 +67,7 @@ void write_file(const char *path, const char *text)
         CHECK(fclose(f) == 0);
 }
 
-static double now_s(void)
+double now_s(void)
 {
         return (double)gn_monotonic_ns() * 1e-9;
 }
@@ -298,6 +298,15 @@ static void stop_pid(pid_t pid, const char *what)
         kill(pid, SIGKILL);
         waitpid(pid, &status, 0);
         CHECK(!"did not stop within 10 s of SIGTERM");
+}
+
+void rigenv_term_daemon(struct rigenv *e)
+{
+        pid_t daemon = e->daemon;
+
+        e->daemon = 0; /* reaped by stop_pid: the exit handler must not signal it */
+        stop_pid(daemon, "goniod");
+        start_daemon(e);
 }
 
 void rigenv_stop(struct rigenv *e)
@@ -619,12 +628,12 @@ int64_t sess_planned(struct rigenv *e, const char *file, double *estimate_s)
         return n;
 }
 
-int sess_start_raw(struct rigenv *e, const char *file)
+int sess_send_run(struct rigenv *e, const char *file)
 {
         char *text = NULL, *req;
         size_t len = 0;
         FILE *f = fopen(file, "re");
-        json_t *p, *r;
+        json_t *p;
         int fd = raw_connect(e);
 
         CHECK(f && fd >= 0);
@@ -639,8 +648,16 @@ int sess_start_raw(struct rigenv *e, const char *file)
         req = realloc(req, strlen(req) + 2);
         CHECK(req);
         strcat(req, "\n");
-        r = raw_call(fd, req);
+        CHECK(write(fd, req, strlen(req)) == (ssize_t)strlen(req));
         free(req);
+        return fd;
+}
+
+int sess_start_raw(struct rigenv *e, const char *file)
+{
+        int fd = sess_send_run(e, file);
+        json_t *r = raw_call(fd, "");
+
         if (!json_object_get(r, "result"))
                 print_json("session.run", r);
         CHECK(json_object_get(r, "result"));
@@ -759,12 +776,12 @@ void sess_run_killing(struct rigenv *e, const char *file, const char *const who[
                 fd = kill_and_resume(e, fd, who[k]);
         }
         close(fd);
-        for (int i = 0; i < 600; i++) { /* the session ends or pauses (a kill hit its end) */
+        /* the session ends, or pauses (a kill hit its end) */
+        for (double end = now_s() + 60; now_s() < end; usleep(100000)) {
                 char state[32];
                 if (strcmp(sess_state(e, state, sizeof(state)), "none") == 0)
                         break;
                 if (strcmp(state, "paused") == 0)
                         CHECK_INT(ctl(e, NULL, "session", "resume", NULL), 0);
-                usleep(100000);
         }
 }

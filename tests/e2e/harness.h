@@ -33,6 +33,14 @@ void rigenv_start_logged(struct rigenv *e, char **argv, double time_scale);
  * socket and data. */
 void rigenv_crash_daemon(struct rigenv *e);
 
+/* SIGTERMs goniod, checks that it exits with status 0 within 10 s, and starts it again on
+ * the same rig, socket and data. */
+void rigenv_term_daemon(struct rigenv *e);
+
+/* The monotonic clock in seconds: waits in tests have deadlines in seconds, never a count of
+ * polls (a loaded machine makes each poll slower). */
+double now_s(void);
+
 /* Writes text to path (the test fails if it cannot). */
 void write_file(const char *path, const char *text);
 
@@ -106,6 +114,10 @@ const char *sess_write(struct rigenv *e, const char *name, const char *text, cha
 /* The capture count session.plan gives for file (checked > 0); its estimate_s into
  * *estimate_s unless NULL. */
 int64_t sess_planned(struct rigenv *e, const char *file, double *estimate_s);
+
+/* Sends session.run of file on a new raw connection without waiting for its answer (the
+ * next raw_call on it returns it); returns that connection's fd. */
+int sess_send_run(struct rigenv *e, const char *file);
 
 /* Sends session.run of file on a new raw connection, checks that it is answered with a
  * result (the session runs) and returns that connection's fd. */

@@ -17,14 +17,6 @@
 
 #define N_RUDE 300
 
-static double now_s(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
 /* The first line fd received: the server's reason for dropping it. */
 static void expect_evicted(int fd)
 {

@@ -27,14 +27,13 @@ static bool switch_on(json_t *st, const char *name)
 /* Waits until every lamp and the laser report off. */
 static void wait_all_off(struct rigenv *e)
 {
-        for (int tries = 0; tries < 100; tries++) {
+        for (double end = now_s() + 10; now_s() < end; usleep(50000)) {
                 json_t *st = ctl_ok(e, "status", NULL);
                 bool any =
                         switch_on(st, "lamp0") || switch_on(st, "lamp1") || switch_on(st, "laser");
                 json_decref(st);
                 if (!any)
                         return;
-                usleep(50000);
         }
         CHECK(!"lamps and laser did not go off after the fault");
 }

@@ -115,7 +115,7 @@ static void check_safe(struct rigenv *e)
         bool moving = true;
         size_t i;
 
-        for (int tries = 0; tries < 100 && moving; tries++) {
+        for (double end = now_s() + 10; moving && now_s() < end;) {
                 json_decref(st);
                 usleep(50000);
                 st = ctl_ok(e, "status", NULL);

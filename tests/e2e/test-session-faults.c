@@ -2,8 +2,10 @@
  * disk (ENOSPC) pauses the session with its cause and it resumes once space is freed; the
  * timing model's estimate matches a run at the simulator's real speed; a client that never
  * reads and 100 watching clients neither stall the session nor starve each other; abort
- * stops motion and leaves a consistent dataset; a paused session survives kill -9 of goniod.
- * One case per run: goniod gonioctl gonio-sim CASE. */
+ * stops motion and leaves a consistent dataset; a paused session survives kill -9 of goniod;
+ * sessions aborted the moment they run, many times, each end recorded (run-abort); SIGTERM
+ * at any moment of a session, many times, ends goniod with status 0 and the laser and the
+ * lamps off (sigterm). One case per run: goniod gonioctl gonio-sim CASE. */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -45,11 +47,6 @@ static const char *write_session(struct rigenv *e, const char *name, const char 
         snprintf(text, sizeof(text), "name: %s\ndataset: %s\n%s", name, dataset, body);
         snprintf(base, sizeof(base), "%s.yaml", name);
         return sess_write(e, base, text, path, len);
-}
-
-static double now_s(void)
-{
-        return (double)gn_monotonic_ns() * 1e-9;
 }
 
 /* gonio-sim's actual state (angles, lamps, laser). */
@@ -503,6 +500,93 @@ static void test_restart_paused(struct rigenv *e)
         sess_check_complete(e, "ds1", "s1", n);
 }
 
+/* ---- run-abort and sigterm: many short sessions ---- */
+
+/* Dark frames first (lamps and laser off, so the abort has nothing to switch off), then
+ * lit shots. */
+static const char *const dark_text = "sweep:\n"
+                                     "  turntable: [0, 90]\n"
+                                     "cameras: [cam0, cam1]\n"
+                                     "lamps: [lamp0]\n"
+                                     "laser: true\n"
+                                     "dark_frames: 3\n"
+                                     "skip_occluded: false\n"
+                                     "skip_glare: false\n";
+
+#define CYCLES_MAX    40 /* short sessions per case */
+#define CYCLES_BUDGET 60 /* seconds: fewer cycles on a slow machine */
+
+/* Session i of the case: named name-i, into dataset name-i; its file into path. */
+static const char *cycle_session(struct rigenv *e, const char *name, int i, char *path, size_t len)
+{
+        char sname[32];
+
+        snprintf(sname, sizeof(sname), "%s%d", name, i);
+        return write_session(e, sname, sname, dark_text, path, len);
+}
+
+/* Each session is aborted as soon as it runs, while its first stores are in flight (the
+ * last store's answer records the end): goniod survives every one and records it aborted,
+ * with a consistent dataset. */
+static void test_run_abort(struct rigenv *e)
+{
+        struct ds_session_info info = {0};
+        double end = now_s() + CYCLES_BUDGET;
+        char file[400], name[32];
+        int i;
+
+        for (i = 0; i < CYCLES_MAX && now_s() < end; i++) {
+                int fd = sess_start_raw(e, cycle_session(e, "ra", i, file, sizeof(file)));
+                json_t *r;
+
+                usleep(rand() % 3000);
+                r = raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":2,\"method\":\"session.abort\"}\n");
+                CHECK(json_object_get(r, "result"));
+                json_decref(r);
+                json_decref(raw_wait_note(fd, "session.state", "none", 20));
+                close(fd);
+                snprintf(name, sizeof(name), "ra%d", i);
+                sess_info(e, name, name, &info);
+                CHECK_STR(info.state, "aborted");
+                ds_session_info_clear(&info);
+                CHECK_INT(sess_problems(e, name), 0);
+        }
+        fprintf(stderr, "%d sessions aborted the moment they ran\n", i);
+        CHECK(i >= 5);
+}
+
+/* SIGTERM at a random moment of a session (sent, loading, preparing, running, or pausing):
+ * goniod exits with status 0 every time (rigenv_term_daemon) and gonio-sim has the laser and
+ * every lamp off. */
+static void test_sigterm(struct rigenv *e)
+{
+        static const char pause_req[] =
+                "{\"jsonrpc\":\"2.0\",\"id\":3,\"method\":\"session.pause\"}\n";
+        double end = now_s() + CYCLES_BUDGET;
+        char file[400];
+        int i;
+
+        for (i = 0; i < CYCLES_MAX && now_s() < end; i++) {
+                int fd = sess_send_run(e, cycle_session(e, "t", i, file, sizeof(file)));
+                json_t *st, *v;
+                size_t k;
+
+                usleep(rand() % 400000);
+                if (i % 3 == 2) /* pausing: the pause is in flight when the signal comes */
+                        CHECK(write(fd, pause_req, strlen(pause_req)) ==
+                              (ssize_t)strlen(pause_req));
+                usleep(rand() % 20000);
+                rigenv_term_daemon(e);
+                close(fd);
+                st = sim_state(e);
+                CHECK(!json_is_true(json_object_get(st, "laser")));
+                json_array_foreach(json_object_get(st, "lamps"), k, v) CHECK(!json_is_true(v));
+                json_decref(st);
+        }
+        fprintf(stderr, "goniod stopped by SIGTERM %d times during a session\n", i);
+        CHECK(i >= 5);
+}
+
 int main(int argc, char **argv)
 {
         const char *c = argc == 5 ? argv[4] : "";
@@ -527,6 +611,10 @@ int main(int argc, char **argv)
                 test_abort(&e);
         else if (strcmp(c, "restart-paused") == 0)
                 test_restart_paused(&e);
+        else if (strcmp(c, "run-abort") == 0)
+                test_run_abort(&e);
+        else if (strcmp(c, "sigterm") == 0)
+                test_sigterm(&e);
         else
                 CHECK(!"unknown case");
         rigenv_stop(&e);
