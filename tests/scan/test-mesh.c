@@ -18,7 +18,7 @@
 #include "common/cleanup.h"
 #include "common/fileio.h"
 #include "meshread.h"
-#include "scantest.h"
+#include "scanrig.h"
 #include "tests/dataset/ds-util.h"
 
 #define DEG          (M_PI / 180)

@@ -15,7 +15,7 @@
 #include "common/cleanup.h"
 #include "drivers/registry.h"
 #include "meshread.h"
-#include "scantest.h"
+#include "scanrig.h"
 #include "tests/dataset/ds-util.h"
 
 #define ANGLES   60

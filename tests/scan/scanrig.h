@@ -1,4 +1,4 @@
-/* scantest.h - helpers of the scan tests: a rig rendering one camera (800x600, a strong
+/* scanrig.h - helpers of the scan tests: a rig rendering one camera (800x600, a strong
  * lens), a red line laser through the turntable axis and a white lamp, frames rendered
  * in-process by gonio-sim's renderer, and scans with the rig file's nominal calibration. */
 #pragma once

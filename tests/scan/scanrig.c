@@ -1,9 +1,9 @@
-/* scantest.c - helpers of the scan tests (see scantest.h). */
+/* scanrig.c - helpers of the scan tests (see scanrig.h). */
 #include <math.h>
 #include <stdio.h>
 
 #include "calib/scan.h"
-#include "scantest.h"
+#include "scanrig.h"
 
 static const char lamps_yaml[] =
         "lamps:\n  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, elevation: 40, "
