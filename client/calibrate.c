@@ -130,6 +130,27 @@ static int prepare(struct solve *s, const char *dataset, const char *file, const
         return EXIT_OK;
 }
 
+/* The calibration file s->file into *f (malloc'd); a missing file (-ENOENT) an error unless
+ * optional, then *f is empty. */
+static int read_calfile(struct solve *s, bool optional, struct cal_file **f)
+{
+        int r;
+
+        *f = calloc(1, sizeof(**f));
+        if (!*f)
+                return -ENOMEM;
+        r = cal_file_read(s->file, *f, s->err, sizeof(s->err));
+        if (r == -ENOENT && optional)
+                return 0;
+        if (r == -ENOENT)
+                snprintf(s->err, sizeof(s->err),
+                         "no calibration file %s: run gonioctl calibrate camera and turntable "
+                         "for each camera first (or name the file that has them with "
+                         "--calibration)",
+                         s->file);
+        return r;
+}
+
 /* ---- on the rig: the capture session ---- */
 
 #define RIG_TIMEOUT_S 30
@@ -138,6 +159,8 @@ static int prepare(struct solve *s, const char *dataset, const char *file, const
 /* What a calibration capture needs of the rig, from describe. */
 struct rig_info {
         char camera[DS_NAME_MAX], lamp[DS_NAME_MAX], laser[DS_NAME_MAX];
+        char cameras[RIG_MAX_CAMERAS][DS_NAME_MAX]; /* every camera */
+        int n_cameras;
         bool camera_arm;
         char calibration[PATH_MAX]; /* the rig's calibration file, "" if none */
 };
@@ -179,6 +202,21 @@ static void find_device(json_t *devs, const char *cls, const char *want, char *o
         }
 }
 
+/* Copies the name of the nth device of class cls into out. */
+static void find_nth(json_t *devs, const char *cls, int nth, char *out, size_t len)
+{
+        json_t *d;
+        size_t i;
+
+        json_array_foreach(devs, i, d)
+        {
+                if (strcmp(json_string_value(json_object_get(d, "class")) ?: "", cls) == 0 &&
+                    nth-- == 0)
+                        snprintf(out, len, "%s",
+                                 json_string_value(json_object_get(d, "name")) ?: "");
+        }
+}
+
 /* The rig's camera (--camera or its only one; one_camera: needed), first lamp, laser, camera
  * arm and calibration file (--calibration or the rig file's), from describe. Returns an exit
  * code. */
@@ -193,6 +231,8 @@ static int rig_info(struct solve *s, struct conn *c, bool one_camera, struct rig
                 return r;
         devs = json_object_get(d, "devices");
         find_device(devs, "camera", s->a->camera, ri->camera, sizeof(ri->camera), &n);
+        for (int i = 0; i < n && i < RIG_MAX_CAMERAS; i++, ri->n_cameras++)
+                find_nth(devs, "camera", i, ri->cameras[i], sizeof(ri->cameras[i]));
         if (one_camera ? !ri->camera[0] || (n > 1 && !s->a->camera) : !n) {
                 out_error(s->o, s->what, "%s: name one of the rig's %d cameras with --camera",
                           s->a->camera ? "no such camera"
@@ -293,6 +333,18 @@ static int capture(struct solve *s, struct conn *c, const char *kind, const stru
         return r;
 }
 
+/* Checks that the file s->file has every camera's intrinsics and pose (for the lamps). */
+static int check_cameras(struct solve *s, const struct rig_info *ri)
+{
+        _cleanup_free_ struct cal_file *f = NULL;
+        struct sec_camera cam;
+        int r = read_calfile(s, false, &f);
+
+        for (int i = 0; r >= 0 && i < ri->n_cameras; i++)
+                r = scan_cal_camera(f, ri->cameras[i], &cam, s->err, sizeof(s->err));
+        return r;
+}
+
 /* Without --from: runs the capture on the rig, then prepares s from its dataset and the
  * rig's calibration file. */
 static int start_rig(struct solve *s, const struct kind *k)
@@ -310,7 +362,8 @@ static int start_rig(struct solve *s, const struct kind *k)
                 return r;
         snprintf(s->camera, sizeof(s->camera), "%s", ri.camera);
         snprintf(s->file, sizeof(s->file), "%s", ri.calibration);
-        if (k->intrinsics && (r = load_intrinsics(s)) < 0) /* before the rig moves */
+        if ((k->intrinsics && (r = load_intrinsics(s)) < 0) || /* before the rig moves */
+            (!k->one_camera && (r = check_cameras(s, &ri)) < 0))
                 return failed(s, r);
         r = capture(s, c, k->name, &ri, path, sizeof(path));
         return r == EXIT_OK ? prepare(s, path, ri.calibration, k) : r;
@@ -503,27 +556,6 @@ static void lamps_in_free(struct lamps_in *in)
 {
         rigconf_free(in->rc);
         free(in->f);
-}
-
-/* The calibration file s->file into *f (malloc'd); a missing file (-ENOENT) an error unless
- * optional, then *f is empty. */
-static int read_calfile(struct solve *s, bool optional, struct cal_file **f)
-{
-        int r;
-
-        *f = calloc(1, sizeof(**f));
-        if (!*f)
-                return -ENOMEM;
-        r = cal_file_read(s->file, *f, s->err, sizeof(s->err));
-        if (r == -ENOENT && optional)
-                return 0;
-        if (r == -ENOENT)
-                snprintf(s->err, sizeof(s->err),
-                         "no calibration file %s: run gonioctl calibrate camera and turntable "
-                         "for each camera first (or name the file that has them with "
-                         "--calibration)",
-                         s->file);
-        return r;
 }
 
 /* The rig file stored with the dataset, the calibration file, and each camera of the
