@@ -272,10 +272,10 @@ static const struct cmd commands[] = {
          CALIBRATE_OPTS | ARG_LASER, TIMEOUT_S, NULL, calibrate_print_laser,
          .local = calibrate_laser},
         {"calibrate", "lamps",
-         "--sphere DIAMETER [--from DATASET] [--lamp-radius MM] [CALIBRATE-OPTS] | --nominal "
-         "[RIG-FILE]",
-         "... and solve the lamps' positions from a mirror sphere on the turntable, or take "
-         "the rig file's",
+         "--sphere MM [--from DATASET] [--lamp-radius MM] [--calibration FILE] [--force] | "
+         "--nominal RIG-FILE",
+         "... and solve the lamps' positions from a mirror sphere off the turntable's axis, "
+         "before a bright background; or write the rig file's (--nominal, or of --from's)",
          NULL, 0, 1,
          ARG_FROM | ARG_FORCE | ARG_CALIBRATION | ARG_SPHERE | ARG_LAMP_RADIUS | ARG_NOMINAL,
          TIMEOUT_S, NULL, calibrate_print_lamps, .local = calibrate_lamps},
