@@ -583,7 +583,7 @@ static int lamps_input(struct solve *s, struct lamps_in *in)
 static json_t *lamp_json(const struct cal_lamp_pos *l, const char *source, const char *kept)
 {
         return json_pack(
-                "{s:s,s:s,s:o,s:f,s:i,s:o?,s:s?}", "lamp", l->name, "source", source, "position_mm",
+                "{s:s,s:s,s:o,s:f,s:i,s:o*,s:s*}", "lamp", l->name, "source", source, "position_mm",
                 vec_json(l->pos, 3), "rms_mm", l->rms_mm, "rays", l->n_obs, "nominal_dist_mm",
                 isnan(l->nominal_dist_mm) ? NULL : json_real(l->nominal_dist_mm), "kept", kept);
 }
