@@ -1,14 +1,14 @@
 /* test-lamps.c - lamp positions from a mirror sphere (calib/lamps.h) against the simulator's
  * ground truth: a 100 mm mirror sphere 70 mm off the axis of a white turntable, three lamps
  * 420-500 mm away lit one at a time, two cameras, sixteen turntable angles, noise on,
- * rendered in-process, stored in a dataset and solved through the dataset library with the
- * true calibration of the rig file (intrinsics and distortion, riggeom_camera_pose). Every
- * lamp must come within TOL_MM of its true position (sim_lamp_position), the sphere within
- * SPHERE_TOL_MM. Also: the same through the in-memory API with the light arm turned, the
- * sphere and highlight finders against the true geometry, a moved sphere and a mislabelled
- * frame rejected, the nominal geometry (truth against an independent formula, and a rig file
- * whose nominal lamp is off by a known amount), and bad input: no sphere in view, a lamp
- * that stays off, a single view, bad arguments. */
+ * rendered in-process (the scene: lampscene.h), stored in a dataset and solved through the dataset
+ * library with the true calibration of the rig file (intrinsics and distortion,
+ * riggeom_camera_pose). Every lamp must come within LS_TOL_MM of its true position
+ * (sim_lamp_position), the sphere within LS_SPHERE_TOL_MM. Also: the same through the in-memory API
+ * with the light arm turned, the sphere and highlight finders against the true geometry, a moved
+ * sphere and a mislabelled frame rejected, the nominal geometry (truth against an independent
+ * formula, and a rig file whose nominal lamp is off by a known amount), and bad input: no sphere in
+ * view, a lamp that stays off, a single view, bad arguments. */
 #include <math.h>
 
 #include "common/cleanup.h"
@@ -16,11 +16,7 @@
 #include "tests/calib/lampscene.h"
 #include "tests/dataset/ds-util.h"
 
-#define TOL_MM        LS_TOL_MM
-#define SPHERE_TOL_MM LS_SPHERE_TOL_MM
-#define SPHERE_MM     LS_SPHERE_MM
-#define ANGLES        LS_ANGLES
-#define DEG           (M_PI / 180)
+#define DEG (M_PI / 180)
 
 static void print_result(int r, const struct cal_lamps *l, const char *err)
 {
@@ -56,19 +52,19 @@ static void check_sphere(const struct cal_lamps *l)
                          l->sphere[2] - LS_SPHERE_TRUE[2]);
 
         fprintf(stderr, "sphere centre: %.3f mm from the truth\n", e);
-        CHECK(e <= SPHERE_TOL_MM);
+        CHECK(e <= LS_SPHERE_TOL_MM);
 }
 
-/* Every lamp of the rig within TOL_MM of the truth. */
+/* Every lamp of the rig within LS_TOL_MM of the truth. */
 static void check_lamps(const struct ls_fixture *fx, const struct cal_lamps *l)
 {
         CHECK_INT(l->n_lamps, fx->t.rc->n_lamps);
         for (size_t k = 0; k < l->n_lamps; k++) {
                 double e = lamp_error(fx, l, k);
                 fprintf(stderr, "lamp %s: %.3f mm from the truth\n", l->lamps[k].name, e);
-                CHECK(e <= TOL_MM);
-                CHECK(l->lamps[k].rms_mm < TOL_MM);
-                CHECK(l->lamps[k].n_obs >= 2 * ANGLES * 3 / 4);
+                CHECK(e <= LS_TOL_MM);
+                CHECK(l->lamps[k].rms_mm < LS_TOL_MM);
+                CHECK(l->lamps[k].n_obs >= 2 * LS_ANGLES * 3 / 4);
         }
 }
 
@@ -83,18 +79,18 @@ static void test_dataset(void)
 
         ls_open(&fx, ls_scene_sphere, 30);
         snprintf(path, sizeof(path), "%s/ds", tmp);
-        d = ls_make_dataset(&fx, path, ANGLES, 3, -1);
+        d = ls_make_dataset(&fx, path, LS_ANGLES, 3, -1);
         r = cal_lamps_solve_ds(d, &fx.o, &l, err, sizeof(err));
         print_result(r, &l, err);
         CHECK_INT(r, 0);
-        CHECK_INT(l.n_views, 2 * ANGLES * 3);
+        CHECK_INT(l.n_views, 2 * LS_ANGLES * 3);
         for (size_t i = 0; i < l.n_views; i++) { /* the rows, without their images */
                 CHECK_INT(l.views[i].row_id, (int64_t)i + 1);
                 CHECK(!l.views[i].im.data);
                 CHECK(l.views[i].used == !l.views[i].reason[0]);
         }
         check_sphere(&l);
-        CHECK_NEAR(l.sphere_diam_mm, SPHERE_MM, 1.0);
+        CHECK_NEAR(l.sphere_diam_mm, LS_SPHERE_MM, 1.0);
         check_lamps(&fx, &l);
         cal_lamps_clear(&l);
         ds_close(d);
@@ -127,16 +123,16 @@ static size_t add_views(struct ls_fixture *fx, struct cal_lamp_view *v, struct g
 static void test_light_arm(void)
 {
         struct ls_fixture fx;
-        struct cal_lamp_view v[2 * ANGLES * 3];
-        struct gn_frame f[2 * ANGLES * 3];
+        struct cal_lamp_view v[2 * LS_ANGLES * 3];
+        struct gn_frame f[2 * LS_ANGLES * 3];
         struct cal_lamps l;
         char err[512];
         size_t n;
         int r;
 
         ls_open(&fx, ls_scene_sphere, 30);
-        n = add_views(&fx, v, f, 0, ANGLES, 35);
-        n += add_views(&fx, v + n, f + n, 1, ANGLES, 35);
+        n = add_views(&fx, v, f, 0, LS_ANGLES, 35);
+        n += add_views(&fx, v + n, f + n, 1, LS_ANGLES, 35);
         r = cal_lamps_solve(v, n, &fx.o, &l, err, sizeof(err));
         l.views = v;
         print_result(r, &l, err);
@@ -158,7 +154,7 @@ static void true_specular(const double s[3], const double c[3], const double l[3
         for (int it = 0; it < 100; it++) {
                 double a[3], b[3], la, lb, ln;
                 for (int k = 0; k < 3; k++) {
-                        q[k] = s[k] + SPHERE_MM / 2 * n[k];
+                        q[k] = s[k] + LS_SPHERE_MM / 2 * n[k];
                         a[k] = c[k] - q[k];
                         b[k] = l[k] - q[k];
                 }
@@ -195,7 +191,7 @@ static void check_image(struct ls_fixture *fx, int cam, double tt)
         true_specular(s, c, l, q);
         CHECK_INT(sim_cam_project(&g, q, uv), 0);
         struct cal_image im = {f.data, f.width, f.height, f.channels, f.bits, f.stride};
-        CHECK_INT(cal_lamps_find_sphere(&im, &fx->cams[cam].cal, SPHERE_MM, 0, &si), 0);
+        CHECK_INT(cal_lamps_find_sphere(&im, &fx->cams[cam].cal, LS_SPHERE_MM, 0, &si), 0);
         CHECK_INT(cal_lamps_find_highlight(&im, &si, hl), 1);
         len = hypot(hypot(x[0], x[1]), x[2]);
         double axis_px =
@@ -222,7 +218,7 @@ static void test_image(void)
                         check_image(&fx, cam, 90.0 * a);
         ls_render(&fx, 0, 0, 0, 3, &f);
         struct cal_image im = {f.data, f.width, f.height, f.channels, f.bits, f.stride};
-        CHECK_INT(cal_lamps_find_sphere(&im, &fx.cams[0].cal, SPHERE_MM, 0, &si), 0);
+        CHECK_INT(cal_lamps_find_sphere(&im, &fx.cams[0].cal, LS_SPHERE_MM, 0, &si), 0);
         CHECK_INT(cal_lamps_find_highlight(&im, &si, hl), 2);
         gn_frame_free_data(&f);
         ls_close(&fx);
@@ -235,7 +231,7 @@ static void test_outliers(void)
 {
         static const char moved[] = "translate: [78, 0, ";
         struct ls_fixture fx, mv;
-        struct cal_lamp_view v[2 * (ANGLES / 2) * 3 + 3]; /* + the moved view's three */
+        struct cal_lamp_view v[2 * (LS_ANGLES / 2) * 3 + 3]; /* + the moved view's three */
         struct gn_frame f[ELEMENTSOF(v)];
         struct cal_lamps l;
         char scene[1024], err[512];
@@ -245,8 +241,8 @@ static void test_outliers(void)
         memcpy(strstr(scene, "translate: [70, 0, "), moved, strlen(moved));
         ls_open(&fx, ls_scene_sphere, 30);
         ls_open(&mv, scene, 30);
-        n = add_views(&fx, v, f, 0, ANGLES / 2, 0);
-        n += add_views(&fx, v + n, f + n, 1, ANGLES / 2, 0);
+        n = add_views(&fx, v, f, 0, LS_ANGLES / 2, 0);
+        n += add_views(&fx, v + n, f + n, 1, LS_ANGLES / 2, 0);
         add_views(&mv, v + n, f + n, 0, 1, 0); /* its lamp 0 view only */
         gn_frame_free_data(&f[n + 1]);
         gn_frame_free_data(&f[n + 2]);
@@ -271,7 +267,7 @@ static void test_outliers(void)
                 fprintf(stderr, "lamp %s: %.3f mm from the truth\n", l.lamps[k].name,
                         lamp_error(&fx, &l, k));
         for (size_t k = 0; k < l.n_lamps; k++)
-                CHECK(lamp_error(&fx, &l, k) <= TOL_MM);
+                CHECK(lamp_error(&fx, &l, k) <= LS_TOL_MM);
         for (size_t i = 0; i < n; i++)
                 gn_frame_free_data(&f[i]);
         ls_close(&mv);
@@ -312,12 +308,12 @@ static void test_lamp_off(void)
 
         ls_open(&fx, ls_scene_sphere, 30);
         snprintf(path, sizeof(path), "%s/ds", tmp);
-        d = ls_make_dataset(&fx, path, ANGLES, 3, 2);
+        d = ls_make_dataset(&fx, path, LS_ANGLES, 3, 2);
         r = cal_lamps_solve_ds(d, &fx.o, &l, err, sizeof(err));
         print_result(r, &l, err);
         CHECK_INT(r, -ENODATA);
         snprintf(want, sizeof(want), "lamp 'l2' gave a reflected ray in 0 of the %d views",
-                 2 * ANGLES);
+                 2 * LS_ANGLES);
         CHECK_STR_CONTAINS(err, want);
         CHECK_STR_CONTAINS(err, "is the lamp off?");
         CHECK_STR_CONTAINS(err, "check that the lamp lights");
@@ -325,7 +321,7 @@ static void test_lamp_off(void)
         CHECK(isnan(l.lamps[2].pos[0]));
         CHECK_INT(l.lamps[2].n_obs, 0);
         for (size_t k = 0; k < 2; k++)
-                CHECK(lamp_error(&fx, &l, k) <= TOL_MM);
+                CHECK(lamp_error(&fx, &l, k) <= LS_TOL_MM);
         cal_lamps_clear(&l);
         ds_close(d);
         tu_rm_rf(tmp);
@@ -360,8 +356,8 @@ static void test_single_view(void)
 static void test_nominal(void)
 {
         struct ls_fixture fx, moved;
-        struct cal_lamp_view v[2 * ANGLES * 3];
-        struct gn_frame f[2 * ANGLES * 3];
+        struct cal_lamp_view v[2 * LS_ANGLES * 3];
+        struct gn_frame f[2 * LS_ANGLES * 3];
         struct gn_pose st = {{0, 0, NAN}, 0, false};
         struct cal_lamps l;
         double truth[3], nom[3], want, e = 30 * DEG, a = 20 * DEG;
@@ -378,14 +374,14 @@ static void test_nominal(void)
         CHECK_NEAR(hypot(hypot(nom[0] - truth[0], nom[1] - truth[1]), nom[2] - truth[2]), 0, 1e-9);
         riggeom_lamp_position(&moved.t.rc->lamps[0], 0, nom);
         want = hypot(hypot(nom[0] - truth[0], nom[1] - truth[1]), nom[2] - truth[2]);
-        n = add_views(&fx, v, f, 0, ANGLES, 0);
-        n += add_views(&fx, v + n, f + n, 1, ANGLES, 0);
+        n = add_views(&fx, v, f, 0, LS_ANGLES, 0);
+        n += add_views(&fx, v + n, f + n, 1, LS_ANGLES, 0);
         fx.o.rc = moved.t.rc;
         CHECK_INT(cal_lamps_solve(v, n, &fx.o, &l, err, sizeof(err)), 0);
         fprintf(stderr, "l0: %.2f mm from the moved nominal (%.2f mm moved), l1 %.2f mm\n",
                 l.lamps[0].nominal_dist_mm, want, l.lamps[1].nominal_dist_mm);
-        CHECK_NEAR(l.lamps[0].nominal_dist_mm, want, TOL_MM);
-        CHECK(l.lamps[1].nominal_dist_mm <= TOL_MM);
+        CHECK_NEAR(l.lamps[0].nominal_dist_mm, want, LS_TOL_MM);
+        CHECK(l.lamps[1].nominal_dist_mm <= LS_TOL_MM);
         for (size_t i = 0; i < n; i++)
                 gn_frame_free_data(&f[i]);
         ls_close(&moved);
