@@ -1,4 +1,5 @@
-/* scan_cal.c - a scan's calibration from a calibration file's sections (scan_cal.h). */
+/* scan_cal.c - a scan's calibration (and a camera's, for the lamps) from a calibration
+ * file's sections (scan_cal.h). */
 #include <errno.h>
 #include <stdio.h>
 #include <string.h>
@@ -14,17 +15,31 @@ static int missing(char *err, size_t errlen, const char *section, const char *na
         return -ENOENT;
 }
 
-int scan_calib_from_file(const struct cal_file *f, const char *camera, const char *laser,
-                         struct scan_calib *out, char *err, size_t errlen)
+int scan_cal_camera(const struct cal_file *f, const char *camera, struct sec_camera *out, char *err,
+                    size_t errlen)
 {
         const struct cal_camera *c = cal_file_camera(f, camera);
         const struct cal_file_turntable *t = cal_file_turntable(f, camera);
-        const struct cal_file_laser *l = cal_file_laser(f, laser);
 
         if (!c)
                 return missing(err, errlen, "cameras", camera, "camera");
         if (!t)
                 return missing(err, errlen, "turntables", camera, "turntable");
+        *out = (struct sec_camera){.k = c->k, .width = c->width, .height = c->height};
+        memcpy(out->R, t->tt.R, sizeof(out->R));
+        memcpy(out->t, t->tt.t, sizeof(out->t));
+        return 0;
+}
+
+int scan_calib_from_file(const struct cal_file *f, const char *camera, const char *laser,
+                         struct scan_calib *out, char *err, size_t errlen)
+{
+        const struct cal_file_laser *l = cal_file_laser(f, laser);
+        struct sec_camera cam;
+        int r = scan_cal_camera(f, camera, &cam, err, errlen);
+
+        if (r < 0)
+                return r;
         if (!l)
                 return missing(err, errlen, "lasers", laser, "laser");
         if (strcmp(l->camera, camera) != 0) {
@@ -34,12 +49,7 @@ int scan_calib_from_file(const struct cal_file *f, const char *camera, const cha
                          laser, l->camera, camera);
                 return -EINVAL;
         }
-        *out = (struct scan_calib){.n_lasers = 1};
-        out->cam.k = c->k;
-        out->cam.width = c->width;
-        out->cam.height = c->height;
-        memcpy(out->cam.R, t->tt.R, sizeof(out->cam.R));
-        memcpy(out->cam.t, t->tt.t, sizeof(out->cam.t));
+        *out = (struct scan_calib){.cam = cam, .n_lasers = 1};
         for (int k = 0; k < 3; k++) { /* the plane n.x + d = 0 through p = -d n */
                 out->plane_n[0][k] = l->plane.n[k];
                 out->plane_p[0][k] = -l->plane.d * l->plane.n[k];

@@ -37,6 +37,9 @@ enum opt_id {
         O_STEP,
         O_MODE,
         O_LAMPS,
+        O_SPHERE,
+        O_LAMP_RADIUS,
+        O_NOMINAL,
 };
 
 static const struct {
@@ -70,6 +73,9 @@ static const struct {
         {"step", O_STEP, true, ARG_STEP},
         {"mode", O_MODE, true, ARG_MODE},
         {"lamps", O_LAMPS, true, ARG_LAMPS},
+        {"sphere", O_SPHERE, true, ARG_SPHERE},
+        {"lamp-radius", O_LAMP_RADIUS, true, ARG_LAMP_RADIUS},
+        {"nominal", O_NOMINAL, false, ARG_NOMINAL},
 };
 
 int args_usage_error(const char *what, const char *fmt, ...)
@@ -175,6 +181,14 @@ static int set_value(struct args *a, enum opt_id id, const char *v)
                 return 0;
         case O_LAMPS:
                 a->lamps = v;
+                return 0;
+        case O_SPHERE:
+                if (args_parse_double(v, &a->sphere_mm) < 0 || a->sphere_mm <= 0)
+                        break;
+                return 0;
+        case O_LAMP_RADIUS:
+                if (args_parse_double(v, &a->lamp_radius_mm) < 0 || a->lamp_radius_mm < 0)
+                        break;
                 return 0;
         default:
                 break;

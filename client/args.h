@@ -26,6 +26,9 @@ enum arg_opt {
         ARG_MODE = 1 << 16,
         ARG_LAMPS = 1 << 17,
         ARG_NO_MESH = 1 << 18,
+        ARG_SPHERE = 1 << 19,
+        ARG_LAMP_RADIUS = 1 << 20,
+        ARG_NOMINAL = 1 << 21,
 };
 
 struct args {
@@ -46,6 +49,8 @@ struct args {
         double start, end, step; /* --start, --end, --step: degrees (scan) */
         const char *mode;        /* --mode (scan) */
         const char *lamps;       /* --lamps: comma-separated names (scan) */
+        double sphere_mm;        /* --sphere: the mirror sphere's diameter (calibrate lamps) */
+        double lamp_radius_mm;   /* --lamp-radius (calibrate lamps) */
         char **words;            /* positional words (command first); borrowed from argv */
         int nwords;
 };

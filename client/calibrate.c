@@ -1,8 +1,8 @@
-/* calibrate.c - gonioctl calibrate camera|turntable|laser: the solves of calib/ on a
- * dataset's calibration captures (--from DATASET, offline), their summaries, and the
- * calibration file they are written into (calib/calfile.h, docs/calibration.md). Every
- * command shares one preparation (board, dataset, camera, intrinsics, file) and one error
- * path. Built with calib/ only where OpenCV is. */
+/* calibrate.c - gonioctl calibrate camera|turntable|laser|lamps: the solves of calib/ on a
+ * dataset's calibration captures (--from DATASET, offline, or captured on the rig as a
+ * session first), their summaries, and the calibration file they are written into
+ * (calib/calfile.h, docs/calibration.md). Every command shares one preparation (dataset,
+ * camera, intrinsics, file) and one error path. Built with calib/ only where OpenCV is. */
 #include <errno.h>
 #include <limits.h>
 #include <math.h>
@@ -17,12 +17,28 @@
 #include <time.h>
 
 #include "calib/calfile.h"
+#include "calib/lamps.h"
+#include "calib/scan.h"
+#include "calib/scan_cal.h"
 #include "client/conn.h"
 #include "client/session.h"
+#include "common/riggeom.h"
 #include "common/yconf.h"
 #include "dataset/ds.h"
+#include "drivers/registry.h"
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ds *, ds_close);
+
+struct solve;
+
+/* What a calibration command solves and what it needs. */
+struct kind {
+        const char *name; /* "camera" */
+        bool board;       /* needs --board (else: lamps, --sphere) */
+        bool one_camera;  /* solves one camera (else every camera of the dataset) */
+        bool intrinsics;  /* needs that camera's intrinsics from the file */
+        int (*fn)(struct solve *s, json_t **ret);
+};
 
 /* One calibration command on its way: what it solves from and writes into. */
 struct solve {
@@ -94,9 +110,9 @@ static int load_intrinsics(struct solve *s)
         return 0;
 }
 
-/* Opens dataset and fills s (file: the calibration file, NULL for DATASET/calibration.yaml);
- * intrinsics: the camera's are needed. Returns an exit code, the error printed. */
-static int prepare(struct solve *s, const char *dataset, const char *file, bool intrinsics)
+/* Opens dataset and fills s (file: the calibration file, NULL for DATASET/calibration.yaml)
+ * for k. Returns an exit code, the error printed. */
+static int prepare(struct solve *s, const char *dataset, const char *file, const struct kind *k)
 {
         int r = ds_open(dataset, &s->d);
 
@@ -108,18 +124,43 @@ static int prepare(struct solve *s, const char *dataset, const char *file, bool 
                 snprintf(s->file, sizeof(s->file), "%s", file);
         else
                 snprintf(s->file, sizeof(s->file), "%s/calibration.yaml", ds_path(s->d));
-        if ((r = pick_camera(s)) < 0 || (intrinsics && (r = load_intrinsics(s)) < 0))
+        if (k->one_camera &&
+            ((r = pick_camera(s)) < 0 || (k->intrinsics && (r = load_intrinsics(s)) < 0)))
                 return failed(s, r);
         return EXIT_OK;
+}
+
+/* The calibration file s->file into *f (malloc'd); a missing file (-ENOENT) an error unless
+ * optional, then *f is empty. */
+static int read_calfile(struct solve *s, bool optional, struct cal_file **f)
+{
+        int r;
+
+        *f = calloc(1, sizeof(**f));
+        if (!*f)
+                return -ENOMEM;
+        r = cal_file_read(s->file, *f, s->err, sizeof(s->err));
+        if (r == -ENOENT && optional)
+                return 0;
+        if (r == -ENOENT)
+                snprintf(s->err, sizeof(s->err),
+                         "no calibration file %s: run gonioctl calibrate camera and turntable "
+                         "for each camera first (or name the file that has them with "
+                         "--calibration)",
+                         s->file);
+        return r;
 }
 
 /* ---- on the rig: the capture session ---- */
 
 #define RIG_TIMEOUT_S 30
+#define LAMPS_ANGLES  16 /* turntable angles of the lamps' capture */
 
 /* What a calibration capture needs of the rig, from describe. */
 struct rig_info {
         char camera[DS_NAME_MAX], lamp[DS_NAME_MAX], laser[DS_NAME_MAX];
+        char cameras[RIG_MAX_CAMERAS][DS_NAME_MAX]; /* every camera */
+        int n_cameras;
         bool camera_arm;
         char calibration[PATH_MAX]; /* the rig's calibration file, "" if none */
 };
@@ -161,9 +202,25 @@ static void find_device(json_t *devs, const char *cls, const char *want, char *o
         }
 }
 
-/* The rig's camera (--camera or its only one), first lamp, laser, camera arm and calibration
- * file (--calibration or the rig file's), from describe. Returns an exit code. */
-static int rig_info(struct solve *s, struct conn *c, struct rig_info *ri)
+/* Copies the name of the nth device of class cls into out. */
+static void find_nth(json_t *devs, const char *cls, int nth, char *out, size_t len)
+{
+        json_t *d;
+        size_t i;
+
+        json_array_foreach(devs, i, d)
+        {
+                if (strcmp(json_string_value(json_object_get(d, "class")) ?: "", cls) == 0 &&
+                    nth-- == 0)
+                        snprintf(out, len, "%s",
+                                 json_string_value(json_object_get(d, "name")) ?: "");
+        }
+}
+
+/* The rig's camera (--camera or its only one; one_camera: needed), first lamp, laser, camera
+ * arm and calibration file (--calibration or the rig file's), from describe. Returns an exit
+ * code. */
+static int rig_info(struct solve *s, struct conn *c, bool one_camera, struct rig_info *ri)
 {
         _cleanup_(json_decrefp) json_t *d = NULL;
         json_t *devs;
@@ -174,7 +231,9 @@ static int rig_info(struct solve *s, struct conn *c, struct rig_info *ri)
                 return r;
         devs = json_object_get(d, "devices");
         find_device(devs, "camera", s->a->camera, ri->camera, sizeof(ri->camera), &n);
-        if (!ri->camera[0] || (n > 1 && !s->a->camera)) {
+        for (int i = 0; i < n && i < RIG_MAX_CAMERAS; i++, ri->n_cameras++)
+                find_nth(devs, "camera", i, ri->cameras[i], sizeof(ri->cameras[i]));
+        if (one_camera ? !ri->camera[0] || (n > 1 && !s->a->camera) : !n) {
                 out_error(s->o, s->what, "%s: name one of the rig's %d cameras with --camera",
                           s->a->camera ? "no such camera"
                           : n          ? "which camera?"
@@ -199,7 +258,7 @@ static int rig_check(struct solve *s, const char *kind, const struct rig_info *r
         const char *lack = !ri->calibration[0]
                                    ? "calibration file: add 'calibration: PATH' to the rig "
                                      "file, or give --calibration FILE"
-                           : !ri->lamp[0] ? "lamp to light the board"
+                           : !ri->lamp[0] ? "lamp"
                            : strcmp(kind, "laser") == 0 && !ri->laser[0]
                                    ? (s->a->laser ? "laser of that name" : "laser")
                                    : NULL;
@@ -210,18 +269,27 @@ static int rig_check(struct solve *s, const char *kind, const struct rig_info *r
         return EXIT_INVALID;
 }
 
-/* The session file of the capture of kind ("camera", "turntable", "laser") named name. */
+/* The session file of the capture of kind ("camera", "turntable", "laser", "lamps") named
+ * name: the board seen by the camera at 12 turntable angles with the first lamp lit (and the
+ * laser), or the mirror sphere seen by every camera at LAMPS_ANGLES angles with each lamp lit
+ * alone. */
 static char *session_text(const char *kind, const char *name, const struct rig_info *ri)
 {
-        char *text = NULL;
-        bool camera = strcmp(kind, "camera") == 0, laser = strcmp(kind, "laser") == 0;
+        char *text = NULL, cams[DS_NAME_MAX + 2], lamps[DS_NAME_MAX + 2], sweep[64];
+        bool camera = strcmp(kind, "camera") == 0, laser = strcmp(kind, "laser") == 0,
+             sphere = strcmp(kind, "lamps") == 0;
 
+        snprintf(cams, sizeof(cams), sphere ? "all" : "[%s]", ri->camera);
+        snprintf(lamps, sizeof(lamps), sphere ? "all" : "[%s]", ri->lamp);
+        snprintf(sweep, sizeof(sweep), "{ from: 0, to: 359, step: %g }",
+                 sphere ? 360.0 / LAMPS_ANGLES : 30.0);
         if (asprintf(&text,
-                     "# gonioctl calibrate %s: the board on the turntable\n"
-                     "name: %s\ndataset: %s\ncameras: [%s]\nlamps: [%s]\nlaser: %s\n"
+                     "# gonioctl calibrate %s: %s on the turntable\n"
+                     "name: %s\ndataset: %s\ncameras: %s\nlamps: %s\nlaser: %s\n"
                      "skip_occluded: false\nskip_glare: false\n"
-                     "sweep:\n  turntable: { from: 0, to: 330, step: 30 }\n%s",
-                     kind, name, name, ri->camera, ri->lamp, laser ? "true" : "false",
+                     "sweep:\n  turntable: %s\n%s",
+                     kind, sphere ? "the mirror sphere" : "the board", name, name, cams, lamps,
+                     laser ? "true" : "false", sweep,
                      camera && ri->camera_arm ? "  camera_arm: [-15, 0, 15]\n" : "") < 0)
                 return NULL;
         return text;
@@ -265,9 +333,21 @@ static int capture(struct solve *s, struct conn *c, const char *kind, const stru
         return r;
 }
 
+/* Checks that the file s->file has every camera's intrinsics and pose (for the lamps). */
+static int check_cameras(struct solve *s, const struct rig_info *ri)
+{
+        _cleanup_free_ struct cal_file *f = NULL;
+        struct sec_camera cam;
+        int r = read_calfile(s, false, &f);
+
+        for (int i = 0; r >= 0 && i < ri->n_cameras; i++)
+                r = scan_cal_camera(f, ri->cameras[i], &cam, s->err, sizeof(s->err));
+        return r;
+}
+
 /* Without --from: runs the capture on the rig, then prepares s from its dataset and the
  * rig's calibration file. */
-static int start_rig(struct solve *s, const char *kind, bool intrinsics)
+static int start_rig(struct solve *s, const struct kind *k)
 {
         _cleanup_(conn_freep) struct conn *c = NULL;
         struct rig_info ri = {0};
@@ -275,33 +355,39 @@ static int start_rig(struct solve *s, const char *kind, bool intrinsics)
         int r = cmd_connect(s->a, s->o, &c);
 
         if (r == EXIT_OK)
-                r = rig_info(s, c, &ri);
+                r = rig_info(s, c, k->one_camera, &ri);
         if (r == EXIT_OK)
-                r = rig_check(s, kind, &ri);
+                r = rig_check(s, k->name, &ri);
         if (r != EXIT_OK)
                 return r;
         snprintf(s->camera, sizeof(s->camera), "%s", ri.camera);
         snprintf(s->file, sizeof(s->file), "%s", ri.calibration);
-        if (intrinsics && (r = load_intrinsics(s)) < 0) /* before the rig moves */
+        if ((k->intrinsics && (r = load_intrinsics(s)) < 0) || /* before the rig moves */
+            (!k->one_camera && (r = check_cameras(s, &ri)) < 0))
                 return failed(s, r);
-        r = capture(s, c, kind, &ri, path, sizeof(path));
-        return r == EXIT_OK ? prepare(s, path, ri.calibration, intrinsics) : r;
+        r = capture(s, c, k->name, &ri, path, sizeof(path));
+        return r == EXIT_OK ? prepare(s, path, ri.calibration, k) : r;
 }
 
-/* Checks the command line and prepares s: from --from DATASET, or from a capture of kind on
- * the rig. */
-static int start(struct solve *s, const char *kind, bool intrinsics)
+/* Checks the command line and prepares s: from --from DATASET, or from a capture of kind k
+ * on the rig. */
+static int start(struct solve *s, const struct kind *k)
 {
         const struct args *a = s->a;
 
-        if (!a->board || cal_board_parse(a->board, &s->board) < 0) {
+        if (k->board && (!a->board || cal_board_parse(a->board, &s->board) < 0)) {
                 args_usage_error(s->what, "needs --board chessboard:XxY:SQUARE or "
                                           "charuco:XxY:SQUARE:MARKER (squares, mm)");
                 return EXIT_USAGE;
         }
+        if (!k->board && !(a->sphere_mm > 0)) {
+                args_usage_error(s->what, "needs --sphere DIAMETER (mm) of the mirror sphere on "
+                                          "the turntable, or --nominal");
+                return EXIT_USAGE;
+        }
         if (!a->from)
-                return start_rig(s, kind, intrinsics);
-        return prepare(s, a->from, a->calib, intrinsics);
+                return start_rig(s, k);
+        return prepare(s, a->from, a->calib, k);
 }
 
 static void finish(struct solve *s)
@@ -455,21 +541,269 @@ static int solve_laser(struct solve *s, json_t **ret)
         return r;
 }
 
+/* ---- lamps ---- */
+
+/* What the lamps' solve reads: the rig file stored with the dataset, the calibration file,
+ * the dataset's cameras with their calibration. */
+struct lamps_in {
+        struct rig_config *rc;
+        struct cal_file *f;
+        struct cal_lamps_camera cams[DS_SUMMARY_MAX_NAMES];
+        size_t n_cams;
+};
+
+static void lamps_in_free(struct lamps_in *in)
+{
+        rigconf_free(in->rc);
+        free(in->f);
+}
+
+/* The rig file stored with the dataset, the calibration file, and each camera of the
+ * dataset with its intrinsics and pose in the turntable frame from the file. */
+static int lamps_input(struct solve *s, struct lamps_in *in)
+{
+        struct ds_summary sum;
+        int r = scan_load_rig(s->d, registry_backends, &in->rc, s->err, sizeof(s->err));
+
+        if (r < 0 || (r = read_calfile(s, false, &in->f)) < 0 || (r = ds_summary(s->d, &sum)) < 0)
+                return r;
+        for (size_t i = 0; i < sum.n_cameras && i < ELEMENTSOF(in->cams); i++) {
+                struct cal_lamps_camera *c = &in->cams[in->n_cams++];
+
+                snprintf(c->name, sizeof(c->name), "%s", sum.cameras[i].name);
+                r = scan_cal_camera(in->f, c->name, &c->cal, s->err, sizeof(s->err));
+                if (r < 0)
+                        return r;
+        }
+        return 0;
+}
+
+/* One lamp's line of the summary; source "measured" or "nominal", kept: why the file's
+ * section was kept (NULL: written). */
+static json_t *lamp_json(const struct cal_lamp_pos *l, const char *source, const char *kept)
+{
+        return json_pack(
+                "{s:s,s:s,s:o,s:f,s:i,s:o*,s:s*}", "lamp", l->name, "source", source, "position_mm",
+                vec_json(l->pos, 3), "rms_mm", l->rms_mm, "rays", l->n_obs, "nominal_dist_mm",
+                isnan(l->nominal_dist_mm) ? NULL : json_real(l->nominal_dist_mm), "kept", kept);
+}
+
+/* Writes l into the file, over a nominal section (no observations) or with --force, else
+ * never over a better one; appends its line to arr. Returns as cal_lamp_write, the error in
+ * s->err unless one is there. */
+static int write_lamp(struct solve *s, const struct cal_file *f, const struct cal_lamp_pos *l,
+                      json_t *arr)
+{
+        const struct cal_lamp_pos *old = cal_file_lamp(f, l->name);
+        bool force = (s->a->given & ARG_FORCE) || (old && old->n_obs == 0);
+        char err[sizeof(s->err)];
+        int r = cal_lamp_write(s->file, l, force, err, sizeof(err));
+
+        json_array_append_new(arr, lamp_json(l, "measured", r < 0 ? err : NULL));
+        if (r < 0 && !s->err[0])
+                snprintf(s->err, sizeof(s->err), "%s", err);
+        return r;
+}
+
+/* Why lamp `lamp` (rig index) of the solve gave no position: its views. */
+static void lamp_failure(const struct cal_lamps *l, int lamp, char *why, size_t len)
+{
+        const char *first = NULL;
+        int lit = 0, rays = 0;
+
+        for (size_t i = 0; i < l->n_views; i++) {
+                const struct cal_lamp_view *v = &l->views[i];
+                if (v->lamp != lamp)
+                        continue;
+                lit++;
+                rays += !isnan(v->highlight[0]) && v->sphere.n_edges;
+                first = first ?: v->reason[0] ? v->reason : NULL;
+        }
+        snprintf(why, len, "a highlight on the sphere in %d of the %d views that light it%s%s%s",
+                 rays, lit, first ? " (" : "", first ?: "", first ? ")" : "");
+}
+
+/* The lamps of the rig the solve gave no position, with why, into arr. */
+static void lamps_failed(const struct rig_config *rc, const struct cal_lamps *l, json_t *arr)
+{
+        for (size_t i = 0; i < rc->n_lamps; i++) {
+                char why[CAL_REASON_MAX + 128] = "never lit alone in the dataset";
+                bool solved = false;
+                for (size_t k = 0; k < l->n_lamps; k++) {
+                        if (l->index[k] != (int)i)
+                                continue;
+                        solved = l->lamps[k].n_obs > 0;
+                        lamp_failure(l, (int)i, why, sizeof(why));
+                }
+                if (!solved)
+                        json_array_append_new(arr, json_pack("{s:s,s:s}", "lamp", rc->lamps[i].name,
+                                                             "reason", why));
+        }
+}
+
+/* The summary of a solve, its lamps written into the file. Returns 0 or the first write's
+ * error. */
+static int lamps_summary(struct solve *s, const struct lamps_in *in, const struct cal_lamps *l,
+                         json_t **ret)
+{
+        json_t *lamps = json_array(), *failed = json_array();
+        int r = 0;
+
+        for (size_t k = 0; lamps && k < l->n_lamps; k++)
+                if (l->lamps[k].n_obs > 0) {
+                        int w = write_lamp(s, in->f, &l->lamps[k], lamps);
+                        r = r ?: w;
+                }
+        if (failed)
+                lamps_failed(in->rc, l, failed);
+        *ret = json_pack("{s:{s:o,s:f,s:f},s:i,s:i,s:o,s:o,s:s}", "sphere", "centre_mm",
+                         vec_json(l->sphere, 3), "rms_mm", l->sphere_rms_mm, "diameter_mm",
+                         l->sphere_diam_mm, "views", (int)l->n_views, "views_used", (int)l->n_used,
+                         "lamps", lamps, "failed", failed, "file", s->file);
+        return r;
+}
+
+/* Appends to s->err what the lamps' capture needs on the turntable. */
+static void lamps_hint(struct solve *s)
+{
+        size_t n = strlen(s->err);
+
+        snprintf(s->err + n, sizeof(s->err) - n,
+                 " (the sphere goes on the turntable 50 to 150 mm off its axis, all of it in "
+                 "view of every camera: docs/calibration.md, \"Lamp positions\")");
+}
+
+static int solve_lamps(struct solve *s, json_t **ret)
+{
+        _cleanup_(lamps_in_free) struct lamps_in in = {0};
+        struct cal_lamps_opts o = {.sphere_mm = s->a->sphere_mm,
+                                   .lamp_radius_mm = s->a->lamp_radius_mm};
+        struct cal_lamps l = {0};
+        int r = lamps_input(s, &in), w;
+
+        if (r < 0)
+                return r;
+        o.rc = in.rc;
+        o.cams = in.cams;
+        o.n_cams = in.n_cams;
+        r = cal_lamps_solve_ds(s->d, &o, &l, s->err, sizeof(s->err));
+        if (r < 0 && (r != -ENODATA || !l.n_lamps)) {
+                if (r == -ENODATA)
+                        lamps_hint(s);
+                cal_lamps_clear(&l);
+                return r;
+        }
+        if (r == 0)
+                s->err[0] = 0;
+        w = lamps_summary(s, &in, &l, ret);
+        if (*ret && (r < 0 || w < 0 || json_array_size(json_object_get(*ret, "failed")))) {
+                /* some lamps solved: their summary, then why not the others */
+                out_result(s->o, calibrate_print_lamps, NULL, *ret);
+                json_decref(*ret);
+                *ret = NULL;
+                if (r == 0 && w == 0)
+                        snprintf(s->err, sizeof(s->err),
+                                 "some of the rig's lamps were never lit alone in dataset %s: "
+                                 "capture each lamp alone",
+                                 ds_path(s->d));
+        }
+        cal_lamps_clear(&l);
+        return r < 0 ? r : w < 0 ? w : *ret ? 0 : -ENODATA;
+}
+
+static const struct kind lamps_kind = {"lamps", false, false, false, solve_lamps};
+
+/* The rig file of --nominal: the dataset's (--from DATASET) or RIG-FILE; the calibration
+ * file (--calibration, else the dataset's or the rig file's) into s->file. Returns an exit
+ * code. */
+static int nominal_rig(struct solve *s, struct rig_config **rc)
+{
+        const struct args *a = s->a;
+        const char *rig = a->nwords > 2 ? a->words[2] : NULL;
+        int r;
+
+        if (!a->from == !rig) {
+                args_usage_error(s->what, "--nominal reads the lamps of RIG-FILE or of the rig "
+                                          "file of --from DATASET: give one of them");
+                return EXIT_USAGE;
+        }
+        if (a->from) {
+                r = prepare(s, a->from, a->calib, &lamps_kind);
+                if (r != EXIT_OK)
+                        return r;
+                r = scan_load_rig(s->d, registry_backends, rc, s->err, sizeof(s->err));
+        } else if ((r = rigconf_load_stored(rig, registry_backends, rc, s->err, sizeof(s->err))) ==
+                   0) {
+                snprintf(s->file, sizeof(s->file), "%s", a->calib ?: (*rc)->calibration);
+                if (!s->file[0]) {
+                        snprintf(s->err, sizeof(s->err),
+                                 "the rig file %s names no calibration file: add 'calibration: "
+                                 "PATH' to it, or give --calibration FILE",
+                                 rig);
+                        r = -EINVAL;
+                }
+        }
+        return r < 0 ? failed(s, r) : EXIT_OK;
+}
+
+/* Writes each lamp's nominal position of rc (riggeom, light arm at 0) into the file, with no
+ * observations, but not over a measured section unless --force; the summary into *ret. */
+static int write_nominal(struct solve *s, const struct rig_config *rc, json_t **ret)
+{
+        _cleanup_free_ struct cal_file *f = NULL;
+        json_t *lamps = json_array();
+        int r = read_calfile(s, true, &f);
+
+        for (size_t i = 0; r >= 0 && lamps && i < rc->n_lamps; i++) {
+                const struct cal_lamp_pos *old = cal_file_lamp(f, rc->lamps[i].name);
+                struct cal_lamp_pos l = {.n_obs = 0};
+
+                if (old && old->n_obs > 0 && !(s->a->given & ARG_FORCE)) {
+                        json_array_append_new(lamps, lamp_json(old, "measured", NULL));
+                        continue;
+                }
+                snprintf(l.name, sizeof(l.name), "%s", rc->lamps[i].name);
+                riggeom_lamp_position(&rc->lamps[i], 0, l.pos);
+                r = cal_lamp_write(s->file, &l, true, s->err, sizeof(s->err));
+                json_array_append_new(lamps, lamp_json(&l, "nominal", NULL));
+        }
+        *ret = r < 0 ? NULL
+                     : json_pack("{s:o,s:[],s:s}", "lamps", lamps, "failed", "file", s->file);
+        if (r < 0)
+                json_decref(lamps);
+        return r;
+}
+
+/* gonioctl calibrate lamps --nominal. */
+static int lamps_nominal(const struct args *a, struct out *o, json_t **ret)
+{
+        struct solve s = {.a = a, .o = o, .what = "calibrate lamps"};
+        struct rig_config *rc = NULL;
+        int r = nominal_rig(&s, &rc);
+
+        if (r == EXIT_OK) {
+                r = write_nominal(&s, rc, ret);
+                r = r < 0 ? failed(&s, r) : *ret ? EXIT_OK : EXIT_PROTOCOL;
+        }
+        rigconf_free(rc);
+        finish(&s);
+        return r;
+}
+
 /* ---- the commands ---- */
 
-/* Runs one calibration command: prepare, solve (fn), summary into *ret. */
-static int run(const struct args *a, struct out *o, const char *kind, bool intrinsics,
-               int (*fn)(struct solve *, json_t **), json_t **ret)
+/* Runs one calibration command: prepare, solve (k->fn), summary into *ret. */
+static int run(const struct args *a, struct out *o, const struct kind *k, json_t **ret)
 {
         char what[32];
         struct solve s = {.a = a, .o = o, .what = what};
         int r;
 
-        snprintf(what, sizeof(what), "calibrate %s", kind);
-        r = start(&s, kind, intrinsics);
+        snprintf(what, sizeof(what), "calibrate %s", k->name);
+        r = start(&s, k);
 
         if (r == EXIT_OK) {
-                r = fn(&s, ret);
+                r = k->fn(&s, ret);
                 r = r < 0 ? failed(&s, r) : *ret ? EXIT_OK : EXIT_PROTOCOL;
         }
         finish(&s);
@@ -478,17 +812,34 @@ static int run(const struct args *a, struct out *o, const char *kind, bool intri
 
 int calibrate_camera(const struct args *a, struct out *o, json_t **ret)
 {
-        return run(a, o, "camera", false, solve_camera, ret);
+        static const struct kind k = {"camera", true, true, false, solve_camera};
+
+        return run(a, o, &k, ret);
 }
 
 int calibrate_turntable(const struct args *a, struct out *o, json_t **ret)
 {
-        return run(a, o, "turntable", true, solve_turntable, ret);
+        static const struct kind k = {"turntable", true, true, true, solve_turntable};
+
+        return run(a, o, &k, ret);
 }
 
 int calibrate_laser(const struct args *a, struct out *o, json_t **ret)
 {
-        return run(a, o, "laser", true, solve_laser, ret);
+        static const struct kind k = {"laser", true, true, true, solve_laser};
+
+        return run(a, o, &k, ret);
+}
+
+int calibrate_lamps(const struct args *a, struct out *o, json_t **ret)
+{
+        if (a->given & ARG_NOMINAL)
+                return lamps_nominal(a, o, ret);
+        if (a->nwords > 2) {
+                args_usage_error("calibrate lamps", "RIG-FILE goes with --nominal only");
+                return EXIT_USAGE;
+        }
+        return run(a, o, &lamps_kind, ret);
 }
 #else
 static int no_opencv(struct out *o, const char *what)
@@ -510,6 +861,11 @@ int calibrate_turntable(const struct args *a, struct out *o, json_t **ret)
 int calibrate_laser(const struct args *a, struct out *o, json_t **ret)
 {
         return no_opencv(o, "calibrate laser");
+}
+
+int calibrate_lamps(const struct args *a, struct out *o, json_t **ret)
+{
+        return no_opencv(o, "calibrate lamps");
 }
 #endif
 
@@ -578,5 +934,43 @@ void calibrate_print_laser(json_t *res)
                num(res, "axis_angle_deg"), num(res, "axis_dist_mm"));
         if (unused && unused[0])
                 printf("  not used: %s\n", unused);
+        printf("written to %s\n", json_string_value(json_object_get(res, "file")));
+}
+
+/* One lamp's line: where, how well, against the nominal geometry; or why not written. */
+static void print_lamp(json_t *l)
+{
+        const char *kept = json_string_value(json_object_get(l, "kept"));
+        bool nominal =
+                strcmp(json_string_value(json_object_get(l, "source")) ?: "", "nominal") == 0;
+
+        printf("  %s (%s): ", json_string_value(json_object_get(l, "lamp")),
+               nominal ? "nominal, from the rig file" : "measured");
+        print_vec("position", json_object_get(l, "position_mm"));
+        if (!nominal)
+                printf(" mm, RMS %.3f mm from %.0f rays, %.2f mm from nominal", num(l, "rms_mm"),
+                       num(l, "rays"), num(l, "nominal_dist_mm"));
+        else
+                printf(" mm");
+        printf(kept ? "\n    not written: %s\n" : "\n", kept);
+}
+
+void calibrate_print_lamps(json_t *res)
+{
+        json_t *sphere = json_object_get(res, "sphere"), *l;
+        size_t i;
+
+        if (sphere) {
+                print_vec("mirror sphere: centre", json_object_get(sphere, "centre_mm"));
+                printf(" mm, RMS %.3f mm, diameter %.2f mm; the rays of %.0f of %.0f views "
+                       "used\n",
+                       num(sphere, "rms_mm"), num(sphere, "diameter_mm"), num(res, "views_used"),
+                       num(res, "views"));
+        }
+        printf("lamps (turntable frame at 0, light arm at 0):\n");
+        json_array_foreach(json_object_get(res, "lamps"), i, l) print_lamp(l);
+        json_array_foreach(json_object_get(res, "failed"), i, l)
+                printf("  %s: failed: %s\n", json_string_value(json_object_get(l, "lamp")),
+                       json_string_value(json_object_get(l, "reason")));
         printf("written to %s\n", json_string_value(json_object_get(res, "file")));
 }

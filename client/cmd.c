@@ -271,6 +271,14 @@ static const struct cmd commands[] = {
          "... and solve the laser plane in the turntable frame", NULL, 0, 0,
          CALIBRATE_OPTS | ARG_LASER, TIMEOUT_S, NULL, calibrate_print_laser,
          .local = calibrate_laser},
+        {"calibrate", "lamps",
+         "--sphere MM [--from DATASET] [--lamp-radius MM] [--calibration FILE] [--force] | "
+         "--nominal RIG-FILE",
+         "... and solve the lamps' positions from a mirror sphere off the turntable's axis, "
+         "before a bright background; or write the rig file's (--nominal, or of --from's)",
+         NULL, 0, 1,
+         ARG_FROM | ARG_FORCE | ARG_CALIBRATION | ARG_SPHERE | ARG_LAMP_RADIUS | ARG_NOMINAL,
+         TIMEOUT_S, NULL, calibrate_print_lamps, .local = calibrate_lamps},
         {NULL, "call", "METHOD [JSON-PARAMS]", "send any request, print its result", NULL, 1, 2, 0,
          TIMEOUT_S, p_call, out_print_pretty},
 };

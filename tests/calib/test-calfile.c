@@ -1,7 +1,9 @@
 /* test-calfile.c - the calibration file (calib/calfile.h): each section written and read back
  * (cameras, turntables, lasers in the turntable frame, lamps), the other sections kept,
  * a worse result kept out unless forced, a laser without its camera's turntable section,
- * and malformed files refused with where. */
+ * and malformed files refused with where; gonioctl calibrate turntable|laser|lamps --from
+ * end to end (the lamps on test-lamps' mirror-sphere scene, lampscene.h), and calibrate lamps
+ * --nominal. */
 #include <fcntl.h>
 #include <math.h>
 #include <stdarg.h>
@@ -11,6 +13,8 @@
 #include "calib/turntable_geom.h"
 #include "common/cleanup.h"
 #include "common/fileio.h"
+#include "common/riggeom.h"
+#include "tests/calib/lampscene.h"
 #include "tests/dataset/ds-util.h"
 #include "tests/render/rtest.h"
 
@@ -429,6 +433,164 @@ static void test_gonioctl(void)
         tu_rm_rf(tmp);
 }
 
+/* ---- gonioctl calibrate lamps, on test-lamps' mirror-sphere scene ---- */
+
+/* The cameras' true calibration of fx written as their camera and turntable sections of the
+ * file at path; c1's turntable section left out when !c1_pose. */
+static void write_true_cameras(const struct ls_fixture *fx, const char *path, bool c1_pose)
+{
+        char err[512];
+
+        for (int i = 0; i < 2; i++) {
+                const struct sec_camera *s = &fx->cams[i].cal;
+                struct cal_camera c = {.board = {CAL_BOARD_CHESSBOARD, 9, 6, 16, 0},
+                                       .width = s->width,
+                                       .height = s->height,
+                                       .k = s->k,
+                                       .rms = 0.1};
+                struct cal_file_turntable tt = {.board = c.board, .tt = {.rms_px = 0.1}};
+                snprintf(c.camera, sizeof(c.camera), "%s", fx->cams[i].name);
+                snprintf(tt.camera, sizeof(tt.camera), "%s", fx->cams[i].name);
+                memcpy(tt.tt.R, s->R, sizeof(s->R));
+                memcpy(tt.tt.t, s->t, sizeof(s->t));
+                CHECK_INT(cal_camera_write(path, &c, true, err, sizeof(err)), 0);
+                if (i == 0 || c1_pose)
+                        CHECK_INT(cal_turntable_write(path, &tt, true, err, sizeof(err)), 0);
+        }
+}
+
+/* Every lamp of the file within LS_TOL_MM of the truth, measured (n_obs > 0). */
+static void check_file_lamps(const struct ls_fixture *fx, const char *path)
+{
+        _cleanup_free_ struct cal_file *f = malloc(sizeof(*f));
+        char err[512];
+
+        CHECK(f);
+        CHECK_INT(cal_file_read(path, f, err, sizeof(err)), 0);
+        for (size_t i = 0; i < fx->t.rc->n_lamps; i++) {
+                const struct cal_lamp_pos *l = cal_file_lamp(f, fx->t.rc->lamps[i].name);
+                CHECK(l);
+                double e = ls_lamp_error(fx, (int)i, l->pos);
+                fprintf(stderr, "lamp %s: %.3f mm from the truth, %d rays\n", l->name, e, l->n_obs);
+                CHECK(e <= LS_TOL_MM);
+                CHECK(l->n_obs >= 2 * LS_ANGLES * 3 / 4);
+        }
+}
+
+/* The lamps solved by gonioctl from a dataset of the sphere and written into the file; the
+ * errors of no calibration file, a camera without its pose, no sphere, a lamp never lit. */
+static void test_gonioctl_lamps(void)
+{
+        _cleanup_free_ char *tmp = tu_tmpdir();
+        struct ls_fixture fx, empty;
+        char out[8192], ds[600], file[700];
+
+        if (!getenv("GONIOCTL")) {
+                fprintf(stderr, "GONIOCTL not set: skipped\n");
+                exit(TEST_SKIP);
+        }
+        ls_open(&fx, ls_scene_sphere, 30);
+        snprintf(ds, sizeof(ds), "%s/sphere", tmp);
+        snprintf(file, sizeof(file), "%s/calibration.yaml", ds);
+        ds_close(ls_make_dataset(&fx, ds, LS_ANGLES, 3, -1));
+        CHECK_INT(gonioctl(out, sizeof(out), "calibrate lamps --from %s --sphere 100", ds), 6);
+        CHECK_STR_CONTAINS(out, "no calibration file");
+        CHECK_STR_CONTAINS(out, "run gonioctl calibrate camera and turntable");
+        write_true_cameras(&fx, file, false);
+        CHECK_INT(gonioctl(out, sizeof(out), "calibrate lamps --from %s --sphere 100", ds), 6);
+        CHECK_STR_CONTAINS(out, "no section turntables.c1");
+        CHECK_STR_CONTAINS(out, "run gonioctl calibrate turntable");
+        write_true_cameras(&fx, file, true);
+        CHECK_INT(gonioctl(out, sizeof(out), "calibrate lamps --from %s", ds), 2);
+        CHECK_STR_CONTAINS(out, "needs --sphere DIAMETER");
+        CHECK_INT(gonioctl(out, sizeof(out),
+                           "calibrate lamps --from %s --sphere 100 --lamp-radius 30", ds),
+                  0);
+        CHECK_STR_CONTAINS(out, "of 96 views used");
+        CHECK_STR_CONTAINS(out, "mirror sphere: centre [70.0");
+        CHECK_STR_CONTAINS(out, "l2 (measured): position [");
+        CHECK_STR_CONTAINS(out, "mm from nominal");
+        check_file_lamps(&fx, file);
+        /* the same again, --json: not worse, written */
+        CHECK_INT(gonioctl(out, sizeof(out),
+                           "--json calibrate lamps --from %s --sphere 100 --lamp-radius 30", ds),
+                  0);
+        CHECK_STR_CONTAINS(out, "\"lamp\":\"l0\"");
+        CHECK_STR_CONTAINS(out, "\"source\":\"measured\"");
+        CHECK_STR_CONTAINS(out, "\"failed\":[]");
+        /* nominal over measured: kept unless --force */
+        CHECK_INT(gonioctl(out, sizeof(out), "calibrate lamps --nominal --from %s", ds), 0);
+        CHECK_STR_CONTAINS(out, "l1 (measured)");
+        check_file_lamps(&fx, file);
+        /* no sphere, then a lamp never lit: the others solved and written, then exit 6 */
+        ls_open(&empty, ls_scene_empty, 30);
+        snprintf(ds, sizeof(ds), "%s/empty", tmp);
+        ds_close(ls_make_dataset(&empty, ds, 2, 3, -1));
+        CHECK_INT(gonioctl(out, sizeof(out),
+                           "calibrate lamps --from %s --sphere 100 --calibration %s", ds, file),
+                  6);
+        CHECK_STR_CONTAINS(out, "found in none of the 12 views");
+        CHECK_STR_CONTAINS(out, "bright even background");
+        CHECK_STR_CONTAINS(out, "50 to 150 mm off its axis");
+        snprintf(ds, sizeof(ds), "%s/two", tmp);
+        ds_close(ls_make_dataset(&fx, ds, LS_ANGLES / 2, 2, -1));
+        CHECK_INT(gonioctl(out, sizeof(out),
+                           "calibrate lamps --from %s --sphere 100 --calibration %s --force", ds,
+                           file),
+                  6);
+        CHECK_STR_CONTAINS(out, "l0 (measured)");
+        CHECK_STR_CONTAINS(out, "l2: failed: never lit alone in the dataset");
+        CHECK_STR_CONTAINS(out, "capture each lamp alone");
+        ls_close(&empty);
+        ls_close(&fx);
+        tu_rm_rf(tmp);
+}
+
+/* --nominal from a rig file: each lamp's rig-file position with no observations, over
+ * nominal ones but not over a measured one unless --force. */
+static void test_nominal(void)
+{
+        _cleanup_free_ char *tmp = tu_tmpdir();
+        struct ls_fixture fx;
+        struct cal_file *f = malloc(sizeof(*f));
+        struct cal_lamp_pos m = {.name = "l1", .pos = {1, 2, 3}, .rms_mm = 0.2, .n_obs = 30};
+        char out[8192], file[600], err[512];
+        double nom[3];
+
+        if (!getenv("GONIOCTL")) {
+                fprintf(stderr, "GONIOCTL not set: skipped\n");
+                exit(TEST_SKIP);
+        }
+        ls_open(&fx, ls_scene_sphere, 30);
+        snprintf(file, sizeof(file), "%s/cal.yaml", tmp);
+        CHECK_INT(gonioctl(out, sizeof(out), "calibrate lamps --nominal %s", fx.t.path), 6);
+        CHECK_STR_CONTAINS(out, "names no calibration file");
+        CHECK_INT(gonioctl(out, sizeof(out), "calibrate lamps --nominal"), 2);
+        CHECK_INT(cal_lamp_write(file, &m, false, err, sizeof(err)), 0);
+        CHECK_INT(gonioctl(out, sizeof(out), "calibrate lamps --nominal %s --calibration %s",
+                           fx.t.path, file),
+                  0);
+        CHECK_STR_CONTAINS(out, "l0 (nominal, from the rig file)");
+        CHECK_STR_CONTAINS(out, "l1 (measured)");
+        CHECK_INT(cal_file_read(file, f, err, sizeof(err)), 0);
+        CHECK_INT(cal_file_lamp(f, "l1")->n_obs, 30);
+        riggeom_lamp_position(&fx.t.rc->lamps[2], 0, nom);
+        CHECK_INT(cal_file_lamp(f, "l2")->n_obs, 0);
+        CHECK_NEAR(cal_file_lamp(f, "l2")->rms_mm, 0, 1e-9);
+        for (int k = 0; k < 3; k++)
+                CHECK_NEAR(cal_file_lamp(f, "l2")->pos[k], nom[k], 1e-3);
+        CHECK_INT(gonioctl(out, sizeof(out),
+                           "--json calibrate lamps --nominal %s --calibration %s --force",
+                           fx.t.path, file),
+                  0);
+        CHECK_STR_CONTAINS(out, "{\"lamp\":\"l1\",\"source\":\"nominal\"");
+        CHECK_INT(cal_file_read(file, f, err, sizeof(err)), 0);
+        CHECK_INT(cal_file_lamp(f, "l1")->n_obs, 0);
+        free(f);
+        ls_close(&fx);
+        tu_rm_rf(tmp);
+}
+
 /* The rig file's key calibration: relative to the rig file's directory, absolute as is,
  * ${VAR} expanded; an empty path refused with file, line and key. */
 static void test_rigkey(void)
@@ -467,9 +629,14 @@ static void test_rigkey(void)
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
-                {"sections", test_sections},       {"never-worse", test_never_worse},
-                {"laser-first", test_laser_first}, {"malformed", test_malformed},
-                {"gonioctl", test_gonioctl},       {"rigkey", test_rigkey},
+                {"sections", test_sections},
+                {"never-worse", test_never_worse},
+                {"laser-first", test_laser_first},
+                {"malformed", test_malformed},
+                {"gonioctl", test_gonioctl},
+                {"rigkey", test_rigkey},
+                {"gonioctl-lamps", test_gonioctl_lamps},
+                {"nominal", test_nominal},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);

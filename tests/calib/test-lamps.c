@@ -1,125 +1,22 @@
 /* test-lamps.c - lamp positions from a mirror sphere (calib/lamps.h) against the simulator's
  * ground truth: a 100 mm mirror sphere 70 mm off the axis of a white turntable, three lamps
  * 420-500 mm away lit one at a time, two cameras, sixteen turntable angles, noise on,
- * rendered in-process, stored in a dataset and solved through the dataset library with the
- * true calibration of the rig file (intrinsics and distortion, riggeom_camera_pose). Every
- * lamp must come within TOL_MM of its true position (sim_lamp_position), the sphere within
- * SPHERE_TOL_MM. Also: the same through the in-memory API with the light arm turned, the
- * sphere and highlight finders against the true geometry, a moved sphere and a mislabelled
- * frame rejected, the nominal geometry (truth against an independent formula, and a rig file
- * whose nominal lamp is off by a known amount), and bad input: no sphere in view, a lamp
- * that stays off, a single view, bad arguments. */
+ * rendered in-process (the scene: lampscene.h), stored in a dataset and solved through the dataset
+ * library with the true calibration of the rig file (intrinsics and distortion,
+ * riggeom_camera_pose). Every lamp must come within LS_TOL_MM of its true position
+ * (sim_lamp_position), the sphere within LS_SPHERE_TOL_MM. Also: the same through the in-memory API
+ * with the light arm turned, the sphere and highlight finders against the true geometry, a moved
+ * sphere and a mislabelled frame rejected, the nominal geometry (truth against an independent
+ * formula, and a rig file whose nominal lamp is off by a known amount), and bad input: no sphere in
+ * view, a lamp that stays off, a single view, bad arguments. */
 #include <math.h>
 
-#include "calib/lamps.h"
 #include "common/cleanup.h"
 #include "common/riggeom.h"
+#include "tests/calib/lampscene.h"
 #include "tests/dataset/ds-util.h"
-#include "tests/render/rtest.h"
 
-#define TOL_MM         1.0 /* lamp position against the truth */
-#define SPHERE_TOL_MM  0.3 /* sphere centre against the truth */
-#define SPHERE_MM      100.0
-#define LAMP_RADIUS_MM 30.0 /* scene.lamps.radius */
-#define ANGLES         16
-#define DEG            (M_PI / 180)
-
-static const char lamps_fmt[] =
-        "lamps:\n"
-        "  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, elevation: %g, radius: 500,\n"
-        "      azimuth: 20, intensity: 3.0e5 }\n"
-        "  - { name: l1, modbus-coil: { bus: relays, coil: 1 }, elevation: 55, radius: 500,\n"
-        "      azimuth: 140, intensity: 3.0e5 }\n"
-        "  - { name: l2, modbus-coil: { bus: relays, coil: 2 }, elevation: 40, radius: 420,\n"
-        "      azimuth: 250, intensity: 3.0e5 }\n";
-static const char cams[] =
-        "cameras:\n"
-        "  - { name: c0, sim: { bus: frames }, elevation: 30, distance: 450, azimuth: 0,\n"
-        "      target: [0, 0, 30], width: 1024, height: 768, fx: 1600, fy: 1600,\n"
-        "      distortion: [-0.08, 0.05, 0.0005, -0.0004, 0], exposure_us: 20000 }\n"
-        "  - { name: c1, sim: { bus: frames }, elevation: 40, distance: 480, azimuth: 70,\n"
-        "      target: [0, 0, 30], width: 1024, height: 768, fx: 1500, fy: 1500,\n"
-        "      exposure_us: 20000 }\n";
-static const char scene_sphere[] =
-        "scene:\n  seed: 3\n"
-        "  targets:\n"
-        "    - { type: mirror_sphere, size: 100, reflectance: 0.6, pose: { translate: [70, 0, "
-        "0] } }\n"
-        "  turntable: { radius: 400, albedo: 0.8 }\n"
-        "  lamps: { radius: 30 }\n"
-        "  sensor: { black_level: 0.02 }\n";
-static const char scene_empty[] =
-        "scene:\n  seed: 3\n"
-        "  object: { shape: cylinder, size: 60, material: { albedo: 0.5 } }\n"
-        "  turntable: { radius: 400, albedo: 0.8 }\n"
-        "  lamps: { radius: 30 }\n";
-
-/* The sphere's true centre in the object frame. */
-static const double SPHERE_TRUE[3] = {70, 0, SPHERE_MM / 2};
-
-/* A rendering rig and the solve's options built from its true calibration. */
-struct fixture {
-        struct rtest t;
-        struct cal_lamps_camera cams[2];
-        struct cal_lamps_opts o;
-        uint64_t seq;
-};
-
-static void fx_open(struct fixture *fx, const char *scene, double l0_elevation)
-{
-        char lamps[1024];
-
-        memset(fx, 0, sizeof(*fx));
-        snprintf(lamps, sizeof(lamps), lamps_fmt, l0_elevation);
-        rt_open(&fx->t, lamps, "", cams, scene);
-        for (size_t i = 0; i < fx->t.rc->n_cameras; i++) {
-                const struct rig_camera_conf *cc = &fx->t.rc->cameras[i];
-                struct sec_camera *c = &fx->cams[i].cal;
-                snprintf(fx->cams[i].name, sizeof(fx->cams[i].name), "%s", cc->name);
-                c->k = (struct cal_intrinsics){
-                        .fx = cc->fx, .fy = cc->fy, .cx = cc->cx, .cy = cc->cy};
-                memcpy(c->k.dist, cc->dist, sizeof(c->k.dist));
-                c->width = cc->width;
-                c->height = cc->height;
-                riggeom_camera_pose(cc, 0, c->R, c->t);
-        }
-        fx->o = (struct cal_lamps_opts){.rc = fx->t.rc,
-                                        .cams = fx->cams,
-                                        .n_cams = fx->t.rc->n_cameras,
-                                        .sphere_mm = SPHERE_MM,
-                                        .lamp_radius_mm = LAMP_RADIUS_MM};
-}
-
-static void fx_close(struct fixture *fx)
-{
-        rt_close(&fx->t);
-}
-
-/* Renders camera cam at turntable angle tt, light arm arm, lamps `lit` (noise on). */
-static void render(struct fixture *fx, int cam, double tt, double arm, uint32_t lit,
-                   struct gn_frame *f)
-{
-        struct gn_pose st = {{tt, arm, NAN}, lit, false};
-        char name[64];
-
-        CHECK_INT(sim_render(fx->t.s, &st, cam, NULL, ++fx->seq, f, 0, NULL), 0);
-        snprintf(name, sizeof(name), "lamps-c%d-%03.0f-%u", cam, tt, lit);
-        rt_dump(f, name); /* RTEST_DUMP=dir keeps the views */
-}
-
-/* Stores a view of camera cam, angle tt, lamp `lamp` lit in the pose recorded; `lit` are the
- * lamps actually lit when rendering. */
-static void store(struct fixture *fx, struct ds *d, int cam, double tt, int lamp, uint32_t lit)
-{
-        struct gn_frame f;
-        struct ds_capture c = {.pose = {{tt, NAN, NAN}, 1u << lamp, false}, .exposure_us = 20000};
-
-        snprintf(c.camera, sizeof(c.camera), "%s", fx->cams[cam].name);
-        snprintf(c.lamps, sizeof(c.lamps), "%s", fx->t.rc->lamps[lamp].name);
-        render(fx, cam, tt, NAN, lit, &f);
-        CHECK_INT(ds_store(d, &f, &c), 0);
-        gn_frame_free_data(&f);
-}
+#define DEG (M_PI / 180)
 
 static void print_result(int r, const struct cal_lamps *l, const char *err)
 {
@@ -144,85 +41,65 @@ static void print_result(int r, const struct cal_lamps *l, const char *err)
 }
 
 /* Distance of lamp k of l from its true position (light arm at 0). */
-static double lamp_error(const struct fixture *fx, const struct cal_lamps *l, size_t k)
+static double lamp_error(const struct ls_fixture *fx, const struct cal_lamps *l, size_t k)
 {
-        struct gn_pose st = {{0, 0, NAN}, 0, false};
-        double truth[3];
-
-        CHECK_INT(sim_lamp_position(fx->t.s, &st, l->index[k], truth), 0);
-        return hypot(hypot(l->lamps[k].pos[0] - truth[0], l->lamps[k].pos[1] - truth[1]),
-                     l->lamps[k].pos[2] - truth[2]);
+        return ls_lamp_error(fx, l->index[k], l->lamps[k].pos);
 }
 
 static void check_sphere(const struct cal_lamps *l)
 {
-        double e = hypot(hypot(l->sphere[0] - SPHERE_TRUE[0], l->sphere[1] - SPHERE_TRUE[1]),
-                         l->sphere[2] - SPHERE_TRUE[2]);
+        double e = hypot(hypot(l->sphere[0] - LS_SPHERE_TRUE[0], l->sphere[1] - LS_SPHERE_TRUE[1]),
+                         l->sphere[2] - LS_SPHERE_TRUE[2]);
 
         fprintf(stderr, "sphere centre: %.3f mm from the truth\n", e);
-        CHECK(e <= SPHERE_TOL_MM);
+        CHECK(e <= LS_SPHERE_TOL_MM);
 }
 
-/* Every lamp of the rig within TOL_MM of the truth. */
-static void check_lamps(const struct fixture *fx, const struct cal_lamps *l)
+/* Every lamp of the rig within LS_TOL_MM of the truth. */
+static void check_lamps(const struct ls_fixture *fx, const struct cal_lamps *l)
 {
         CHECK_INT(l->n_lamps, fx->t.rc->n_lamps);
         for (size_t k = 0; k < l->n_lamps; k++) {
                 double e = lamp_error(fx, l, k);
                 fprintf(stderr, "lamp %s: %.3f mm from the truth\n", l->lamps[k].name, e);
-                CHECK(e <= TOL_MM);
-                CHECK(l->lamps[k].rms_mm < TOL_MM);
-                CHECK(l->lamps[k].n_obs >= 2 * ANGLES * 3 / 4);
+                CHECK(e <= LS_TOL_MM);
+                CHECK(l->lamps[k].rms_mm < LS_TOL_MM);
+                CHECK(l->lamps[k].n_obs >= 2 * LS_ANGLES * 3 / 4);
         }
-}
-
-/* A dataset of both cameras at ANGLES turntable angles with each lamp lit in turn; lamp
- * `off` (-1: none) recorded as lit but left off. */
-static struct ds *make_dataset(struct fixture *fx, const char *path, int off)
-{
-        struct ds *d;
-
-        CHECK_INT(ds_create(path, "lamps", "rig: test\n", &d), 0);
-        for (int a = 0; a < ANGLES; a++)
-                for (int cam = 0; cam < 2; cam++)
-                        for (int lamp = 0; lamp < (int)fx->t.rc->n_lamps; lamp++)
-                                store(fx, d, cam, 360.0 * a / ANGLES, lamp,
-                                      lamp == off ? 0 : 1u << lamp);
-        return d;
 }
 
 static void test_dataset(void)
 {
         _cleanup_free_ char *tmp = tu_tmpdir();
-        struct fixture fx;
+        struct ls_fixture fx;
         struct cal_lamps l;
         char path[512], err[512];
         struct ds *d;
         int r;
 
-        fx_open(&fx, scene_sphere, 30);
+        ls_open(&fx, ls_scene_sphere, 30);
         snprintf(path, sizeof(path), "%s/ds", tmp);
-        d = make_dataset(&fx, path, -1);
+        d = ls_make_dataset(&fx, path, LS_ANGLES, 3, -1);
         r = cal_lamps_solve_ds(d, &fx.o, &l, err, sizeof(err));
         print_result(r, &l, err);
         CHECK_INT(r, 0);
-        CHECK_INT(l.n_views, 2 * ANGLES * 3);
+        CHECK_INT(l.n_views, 2 * LS_ANGLES * 3);
         for (size_t i = 0; i < l.n_views; i++) { /* the rows, without their images */
                 CHECK_INT(l.views[i].row_id, (int64_t)i + 1);
                 CHECK(!l.views[i].im.data);
                 CHECK(l.views[i].used == !l.views[i].reason[0]);
         }
         check_sphere(&l);
-        CHECK_NEAR(l.sphere_diam_mm, SPHERE_MM, 1.0);
+        CHECK_NEAR(l.sphere_diam_mm, LS_SPHERE_MM, 1.0);
         check_lamps(&fx, &l);
         cal_lamps_clear(&l);
         ds_close(d);
         tu_rm_rf(tmp);
-        fx_close(&fx);
+        ls_close(&fx);
 }
 
 /* Views for the in-memory API: camera cam, angles, light arm at arm for every other angle. */
-static size_t add_views(struct fixture *fx, struct cal_lamp_view *v, struct gn_frame *f, int cam,
+static size_t add_views(struct ls_fixture *fx, struct cal_lamp_view *v, struct gn_frame *f, int cam,
                         int n_angles, double arm)
 {
         size_t n = 0;
@@ -230,7 +107,7 @@ static size_t add_views(struct fixture *fx, struct cal_lamp_view *v, struct gn_f
         for (int a = 0; a < n_angles; a++)
                 for (int lamp = 0; lamp < (int)fx->t.rc->n_lamps; lamp++) {
                         double tt = 360.0 * a / n_angles, la = a % 2 ? arm : 0;
-                        render(fx, cam, tt, la, 1u << lamp, &f[n]);
+                        ls_render(fx, cam, tt, la, 1u << lamp, &f[n]);
                         v[n] = (struct cal_lamp_view){{f[n].data, f[n].width, f[n].height,
                                                        f[n].channels, f[n].bits, f[n].stride},
                                                       cam,
@@ -245,17 +122,17 @@ static size_t add_views(struct fixture *fx, struct cal_lamp_view *v, struct gn_f
 /* The in-memory API with the light arm turned by 35 degrees in half of the views. */
 static void test_light_arm(void)
 {
-        struct fixture fx;
-        struct cal_lamp_view v[2 * ANGLES * 3];
-        struct gn_frame f[2 * ANGLES * 3];
+        struct ls_fixture fx;
+        struct cal_lamp_view v[2 * LS_ANGLES * 3];
+        struct gn_frame f[2 * LS_ANGLES * 3];
         struct cal_lamps l;
         char err[512];
         size_t n;
         int r;
 
-        fx_open(&fx, scene_sphere, 30);
-        n = add_views(&fx, v, f, 0, ANGLES, 35);
-        n += add_views(&fx, v + n, f + n, 1, ANGLES, 35);
+        ls_open(&fx, ls_scene_sphere, 30);
+        n = add_views(&fx, v, f, 0, LS_ANGLES, 35);
+        n += add_views(&fx, v + n, f + n, 1, LS_ANGLES, 35);
         r = cal_lamps_solve(v, n, &fx.o, &l, err, sizeof(err));
         l.views = v;
         print_result(r, &l, err);
@@ -265,7 +142,7 @@ static void test_light_arm(void)
         check_lamps(&fx, &l);
         for (size_t i = 0; i < n; i++)
                 gn_frame_free_data(&f[i]);
-        fx_close(&fx);
+        ls_close(&fx);
 }
 
 /* The specular point q of the lamp at l on the true sphere (world centre s) seen from c: the
@@ -277,7 +154,7 @@ static void true_specular(const double s[3], const double c[3], const double l[3
         for (int it = 0; it < 100; it++) {
                 double a[3], b[3], la, lb, ln;
                 for (int k = 0; k < 3; k++) {
-                        q[k] = s[k] + SPHERE_MM / 2 * n[k];
+                        q[k] = s[k] + LS_SPHERE_MM / 2 * n[k];
                         a[k] = c[k] - q[k];
                         b[k] = l[k] - q[k];
                 }
@@ -293,7 +170,7 @@ static void true_specular(const double s[3], const double c[3], const double l[3
 
 /* One view of the finders against the truth: the silhouette's axis through the sphere's true
  * centre (0.5 px), the highlight at the true specular point of its lamp (0.3 px). */
-static void check_image(struct fixture *fx, int cam, double tt)
+static void check_image(struct ls_fixture *fx, int cam, double tt)
 {
         struct gn_pose st = {{tt, 0, NAN}, 1, false};
         struct sim_cam_geom g;
@@ -301,12 +178,12 @@ static void check_image(struct fixture *fx, int cam, double tt)
         struct gn_frame f;
         double s[3], l[3], c[3], q[3], x[3], uv[2], hl[2], len;
 
-        render(fx, cam, tt, 0, 1, &f);
+        ls_render(fx, cam, tt, 0, 1, &f);
         CHECK_INT(sim_camera_geom(fx->t.s, &st, cam, &g), 0);
         CHECK_INT(sim_lamp_position(fx->t.s, &st, 0, l), 0);
-        s[0] = SPHERE_TRUE[0] * cos(tt * DEG);
-        s[1] = SPHERE_TRUE[0] * sin(tt * DEG);
-        s[2] = SPHERE_TRUE[2];
+        s[0] = LS_SPHERE_TRUE[0] * cos(tt * DEG);
+        s[1] = LS_SPHERE_TRUE[0] * sin(tt * DEG);
+        s[2] = LS_SPHERE_TRUE[2];
         for (int k = 0; k < 3; k++) {
                 c[k] = -(g.R[k] * g.t[0] + g.R[3 + k] * g.t[1] + g.R[6 + k] * g.t[2]);
                 x[k] = g.R[3 * k] * s[0] + g.R[3 * k + 1] * s[1] + g.R[3 * k + 2] * s[2] + g.t[k];
@@ -314,7 +191,7 @@ static void check_image(struct fixture *fx, int cam, double tt)
         true_specular(s, c, l, q);
         CHECK_INT(sim_cam_project(&g, q, uv), 0);
         struct cal_image im = {f.data, f.width, f.height, f.channels, f.bits, f.stride};
-        CHECK_INT(cal_lamps_find_sphere(&im, &fx->cams[cam].cal, SPHERE_MM, 0, &si), 0);
+        CHECK_INT(cal_lamps_find_sphere(&im, &fx->cams[cam].cal, LS_SPHERE_MM, 0, &si), 0);
         CHECK_INT(cal_lamps_find_highlight(&im, &si, hl), 1);
         len = hypot(hypot(x[0], x[1]), x[2]);
         double axis_px =
@@ -330,21 +207,21 @@ static void check_image(struct fixture *fx, int cam, double tt)
 /* The finders against the truth, and two lamps lit at once: two highlights. */
 static void test_image(void)
 {
-        struct fixture fx;
+        struct ls_fixture fx;
         struct cal_sphere_image si;
         struct gn_frame f;
         double hl[2];
 
-        fx_open(&fx, scene_sphere, 30);
+        ls_open(&fx, ls_scene_sphere, 30);
         for (int cam = 0; cam < 2; cam++)
                 for (int a = 0; a < 4; a++)
                         check_image(&fx, cam, 90.0 * a);
-        render(&fx, 0, 0, 0, 3, &f);
+        ls_render(&fx, 0, 0, 0, 3, &f);
         struct cal_image im = {f.data, f.width, f.height, f.channels, f.bits, f.stride};
-        CHECK_INT(cal_lamps_find_sphere(&im, &fx.cams[0].cal, SPHERE_MM, 0, &si), 0);
+        CHECK_INT(cal_lamps_find_sphere(&im, &fx.cams[0].cal, LS_SPHERE_MM, 0, &si), 0);
         CHECK_INT(cal_lamps_find_highlight(&im, &si, hl), 2);
         gn_frame_free_data(&f);
-        fx_close(&fx);
+        ls_close(&fx);
 }
 
 /* A view of the sphere moved by 8 mm and a view filed under the wrong lamp among good ones:
@@ -353,23 +230,23 @@ static void test_image(void)
 static void test_outliers(void)
 {
         static const char moved[] = "translate: [78, 0, ";
-        struct fixture fx, mv;
-        struct cal_lamp_view v[2 * (ANGLES / 2) * 3 + 3]; /* + the moved view's three */
+        struct ls_fixture fx, mv;
+        struct cal_lamp_view v[2 * (LS_ANGLES / 2) * 3 + 3]; /* + the moved view's three */
         struct gn_frame f[ELEMENTSOF(v)];
         struct cal_lamps l;
-        char scene[sizeof(scene_sphere)], err[512];
+        char scene[1024], err[512];
         size_t n;
 
-        snprintf(scene, sizeof(scene), "%s", scene_sphere);
+        snprintf(scene, sizeof(scene), "%s", ls_scene_sphere);
         memcpy(strstr(scene, "translate: [70, 0, "), moved, strlen(moved));
-        fx_open(&fx, scene_sphere, 30);
-        fx_open(&mv, scene, 30);
-        n = add_views(&fx, v, f, 0, ANGLES / 2, 0);
-        n += add_views(&fx, v + n, f + n, 1, ANGLES / 2, 0);
+        ls_open(&fx, ls_scene_sphere, 30);
+        ls_open(&mv, scene, 30);
+        n = add_views(&fx, v, f, 0, LS_ANGLES / 2, 0);
+        n += add_views(&fx, v + n, f + n, 1, LS_ANGLES / 2, 0);
         add_views(&mv, v + n, f + n, 0, 1, 0); /* its lamp 0 view only */
         gn_frame_free_data(&f[n + 1]);
         gn_frame_free_data(&f[n + 2]);
-        render(&fx, 1, 45, 0, 1u << 1, &f[n + 1]); /* lamp 1 lit, filed as lamp 0 */
+        ls_render(&fx, 1, 45, 0, 1u << 1, &f[n + 1]); /* lamp 1 lit, filed as lamp 0 */
         v[n + 1] = (struct cal_lamp_view){{f[n + 1].data, f[n + 1].width, f[n + 1].height,
                                            f[n + 1].channels, f[n + 1].bits, f[n + 1].stride},
                                           1,
@@ -390,24 +267,24 @@ static void test_outliers(void)
                 fprintf(stderr, "lamp %s: %.3f mm from the truth\n", l.lamps[k].name,
                         lamp_error(&fx, &l, k));
         for (size_t k = 0; k < l.n_lamps; k++)
-                CHECK(lamp_error(&fx, &l, k) <= TOL_MM);
+                CHECK(lamp_error(&fx, &l, k) <= LS_TOL_MM);
         for (size_t i = 0; i < n; i++)
                 gn_frame_free_data(&f[i]);
-        fx_close(&mv);
-        fx_close(&fx);
+        ls_close(&mv);
+        ls_close(&fx);
 }
 
 /* No sphere in view: -ENODATA saying so. */
 static void test_no_sphere(void)
 {
-        struct fixture fx;
+        struct ls_fixture fx;
         struct cal_lamp_view v[2 * 3];
         struct gn_frame f[2 * 3];
         struct cal_lamps l;
         char err[512];
         size_t n;
 
-        fx_open(&fx, scene_empty, 30);
+        ls_open(&fx, ls_scene_empty, 30);
         n = add_views(&fx, v, f, 0, 2, 0);
         CHECK_INT(cal_lamps_solve(v, n, &fx.o, &l, err, sizeof(err)), -ENODATA);
         fprintf(stderr, "%s\n", err);
@@ -416,27 +293,27 @@ static void test_no_sphere(void)
                 CHECK_STR(v[i].reason, "mirror sphere not found");
                 gn_frame_free_data(&f[i]);
         }
-        fx_close(&fx);
+        ls_close(&fx);
 }
 
 /* A lamp recorded as lit but off: -ENODATA naming it and what to check; the others solved. */
 static void test_lamp_off(void)
 {
         _cleanup_free_ char *tmp = tu_tmpdir();
-        struct fixture fx;
+        struct ls_fixture fx;
         struct cal_lamps l;
         char path[512], err[512], want[128];
         struct ds *d;
         int r;
 
-        fx_open(&fx, scene_sphere, 30);
+        ls_open(&fx, ls_scene_sphere, 30);
         snprintf(path, sizeof(path), "%s/ds", tmp);
-        d = make_dataset(&fx, path, 2);
+        d = ls_make_dataset(&fx, path, LS_ANGLES, 3, 2);
         r = cal_lamps_solve_ds(d, &fx.o, &l, err, sizeof(err));
         print_result(r, &l, err);
         CHECK_INT(r, -ENODATA);
         snprintf(want, sizeof(want), "lamp 'l2' gave a reflected ray in 0 of the %d views",
-                 2 * ANGLES);
+                 2 * LS_ANGLES);
         CHECK_STR_CONTAINS(err, want);
         CHECK_STR_CONTAINS(err, "is the lamp off?");
         CHECK_STR_CONTAINS(err, "check that the lamp lights");
@@ -444,51 +321,51 @@ static void test_lamp_off(void)
         CHECK(isnan(l.lamps[2].pos[0]));
         CHECK_INT(l.lamps[2].n_obs, 0);
         for (size_t k = 0; k < 2; k++)
-                CHECK(lamp_error(&fx, &l, k) <= TOL_MM);
+                CHECK(lamp_error(&fx, &l, k) <= LS_TOL_MM);
         cal_lamps_clear(&l);
         ds_close(d);
         tu_rm_rf(tmp);
-        fx_close(&fx);
+        ls_close(&fx);
 }
 
 /* A single view: the sphere from its diameter, each lamp one ray: -ENODATA asking for more
  * turntable angles or another camera. */
 static void test_single_view(void)
 {
-        struct fixture fx;
+        struct ls_fixture fx;
         struct cal_lamp_view v[3];
         struct gn_frame f[3];
         struct cal_lamps l;
         char err[512];
 
-        fx_open(&fx, scene_sphere, 30);
+        ls_open(&fx, ls_scene_sphere, 30);
         add_views(&fx, v, f, 0, 1, 0);
         CHECK_INT(cal_lamps_solve(v, 1, &fx.o, &l, err, sizeof(err)), -ENODATA);
         fprintf(stderr, "%s\n", err);
         CHECK_STR_CONTAINS(err, "lamp 'l0' gave a reflected ray in 1 of the 1 views that light "
                                 "it, 3 needed");
         CHECK_STR_CONTAINS(err, "more turntable angles or add a camera");
-        CHECK(hypot(l.sphere[0] - SPHERE_TRUE[0], l.sphere[1] - SPHERE_TRUE[1]) < 5);
+        CHECK(hypot(l.sphere[0] - LS_SPHERE_TRUE[0], l.sphere[1] - LS_SPHERE_TRUE[1]) < 5);
         for (size_t i = 0; i < 3; i++)
                 gn_frame_free_data(&f[i]);
-        fx_close(&fx);
+        ls_close(&fx);
 }
 
 /* The truth agrees with an independent formula and with the nominal geometry, and a nominal
  * lamp moved in the rig file shows in nominal_dist_mm. */
 static void test_nominal(void)
 {
-        struct fixture fx, moved;
-        struct cal_lamp_view v[2 * ANGLES * 3];
-        struct gn_frame f[2 * ANGLES * 3];
+        struct ls_fixture fx, moved;
+        struct cal_lamp_view v[2 * LS_ANGLES * 3];
+        struct gn_frame f[2 * LS_ANGLES * 3];
         struct gn_pose st = {{0, 0, NAN}, 0, false};
         struct cal_lamps l;
         double truth[3], nom[3], want, e = 30 * DEG, a = 20 * DEG;
         char err[512];
         size_t n;
 
-        fx_open(&fx, scene_sphere, 30);
-        fx_open(&moved, scene_sphere, 32); /* lamp l0 2 degrees higher in the rig file */
+        ls_open(&fx, ls_scene_sphere, 30);
+        ls_open(&moved, ls_scene_sphere, 32); /* lamp l0 2 degrees higher in the rig file */
         CHECK_INT(sim_lamp_position(fx.t.s, &st, 0, truth), 0);
         CHECK_NEAR(truth[0], 500 * cos(e) * cos(a), 1e-9);
         CHECK_NEAR(truth[1], 500 * cos(e) * sin(a), 1e-9);
@@ -497,30 +374,30 @@ static void test_nominal(void)
         CHECK_NEAR(hypot(hypot(nom[0] - truth[0], nom[1] - truth[1]), nom[2] - truth[2]), 0, 1e-9);
         riggeom_lamp_position(&moved.t.rc->lamps[0], 0, nom);
         want = hypot(hypot(nom[0] - truth[0], nom[1] - truth[1]), nom[2] - truth[2]);
-        n = add_views(&fx, v, f, 0, ANGLES, 0);
-        n += add_views(&fx, v + n, f + n, 1, ANGLES, 0);
+        n = add_views(&fx, v, f, 0, LS_ANGLES, 0);
+        n += add_views(&fx, v + n, f + n, 1, LS_ANGLES, 0);
         fx.o.rc = moved.t.rc;
         CHECK_INT(cal_lamps_solve(v, n, &fx.o, &l, err, sizeof(err)), 0);
         fprintf(stderr, "l0: %.2f mm from the moved nominal (%.2f mm moved), l1 %.2f mm\n",
                 l.lamps[0].nominal_dist_mm, want, l.lamps[1].nominal_dist_mm);
-        CHECK_NEAR(l.lamps[0].nominal_dist_mm, want, TOL_MM);
-        CHECK(l.lamps[1].nominal_dist_mm <= TOL_MM);
+        CHECK_NEAR(l.lamps[0].nominal_dist_mm, want, LS_TOL_MM);
+        CHECK(l.lamps[1].nominal_dist_mm <= LS_TOL_MM);
         for (size_t i = 0; i < n; i++)
                 gn_frame_free_data(&f[i]);
-        fx_close(&moved);
-        fx_close(&fx);
+        ls_close(&moved);
+        ls_close(&fx);
 }
 
 /* Bad arguments: -EINVAL with a sentence. */
 static void test_args(void)
 {
-        struct fixture fx;
+        struct ls_fixture fx;
         struct cal_lamp_view v = {.camera = 2};
         struct cal_lamps l;
         struct cal_lamps_opts o;
         char err[512];
 
-        fx_open(&fx, scene_sphere, 30);
+        ls_open(&fx, ls_scene_sphere, 30);
         o = fx.o;
         o.sphere_mm = 0;
         CHECK_INT(cal_lamps_solve(&v, 1, &o, &l, err, sizeof(err)), -EINVAL);
@@ -528,7 +405,7 @@ static void test_args(void)
         CHECK_INT(cal_lamps_solve(&v, 1, &fx.o, &l, err, sizeof(err)), -EINVAL);
         CHECK_STR_CONTAINS(err, "view 0 names camera 2");
         CHECK_INT(cal_lamps_solve_ds(NULL, &fx.o, &l, err, sizeof(err)), -EINVAL);
-        fx_close(&fx);
+        ls_close(&fx);
 }
 
 int main(int argc, char **argv)

@@ -2,12 +2,16 @@
  * as separate processes): the rig file's `calibration` key, its state in describe (missing
  * at start is a warning, not a failure), its copy into each dataset goniod creates or begins
  * a session on; and `gonioctl calibrate camera|turntable|laser` run on the rig as sessions,
- * solved and written into the rig's calibration file. */
+ * solved and written into the rig's calibration file; `gonioctl calibrate lamps` on a rig
+ * with a mirror sphere (lamps_rig_text), refused before anything moves without the cameras'
+ * sections, then captured, solved against the truth and written. */
 #include <fcntl.h>
+#include <math.h>
 #include <sys/stat.h>
 
 #include "common/cleanup.h"
 #include "common/fileio.h"
+#include "common/riggeom.h"
 #include "common/sha256.h"
 #include "harness.h"
 #include "tests/test.h"
@@ -44,6 +48,43 @@ static const char rig_text[] =
         "    - { type: chessboard, squares: [9, 6], square: 16,\n"
         "        pose: { translate: [10, -72, 110], rotate_x: -135, rotate_z: 90 } }\n"
         "  turntable: { radius: 0 }\n"
+        "  sensor: { black_level: 0.02 }\n";
+
+/* Two cameras and three lamps around a 100 mm mirror sphere 70 mm off the axis of a white
+ * turntable (test-lamps' scene without distortion). */
+static const char lamps_rig_text[] =
+        "rig: lamps\n"
+        "calibration: cal/rig-calibration.yaml\n"
+        "buses:\n"
+        "  - { name: drives, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/drives\", timeout_ms: "
+        "300 }\n"
+        "  - { name: relays, type: modbus-rtu, port: \"${GONIO_SIM_DIR}/relays\", timeout_ms: "
+        "300 }\n"
+        "  - { name: frames, type: sim, port: \"${GONIO_SIM_DIR}/frames.sock\" }\n"
+        "axes:\n"
+        "  - { name: turntable, modbus: { bus: drives, unit: 1 }, continuous: true,\n"
+        "      max_speed: 90, accel: 180, settle_ms: 20 }\n"
+        "lamps:\n"
+        "  - { name: l0, modbus-coil: { bus: relays, unit: 10, coil: 0 }, elevation: 30,\n"
+        "      radius: 500, azimuth: 20, intensity: 3.0e5 }\n"
+        "  - { name: l1, modbus-coil: { bus: relays, unit: 10, coil: 1 }, elevation: 55,\n"
+        "      radius: 500, azimuth: 140, intensity: 3.0e5 }\n"
+        "  - { name: l2, modbus-coil: { bus: relays, unit: 10, coil: 2 }, elevation: 40,\n"
+        "      radius: 420, azimuth: 250, intensity: 3.0e5 }\n"
+        "cameras:\n"
+        "  - { name: c0, sim: { bus: frames }, elevation: 30, distance: 450, azimuth: 0,\n"
+        "      target: [0, 0, 30], width: 1024, height: 768, fx: 1600, fy: 1600,\n"
+        "      exposure_us: 20000 }\n"
+        "  - { name: c1, sim: { bus: frames }, elevation: 40, distance: 480, azimuth: 70,\n"
+        "      target: [0, 0, 30], width: 1024, height: 768, fx: 1500, fy: 1500,\n"
+        "      exposure_us: 20000 }\n"
+        "scene:\n"
+        "  seed: 3\n"
+        "  targets:\n"
+        "    - { type: mirror_sphere, size: 100, reflectance: 0.6, pose: { translate: [70, 0, 0] "
+        "} }\n"
+        "  turntable: { radius: 400, albedo: 0.8 }\n"
+        "  lamps: { radius: 30 }\n"
         "  sensor: { black_level: 0.02 }\n";
 
 #define CAL_TEXT "format: gonio-calibration 1\nnotes: { by: e2e }\n"
@@ -209,20 +250,113 @@ static void test_rig(struct rigenv *e)
         CHECK(n1 == n2 && memcmp(before, after, n1) == 0);
 }
 
+/* The cameras of lamps_rig_text: name, elevation, distance, azimuth, fx (= fy). */
+static const struct {
+        const char *name;
+        double elevation, distance, azimuth, f;
+} lamp_cams[] = {{"c0", 30, 450, 0, 1600}, {"c1", 40, 480, 70, 1500}};
+
+/* The cameras' true intrinsics and poses as calibration file sections, into path. */
+static void write_true_cameras(const char *path)
+{
+        FILE *f = fopen(path, "w");
+
+        CHECK(f);
+        fprintf(f, "format: gonio-calibration 1\ncameras:\n");
+        for (size_t i = 0; i < ELEMENTSOF(lamp_cams); i++)
+                fprintf(f,
+                        "  %s: { solved: x, dataset: x, board: { type: chessboard, squares: [9, "
+                        "6], square_mm: 16 }, width: 1024, height: 768, fx: %g, fy: %g, cx: "
+                        "511.5, cy: 383.5, dist: [0, 0, 0, 0, 0], std_px: [0, 0, 0, 0], rms_px: "
+                        "0.1, views_used: 10, views_rejected: 0 }\n",
+                        lamp_cams[i].name, lamp_cams[i].f, lamp_cams[i].f);
+        fprintf(f, "turntables:\n");
+        for (size_t i = 0; i < ELEMENTSOF(lamp_cams); i++) {
+                struct rig_camera_conf c = {.elevation_deg = lamp_cams[i].elevation,
+                                            .distance_mm = lamp_cams[i].distance,
+                                            .azimuth_deg = lamp_cams[i].azimuth,
+                                            .target = {0, 0, 30}};
+                double R[9], tv[3];
+                riggeom_camera_pose(&c, 0, R, tv);
+                fprintf(f,
+                        "  %s: { solved: x, dataset: x, board: { type: chessboard, squares: [9, "
+                        "6], square_mm: 16 }, R: [%.12g, %.12g, %.12g, %.12g, %.12g, %.12g, "
+                        "%.12g, %.12g, %.12g], t: [%.12g, %.12g, %.12g], axis: [%.12g, %.12g, "
+                        "%.12g], origin: [%.12g, %.12g, %.12g], rms_px: 0.1, circle_rms_mm: 0.01, "
+                        "tilt_deg: 45, span_deg: 90, views_used: 9, views_given: 9 }\n",
+                        lamp_cams[i].name, R[0], R[1], R[2], R[3], R[4], R[5], R[6], R[7], R[8],
+                        tv[0], tv[1], tv[2], R[2], R[5], R[8], tv[0], tv[1], tv[2]);
+        }
+        CHECK(fclose(f) == 0);
+}
+
+/* Lamp position against the truth on the rig: the frames through goniod give 0.2, 1.4 and
+ * 0.1 mm where test-lamps' in-process frames of the same scene give 0.1-0.2 mm (the same at
+ * time scale 1 and 20; not understood yet: docs/calibration.md, "Not done yet (lamps)"). */
+#define LAMPS_RIG_TOL_MM 2.0
+
+/* The lamps on the rig: refused before anything moves without the calibration file or the
+ * cameras' sections, then the session (2 cameras x 3 lamps x 16 angles), solved, written,
+ * each lamp within LAMPS_RIG_TOL_MM of the truth. */
+static void test_lamps(struct rigenv *e)
+{
+        static const double truth_rea[3][3] = {{500, 30, 20}, {500, 55, 140}, {420, 40, 250}};
+        json_t *res = NULL, *list, *l;
+        char cal[400];
+        size_t i;
+
+        snprintf(cal, sizeof(cal), "%s/cal", e->dir);
+        CHECK(mkdir(cal, 0755) == 0);
+        snprintf(cal, sizeof(cal), "%s/cal/rig-calibration.yaml", e->dir);
+        CHECK_INT(ctl(e, &res, "calibrate", "lamps", "--sphere", "100", NULL), 6);
+        write_file(cal, "format: gonio-calibration 1\n");
+        CHECK_INT(ctl(e, &res, "calibrate", "lamps", "--sphere", "100", NULL), 6);
+        list = ctl_ok(e, "dataset", "list", NULL);
+        CHECK_INT(json_array_size(json_object_get(list, "datasets")), 0); /* nothing captured */
+        json_decref(list);
+        write_true_cameras(cal);
+        CHECK_INT(
+                ctl(e, &res, "calibrate", "lamps", "--sphere", "100", "--lamp-radius", "30", NULL),
+                0);
+        print_json("lamps", res);
+        CHECK_STR(json_string_value(json_object_get(res, "file")), cal);
+        CHECK_INT(num(res, "views"), 96);
+        CHECK_INT(json_array_size(json_object_get(res, "failed")), 0);
+        CHECK_INT(json_array_size(json_object_get(res, "lamps")), 3);
+        json_array_foreach(json_object_get(res, "lamps"), i, l)
+        {
+                const double *t = truth_rea[i], r = t[0], el = t[1] * M_PI / 180,
+                             az = t[2] * M_PI / 180;
+                double want[3] = {r * cos(el) * cos(az), r * cos(el) * sin(az), r * sin(el)},
+                       e2 = 0;
+                for (int k = 0; k < 3; k++)
+                        e2 += pow(json_number_value(
+                                          json_array_get(json_object_get(l, "position_mm"), k)) -
+                                          want[k],
+                                  2);
+                fprintf(stderr, "lamp %zu: %.3f mm from the truth\n", i, sqrt(e2));
+                CHECK(sqrt(e2) <= LAMPS_RIG_TOL_MM);
+        }
+        json_decref(res);
+        check_dataset_copy(e, "calib-lamps-", "turntables:");
+}
+
 int main(int argc, char **argv)
 {
-        static const char *const cases[] = {"copy", "rig"};
+        static const char *const cases[] = {"copy", "rig", "lamps"};
         struct rigenv e;
         const char *c = argc == 5 ? argv[4] : "";
 
         CHECK(argc == 5);
-        rigenv_start_rig(&e, argv, 20, rig_text);
+        if (strcmp(c, cases[0]) != 0 && strcmp(c, cases[1]) != 0 && strcmp(c, cases[2]) != 0)
+                return 1;
+        rigenv_start_rig(&e, argv, 20, strcmp(c, cases[2]) == 0 ? lamps_rig_text : rig_text);
         if (strcmp(c, cases[0]) == 0)
                 test_copy(&e);
         else if (strcmp(c, cases[1]) == 0)
                 test_rig(&e);
         else
-                return 1;
+                test_lamps(&e);
         rigenv_stop(&e);
         return 0;
 }
