@@ -676,10 +676,14 @@ static void share_darks(struct record_job *j)
 static int record_job_run(void *userdata)
 {
         struct record_job *j = userdata;
-        int r = ds_session_set_state(j->d, j->name, j->state, j->reason);
+        int r = 0;
 
-        if (r >= 0 && strcmp(j->state, "done") == 0)
+        /* the .lp files before the end: a crash while they are written leaves the session
+         * unfinished, so its resume claims the dataset (removing the .tmp) and writes them */
+        if (strcmp(j->state, "done") == 0)
                 r = ds_write_lp(j->d, j->name, row_light_dir, (void *)j->rc);
+        if (r >= 0)
+                r = ds_session_set_state(j->d, j->name, j->state, j->reason);
         if (r >= 0 && j->end)
                 share_darks(j);
         if (r < 0)

@@ -7,7 +7,7 @@
  * and count its names in one transaction (ds_index.c). The row is committed only after its file is
  * durable, so the index never names a missing or torn file. A crash between the rename and the
  * commit leaves an image whose id is above the last row: the first writer to open the dataset again
- * removes such orphans and any *.tmp before storing.
+ * removes such orphans and any *.tmp (images/, the top directory, lp/SESSION/) before storing.
  *
  * A row of a session's plan item is stored exactly once: (session, plan_seq) is looked
  * up before the image is written (-EEXIST, nothing written), and the unique index
@@ -370,15 +370,53 @@ static int remove_orphan(const char *name, void *userdata)
         return 0;
 }
 
-/* Removes *.tmp and images without a row (id >= next_id) left by a crash. */
+/* A directory of the dataset (rel) holding files written with gn_write_atomic. */
+struct tmp_dir {
+        struct ds *d;
+        const char *rel;
+};
+
+/* Removes rel/name if it is a *.tmp: a write cut short (dataset.json, rig.yaml, .lp). */
+static int remove_tmp(const char *name, void *userdata)
+{
+        struct tmp_dir *t = userdata;
+        char path[512];
+
+        if (!ds_tmp_name(name))
+                return 0;
+        snprintf(path, sizeof(path), "%s/%s", t->rel, name);
+        log_notice("dataset '%s': removing %s left by an interrupted write", t->d->path, path);
+        return unlinkat(t->d->dir_fd, path, 0) < 0 ? -errno : 0;
+}
+
+/* A session directory of lp/: its *.tmp. */
+static int remove_lp_tmp(const char *name, void *userdata)
+{
+        struct tmp_dir *top = userdata;
+        char rel[256];
+        struct tmp_dir t = {top->d, rel};
+        int r;
+
+        snprintf(rel, sizeof(rel), "lp/%s", name);
+        r = ds_walk_dir(top->d->dir_fd, rel, remove_tmp, &t);
+        return r == -ENOTDIR ? 0 : r;
+}
+
+/* Removes images without a row (id >= next_id) and every *.tmp that ds_check reports
+ * (images/, the top directory, lp/SESSION/) left by a crash. */
 static int remove_orphans(struct ds *d)
 {
         struct orphans o = {.d = d};
+        struct tmp_dir top = {d, "."};
         int r;
 
         r = ds_walk_dir(d->img_fd, ".", remove_orphan, &o);
         if (r == 0 && o.removed > 0 && fsync(d->img_fd) < 0)
                 r = -errno;
+        if (r == 0)
+                r = ds_walk_dir(d->dir_fd, ".", remove_tmp, &top);
+        if (r == 0 && (r = ds_walk_dir(d->dir_fd, "lp", remove_lp_tmp, &top)) == -ENOENT)
+                r = 0;
         return r;
 }
 

@@ -68,9 +68,9 @@ int ds_create(const char *path, const char *name, const char *rig_text, struct d
 int ds_open(const char *path, struct ds **ret);
 
 /* Makes d the dataset's writer now rather than at its first store: takes the directory's
- * lock and removes what an interrupted store left (temporary files, images without a row),
- * so that a dataset reopened after a crash is clean before anything else runs. Returns 0,
- * -EBUSY (another process writes it) or -errno. */
+ * lock and removes what an interrupted store or write left (images without a row, *.tmp in
+ * images/, the top directory and lp/SESSION/), so that a dataset reopened after a crash is
+ * clean before anything else runs. Returns 0, -EBUSY (another process writes it) or -errno. */
 int ds_claim(struct ds *d);
 
 /* Rewrites dataset.json (when this handle stored captures), closes the index. NULL is a

@@ -144,17 +144,13 @@ int ds_session_begin(struct ds *d, const char *name, const char *file_text, cons
         return r;
 }
 
-int ds_session_set_state(struct ds *d, const char *name, const char *state, const char *reason)
+/* Updates the session's row, in the caller's transaction. */
+static int update_state(struct ds *d, const char *name, const char *state, const char *reason)
 {
         _cleanup_(sqlite3_finalizep) sqlite3_stmt *s = NULL;
         char now[32] = "";
         int r, rc;
 
-        DS_ASSERT_THREAD_ALLOWED();
-
-        if (!d || !session_name_ok(name) || !state_ok(state))
-                return -EINVAL;
-        d->error[0] = 0;
         r = ds_db_prepare(
                 d, "UPDATE sessions SET state = ?, reason = ?, stopped = ? WHERE name = ?", &s);
         if (r < 0)
@@ -170,9 +166,33 @@ int ds_session_set_state(struct ds *d, const char *name, const char *state, cons
                 return ds_db_fail(d, rc, "Failed to record the session's state");
         if (sqlite3_changes(d->db) == 0)
                 return ds_fail(d, -ENOENT, "no session '%s'", name);
-        log_info("dataset '%s': session '%s' %s%s%s", d->path, name, state, reason ? ": " : "",
-                 reason ? reason : "");
-        return state_ended(state) && d->writer ? ds_write_json(d) : 0;
+        return 0;
+}
+
+int ds_session_set_state(struct ds *d, const char *name, const char *state, const char *reason)
+{
+        int r;
+
+        DS_ASSERT_THREAD_ALLOWED();
+
+        if (!d || !session_name_ok(name) || !state_ok(state))
+                return -EINVAL;
+        d->error[0] = 0;
+        /* dataset.json is written before the end is committed: a crash in between leaves the
+         * session unfinished, and its resume claims the dataset (removing dataset.json.tmp) */
+        r = ds_db_exec(d, "BEGIN IMMEDIATE");
+        if (r == 0)
+                r = update_state(d, name, state, reason);
+        if (r == 0 && state_ended(state) && d->writer)
+                r = ds_write_json(d);
+        if (r == 0)
+                r = ds_db_exec(d, "COMMIT");
+        if (r < 0 && !sqlite3_get_autocommit(d->db))
+                (void)sqlite3_exec(d->db, "ROLLBACK", NULL, NULL, NULL);
+        if (r == 0)
+                log_info("dataset '%s': session '%s' %s%s%s", d->path, name, state,
+                         reason ? ": " : "", reason ? reason : "");
+        return r;
 }
 
 void ds_session_info_clear(struct ds_session_info *s)

@@ -52,7 +52,8 @@ int ds_session_begin(struct ds *d, const char *name, const char *file_text, cons
 
 /* Sets the state and reason (NULL: "") of session name; "done", "aborted" and "failed"
  * (the stop record) also set stopped, "running" and "paused" clear it. On the store's
- * writer, an ended session rewrites dataset.json. Returns 0, -ENOENT (no such session),
+ * writer, an ended session rewrites dataset.json before the state is committed (in its
+ * transaction: a failed write leaves the state as it was). Returns 0, -ENOENT (no such session),
  * -EINVAL (unknown state) or -errno. */
 int ds_session_set_state(struct ds *d, const char *name, const char *state, const char *reason);
 

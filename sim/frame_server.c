@@ -2,9 +2,10 @@
  *
  * DESIGN: one thread polls the listening sockets and up to FS_MAX_CLIENTS clients
  * and serves one request at a time: a render request takes a snapshot of the
- * emulated rig (sim_emu_snapshot) at the start of the exposure, sleeps for the
- * exposure (scaled by the time scale), takes a second snapshot at its end, renders
- * (sim_render) in the start state, appends the exposure to the render log and sends
+ * emulated rig (sim_emu_snapshot) at the start of the exposure, one at its middle and
+ * one at its end (sleeping on the time scale in between), renders (sim_render) in the
+ * middle state (the centre of the motion blur, where a real camera's image of a moving
+ * rig is centred), appends the exposure to the render log and sends
  * the header line and the bytes before the next request is read. Every other request
  * goes to the control module (control.c). Clients' sends are bounded by SO_SNDTIMEO
  * so a stuck client cannot hold the server. The control module (camera faults), the
@@ -214,15 +215,17 @@ struct exposure {
         int cam;
         uint64_t seq, timestamp_ns;
         struct sim_expose ex;
-        struct gn_pose start, end; /* the rig's state at the start and end of the exposure */
+        struct gn_pose start, mid, end; /* the rig's state at the start, middle (rendered) and
+                                         * end of the exposure */
 };
 
 static json_t *exposure_json(const struct sim_frame_server *fs, const struct exposure *x)
 {
-        return json_pack("{s:I, s:s, s:I, s:i, s:f, s:o, s:o}", "seq", (json_int_t)x->seq, "camera",
-                         fs->rc->cameras[x->cam].name, "timestamp_ns", (json_int_t)x->timestamp_ns,
-                         "exposure_us", x->ex.exposure_us, "gain", x->ex.gain, "state",
-                         sim_pose_json(fs->rc, &x->start), "state_end",
+        return json_pack("{s:I, s:s, s:I, s:i, s:f, s:o, s:o, s:o}", "seq", (json_int_t)x->seq,
+                         "camera", fs->rc->cameras[x->cam].name, "timestamp_ns",
+                         (json_int_t)x->timestamp_ns, "exposure_us", x->ex.exposure_us, "gain",
+                         x->ex.gain, "state", sim_pose_json(fs->rc, &x->start), "state_mid",
+                         sim_pose_json(fs->rc, &x->mid), "state_end",
                          sim_pose_json(fs->rc, &x->end));
 }
 
@@ -274,10 +277,10 @@ static void sleep_until(struct sim_frame_server *fs, uint64_t end)
         }
 }
 
-/* Sleeps for the exposure's wall time (exposure_us of emulated time). */
-static void expose_wait(struct sim_frame_server *fs, int exposure_us)
+/* Sleeps until us microseconds of emulated time after t0 (CLOCK_MONOTONIC, ns). */
+static void expose_wait(struct sim_frame_server *fs, uint64_t t0, double us)
 {
-        sleep_until(fs, gn_monotonic_ns() + (uint64_t)(exposure_us * 1e3 / fs->time_scale));
+        sleep_until(fs, t0 + (uint64_t)(us * 1e3 / fs->time_scale));
 }
 
 /* Waits until camera cam may start its next exposure: successive exposures of one camera
@@ -321,17 +324,21 @@ static int do_render(struct fs_req *rq)
         struct gn_frame f = {0};
         struct sim_truth t = {0};
         unsigned flags = 0;
+        uint64_t t0;
 
         int r = render_args(rq, &x, &flags);
         if (r < 0)
                 return r;
         frame_rate_wait(fs, x.cam);
         sim_emu_snapshot(fs->emu, &x.start);
+        t0 = gn_monotonic_ns();
         x.timestamp_ns = gn_realtime_ns();
         x.seq = fs->seq[x.cam]++;
-        expose_wait(fs, x.ex.exposure_us);
+        expose_wait(fs, t0, x.ex.exposure_us / 2.0);
+        sim_emu_snapshot(fs->emu, &x.mid);
+        expose_wait(fs, t0, x.ex.exposure_us);
         sim_emu_snapshot(fs->emu, &x.end);
-        r = sim_render(fs->scene, &x.start, x.cam, &x.ex, x.seq, &f, flags, &t);
+        r = sim_render(fs->scene, &x.mid, x.cam, &x.ex, x.seq, &f, flags, &t);
         if (r < 0)
                 return sim_req_fail(&rq->base, -r, "rendering failed: %s", strerror(-r));
         f.seq = x.seq;

@@ -26,11 +26,12 @@
 
 static char **args;
 
-/* The render log: the turntable at each frame's start and end, by timestamp. */
+/* The render log: the turntable at each frame's start, middle (rendered) and end, by
+ * timestamp. */
 struct frame_log {
         size_t n;
         uint64_t t[MAX_FRAMES];
-        double start[MAX_FRAMES], end[MAX_FRAMES];
+        double start[MAX_FRAMES], mid[MAX_FRAMES], end[MAX_FRAMES];
         bool laser[MAX_FRAMES];
 };
 
@@ -47,6 +48,8 @@ static void load_render_log(struct rigenv *e, struct frame_log *fl)
                 CHECK(j);
                 fl->t[fl->n] = (uint64_t)json_integer_value(json_object_get(j, "timestamp_ns"));
                 fl->start[fl->n] = json_number_value(json_object_get(st, "turntable"));
+                fl->mid[fl->n] = json_number_value(
+                        json_object_get(json_object_get(j, "state_mid"), "turntable"));
                 fl->end[fl->n] = json_number_value(
                         json_object_get(json_object_get(j, "state_end"), "turntable"));
                 fl->laser[fl->n++] = json_is_true(json_object_get(st, "laser"));
@@ -71,13 +74,14 @@ static int check_angle(const struct ds_capture *c, void *userdata)
         while (i < fl->n && fl->t[i] != c->t_exposure_ns)
                 i++;
         CHECK(i < fl->n); /* every row is a frame gonio-sim rendered */
-        /* gonio-sim renders the frame in the state at the exposure's start; the row's angle is
-         * that at mid-exposure: 1 ms later, 0.0135 deg at 13.5 deg/s, within the budget. An
-         * exposure that a loaded machine stretched moves state_end, not the image. */
-        err = gn_angle_distance(c->pose.deg[GN_ROLE_TURNTABLE], fl->start[i]);
+        /* gonio-sim renders the frame in the state at mid-exposure (state_mid), the instant
+         * goniod interpolates the row's angle at. An exposure that a loaded machine stretched
+         * moves state_end, not the image. */
+        err = gn_angle_distance(c->pose.deg[GN_ROLE_TURNTABLE], fl->mid[i]);
         if (err > ANGLE_TOL_DEG)
-                fprintf(stderr, "row %lld: turntable %.4f, rendered %.4f..%.4f\n", (long long)c->id,
-                        c->pose.deg[GN_ROLE_TURNTABLE], fl->start[i], fl->end[i]);
+                fprintf(stderr, "row %lld: turntable %.4f, rendered %.4f (%.4f..%.4f)\n",
+                        (long long)c->id, c->pose.deg[GN_ROLE_TURNTABLE], fl->mid[i], fl->start[i],
+                        fl->end[i]);
         CHECK(err <= ANGLE_TOL_DEG);
         CHECK(c->pose.laser == fl->laser[i]);
         CHECK_STR(c->kind, "image");

@@ -3,14 +3,17 @@
  * kill -9 of goniod, of gonio-sim or of both, at seeded random moments, with every planned
  * capture present exactly once. Every row is compared with what gonio-sim rendered, and the
  * dataset with `dataset check` (ds_check). */
+#include <errno.h>
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "common/cleanup.h"
 #include "common/clock.h"
 #include "dataset/ds.h"
 #include "dataset/ds_session.h"
@@ -245,22 +248,31 @@ static void test_stopresume(struct rigenv *e)
         sess_check_complete(e, "ds1", "s1", n);
 }
 
-/* After a crash of goniod the unfinished session can be given up without running it. */
+/* What a store or a write cut short by a crash may leave in ds1: temporary files (of an
+ * image, the rig file, an .lp file) and an image without its row. */
+static const char *const leftovers[] = {"images/000999_cam0_lamp0.png.tmp",
+                                        "images/000998_cam0_lamp0.png", "rig.yaml.tmp",
+                                        "lp/s1/cam0.lp.tmp"};
+
+/* After a crash of goniod the unfinished session can be given up without running it; what
+ * the crash left is removed from its dataset before anything reads it. */
 static void test_abandon(struct rigenv *e)
 {
         struct ds_session_info info = {0};
-        char leftover[400];
+        char path[400];
         int fd;
 
         fd = sess_start_default(e, NULL);
         usleep(300000);
         rigenv_crash_daemon(e);
-        /* what a store cut short by the crash may leave: a temporary file and an image
-         * without its row; the session's dataset is cleaned before anything reads it */
-        snprintf(leftover, sizeof(leftover), "%s/ds1/images/000999_cam0_lamp0.png.tmp", e->data);
-        write_file(leftover, "torn");
-        snprintf(leftover, sizeof(leftover), "%s/ds1/images/000998_cam0_lamp0.png", e->data);
-        write_file(leftover, "orphan");
+        snprintf(path, sizeof(path), "%s/ds1/lp", e->data);
+        CHECK(mkdir(path, 0755) == 0 || errno == EEXIST);
+        snprintf(path, sizeof(path), "%s/ds1/lp/s1", e->data);
+        CHECK(mkdir(path, 0755) == 0 || errno == EEXIST);
+        for (size_t i = 0; i < ELEMENTSOF(leftovers); i++) {
+                snprintf(path, sizeof(path), "%s/ds1/%s", e->data, leftovers[i]);
+                write_file(path, "torn");
+        }
         close(fd);
         CHECK_INT(ctl(e, NULL, "session", "abort", NULL), 0);
         CHECK_INT(ctl(e, NULL, "session", "resume", NULL), 6); /* nothing left to resume */
@@ -268,7 +280,13 @@ static void test_abandon(struct rigenv *e)
         CHECK_STR(info.state, "aborted");
         CHECK(info.captured < info.planned);
         ds_session_info_clear(&info);
-        CHECK_INT(sess_problems(e, "ds1"), 0);
+        CHECK_INT(sess_problems(e, "ds1"), 0); /* goniod holds ds1: leftovers look in flight */
+        for (size_t i = 0; i < ELEMENTSOF(leftovers); i++) {
+                snprintf(path, sizeof(path), "%s/ds1/%s", e->data, leftovers[i]);
+                if (access(path, F_OK) == 0)
+                        fprintf(stderr, "%s was left\n", leftovers[i]);
+                CHECK(access(path, F_OK) < 0 && errno == ENOENT);
+        }
 }
 
 /* kill -9 of goniod, gonio-sim or both at seeded random moments, twice, each followed by a

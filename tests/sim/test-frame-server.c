@@ -257,8 +257,9 @@ static json_t *last_logged(const char *dir, int *lines)
 }
 
 /* A frame exposed while the turntable moves: the header's state is the start of the
- * exposure and state_end its end, the exposure lasts exposure_us / time scale of wall
- * time, and the render log holds one line per frame with the header's values. */
+ * exposure, state_mid (the state rendered) its middle and state_end its end, the exposure lasts
+ * exposure_us / time scale of wall time, and the render log holds one line per frame with the
+ * header's values. */
 static void test_exposure(struct rig *t, const char *path, int frames_before)
 {
         int fd = raw_connect(path), lines;
@@ -271,7 +272,8 @@ static void test_exposure(struct rig *t, const char *path, int frames_before)
         double took = simtest_now() - t0;
         CHECK(json_is_true(json_object_get(h, "ok")));
         raw_skip(fd, (size_t)json_integer_value(json_object_get(h, "bytes")));
-        double a = turntable(h, "state"), b = turntable(h, "state_end");
+        double a = turntable(h, "state"), m = turntable(h, "state_mid"),
+               b = turntable(h, "state_end");
         double moved = remainder(a - b, 360.0); /* backwards, wrapped to [0, 360) */
         fprintf(stderr, "exposure: turntable %.2f -> %.2f in %.3f s\n", a, b, took);
         CHECK(took >= 0.4 / TIME_SCALE);
@@ -279,11 +281,12 @@ static void test_exposure(struct rig *t, const char *path, int frames_before)
          * than max_speed over the request's time. */
         CHECK(moved > 5.0);
         CHECK(moved <= 90.0 * took * TIME_SCALE + 1e-6);
+        CHECK(remainder(a - m, 360.0) > 0 && remainder(m - b, 360.0) > 0); /* on the way */
 
         json_t *l = last_logged(t->dir, &lines);
         CHECK(lines == frames_before + 1);
         static const char *const keys[] = {"seq",  "camera", "timestamp_ns", "exposure_us",
-                                           "gain", "state",  "state_end"};
+                                           "gain", "state",  "state_mid",    "state_end"};
         for (size_t i = 0; i < ELEMENTSOF(keys); i++)
                 CHECK(json_equal(json_object_get(l, keys[i]), json_object_get(h, keys[i])));
         CHECK(json_integer_value(json_object_get(l, "exposure_us")) == 400000);
