@@ -109,9 +109,11 @@ static void scan_and_score(struct rigenv *e, const char *name, const char *mode,
         expect_mesh(dir, min_points);
 }
 
-static void start(struct rigenv *e)
+/* time_scale 1 for continuous scans (their angles come from timed read-backs), faster for
+ * stop-and-go (the rig stands still at each exposure) */
+static void start(struct rigenv *e, double time_scale)
 {
-        rigenv_start_rig(e, args, 1, rig);
+        rigenv_start_rig(e, args, time_scale, rig);
         json_decref(ctl_ok(e, "home", "turntable", NULL));
 }
 
@@ -120,7 +122,7 @@ static void test_continuous(void)
         struct rigenv e;
         char dir[4096];
 
-        start(&e);
+        start(&e, 1);
         scan_and_score(&e, "c1", "continuous", "1", 15000, dir);
         rigenv_stop(&e);
 }
@@ -130,7 +132,7 @@ static void test_stop(void)
         struct rigenv e;
         char dir[4096];
 
-        start(&e);
+        start(&e, 8);
         scan_and_score(&e, "s1", "stop", "4", 4000, dir);
         rigenv_stop(&e);
 }
@@ -142,8 +144,7 @@ static void write_calibration(const char *path, const struct rig_config *rc, dou
                               bool laser)
 {
         const struct rig_camera_conf *cc = &rc->cameras[0];
-        struct cal_camera c = {
-                .width = cc->width, .height = cc->height, .rms = 0.05};
+        struct cal_camera c = {.width = cc->width, .height = cc->height, .rms = 0.05};
         struct cal_file_turntable t = {.tt = {.rms_px = 0.05, .n_views = 9, .n_used = 9}};
         struct cal_laser l = {.rms_mm = 0.01, .n_views = 4, .n_used = 4};
         double nw[3] = {-sin(azimuth_deg * M_PI / 180), cos(azimuth_deg * M_PI / 180), 0};
@@ -190,7 +191,7 @@ static void test_calibration(void)
         size_t n;
         json_t *r;
 
-        start(&e);
+        start(&e, 8);
         scan_and_score(&e, "k1", "stop", "6", 2500, dir);
         snprintf(file, sizeof(file), "%s/rig.yaml", dir);
         CHECK_INT(rigconf_load_stored(file, registry_backends, &rc, err, sizeof(err)), 0);
