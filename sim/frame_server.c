@@ -324,19 +324,22 @@ static int do_render(struct fs_req *rq)
         struct gn_frame f = {0};
         struct sim_truth t = {0};
         unsigned flags = 0;
-        uint64_t t0;
+        double half_us;
+        uint64_t t_mid;
 
         int r = render_args(rq, &x, &flags);
         if (r < 0)
                 return r;
         frame_rate_wait(fs, x.cam);
         sim_emu_snapshot(fs->emu, &x.start);
-        t0 = gn_monotonic_ns();
-        x.timestamp_ns = gn_realtime_ns();
         x.seq = fs->seq[x.cam]++;
-        expose_wait(fs, t0, x.ex.exposure_us / 2.0);
+        half_us = x.ex.exposure_us / 2.0;
+        expose_wait(fs, gn_monotonic_ns(), half_us);
+        /* the rendered state and the timestamp are of one instant, however late the wake-up */
         sim_emu_snapshot(fs->emu, &x.mid);
-        expose_wait(fs, t0, x.ex.exposure_us);
+        t_mid = gn_monotonic_ns();
+        x.timestamp_ns = gn_realtime_ns() - (uint64_t)(half_us * 1e3 / fs->time_scale);
+        expose_wait(fs, t_mid, half_us);
         sim_emu_snapshot(fs->emu, &x.end);
         r = sim_render(fs->scene, &x.mid, x.cam, &x.ex, x.seq, &f, flags, &t);
         if (r < 0)
