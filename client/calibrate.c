@@ -53,20 +53,11 @@ struct solve {
         char err[1024];
 };
 
-/* The exit code of a failed solve or write. */
-static int exit_for(int r)
-{
-        return r == -ENODATA || r == -ENOENT || r == -EINVAL || r == -EEXIST || r == -EBADMSG ||
-                               r == -EDOM || r == -E2BIG
-                       ? EXIT_INVALID
-                       : EXIT_STORAGE;
-}
-
 /* Prints s->err (or strerror) for r and returns its exit code. */
 static int failed(struct solve *s, int r)
 {
         out_error(s->o, s->what, "%s", s->err[0] ? s->err : strerror(-r));
-        return exit_for(r);
+        return cmd_exit_for_errno(r);
 }
 
 /* The camera: --camera, else the dataset's only one. */

@@ -358,6 +358,14 @@ static int build_params(const struct cmd *c, const struct args *a, char **argv, 
         return c->params ? c->params(c, a, argv, argc, ret) : 0;
 }
 
+int cmd_exit_for_errno(int r)
+{
+        return r == -ENODATA || r == -ENOENT || r == -EINVAL || r == -EEXIST || r == -EBADMSG ||
+                               r == -EDOM || r == -E2BIG
+                       ? EXIT_INVALID
+                       : EXIT_STORAGE;
+}
+
 int cmd_exit_for_code(int code)
 {
         static const struct {

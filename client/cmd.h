@@ -27,6 +27,11 @@ enum gonioctl_exit {
 /* The exit code for a JSON-RPC error code from the server. */
 int cmd_exit_for_code(int code);
 
+/* The exit code of a local command (calibrate, scan --from) that failed with -errno r: what
+ * the input lacks or holds wrongly is EXIT_INVALID, anything else (reading, writing)
+ * EXIT_STORAGE. */
+int cmd_exit_for_errno(int r);
+
 /* Runs the command named by a->words. Returns an enum gonioctl_exit value; errors are
  * printed to stderr as "gonioctl: <method>: <message>". */
 int cmd_run(const struct args *a);

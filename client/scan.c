@@ -89,14 +89,6 @@ static json_t *summary_json(const struct scan_result *s, const struct scan_opts 
                          SCAN_FILE_MESH_OBJ);
 }
 
-/* The exit code of a failed reconstruction. */
-static int exit_for(int r)
-{
-        return r == -ENODATA || r == -ENOENT || r == -EINVAL || r == -EEXIST || r == -EBADMSG
-                       ? EXIT_INVALID
-                       : EXIT_STORAGE;
-}
-
 int scan_reconstruct(const struct args *a, struct out *o, json_t **ret)
 {
         _cleanup_(ds_closep) struct ds *d = NULL;
@@ -130,7 +122,7 @@ int scan_reconstruct(const struct args *a, struct out *o, json_t **ret)
                 return r;
         if ((r = scan_dataset(d, rc, &opts, use, &res, err, sizeof(err))) < 0) {
                 out_error(o, WHAT, "%s", err);
-                return exit_for(r);
+                return cmd_exit_for_errno(r);
         }
         *ret = summary_json(&res, &opts, ds_path(d));
         if (*ret)

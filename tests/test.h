@@ -9,6 +9,7 @@
 #include <string.h>
 #include <sys/socket.h>
 #include <sys/un.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #define TEST_SKIP 77
@@ -109,4 +110,23 @@ static inline int test_unix_connect(const char *path)
                 return r;
         }
         return fd;
+}
+
+/* Runs gonioctl (its path in $GONIOCTL) with args, a shell command line's tail; its stdout
+ * and stderr into out (len bytes, NUL-terminated), echoed to stderr. Returns its exit code. */
+static inline int test_run_gonioctl(const char *args, char *out, size_t len)
+{
+        char cmd[4096];
+        FILE *p;
+        size_t n;
+        int st;
+
+        snprintf(cmd, sizeof(cmd), "%s %s 2>&1", getenv("GONIOCTL"), args);
+        p = popen(cmd, "r");
+        CHECK(p);
+        n = fread(out, 1, len - 1, p);
+        out[n] = 0;
+        st = pclose(p);
+        fprintf(stderr, "$ gonioctl %s -> %d\n%s", args, WEXITSTATUS(st), out);
+        return WEXITSTATUS(st);
 }

@@ -304,27 +304,16 @@ static void store_view(struct ds *d, const double pose[4], double tt, bool laser
         rt_close(&t);
 }
 
-/* Runs gonioctl (path in $GONIOCTL) with args; its stdout and stderr into out. Returns its
- * exit code. */
+/* test_run_gonioctl with its arguments formatted from fmt. */
 static int gonioctl(char *out, size_t len, const char *fmt, ...)
 {
-        char args[2048], cmd[2600];
+        char args[2048];
         va_list ap;
-        FILE *p;
-        size_t n;
-        int st;
 
         va_start(ap, fmt);
         vsnprintf(args, sizeof(args), fmt, ap);
         va_end(ap);
-        snprintf(cmd, sizeof(cmd), "%s %s 2>&1", getenv("GONIOCTL"), args);
-        p = popen(cmd, "r");
-        CHECK(p);
-        n = fread(out, 1, len - 1, p);
-        out[n] = 0;
-        st = pclose(p);
-        fprintf(stderr, "$ gonioctl %s -> %d\n%s", args, WEXITSTATUS(st), out);
-        return WEXITSTATUS(st);
+        return test_run_gonioctl(args, out, len);
 }
 
 /* A dataset at dir/name made of views of the tilted board at 9 turntable angles 7.5 deg

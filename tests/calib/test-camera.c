@@ -384,25 +384,6 @@ static void test_file(void)
         tu_rm_rf(tmp);
 }
 
-/* Runs gonioctl (path in $GONIOCTL) with args; its stdout and stderr into out. Returns its
- * exit code. */
-static int gonioctl(const char *args, char *out, size_t len)
-{
-        char cmd[1024];
-        FILE *p;
-        size_t n;
-        int st;
-
-        snprintf(cmd, sizeof(cmd), "%s %s 2>&1", getenv("GONIOCTL"), args);
-        p = popen(cmd, "r");
-        CHECK(p);
-        n = fread(out, 1, len - 1, p);
-        out[n] = 0;
-        st = pclose(p);
-        fprintf(stderr, "$ gonioctl %s -> %d\n%s", args, WEXITSTATUS(st), out);
-        return WEXITSTATUS(st);
-}
-
 /* gonioctl calibrate camera --from DATASET: the summary, the file, the errors. */
 static void test_gonioctl(void)
 {
@@ -420,7 +401,7 @@ static void test_gonioctl(void)
         fx.d = ds_close(fx.d);
         snprintf(args, sizeof(args), "calibrate camera --from %s --board chessboard:9x7:16",
                  fx.path);
-        CHECK_INT(gonioctl(args, out, sizeof(out)), 0);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
         CHECK_STR_CONTAINS(out, "camera c0: 1280x960, 8 views used, 1 rejected");
         CHECK_STR_CONTAINS(out, "board not found");
         CHECK_STR_CONTAINS(out, "reprojection RMS 0.0");
@@ -431,17 +412,17 @@ static void test_gonioctl(void)
         /* --json, a board that is not there, a bad board, an unknown camera */
         snprintf(args, sizeof(args), "--json calibrate camera --from %s --board chessboard:9x7:16",
                  fx.path);
-        CHECK_INT(gonioctl(args, out, sizeof(out)), 0);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
         CHECK_STR_CONTAINS(out, "\"rms_px\":");
         snprintf(args, sizeof(args), "calibrate camera --from %s --board chessboard:6x5:16",
                  fx.path);
-        CHECK_INT(gonioctl(args, out, sizeof(out)), 6);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
         CHECK_STR_CONTAINS(out, "board not found in any of 9 views of camera c0");
         snprintf(args, sizeof(args), "calibrate camera --from %s --board chessboard:9x7", fx.path);
-        CHECK_INT(gonioctl(args, out, sizeof(out)), 2);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 2);
         snprintf(args, sizeof(args),
                  "calibrate camera --from %s --board chessboard:9x7:16 --camera c7", fx.path);
-        CHECK_INT(gonioctl(args, out, sizeof(out)), 6);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
         CHECK_STR_CONTAINS(out, "no captures of camera c7");
         fx_close(&fx);
 }

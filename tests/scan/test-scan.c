@@ -229,24 +229,6 @@ static void test_bad(void)
         tu_rm_rf(dir);
 }
 
-/* Runs gonioctl (path in $GONIOCTL) with args; its stdout and stderr into out. Returns its
- * exit code. */
-static int gonioctl(const char *args, char *out, size_t len)
-{
-        char cmd[1024];
-        FILE *p;
-        size_t n;
-        int st;
-
-        snprintf(cmd, sizeof(cmd), "%s %s 2>&1", getenv("GONIOCTL"), args);
-        CHECK(p = popen(cmd, "r"));
-        n = fread(out, 1, len - 1, p);
-        out[n] = 0;
-        st = pclose(p);
-        fprintf(stderr, "$ gonioctl %s -> %d\n%s", args, WEXITSTATUS(st), out);
-        return WEXITSTATUS(st);
-}
-
 /* gonioctl scan --from: the summary (text and JSON), the exit codes of its errors. */
 static void test_gonioctl(void)
 {
@@ -264,15 +246,15 @@ static void test_gonioctl(void)
         path = make_dataset(dir, "sphere", &t, 24, 0);
         lamps = make_dataset(dir, "lamps", &t, 2, NO_LASER);
         snprintf(args, sizeof(args), "scan --from %s", path);
-        CHECK_INT(gonioctl(args, out, sizeof(out)), 0);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
         CHECK_STR_CONTAINS(out, "scan of camera c0: ");
         CHECK_STR_CONTAINS(out, "from 23 of 25 laser frames");
         CHECK_STR_CONTAINS(out, "skipped: 1 unreadable, 0 of another size, 1 at another");
         CHECK_STR_CONTAINS(out, "/mesh.obj\n");
-        CHECK_INT(gonioctl(args, out, sizeof(out)), 6);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
         CHECK_STR_CONTAINS(out, "gonioctl: scan: dataset sphere has a scan already (scan.ply)");
         snprintf(args, sizeof(args), "--json scan --from %s --force --triangles 9000", path);
-        CHECK_INT(gonioctl(args, out, sizeof(out)), 0);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
         CHECK(j = json_loads(strstr(out, "{\"dataset\""), JSON_DISABLE_EOF_CHECK, NULL));
         rows = json_object_get(j, "rows");
         CHECK_INT(json_integer_value(json_object_get(rows, "used")), 23);
@@ -281,16 +263,16 @@ static void test_gonioctl(void)
         CHECK(json_integer_value(json_object_get(j, "triangles_simplified")) <= 9000);
         json_decref(j);
         snprintf(args, sizeof(args), "scan --from %s", lamps);
-        CHECK_INT(gonioctl(args, out, sizeof(out)), 6);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
         CHECK_STR_CONTAINS(out, "dataset lamps has no frames with the laser on");
         snprintf(args, sizeof(args), "scan --from %s --camera c7 --force", path);
-        CHECK_INT(gonioctl(args, out, sizeof(out)), 6);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
         CHECK_STR_CONTAINS(out, "no captures of camera c7");
         snprintf(args, sizeof(args), "scan --from %s/none", dir);
-        CHECK_INT(gonioctl(args, out, sizeof(out)), 6);
-        CHECK_INT(gonioctl("scan", out, sizeof(out)), 2);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
+        CHECK_INT(test_run_gonioctl("scan", out, sizeof(out)), 2);
         snprintf(args, sizeof(args), "scan --from %s --triangles 0", path);
-        CHECK_INT(gonioctl(args, out, sizeof(out)), 2);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 2);
         rt_close(&t);
         tu_rm_rf(dir);
 }
