@@ -49,6 +49,8 @@ struct workq {
         size_t in_flight; /* pushed, done not yet called */
         bool stopping;
         bool started;
+        bool delivering; /* on_eventfd is calling done callbacks (loop thread) */
+        bool dying;      /* workq_free ran inside one of them: on_eventfd frees q */
         pthread_mutex_t lock;
         pthread_cond_t wake;
         pthread_t thread;
@@ -98,6 +100,10 @@ static void deliver(const struct job *j)
                 j->done(j->result, j->userdata);
 }
 
+static void destroy(struct workq *q);
+
+/* Delivers the finished jobs on the loop. A done callback may free q (workq_free): then q
+ * is freed here, once that callback has returned. */
 static int on_eventfd(sd_event_source *s, int fd, uint32_t revents, void *userdata)
 {
         struct workq *q = userdata;
@@ -105,8 +111,12 @@ static int on_eventfd(sd_event_source *s, int fd, uint32_t revents, void *userda
         struct job j;
 
         (void)eventfd_read(fd, &n); /* EAGAIN when a previous round drained it: fine */
-        while (take_finished(q, &j))
+        q->delivering = true;
+        while (!q->dying && take_finished(q, &j))
                 deliver(&j);
+        q->delivering = false;
+        if (q->dying)
+                destroy(q);
         return 0;
 }
 
@@ -245,6 +255,15 @@ struct workq *workq_free(struct workq *q)
         cancel_ring(q, &q->urgent);
         cancel_ring(q, &q->normal);
 
+        if (q->delivering)
+                q->dying = true; /* freed by on_eventfd when the callback we are in returns */
+        else
+                destroy(q);
+        return NULL;
+}
+
+static void destroy(struct workq *q)
+{
         closep(&q->efd);
         free(q->urgent.v);
         free(q->normal.v);
@@ -252,7 +271,6 @@ struct workq *workq_free(struct workq *q)
         pthread_cond_destroy(&q->wake);
         pthread_mutex_destroy(&q->lock);
         free(q);
-        return NULL;
 }
 
 int workq_push(struct workq *q, workq_fn fn, workq_done_fn done, void *userdata, bool urgent)

@@ -28,7 +28,8 @@ int workq_new(sd_event *event, const char *name, size_t capacity, struct workq *
 
 /* Stops the worker after its running job, delivers completed results, then calls done
  * with -ECANCELED for every job that never ran, on the calling (loop) thread. Must not be
- * called from a job. NULL is a no-op; returns NULL. */
+ * called from a job; may be called from a done callback of q (q's memory is then released
+ * when that callback returns). NULL is a no-op; returns NULL. */
 struct workq *workq_free(struct workq *q);
 
 /* Queues fn; urgent jobs run before every normal job (FIFO among themselves) and may use

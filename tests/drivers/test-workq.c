@@ -58,7 +58,7 @@ static void done(int result, void *userdata)
 {
         struct item *it = userdata;
         struct rec *r = it->rec;
-        size_t in_flight = workq_in_flight(r->q);
+        size_t in_flight = r->q ? workq_in_flight(r->q) : 0; /* NULL: freed (free_from_done) */
         int k;
 
         pthread_mutex_lock(&r->lock);
@@ -213,11 +213,56 @@ static void test_free_cancels(void)
         sd_event_unref(event);
 }
 
+/* The done of the first finished job frees the queue (as a session that ends in its last
+ * store's done closes its dataset): the other finished jobs are delivered by workq_free, each
+ * once, and the queue's memory outlives the loop's round of completions. */
+static void done_frees(int result, void *userdata)
+{
+        struct item *it = userdata;
+        struct workq *q = it->rec->q;
+
+        done(result, userdata);
+        if (it->id == 0) {
+                it->rec->q = NULL; /* workq_in_flight(NULL) in the nested dones */
+                CHECK(workq_free(q) == NULL);
+        }
+}
+
+static void test_free_from_done(void)
+{
+        struct item items[3];
+        sd_event *event = NULL;
+        sd_event_source *timer = NULL;
+        struct rec r;
+
+        CHECK_INT(sd_event_new(&event), 0);
+        rec_init(&r, event);
+        r.expect_done = 3;
+        CHECK_INT(workq_new(event, "freedone", 4, &r.q), 0);
+        for (int i = 0; i < 3; i++) {
+                items[i] = (struct item){&r, i};
+                CHECK_INT(workq_push(r.q, job, done_frees, &items[i], false), 0);
+        }
+        for (int i = 0; i < 1000 && r.n_ran < 3; i++) /* all finished before the loop runs */
+                nanosleep(&(struct timespec){0, 1000000}, NULL);
+        nanosleep(&(struct timespec){0, 20000000}, NULL);
+        CHECK_INT(sd_event_add_time_relative(event, &timer, CLOCK_MONOTONIC, 10 * 1000000ULL, 0,
+                                             on_timeout, NULL),
+                  0);
+        CHECK_INT(sd_event_loop(event), 0);
+        CHECK_INT(r.n_done, 3);
+        for (int i = 0; i < 3; i++)
+                CHECK_INT(r.done_id[i], i);
+        sd_event_source_unref(timer);
+        sd_event_unref(event);
+}
+
 int main(void)
 {
         CHECK_INT(workq_new(NULL, "bad", 0, &(struct workq *){NULL}), -EINVAL);
         test_loop_order();
         test_no_loop();
         test_free_cancels();
+        test_free_from_done();
         return 0;
 }
