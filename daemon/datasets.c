@@ -258,11 +258,18 @@ static void closed_done(int result, void *userdata)
         job_free(j);
 }
 
-/* Closes d on the worker, answering nobody. */
+/* Closes d on the worker, answering nobody; at once when the loop has finished (shutdown:
+ * a load that completed as goniod stopped), since no worker takes jobs any more and the
+ * loop's thread may block again. */
 static void close_later(struct manager *m, struct ds *d)
 {
-        struct ds_job *j = calloc(1, sizeof(*j));
+        struct ds_job *j;
 
+        if (sd_event_get_state(m->event) == SD_EVENT_FINISHED) {
+                ds_close(d);
+                return;
+        }
+        j = calloc(1, sizeof(*j));
         if (j) {
                 *j = (struct ds_job){.m = m, .old = d};
                 m->ds_busy = true;
