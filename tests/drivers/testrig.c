@@ -85,3 +85,40 @@ void testrig_sleep(double s)
         while (nanosleep(&ts, &ts) < 0 && errno == EINTR)
                 ;
 }
+
+struct axis *testrig_axis_open(struct testrig *t, struct bus *b, int index)
+{
+        struct axis *ax = NULL;
+
+        CHECK_INT(axis_new(&t->rc->axes[index], b, &ax), 0);
+        CHECK_INT(axis_open(ax), 0);
+        CHECK(ax->state.enabled);
+        return ax;
+}
+
+double testrig_wait_stopped(struct axis *ax, double timeout_s)
+{
+        double t0 = testrig_now();
+
+        do {
+                CHECK_INT(axis_poll(ax), 0);
+                if (!ax->state.moving)
+                        return testrig_now() - t0;
+                testrig_sleep(0.002);
+        } while (testrig_now() - t0 < timeout_s);
+        fprintf(stderr, "axis '%s' still moving after %.1f s\n", ax->conf->name, timeout_s);
+        exit(1);
+}
+
+void testrig_wait_in_position(struct axis *ax)
+{
+        double t0 = testrig_now();
+
+        testrig_wait_stopped(ax, 10.0);
+        while (!ax->state.in_position && testrig_now() - t0 < 10.0) {
+                testrig_sleep(0.002);
+                CHECK_INT(axis_poll(ax), 0);
+        }
+        CHECK(ax->state.in_position);
+        CHECK(!ax->state.fault);
+}

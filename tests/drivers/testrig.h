@@ -4,6 +4,7 @@
 #pragma once
 
 #include "common/rigconf.h"
+#include "drivers/axis/axis.h"
 #include "drivers/bus/bus.h"
 #include "sim/modbus_emu.h"
 
@@ -31,3 +32,13 @@ double testrig_now(void);
 
 /* Sleeps for s seconds. */
 void testrig_sleep(double s);
+
+/* Creates and opens the axis of rc->axes[index] on bus b; exits unless it opens enabled. */
+struct axis *testrig_axis_open(struct testrig *t, struct bus *b, int index);
+
+/* Polls until the axis's move has ended (moving clear); returns the seconds it took. Exits
+ * after timeout_s. */
+double testrig_wait_stopped(struct axis *ax, double timeout_s);
+
+/* Waits for the end of the move and the drive's in-position flag, without a fault. */
+void testrig_wait_in_position(struct axis *ax);
