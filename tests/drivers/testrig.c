@@ -1,5 +1,6 @@
 /* testrig.c - temp-dir rig files and emulators for the driver tests (see testrig.h). */
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -8,6 +9,7 @@
 
 #include "common/clock.h"
 #include "drivers/registry.h"
+#include "drivers/transport/transport.h"
 #include "tests/drivers/testrig.h"
 #include "tests/test.h"
 
@@ -121,4 +123,18 @@ void testrig_wait_in_position(struct axis *ax)
         }
         CHECK(ax->state.in_position);
         CHECK(!ax->state.fault);
+}
+
+void testrig_check_limits(struct axis *ax, double pos, double tol)
+{
+        struct transport_stats before, after;
+
+        transport_get_stats(bus_transport(ax->bus), &before);
+        CHECK_INT(axis_move_abs(ax, ax->conf->max_deg + 0.5), -ERANGE);
+        CHECK_INT(axis_move_abs(ax, ax->conf->min_deg - 1.0), -ERANGE);
+        CHECK_INT(axis_move_abs(ax, NAN), -ERANGE);
+        transport_get_stats(bus_transport(ax->bus), &after);
+        CHECK_INT(after.requests, before.requests); /* refused before any I/O */
+        CHECK_INT(axis_poll(ax), 0);
+        CHECK_NEAR(ax->state.position_deg, pos, tol);
 }

@@ -42,3 +42,7 @@ double testrig_wait_stopped(struct axis *ax, double timeout_s);
 
 /* Waits for the end of the move and the drive's in-position flag, without a fault. */
 void testrig_wait_in_position(struct axis *ax);
+
+/* Checks that moves of ax just past its soft limits (and NAN) are refused with -ERANGE
+ * before any request on its bus, and that it is still at pos (within tol). */
+void testrig_check_limits(struct axis *ax, double pos, double tol);

@@ -33,22 +33,12 @@ static const char *const azd_rig =
         "scene:\n"
         "  object: { shape: sphere, size: 60, pose: { translate: [40, 0, 30] } }\n";
 
-/* The turntable's angle as gonio-sim has it. */
-static double sim_turntable(struct rigenv *e)
-{
-        json_t *sim = sim_query(e, "{\"cmd\":\"state\"}\n");
-        double deg = json_number_value(json_object_get(json_object_get(sim, "state"), "turntable"));
-
-        json_decref(sim);
-        return deg;
-}
-
 static void test_capture(struct rigenv *e)
 {
         json_decref(ctl_ok(e, "home", NULL));
         json_decref(ctl_ok(e, "move", "turntable", "270", NULL)); /* the short way: -90 */
         json_decref(ctl_ok(e, "move", "camera_arm", "20", NULL));
-        CHECK(fabs(sim_turntable(e) - 270.0) <= POSE_TOL_DEG);
+        CHECK(fabs(sim_axis_deg(e, "turntable") - 270.0) <= POSE_TOL_DEG);
         json_decref(ctl_ok(e, "lamp", "top", "on", NULL));
         json_decref(ctl_ok(e, "dataset", "create", "azd", NULL));
         json_decref(ctl_ok(e, "capture", NULL));
@@ -71,13 +61,13 @@ static void test_stall(struct rigenv *e)
                            "fault code 16"); /* alarm 0x10, excessive position deviation */
         json_decref(st);
         CHECK_INT(ctl(e, NULL, "lamp", "top", "on", NULL), 9); /* refused while faulted */
-        at = sim_turntable(e);
+        at = sim_axis_deg(e, "turntable");
         CHECK(at > 101.0 && at < 269.0); /* stopped on the way back from 270 to 100 */
 
         json_decref(ctl_ok(e, "fault", "clear", NULL)); /* ALM-RST */
         json_decref(wait_state(e, "idle", 5));
         json_decref(ctl_ok(e, "move", "turntable", "30", NULL));
-        CHECK(fabs(sim_turntable(e) - 30.0) <= POSE_TOL_DEG);
+        CHECK(fabs(sim_axis_deg(e, "turntable") - 30.0) <= POSE_TOL_DEG);
 }
 
 int main(int argc, char **argv)
