@@ -57,13 +57,7 @@ static int32_t raw_position(struct axis *ax)
 
 static void test_home(struct fixture *f)
 {
-        CHECK_INT(axis_home(f->tt), 0);
-        CHECK_INT(axis_home(f->arm), 0);
-        testrig_wait_in_position(f->tt);
-        testrig_wait_in_position(f->arm);
-        CHECK(f->tt->state.homed && f->arm->state.homed);
-        CHECK(f->tt->state.position_deg < POS_TOL || f->tt->state.position_deg > 360 - POS_TOL);
-        CHECK_NEAR(f->arm->state.position_deg, 0.0, POS_TOL);
+        testrig_home_all((struct axis *[]){f->tt, f->arm}, 2, POS_TOL);
 }
 
 /* 0 -> 150 deg at 10 deg/s, 20 deg/s^2: 15.5 s of emulated time, 0.775 s real. */

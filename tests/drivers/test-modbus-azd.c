@@ -54,13 +54,7 @@ static int32_t read_i32(struct axis *ax, int reg)
 
 static void test_home(struct fixture *f)
 {
-        CHECK_INT(axis_home(f->tt), 0);
-        CHECK_INT(axis_home(f->arm), 0);
-        testrig_wait_in_position(f->tt);
-        testrig_wait_in_position(f->arm);
-        CHECK(f->tt->state.homed && f->arm->state.homed);
-        CHECK(f->tt->state.position_deg < POS_TOL || f->tt->state.position_deg > 360 - POS_TOL);
-        CHECK_NEAR(f->arm->state.position_deg, 0.0, POS_TOL);
+        testrig_home_all((struct axis *[]){f->tt, f->arm}, 2, POS_TOL);
         CHECK(read_i32(f->arm, 0x007e) & 0x0010 /* HOME-END */);
 }
 

@@ -138,3 +138,17 @@ void testrig_check_limits(struct axis *ax, double pos, double tol)
         CHECK_INT(axis_poll(ax), 0);
         CHECK_NEAR(ax->state.position_deg, pos, tol);
 }
+
+void testrig_home_all(struct axis *const *ax, int n, double tol)
+{
+        for (int i = 0; i < n; i++)
+                CHECK_INT(axis_home(ax[i]), 0);
+        for (int i = 0; i < n; i++) {
+                double p;
+
+                testrig_wait_in_position(ax[i]);
+                p = ax[i]->state.position_deg;
+                CHECK(ax[i]->state.homed);
+                CHECK(fabs(ax[i]->conf->continuous && p > 180.0 ? p - 360.0 : p) <= tol);
+        }
+}

@@ -46,3 +46,7 @@ void testrig_wait_in_position(struct axis *ax);
 /* Checks that moves of ax just past its soft limits (and NAN) are refused with -ERANGE
  * before any request on its bus, and that it is still at pos (within tol). */
 void testrig_check_limits(struct axis *ax, double pos, double tol);
+
+/* Homes the axes ax[0..n) at once, waits until each is in position and checks that each is
+ * homed and at 0 deg (within tol; 360 counts as 0 on continuous axes). */
+void testrig_home_all(struct axis *const *ax, int n, double tol);
