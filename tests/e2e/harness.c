@@ -155,6 +155,15 @@ json_t *sim_query(struct rigenv *e, const char *json_line)
         return r;
 }
 
+double sim_axis_deg(struct rigenv *e, const char *role)
+{
+        json_t *sim = sim_query(e, "{\"cmd\":\"state\"}\n");
+        double deg = json_number_value(json_object_get(json_object_get(sim, "state"), role));
+
+        json_decref(sim);
+        return deg;
+}
+
 json_t *wait_state(struct rigenv *e, const char *want, double timeout)
 {
         double end = now_s() + timeout;

@@ -17,15 +17,6 @@
 /* Half a step of the board's 8.889 steps/deg: where a move can end. */
 #define STEP_TOL_DEG 0.057
 
-static double sim_turntable(struct rigenv *e)
-{
-        json_t *sim = sim_query(e, "{\"cmd\":\"state\"}\n");
-        double deg = json_number_value(json_object_get(json_object_get(sim, "state"), "turntable"));
-
-        json_decref(sim);
-        return deg;
-}
-
 /* The board stops answering: goniod latches a fault naming a device of the board and the
  * cause, switches the laser off, refuses to clear while the board is silent, and clears
  * once it answers again. */
@@ -100,18 +91,18 @@ int main(int argc, char **argv)
         json_decref(ctl_ok(&e, "home", NULL));
         json_decref(ctl_ok(&e, "dataset", "create", "scan", NULL));
         json_decref(ctl_ok(&e, "move", "turntable", "90", NULL));
-        CHECK_NEAR(sim_turntable(&e), 90.0, STEP_TOL_DEG);
+        CHECK_NEAR(sim_axis_deg(&e, "turntable"), 90.0, STEP_TOL_DEG);
         json_decref(ctl_ok(&e, "laser", "on", NULL));
         json_decref(ctl_ok(&e, "capture", NULL));
         json_decref(ctl_ok(&e, "move", "turntable", "300", NULL)); /* back 150 deg */
-        CHECK_NEAR(sim_turntable(&e), 300.0, STEP_TOL_DEG);
+        CHECK_NEAR(sim_axis_deg(&e, "turntable"), 300.0, STEP_TOL_DEG);
         json_decref(ctl_ok(&e, "capture", NULL));
         json_decref(ctl_ok(&e, "laser", "off", NULL));
         json_decref(ctl_ok(&e, "capture", NULL));
         CHECK_INT(check_dataset_roles(&e, "scan", 1u << GN_ROLE_TURNTABLE), 3);
         silent_board(&e);
         json_decref(ctl_ok(&e, "move", "turntable", "45", NULL)); /* still homed */
-        CHECK_NEAR(sim_turntable(&e), 45.0, STEP_TOL_DEG);
+        CHECK_NEAR(sim_axis_deg(&e, "turntable"), 45.0, STEP_TOL_DEG);
         json_decref(ctl_ok(&e, "capture", NULL));
         CHECK_INT(check_dataset_roles(&e, "scan", 1u << GN_ROLE_TURNTABLE), 4);
         unplugged_board(&e);
