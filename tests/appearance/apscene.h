@@ -50,7 +50,7 @@ struct apscene {
         uint64_t seq;
 };
 
-/* Defaults: 96x72, one camera, 2 turntable angles, 12 arm angles, 5 lamps (-30 to 75
+/* Defaults: 96x72, one camera, 2 turntable angles, 18 arm angles, 6 lamps (-40 to 85
  * degrees) 500 mm away, a sphere with material m, its mesh stored. */
 void aps_opts_default(struct aps_opts *o, enum aps_material m);
 
