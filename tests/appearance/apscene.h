@@ -72,6 +72,10 @@ void aps_render_light(struct apscene *s, int cam, double tt, const double p[3], 
 /* World position (mm) of lamp `lamp` with the light arm at arm degrees. */
 void aps_lamp_position(const struct apscene *s, int lamp, double arm, double p[3]);
 
+/* Writes the true surface of a sphere (a UV mesh, exact normals) as dir/mesh.ply (calib/ply.h);
+ * nothing for other shapes. */
+void aps_write_mesh(const struct apscene *s, const char *dir);
+
 /* A dataset at path (must not exist) with the rig file and every view (camera, turntable
  * angle) under every light (lamp, arm angle), 16-bit, noise off; with o.mesh the true surface
  * as mesh.ply. Returns the open dataset (ds_close it). */
