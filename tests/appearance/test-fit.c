@@ -178,9 +178,9 @@ static void test_heldout(void)
         CHECK(glossy.mean >= 35 && glossy.worst >= 24);
 }
 
-/* A fit of the dataset at path with the defaults but order P and tiles of 4; *m the model
- * (ap_fit's return). */
-static int fit_at(const char *path, int P, struct ap_model **m, char *err, size_t errlen)
+/* A fit of the dataset at path with the defaults but order P, K components and tiles of 4; *m
+ * the model (ap_fit's return). */
+static int fit_at(const char *path, int P, int K, struct ap_model **m, char *err, size_t errlen)
 {
         _cleanup_(ds_closep) struct ds *d = NULL;
         struct ap_fit_opts o;
@@ -188,7 +188,7 @@ static int fit_at(const char *path, int P, struct ap_model **m, char *err, size_
         CHECK_INT(ds_open(path, &d), 0);
         ap_fit_opts_default(&o);
         o.backends = registry_backends;
-        o.order = P, o.tile = 4;
+        o.order = P, o.k = K, o.tile = 4;
         *m = NULL;
         return ap_fit(d, &o, m, err, errlen);
 }
@@ -236,7 +236,7 @@ static void test_few_lights(void)
         o.n_lamps = 3, o.arm_angles = 5; /* 15 lights: order 3 */
         path = make(dir, "few", &o, &s);
         store_unlit(&s, path, 90);
-        CHECK_INT(fit_at(path, 6, &m, err, sizeof(err)), 0);
+        CHECK_INT(fit_at(path, 6, 12, &m, err, sizeof(err)), 0);
         fprintf(stderr, "notes: %s\n", m->notes);
         CHECK_INT(m->order, 3);
         CHECK_INT(m->n_views, 2);
@@ -272,7 +272,7 @@ static void test_one_side(void)
         o.n_lamps = 4, o.arm_angles = 12, o.intensity *= 3;
         o.lamp_elevation_deg[0] = 20, o.lamp_elevation_deg[1] = 40;
         o.lamp_elevation_deg[2] = 60, o.lamp_elevation_deg[3] = 80;
-        CHECK_INT(fit_at(make(dir, "side", &o, &s), 6, &m, err, sizeof(err)), 0);
+        CHECK_INT(fit_at(make(dir, "side", &o, &s), 6, 12, &m, err, sizeof(err)), 0);
         fprintf(stderr, "notes: %s\n", m->notes);
         CHECK_STR_CONTAINS(m->notes, "lights on part of the sphere only");
         CHECK_STR_CONTAINS(m->notes, "regularised, tikhonov 0.01");
@@ -308,7 +308,7 @@ static void test_no_lamps(void)
         o.turntable_angles = 0;
         path = make(dir, "dark", &o, &s);
         store_unlit(&s, path, 0);
-        CHECK_INT(fit_at(path, 6, &m, err, sizeof(err)), -ENODATA);
+        CHECK_INT(fit_at(path, 6, 12, &m, err, sizeof(err)), -ENODATA);
         CHECK_STR_CONTAINS(err, "no image rows with one lamp lit");
         CHECK_INT(ds_open(path, &d), 0);
         ap_fit_opts_default(&fo);
@@ -354,6 +354,92 @@ static void test_gonioctl(void)
         CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 2);
         CHECK_INT(test_run_gonioctl("model fit /nonexistent", out, sizeof(out)), 6);
         CHECK_INT(test_run_gonioctl("model", out, sizeof(out)), 2);
+        aps_close(&s);
+}
+
+/* Scales the 16-bit samples of f by k and adds b (full scale 1), clipping at full scale. */
+static void expose(struct gn_frame *f, double k, double b)
+{
+        uint16_t *px = (uint16_t *)f->data;
+
+        for (int i = 0; i < f->width * f->height * 3; i++)
+                px[i] = (uint16_t)lrint(fmin(px[i] * k + b * 65535, 65535));
+}
+
+/* The scene's dataset taken as two brackets (2x and 1/2 the exposure, the long one saturated
+ * on the highlights) over a dark frame: merged and dark-subtracted, the fit gives the model
+ * of the plain dataset, in units of its base exposure (the long one, twice the plain's);
+ * order 3 and K = 27, a lossless PCA, to compare the fits alone. */
+static void test_hdr(void)
+{
+        _cleanup_(rm_rfp) char *dir = tu_tmpdir();
+        _cleanup_(ap_model_freep) struct ap_model *plain = NULL, *hdr = NULL;
+        struct aps_opts o;
+        struct apscene s;
+        char path[512], err[512];
+        double worst = 0;
+        int64_t dark = 0;
+
+        aps_opts_default(&o, APS_GLOSSY);
+        o.arm_angles = 12;
+        CHECK_INT(fit_at(make(dir, "plain", &o, &s), 3, 27, &plain, err, sizeof(err)), 0);
+        snprintf(path, sizeof(path), "%s/hdr", dir);
+        {
+                _cleanup_(ds_closep) struct ds *d = NULL;
+                struct gn_frame f;
+                CHECK_INT(ds_create(path, "hdr", s.t.rc->text, &d), 0);
+                aps_write_mesh(&s, path);
+                for (int v = 0; v < 2; v++)
+                        for (int a = 0; a < 12; a++)
+                                for (int l = 0; l < 6; l++)
+                                        for (int b = -1; b < 2; b++) {
+                                                struct ds_capture c = {
+                                                        .pose = {{180.0 * v, 30.0 * a, NAN},
+                                                                 b < 0 ? 0 : 1u << l},
+                                                        .exposure_us = b ? 10000 : 40000,
+                                                        .bracket = b < 0 ? 0 : b,
+                                                        .dark_id = b < 0 ? 0 : dark};
+                                                snprintf(c.camera, sizeof(c.camera), "c0");
+                                                snprintf(c.kind, sizeof(c.kind),
+                                                         b < 0 ? "dark" : "image");
+                                                if (b < 0 && dark) /* one dark frame */
+                                                        continue;
+                                                aps_render_lamp(&s, 0, 180.0 * v, 30.0 * a, l, &f,
+                                                                0, NULL);
+                                                expose(&f, b < 0 ? 0 : b ? 0.5 : 2, 0.02);
+                                                CHECK_INT(ds_store(d, &f, &c), 0);
+                                                dark = b < 0 ? c.id : dark;
+                                                gn_frame_free_data(&f);
+                                        }
+        }
+        CHECK_INT(fit_at(path, 3, 27, &hdr, err, sizeof(err)), 0);
+        fprintf(stderr, "notes: %s\n", hdr->notes);
+        CHECK_INT(hdr->n_views, 2);
+        for (size_t v = 0; v < 2; v++)
+                for (int p = 0; p < o.width * o.height; p++) {
+                        double d[3] = {0.36, -0.48, 0.8}, y[9];
+                        if (!plain->views[v].mask[p])
+                                continue;
+                        CHECK(hdr->views[v].mask[p]);
+                        ap_sh_eval(3, d, y);
+                        for (int ch = 0; ch < 3; ch++) {
+                                double a = 0, b = 0;
+                                for (int m = 0; m < 9; m++) {
+                                        double ca = plain->mean[m * 3 + ch],
+                                               cb = hdr->mean[m * 3 + ch];
+                                        for (int k = 0; k < 27; k++) {
+                                                ca += plain->views[v].weights[p * 27 + k] *
+                                                      plain->basis[k * 27 + m * 3 + ch];
+                                                cb += hdr->views[v].weights[p * 27 + k] *
+                                                      hdr->basis[k * 27 + m * 3 + ch];
+                                        }
+                                        a += y[m] * ca, b += y[m] * cb;
+                                }
+                                worst = fmax(worst, fabs(2 * a - b)); /* the base: 40 ms */
+                        }
+                }
+        fprintf(stderr, "largest difference of the relit values %.3g\n", worst);
+        CHECK(worst < 1e-4);
         aps_close(&s);
 }
 
@@ -555,6 +641,7 @@ int main(int argc, char **argv)
                 {"heldout", test_heldout},
                 {"bandlimited-solve", test_bandlimited_solve},
                 {"bandlimited", test_bandlimited},
+                {"hdr", test_hdr},
                 {"few-lights", test_few_lights},
                 {"one-side", test_one_side},
                 {"no-lamps", test_no_lamps},
