@@ -15,7 +15,13 @@
  *                        components; index m * 3 + c inside a row
  *   views/NNN_wG.png     weights of view NNN, components 4G..4G+3 as RGBA 16-bit, each
  *                        sample = round((W - offset[k]) / scale[k]), 0..65535
- *   views/NNN_mask.png   mono 8-bit, 255 where the object is and the fit holds */
+ *   views/NNN_mask.png   mono 8-bit, 255 where the object is and the fit holds
+ *
+ * Units: T is the linear pixel value (1 = the camera's full scale at the dataset's base
+ * exposure, dark frame subtracted) under a light from direction l of the irradiance that a
+ * lamp of intensity light_intensity at light_distance_mm gives (a directional light). A point
+ * light of intensity I at distance r from the surface point scales it by
+ * (I / light_intensity) (light_distance_mm / r)^2. */
 #pragma once
 
 #include <stdbool.h>
@@ -23,8 +29,8 @@
 #include <stdint.h>
 
 #define AP_ORDER_MAX 10 /* P: bands 0..P-1, M = P^2 */
-#define AP_K_MAX 32
-#define AP_NAME_MAX 64
+#define AP_K_MAX     32
+#define AP_NAME_MAX  64
 
 /* A pinhole camera with OpenCV distortion (k1 k2 p1 p2 k3), x_cam = R x_obj + t. */
 struct ap_camera {
@@ -36,25 +42,32 @@ struct ap_camera {
 
 /* One sampled view direction: its camera and its weight images. */
 struct ap_view {
-        char camera[AP_NAME_MAX]; /* the rig's camera name */
+        char camera[AP_NAME_MAX];             /* the rig's camera name */
         double turntable_deg, camera_arm_deg; /* NAN where the rig has no such axis */
         struct ap_camera cam;
-        double dir[3];                  /* unit, object centre towards the camera */
-        float *weights;                 /* K per pixel, pixel-major: [(y * width + x) * K + k] */
-        uint8_t *mask;                  /* width * height, 1 where the model holds */
+        double dir[3];  /* unit, object centre towards the camera */
+        float *weights; /* K per pixel, pixel-major: [(y * width + x) * K + k] */
+        uint8_t *mask;  /* width * height, 1 where the model holds */
         float scale[AP_K_MAX], offset[AP_K_MAX]; /* quantisation of the weight PNGs */
 };
 
 struct ap_model {
         char name[AP_NAME_MAX];
-        int order; /* P */
-        int n_coef; /* M = P^2 */
-        int k;      /* K principal components */
+        int order;    /* P */
+        int n_coef;   /* M = P^2 */
+        int k;        /* K principal components */
         float *mean;  /* 3M */
         float *basis; /* K x 3M, row-major */
         size_t n_views;
         struct ap_view *views;
-        char notes[512]; /* fallbacks taken by the fit, stated for the user ("" none) */
+        char notes[1024]; /* fallbacks taken by the fit, stated for the user ("" none) */
+        double light_distance_mm, light_intensity; /* the light T is relative to (Units) */
+        char reg[16];       /* the fit's regularisation: "tikhonov" or "tsvd" */
+        double reg_param;   /* its lambda (relative to the largest singular value) or the
+                             * relative cut-off of the singular values */
+        double rms_sh;      /* RMS of the SH fit's residual over the masked samples */
+        double rms_pca;     /* RMS of the PCA's residual on the coefficient vectors */
+        double fit_seconds; /* wall time of the fit */
 };
 
 /* Number of coefficients of order P (P^2). */
@@ -62,6 +75,14 @@ static inline int ap_n_coef(int order)
 {
         return order * order;
 }
+
+/* A zeroed model of order P, K components and n_views views (views' arrays not allocated:
+ * ap_view_alloc), mean and basis allocated. Returns 0, -EINVAL or -ENOMEM. */
+int ap_model_new(int order, int k, size_t n_views, struct ap_model **ret);
+
+/* Allocates v's weights (K per pixel, zero) and mask (zero) for v->cam's size. Returns 0,
+ * -EINVAL (no size) or -ENOMEM; ap_model_free frees them. */
+int ap_view_alloc(struct ap_view *v, int k);
 
 /* Frees m's arrays and m itself. NULL is a no-op. Returns NULL. */
 struct ap_model *ap_model_free(struct ap_model *m);
