@@ -319,7 +319,7 @@ static void store(struct scan *s, struct gn_frame *f, double deg)
         int r;
 
         pose.deg[GN_ROLE_TURNTABLE] = s->continuous ? fmod(fmod(deg, 360) + 360, 360) : deg;
-        pose.laser = true;
+        pose.lasers = 1;
         r = capture_store_frame(s->m->capture, s->p.cam, f, &pose, &tag, on_stored, s);
         if (r == -EAGAIN) {
                 s->late++; /* the storage queue is full */
@@ -553,7 +553,7 @@ static int refusal(struct scan *s, char *msg, size_t len)
                 return snprintf(msg, len, "the rig is busy (%s)", state), -EBUSY;
         if ((s->axis = rigconf_axis_of_role(m->rc, GN_ROLE_TURNTABLE)) < 0)
                 return snprintf(msg, len, "this rig has no turntable"), -ENOENT;
-        if (!m->rc->has_laser)
+        if (!m->rc->n_lasers)
                 return snprintf(msg, len, "this rig has no laser"), -ENOENT;
         if (isnan(rig_pose(m->rig).deg[GN_ROLE_TURNTABLE]))
                 return snprintf(msg, len, "the turntable is not homed (home first)"), -EPERM;

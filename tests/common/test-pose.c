@@ -67,7 +67,7 @@ static void test_equal_nan(void)
                 CHECK(!gn_pose_has(&none, i));
         }
         CHECK(!gn_pose_has(&none, GN_ROLE_COUNT));
-        CHECK(!none.laser && none.lamps == 0);
+        CHECK(!none.lasers && none.lamps == 0);
         CHECK(gn_pose_equal(&none, &a, 0)); /* no axis equals no axis */
         a.deg[GN_ROLE_CAMERA_ARM] = 0;
         CHECK(gn_pose_has(&a, GN_ROLE_CAMERA_ARM));
@@ -88,7 +88,7 @@ static void test_equal_switches(void)
         CHECK(!gn_pose_equal(&a, &b, 1));
         b.lamps = 1u << 3;
         CHECK(gn_pose_equal(&a, &b, 1));
-        b.laser = true;
+        b.lasers = 1;
         CHECK(!gn_pose_equal(&a, &b, 1));
 }
 

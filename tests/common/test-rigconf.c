@@ -90,13 +90,13 @@ static void case_example(void)
         CHECK_INT(rc->n_axes, 3);
         CHECK_INT(rc->n_lamps, 4);
         CHECK_INT(rc->n_cameras, 2);
-        CHECK(rc->has_laser);
+        CHECK(rc->n_lasers);
         CHECK(rc->axes[0].continuous);
         CHECK_NEAR(rc->axes[2].min_deg, -170, 0);
         CHECK_NEAR(rc->lamps[3].elevation_deg, 75, 0);
-        CHECK_STR(rc->laser.backend.name, "modbus-coil");
-        CHECK_INT(((const struct mbsw_conf *)rc->laser.backend.conf)->coil, 7);
-        CHECK_INT(((const struct mbsw_conf *)rc->laser.backend.conf)->unit, 10);
+        CHECK_STR(rc->lasers[0].backend.name, "modbus-coil");
+        CHECK_INT(((const struct mbsw_conf *)rc->lasers[0].backend.conf)->coil, 7);
+        CHECK_INT(((const struct mbsw_conf *)rc->lasers[0].backend.conf)->unit, 10);
         CHECK_STR(rc->axes[1].backend.name, "modbus");
         CHECK_STR(rc->axes[1].bus, "drives");
         CHECK_INT(((const struct mbax_conf *)rc->axes[1].backend.conf)->unit, 2);

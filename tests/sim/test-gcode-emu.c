@@ -111,7 +111,7 @@ static bool laser(struct sim_emu *e)
         struct gn_pose st;
 
         sim_emu_snapshot(e, &st);
-        return st.laser;
+        return st.lasers;
 }
 
 static void test_horus_basics(struct sim_emu *e, int fd)
