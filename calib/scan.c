@@ -305,10 +305,9 @@ static int start_ctx(const struct rig_config *rc, const struct scan_calib *cal, 
         return 0;
 }
 
-/* Reads the rows, picks the camera and triangulates its laser rows into c. */
-static int reconstruct(struct ds *d, const struct rig_config *rc, const struct scan_opts *o,
-                       const struct scan_calib *cal, struct sec_ctx *c, struct scan_result *out,
-                       char *err, size_t errlen)
+int scan_section(struct ds *d, const struct rig_config *rc, const struct scan_opts *o,
+                 const struct scan_calib *cal, struct sec_ctx *c, struct scan_result *out,
+                 char *err, size_t errlen)
 {
         _cleanup_(rows_free) struct rows r = {0};
         _cleanup_free_ struct todo *t = NULL;
@@ -316,6 +315,8 @@ static int reconstruct(struct ds *d, const struct rig_config *rc, const struct s
         size_t n;
         int e;
 
+        memset(out, 0, sizeof(*out));
+        out->agree_rms_mm = NAN;
         if ((e = ds_rows_collect(d, keep_row, NULL, &r.c, &r.n)) < 0) {
                 snprintf(err, errlen, "cannot read dataset %s: %s", ds_name(d), ds_last_error(d));
                 return e;
@@ -332,6 +333,7 @@ static int reconstruct(struct ds *d, const struct rig_config *rc, const struct s
         out->rejected = c->rejected;
         for (int l = 0; l < SEC_MAX_LASERS; l++)
                 out->n_lasers += out->laser_points[l] > 0;
+        sec_normals(c);
         if (!c->n_pts) {
                 snprintf(err, errlen,
                          "no laser line in any of the %zu laser frames of camera %s (%zu "
@@ -366,8 +368,6 @@ static int write_outputs(int dir_fd, struct sec_ctx *c, const struct scan_opts *
         const char *what = SCAN_FILE_POINTS;
         int r;
 
-        sec_normals(c);
-        out->agree_rms_mm = NAN;
         if (out->n_lasers > 1 && cal_lasers_agreement(c, 0, &out->agree_rms_mm, &out->agree_pairs,
                                                       out->agree_offset_mm) < 0)
                 out->agree_rms_mm = NAN; /* the clouds do not overlap: nothing to compare */
@@ -406,7 +406,7 @@ int scan_dataset(struct ds *d, const struct rig_config *rc, const struct scan_op
                 return r;
         }
         if ((r = check_outputs(dir_fd, o->force, ds_name(d), err, errlen)) < 0 ||
-            (r = reconstruct(d, rc, o, cal, &c, out, err, errlen)) < 0 ||
+            (r = scan_section(d, rc, o, cal, &c, out, err, errlen)) < 0 ||
             (r = write_outputs(dir_fd, &c, o, out, err, errlen)) < 0)
                 return r;
         out->seconds = (double)(gn_monotonic_ns() - t0) / 1e9;

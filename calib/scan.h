@@ -90,6 +90,14 @@ int scan_load_rig(struct ds *d, const struct rig_backend *const *backends, struc
 int scan_nominal_calib(const struct rig_config *rc, const char *camera, double camera_arm_deg,
                        struct scan_calib *out);
 
+/* The first half of scan_dataset: triangulates the laser rows of dataset d (o->camera's, or
+ * the first camera's with laser rows) into c (sec_init'ed here, with the normals; free with
+ * sec_free, also on failure), counting into *out (zeroed first). Returns as scan_dataset,
+ * without -EEXIST and the writes' errors. Call from a worker (blocking I/O). */
+int scan_section(struct ds *d, const struct rig_config *rc, const struct scan_opts *o,
+                 const struct scan_calib *cal, struct sec_ctx *c, struct scan_result *out,
+                 char *err, size_t errlen);
+
 /* Reconstructs the scan of dataset d, captured with rig rc (the laser's channel, the camera
  * names; the nominal calibration when cal is NULL), and writes SCAN_FILE_POINTS (the cloud,
  * normals from the grid) and the simplified mesh as SCAN_FILE_MESH_PLY and
