@@ -138,6 +138,8 @@ static int p_laser(const struct cmd *c, const struct args *a, char **argv, int a
 
         if (parse_onoff(c, argv[0], &on) < 0)
                 return -EINVAL;
+        if (argc > 1 && set(*ret, "laser", json_string(argv[1])) < 0)
+                return -ENOMEM;
         return set(*ret, "on", json_boolean(on));
 }
 
@@ -205,7 +207,7 @@ static int discover_here(const struct args *a, struct out *o, json_t **ret)
 }
 
 static const struct cmd commands[] = {
-        {NULL, "status", "", "rig state, axes, lamps, laser, cameras, dataset", "status", 0, 0, 0,
+        {NULL, "status", "", "rig state, axes, lamps, lasers, cameras, dataset", "status", 0, 0, 0,
          TIMEOUT_S, NULL, out_print_status},
         {NULL, "describe", "", "devices, backends and their options", "describe", 0, 0, 0,
          TIMEOUT_S, NULL, out_print_describe},
@@ -216,8 +218,8 @@ static const struct cmd commands[] = {
         {NULL, "stop", "", "stop all motion now", "stop", 0, 0, 0, TIMEOUT_S, NULL, out_print_stop},
         {NULL, "lamp", "N|NAME on|off", "switch a lamp", "lamp.set", 2, 2, 0, TIMEOUT_S, p_lamp,
          out_print_lamp},
-        {NULL, "laser", "on|off", "switch the laser", "laser.set", 1, 1, 0, TIMEOUT_S, p_laser,
-         out_print_laser},
+        {NULL, "laser", "on|off [NAME]", "switch the laser NAME, or every laser", "laser.set", 1, 2,
+         0, TIMEOUT_S, p_laser, out_print_laser},
         {NULL, "capture", "[--camera NAME] [--exposure US] [--gain G] [--bits 8|16]",
          "capture into the open dataset", "capture", 0, 0,
          ARG_CAMERA | ARG_EXPOSURE | ARG_GAIN | ARG_BITS, TIMEOUT_LONG_S, p_capture,

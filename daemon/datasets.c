@@ -56,13 +56,13 @@ static json_t *num_or_null(double v)
 
 json_t *datasets_row_json(const struct ds_capture *c)
 {
-        return json_pack("{sIsssssssisisssosososssb}", "id", (json_int_t)c->id, "camera", c->camera,
-                         "file", c->file, "sha256", c->sha256, "width", c->width, "height",
-                         c->height, "pixfmt", c->pixfmt, "turntable",
+        return json_pack("{sIsssssssisisssosososssbsI}", "id", (json_int_t)c->id, "camera",
+                         c->camera, "file", c->file, "sha256", c->sha256, "width", c->width,
+                         "height", c->height, "pixfmt", c->pixfmt, "turntable",
                          num_or_null(c->pose.deg[GN_ROLE_TURNTABLE]), "light_arm",
                          num_or_null(c->pose.deg[GN_ROLE_LIGHT_ARM]), "camera_arm",
                          num_or_null(c->pose.deg[GN_ROLE_CAMERA_ARM]), "lamps", c->lamps, "laser",
-                         c->pose.laser);
+                         c->pose.lasers != 0, "lasers", (json_int_t)c->pose.lasers);
 }
 
 /* ---- jobs (worker thread) ---- */

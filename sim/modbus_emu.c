@@ -802,8 +802,9 @@ static int add_devices(struct sim_emu *e)
         for (size_t i = 0; r >= 0 && i < rc->n_lamps; i++)
                 if (strcmp(rc->lamps[i].backend.name, "modbus-coil") == 0)
                         r = add_coil(e, &rc->lamps[i]);
-        if (r >= 0 && rc->has_laser && strcmp(rc->laser.backend.name, "modbus-coil") == 0)
-                r = add_coil(e, &rc->laser);
+        for (size_t i = 0; r >= 0 && i < rc->n_lasers; i++)
+                if (strcmp(rc->lasers[i].backend.name, "modbus-coil") == 0)
+                        r = add_coil(e, &rc->lasers[i]);
         for (size_t i = 0; r >= 0 && i < e->n_units; i++) {
                 struct emu_unit *u = &e->units[i];
                 if (!u->is_axis && !(u->map = modbus_mapping_new(u->n_coils, 0, 0, 0)))
@@ -887,7 +888,8 @@ void sim_emu_snapshot(struct sim_emu *e, struct gn_pose *st)
         }
         for (size_t i = 0; i < rc->n_lamps && i < GN_POSE_MAX_LAMPS; i++)
                 st->lamps |= (uint32_t)coil_state(e, &rc->lamps[i]) << i;
-        st->laser = rc->has_laser && coil_state(e, &rc->laser);
+        for (size_t i = 0; i < rc->n_lasers; i++)
+                st->lasers |= (uint32_t)coil_state(e, &rc->lasers[i]) << i;
         pthread_mutex_unlock(&e->lock);
         if (e->gcode)
                 sim_gcode_snapshot(e->gcode, st);
