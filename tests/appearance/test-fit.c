@@ -5,6 +5,9 @@
 
 #include "appearance/fit.h"
 #include "appearance/sh.h"
+#ifdef AP_CALFILE
+#include "calib/calfile.h"
+#endif
 #include "common/cleanup.h"
 #include "drivers/registry.h"
 #include "tests/appearance/apscene.h"
@@ -327,6 +330,46 @@ static void test_no_lamps(void)
         CHECK_INT(ap_fit(d, &fo, &m, err, sizeof(err)), -EINVAL);
         aps_close(&s);
 }
+
+#ifdef AP_CALFILE
+/* A calibration file with the lamps' sections: used (stated as calibrated), its positions
+ * those of the fit (a lamp moved 100 mm in the file changes the model). */
+static void test_calibration(void)
+{
+        _cleanup_(rm_rfp) char *dir = tu_tmpdir();
+        _cleanup_(ap_model_freep) struct ap_model *m = NULL, *moved = NULL;
+        struct aps_opts o;
+        struct apscene s;
+        char err[512], cal[600];
+        const char *path;
+        double diff = 0;
+
+        aps_opts_default(&o, APS_DIFFUSE);
+        o.n_lamps = 4, o.arm_angles = 12;
+        path = make(dir, "cal", &o, &s);
+        snprintf(cal, sizeof(cal), "%s/calibration.yaml", path);
+        for (int l = 0; l < o.n_lamps; l++) {
+                struct cal_lamp_pos lp = {.rms_mm = 0.1, .n_obs = 10};
+                snprintf(lp.name, sizeof(lp.name), "l%d", l);
+                aps_lamp_position(&s, l, 0, lp.pos);
+                CHECK_INT(cal_lamp_write(cal, &lp, true, err, sizeof(err)), 0);
+        }
+        CHECK_INT(fit_at(path, 4, 12, &m, err, sizeof(err)), 0);
+        fprintf(stderr, "notes: %s\n", m->notes);
+        CHECK_STR_CONTAINS(m->notes, "0 of 2 views' cameras and 96 of 96 lights' lamps calibrated");
+        {
+                struct cal_lamp_pos lp = {.name = "l0", .rms_mm = 0.01, .n_obs = 10};
+                aps_lamp_position(&s, 0, 0, lp.pos);
+                lp.pos[2] += 100;
+                CHECK_INT(cal_lamp_write(cal, &lp, true, err, sizeof(err)), 0);
+        }
+        CHECK_INT(fit_at(path, 4, 12, &moved, err, sizeof(err)), 0);
+        for (int i = 0; i < 48; i++)
+                diff = fmax(diff, fabs(m->mean[i] - moved->mean[i]));
+        CHECK(diff > 1e-3);
+        aps_close(&s);
+}
+#endif
 
 /* gonioctl model fit through the command line: written, read back, not replaced without
  * --force, options checked. */
@@ -665,6 +708,9 @@ int main(int argc, char **argv)
                 {"one-side", test_one_side},
                 {"no-lamps", test_no_lamps},
                 {"gonioctl", test_gonioctl},
+#ifdef AP_CALFILE
+                {"calibration", test_calibration},
+#endif
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
