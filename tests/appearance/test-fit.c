@@ -51,11 +51,18 @@ static void test_scene(void)
                 _cleanup_(ds_closep) struct ds *d = aps_make_dataset(&s, path);
                 CHECK_INT(ds_count(d), 2 * 18 * 6);
         }
-        fprintf(stderr, "dataset of 120 captures in %.2f s\n", now_s() - t0);
+        fprintf(stderr, "dataset of %d captures in %.2f s\n", 2 * 18 * 6, now_s() - t0);
         aps_render_lamp(&s, 0, 30, 60, 2, &a, 0, NULL);
         aps_lamp_position(&s, 2, 60, p);
         aps_render_light(&s, 0, 30, p, &b, 0, NULL);
         CHECK(tu_frames_equal(&a, &b));
+        gn_frame_free_data(&b);
+        aps_render_view(&s, 0, 15, 30, p, &b, 0, NULL); /* the camera's own elevation */
+        CHECK(tu_frames_equal(&a, &b));
+        gn_frame_free_data(&b);
+        aps_render_view(&s, 0, 25, 30, p, &b, 0, NULL);
+        CHECK(!tu_frames_equal(&a, &b));
+        CHECK(s.t.rc->cameras[0].elevation_deg == 15);
         for (int l = 0; l < o.n_lamps; l++) {
                 gn_frame_free_data(&a);
                 aps_render_lamp(&s, 0, 0, 0, l, &a, 0, NULL);
