@@ -428,7 +428,7 @@ int ap_fit_pinv(const double *A, int L, int M, enum ap_reg reg, double param, fl
                                 x += G[m * M + i] * A[j * M + i];
                         pinv[m * L + j] = (float)x;
                 }
-        if (cond)
-                *cond = ev[0] > 0 ? sqrt(top / ev[0]) : INFINITY;
+        if (cond) /* eigenvalues below 1e-16 of the largest are rounding: 1e8 at most */
+                *cond = sqrt(top / fmax(ev[0], 1e-16 * top));
         return 0;
 }
