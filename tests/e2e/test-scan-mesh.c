@@ -302,27 +302,30 @@ static void scan_two(struct rigenv *e, const char *name, const char *mode, const
         json_decref(res);
 }
 
-static void test_two_lasers(void)
+/* The two-laser rig at time scale ts, homed, scanned in mode over [from, to] by step. */
+static void two_lasers(double ts, const char *mode, const char *from, const char *to,
+                       const char *step, size_t min_points)
 {
         _cleanup_free_ char *text = two_laser_rig();
         struct rigenv e;
 
-        rigenv_start_rig(&e, args, 12, text);
+        rigenv_start_rig(&e, args, ts, text);
         json_decref(ctl_ok(&e, "home", "turntable", NULL));
-        scan_two(&e, "two", "stop", "0", "359", "12", 1000);
+        scan_two(&e, "two", mode, from, to, step, min_points);
         rigenv_stop(&e);
 }
 
-/* Continuous, one pass per laser, over a third of a turn (rig time: angles from read-backs). */
+/* Stop-and-go over a full turn, sped up (the rig stands still at each exposure). */
+static void test_two_lasers(void)
+{
+        two_lasers(12, "stop", "0", "359", "12", 1000);
+}
+
+/* Continuous, one pass per laser, over most of a turn, so that the return to the second
+ * pass goes on round, not back (rig time: angles from read-backs). */
 static void test_two_lasers_continuous(void)
 {
-        _cleanup_free_ char *text = two_laser_rig();
-        struct rigenv e;
-
-        rigenv_start_rig(&e, args, 1, text);
-        json_decref(ctl_ok(&e, "home", "turntable", NULL));
-        scan_two(&e, "two", "continuous", "0", "90", "3", 500);
-        rigenv_stop(&e);
+        two_lasers(1, "continuous", "0", "120", "3", 500);
 }
 
 int main(int argc, char **argv)
