@@ -266,6 +266,7 @@ static void *pass_worker(void *arg)
 {
         struct pass *p = arg;
         struct fit_ctx *c = p->c;
+        int r;
 
         for (;;) {
                 size_t i;
@@ -276,7 +277,10 @@ static void *pass_worker(void *arg)
                 pthread_mutex_unlock(&c->lock);
                 if (i >= c->n_views)
                         return NULL;
-                fit_view(c, i, p->pilot);
+                r = fit_view(c, i, p->pilot);
+                if (r < 0) /* kept when a sentence came first */
+                        fit_fail(c, r, "view %zu (%s): %s", i, c->rc->cameras[c->views[i].cam].name,
+                                 strerror(-r));
         }
 }
 
