@@ -120,7 +120,7 @@ static bool key_of(const struct rig_config *rc, const struct ds_capture *r, stru
 {
         uint32_t l = r->pose.lamps;
 
-        if ((strcmp(r->kind, "image") != 0 && r->kind[0]) || r->pose.laser || !l || (l & (l - 1)))
+        if ((strcmp(r->kind, "image") != 0 && r->kind[0]) || r->pose.lasers || !l || (l & (l - 1)))
                 return false;
         *k = (struct rowkey){.r = r,
                              .cam = camera_index(rc, r->camera),
