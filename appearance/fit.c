@@ -5,9 +5,10 @@
  *
  * DESIGN: the coefficient vectors of a whole seed-scale dataset (76 views x 720 x 480 x 108
  * floats, 11 GB) do not fit in memory, and the basis must be known before any view can be
- * projected. The pilot views (one in AP_PILOT_EVERY, at least one) are fitted twice: once
- * to sample, once to project, so the images are decoded 1 + 1/AP_PILOT_EVERY times. Each
- * worker holds one view's L x 3N matrix (about 400 MB at seed scale). */
+ * projected. The pilot views (one in AP_PILOT_EVERY, at least one) are fitted first; their
+ * vectors are sampled for the PCA and kept (about 60 MB a view at seed scale) until the final
+ * pass projects them with the others: every image is read once. Each worker holds one view's
+ * L x 3N matrix (about 400 MB at seed scale). */
 #include <cblas.h>
 #include <errno.h>
 #include <math.h>
@@ -369,6 +370,8 @@ static void ctx_free(struct fit_ctx *c)
                 free(c->views[i].rows);
                 free(c->views[i].lights);
                 free(c->views[i].points);
+                free(c->views[i].kept);
+                free(c->views[i].kept_pix);
         }
         free(c->views);
         free(c->all);
