@@ -349,12 +349,11 @@ static int add_sample(struct fit_ctx *c, const struct fit_view *v, const struct 
 }
 
 /* Final pass: the weights and mask of model view mv from the vectors. */
-static int project(struct fit_ctx *c, struct ap_view *mv, const struct vdata *d,
+static int project(struct fit_ctx *c, struct ap_view *mv, const struct fit_view *v,
                    const struct vcoef *vc)
 {
         const struct ap_model *m = c->model;
         _cleanup_free_ float *w = malloc((vc->n + 1) * m->k * sizeof(float));
-        size_t n_sat = 0;
         int r = ap_view_alloc(mv, m->k);
 
         if (r < 0 || !w)
@@ -364,32 +363,57 @@ static int project(struct fit_ctx *c, struct ap_view *mv, const struct vdata *d,
                 mv->mask[vc->pix[i]] = 1;
                 memcpy(mv->weights + (size_t)vc->pix[i] * m->k, w + i * m->k, m->k * sizeof(float));
         }
-        for (size_t p = 0; p < (size_t)d->W * d->H; p++)
-                n_sat += d->sat[p] && d->maxv[p] >= c->o->background;
         pthread_mutex_lock(&c->lock);
-        c->masked_saturated += n_sat;
+        c->masked_saturated += v->n_sat;
         pthread_mutex_unlock(&c->lock);
         return 0;
 }
 
-int fit_view(struct fit_ctx *c, size_t i, bool pilot_pass)
+/* Pilot pass: keeps the view's vectors for the final pass (a pilot view is read once). */
+static void keep(const struct fit_ctx *c, struct fit_view *v, struct vcoef *vc)
 {
-        struct fit_view *v = &c->views[i];
+        float *coef = realloc(vc->coef, (vc->n + 1) * 3 * c->M * sizeof(float));
+
+        v->kept = coef ?: vc->coef;
+        v->kept_pix = vc->pix;
+        v->n_kept = vc->n;
+        vc->coef = NULL;
+        vc->pix = NULL;
+}
+
+/* Loads and solves view v into vc; counts its saturated pixels. */
+static int solve(struct fit_ctx *c, struct fit_view *v, struct vcoef *vc, bool pilot_pass)
+{
         _cleanup_(vdata_free) struct vdata d = {0};
-        struct vcoef vc = {0};
         int r = vdata_init(&d, c, v);
 
         for (int j = 0; r == 0 && j < d.L; j++)
                 r = load_light(c, v, j, &d);
         if (r == 0)
-                r = solve_view(c, v, &d, &vc);
+                r = solve_view(c, v, &d, vc);
+        for (size_t p = 0; r == 0 && p < (size_t)d.W * d.H; p++)
+                v->n_sat += d.sat[p] && d.maxv[p] >= c->o->background;
         if (r == 0 && pilot_pass)
-                r = add_sample(c, v, &d, &vc);
-        else if (r == 0)
-                r = project(c, &c->model->views[i], &d, &vc);
+                r = add_sample(c, v, &d, vc);
         pthread_mutex_lock(&c->lock);
-        c->cond_max = fmax(c->cond_max, vc.cond);
+        c->cond_max = fmax(c->cond_max, vc->cond);
         pthread_mutex_unlock(&c->lock);
+        return r;
+}
+
+int fit_view(struct fit_ctx *c, size_t i, bool pilot_pass)
+{
+        struct fit_view *v = &c->views[i];
+        struct vcoef vc = {.coef = v->kept, .pix = v->kept_pix, .n = v->n_kept};
+        int r = 0;
+
+        v->kept = NULL, v->kept_pix = NULL;
+        if (!vc.coef)
+                r = solve(c, v, &vc, pilot_pass);
+        if (r == 0 && pilot_pass)
+                keep(c, v, &vc);
+        else if (r == 0)
+                r = project(c, &c->model->views[i], v, &vc);
         free(vc.coef);
         free(vc.pix);
         return r;
