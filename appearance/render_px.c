@@ -1,0 +1,324 @@
+/* render_px.c - a frame of the renderer (render.h): the mesh rasterised from the output
+ * camera (for a distorted camera, in a pinhole image grown to hold its undistorted rays, the
+ * surface point being where the pixel's ray meets the plane of the triangle seen), then per
+ * pixel the views' weights sampled and blended (Step 4.1) and the light term (Step 4.2).
+ * Threads take bands of rows from a shared counter. */
+#include <errno.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "appearance/cube.h"
+#include "appearance/render_internal.h"
+#include "appearance/views.h"
+
+#define BAND_ROWS 8
+
+static bool cam_distorted(const struct ap_camera *c)
+{
+        for (int i = 0; i < 5; i++)
+                if (c->dist[i] != 0)
+                        return true;
+        return false;
+}
+
+/* OpenCV's distortion of normalised (x, y): k1 k2 p1 p2 k3. */
+static inline void distortf(const float k[5], float x, float y, float *xd, float *yd)
+{
+        float r2 = x * x + y * y, rad = 1 + r2 * (k[0] + r2 * (k[1] + r2 * k[4]));
+
+        *xd = x * rad + 2 * k[2] * x * y + k[3] * (r2 + 2 * x * x);
+        *yd = y * rad + k[2] * (r2 + 2 * y * y) + 2 * k[3] * x * y;
+}
+
+/* The inverse by OpenCV's fixed-point iteration (undistortPoints). */
+static void undistort(const struct ap_camera *c, double xd, double yd, float *out)
+{
+        const double *k = c->dist;
+        double x = xd, y = yd;
+
+        for (int it = 0; it < 20; it++) {
+                double r2 = x * x + y * y, rad = 1 + r2 * (k[0] + r2 * (k[1] + r2 * k[4]));
+                double dx = 2 * k[2] * x * y + k[3] * (r2 + 2 * x * x);
+                double dy = k[2] * (r2 + 2 * y * y) + 2 * k[3] * x * y;
+                x = (xd - dx) / rad;
+                y = (yd - dy) / rad;
+        }
+        out[0] = (float)x;
+        out[1] = (float)y;
+}
+
+static bool same_intrinsics(const struct ap_camera *a, const struct ap_camera *b)
+{
+        return a->width == b->width && a->height == b->height && a->fx == b->fx && a->fy == b->fy &&
+               a->cx == b->cx && a->cy == b->cy && !memcmp(a->dist, b->dist, sizeof(a->dist));
+}
+
+/* The undistorted rays of a distorted camera, kept while its intrinsics stay. */
+static int make_rays(struct ap_renderer *r, const struct ap_camera *c)
+{
+        size_t n = (size_t)c->width * c->height;
+
+        if (r->rays && same_intrinsics(&r->rays_cam, c))
+                return 0;
+        if (n > r->rays_cap) {
+                float *p = realloc(r->rays, 2 * n * sizeof(float));
+                if (!p)
+                        return -ENOMEM;
+                r->rays = p;
+                r->rays_cap = n;
+        }
+        for (int y = 0; y < c->height; y++)
+                for (int x = 0; x < c->width; x++)
+                        undistort(c, (x - c->cx) / c->fx, (y - c->cy) / c->fy,
+                                  &r->rays[2 * ((size_t)y * c->width + x)]);
+        r->rays_cam = *c;
+        return 0;
+}
+
+/* The pinhole raster holding every ray of c: c itself, or grown to the rays' extent. */
+static void raster_extent(const struct ap_renderer *r, const struct ap_camera *c,
+                          struct ap_pinhole *ph)
+{
+        double lo[2] = {0, 0}, hi[2] = {c->width - 1, c->height - 1};
+
+        *ph = (struct ap_pinhole){c->width, c->height, c->fx, c->fy, c->cx, c->cy};
+        if (!r->rays)
+                return;
+        for (size_t i = 0; i < (size_t)c->width * c->height; i++)
+                for (int j = 0; j < 2; j++) {
+                        double u = j ? c->fy * r->rays[2 * i + 1] + c->cy
+                                     : c->fx * r->rays[2 * i] + c->cx;
+                        lo[j] = fmin(lo[j], u);
+                        hi[j] = fmax(hi[j], u);
+                }
+        lo[0] = fmax(lo[0], -AP_RENDER_MAX_SIDE), lo[1] = fmax(lo[1], -AP_RENDER_MAX_SIDE);
+        hi[0] = fmin(hi[0], 2 * AP_RENDER_MAX_SIDE), hi[1] = fmin(hi[1], 2 * AP_RENDER_MAX_SIDE);
+        ph->cx = c->cx - floor(lo[0]) + 1;
+        ph->cy = c->cy - floor(lo[1]) + 1;
+        ph->width = (int)(ceil(hi[0]) - floor(lo[0])) + 3;
+        ph->height = (int)(ceil(hi[1]) - floor(lo[1])) + 3;
+}
+
+int render_prepare_raster(struct ap_renderer *r, const struct ap_camera *cam)
+{
+        size_t n;
+        int e;
+
+        if (!cam_distorted(cam)) {
+                free(r->rays);
+                r->rays = NULL;
+                r->rays_cap = 0;
+        } else if ((e = make_rays(r, cam)) < 0) {
+                return e;
+        }
+        raster_extent(r, cam, &r->ras);
+        memcpy(r->ras.R, cam->R, sizeof(cam->R));
+        memcpy(r->ras.t, cam->t, sizeof(cam->t));
+        n = (size_t)r->ras.width * r->ras.height;
+        if (n > r->ras_cap) {
+                float *d = realloc(r->ras_depth, n * sizeof(float));
+                int32_t *t = d ? realloc(r->ras_tri, n * sizeof(int32_t)) : NULL;
+                if (d)
+                        r->ras_depth = d;
+                if (!t)
+                        return -ENOMEM;
+                r->ras_tri = t;
+                r->ras_cap = n;
+        }
+        return ap_raster(r->mesh, &r->ras, r->ras_depth, r->ras_tri);
+}
+
+/* The surface point p (object frame) seen at output pixel (x, y); false where none. */
+static bool surface_point(const struct frame *f, int x, int y, float p[3])
+{
+        const struct ap_renderer *r = f->r;
+        const struct ap_camera *c = f->cam;
+        float xn, yn, d[3], den, s;
+        const float *pl;
+        int32_t tri;
+
+        if (r->rays) {
+                const float *ray = &r->rays[2 * ((size_t)y * c->width + x)];
+                int iu = (int)lrint(c->fx * ray[0] + r->ras.cx);
+                int iv = (int)lrint(c->fy * ray[1] + r->ras.cy);
+                if (iu < 0 || iv < 0 || iu >= r->ras.width || iv >= r->ras.height)
+                        return false;
+                xn = ray[0], yn = ray[1];
+                tri = r->ras_tri[(size_t)iv * r->ras.width + iu];
+        } else {
+                xn = (float)((x - c->cx) / c->fx), yn = (float)((y - c->cy) / c->fy);
+                tri = r->ras_tri[(size_t)y * c->width + x];
+        }
+        if (tri < 0)
+                return false;
+        for (int i = 0; i < 3; i++)
+                d[i] = f->Rt[3 * i] * xn + f->Rt[3 * i + 1] * yn + f->Rt[3 * i + 2];
+        pl = &r->planes[4 * (size_t)tri];
+        den = pl[0] * d[0] + pl[1] * d[1] + pl[2] * d[2];
+        if (fabsf(den) < 1e-12f)
+                return false;
+        s = (pl[3] - pl[0] * f->C[0] - pl[1] * f->C[1] - pl[2] * f->C[2]) / den;
+        for (int i = 0; i < 3; i++)
+                p[i] = f->C[i] + s * d[i];
+        return true;
+}
+
+/* True when the point at camera depth z, pinhole position (u, v) of view v's depth map, is
+ * not behind the mesh seen from v. */
+static bool visible(const struct rview *v, float u, float w, float z)
+{
+        int iu = (int)floorf(u + v->mx), iv = (int)floorf(w + v->my);
+        float dmax = 0;
+
+        if (iu < 0 || iv < 0 || iu + 1 >= v->dw || iv + 1 >= v->dh)
+                return false;
+        for (int j = 0; j < 4; j++) {
+                float d = v->depth[(size_t)(iv + j / 2) * v->dw + iu + j % 2];
+                if (isfinite(d) && d > dmax)
+                        dmax = d;
+        }
+        return dmax == 0 || z <= dmax * (1 + (float)AP_RENDER_BIAS);
+}
+
+/* Adds wgt times view v's weights at object point p to acc; false where p is hidden from v
+ * or outside its mask. */
+static bool sample_view(const struct rview *v, const float p[3], int K, float wgt, float *acc)
+{
+        float x[3], xd, yd, u, w, tw = 0, bw[4];
+        const float *tx[4];
+        int x0, y0;
+
+        for (int i = 0; i < 3; i++)
+                x[i] = v->R[3 * i] * p[0] + v->R[3 * i + 1] * p[1] + v->R[3 * i + 2] * p[2] +
+                       v->t[i];
+        if (x[2] <= 0)
+                return false;
+        xd = x[0] / x[2], yd = x[1] / x[2];
+        if (!visible(v, v->fx * xd + v->cx, v->fy * yd + v->cy, x[2]))
+                return false;
+        if (v->distorted)
+                distortf(v->dist, x[0] / x[2], x[1] / x[2], &xd, &yd);
+        u = v->fx * xd + v->cx, w = v->fy * yd + v->cy;
+        x0 = (int)floorf(u), y0 = (int)floorf(w);
+        u -= (float)x0, w -= (float)y0;
+        for (int j = 0; j < 4; j++) {
+                int xx = x0 + j % 2, yy = y0 + j / 2;
+                bool in = xx >= 0 && yy >= 0 && xx < v->width && yy < v->height;
+                size_t i = in ? (size_t)yy * v->width + xx : 0;
+                bw[j] = in && v->mask[i] ? (j % 2 ? u : 1 - u) * (j / 2 ? w : 1 - w) : 0;
+                tx[j] = v->weights + i * K;
+                tw += bw[j];
+        }
+        if (!(tw > 0))
+                return false;
+        for (int j = 0; j < 4; j++)
+                bw[j] *= wgt / tw;
+        for (int k = 0; k < K; k++)
+                acc[k] += bw[0] * tx[0][k] + bw[1] * tx[1][k] + bw[2] * tx[2][k] + bw[3] * tx[3][k];
+        return true;
+}
+
+/* L(l, k, c) at unit l from the cube map, bilinear inside a face. */
+static void cube_sample(const struct ap_renderer *r, const float l[3], float *out)
+{
+        const int n = AP_RENDER_CUBE, row = (r->m->k + 1) * 3;
+        float s, t, fs, ft, a, b;
+        int face = ap_cube_face(l, &s, &t), i0, j0, i1, j1;
+        const float *q00, *q01, *q10, *q11;
+
+        fs = fminf(fmaxf((s + 1) * 0.5f * n - 0.5f, 0), n - 1);
+        ft = fminf(fmaxf((t + 1) * 0.5f * n - 0.5f, 0), n - 1);
+        i0 = (int)fs, j0 = (int)ft;
+        i1 = i0 + 1 < n ? i0 + 1 : i0, j1 = j0 + 1 < n ? j0 + 1 : j0;
+        a = fs - (float)i0, b = ft - (float)j0;
+        q00 = &r->cube[(((size_t)face * n + j0) * n + i0) * row];
+        q01 = &r->cube[(((size_t)face * n + j0) * n + i1) * row];
+        q10 = &r->cube[(((size_t)face * n + j1) * n + i0) * row];
+        q11 = &r->cube[(((size_t)face * n + j1) * n + i1) * row];
+        for (int i = 0; i < row; i++)
+                out[i] = (1 - b) * ((1 - a) * q00[i] + a * q01[i]) +
+                         b * ((1 - a) * q10[i] + a * q11[i]);
+}
+
+static void shade(const struct frame *f, int x, int y)
+{
+        const struct ap_renderer *r = f->r;
+        size_t i = (size_t)y * f->cam->width + x;
+        int K = r->m->k, idx[3], n;
+        float p[3], w[3], acc[AP_K_MAX] = {0}, ws = 0, lt[(AP_K_MAX + 1) * 3], s = f->scale;
+        const float *L = f->lconst;
+
+        f->mask[i] = 0;
+        f->rgb[3 * i] = f->rgb[3 * i + 1] = f->rgb[3 * i + 2] = 0;
+        if (!surface_point(f, x, y, p))
+                return;
+        if (f->mode == AP_VIEW_OBJECT) {
+                memcpy(idx, f->oidx, sizeof(idx));
+                memcpy(w, f->ow, sizeof(w));
+                n = f->on;
+        } else {
+                float v[3] = {f->C[0] - p[0], f->C[1] - p[1], f->C[2] - p[2]};
+                float len = sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+                for (int j = 0; j < 3; j++)
+                        v[j] /= len;
+                n = ap_views_weights(r->views, v, idx, w);
+        }
+        for (int j = 0; j < n; j++)
+                if (w[j] > 0 && sample_view(&r->rv[idx[j]], p, K, w[j], acc))
+                        ws += w[j];
+        if (!(ws > 0))
+                return;
+        if (f->kind == AP_LIGHT_POINT) {
+                float l[3] = {f->lpos[0] - p[0], f->lpos[1] - p[1], f->lpos[2] - p[2]};
+                float r2 = l[0] * l[0] + l[1] * l[1] + l[2] * l[2], rl = 1 / sqrtf(r2);
+                for (int j = 0; j < 3; j++)
+                        l[j] *= rl;
+                cube_sample(r, l, lt);
+                L = lt;
+                s /= r2;
+        }
+        for (int c = 0; c < 3; c++) {
+                float v = L[c];
+                for (int k = 0; k < K; k++)
+                        v += acc[k] / ws * L[(k + 1) * 3 + c];
+                f->rgb[3 * i + c] = s * v;
+        }
+        f->mask[i] = 1;
+}
+
+struct band_ctx {
+        const struct frame *f;
+        atomic_int next;
+};
+
+static void *band_worker(void *arg)
+{
+        struct band_ctx *b = arg;
+        const struct frame *f = b->f;
+        int y0;
+
+        while ((y0 = atomic_fetch_add(&b->next, BAND_ROWS)) < f->cam->height)
+                for (int y = y0; y < y0 + BAND_ROWS && y < f->cam->height; y++)
+                        for (int x = 0; x < f->cam->width; x++)
+                                shade(f, x, y);
+        return NULL;
+}
+
+int render_run(const struct frame *f, int threads)
+{
+        struct band_ctx b = {.f = f};
+        pthread_t th[threads > 1 ? threads - 1 : 1];
+        int started = 0, e = 0;
+
+        atomic_init(&b.next, 0);
+        for (; started < threads - 1; started++)
+                if ((e = -pthread_create(&th[started], NULL, band_worker, &b)) < 0)
+                        break;
+        band_worker(&b);
+        for (int i = 0; i < started; i++)
+                pthread_join(th[i], NULL);
+        return e;
+}
