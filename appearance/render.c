@@ -296,3 +296,36 @@ int ap_render(struct ap_renderer *r, const struct ap_camera *cam, const struct a
                 return e;
         return render_run(&f, threads);
 }
+
+int ap_camera_look_at(const struct ap_camera *intr, const double eye[3], const double target[3],
+                      struct ap_camera *out)
+{
+        double f[3], up[3] = {0, 0, 1}, rt[3], dn[3], len;
+
+        for (int i = 0; i < 3; i++)
+                f[i] = target[i] - eye[i];
+        len = sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+        if (!(len > 0))
+                return -EINVAL;
+        for (int i = 0; i < 3; i++)
+                f[i] /= len;
+        if (fabs(f[2]) > 1 - 1e-12)
+                up[1] = 1, up[2] = 0;
+        rt[0] = f[1] * up[2] - f[2] * up[1];
+        rt[1] = f[2] * up[0] - f[0] * up[2];
+        rt[2] = f[0] * up[1] - f[1] * up[0];
+        len = sqrt(rt[0] * rt[0] + rt[1] * rt[1] + rt[2] * rt[2]);
+        for (int i = 0; i < 3; i++)
+                rt[i] /= len;
+        dn[0] = f[1] * rt[2] - f[2] * rt[1];
+        dn[1] = f[2] * rt[0] - f[0] * rt[2];
+        dn[2] = f[0] * rt[1] - f[1] * rt[0];
+        *out = *intr;
+        for (int i = 0; i < 3; i++) {
+                out->R[i] = rt[i], out->R[3 + i] = dn[i], out->R[6 + i] = f[i];
+        }
+        for (int i = 0; i < 3; i++)
+                out->t[i] = -(out->R[3 * i] * eye[0] + out->R[3 * i + 1] * eye[1] +
+                              out->R[3 * i + 2] * eye[2]);
+        return 0;
+}

@@ -21,7 +21,8 @@
 #include "appearance/raster.h"
 
 #define AP_RENDER_CUBE     32    /* texels per side of the cube map of L(l, k, c) */
-#define AP_RENDER_BIAS     0.005 /* a point is hidden from a view beyond its depth map * (1+this) */
+#define AP_RENDER_BIAS     0.005 /* depth tolerance of a view's tap, relative to the depth... */
+#define AP_RENDER_SLOPE    2.5   /* ...or this many of the view's pixel footprints if more */
 #define AP_RENDER_MARGIN   8     /* view depth maps extend by width/this each side (distortion) */
 #define AP_RENDER_MAX_SIDE 8192
 
@@ -69,3 +70,9 @@ int ap_render(struct ap_renderer *r, const struct ap_camera *cam, const struct a
 /* The light term of model m for directional light from unit direction l: out[(K + 1) * 3],
  * row 0 the mean's (exact sums, no table). Never fails. */
 void ap_render_light_dir(const struct ap_model *m, const double l[3], float *out);
+
+/* Fills out with intr's size, intrinsics and distortion and the pose of a camera at eye
+ * (object frame, mm) looking at target, the image's up towards +z (towards +y when looking
+ * along z). Returns 0, or -EINVAL when eye and target coincide. */
+int ap_camera_look_at(const struct ap_camera *intr, const double eye[3], const double target[3],
+                      struct ap_camera *out);

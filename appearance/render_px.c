@@ -166,28 +166,25 @@ static bool surface_point(const struct frame *f, int x, int y, float p[3])
         return true;
 }
 
-/* True when the point at camera depth z, pinhole position (u, v) of view v's depth map, is
- * not behind the mesh seen from v. */
-static bool visible(const struct rview *v, float u, float w, float z)
+/* True when the depth map of v at pinhole position (u, v) holds a surface within tol of z:
+ * the tap there sees the point's surface, not an occluder or a surface behind. */
+static bool same_surface(const struct rview *v, float u, float w, float z, float tol)
 {
-        int iu = (int)floorf(u + v->mx), iv = (int)floorf(w + v->my);
-        float dmax = 0;
+        int iu = (int)lrintf(u + v->mx), iv = (int)lrintf(w + v->my);
+        float d;
 
-        if (iu < 0 || iv < 0 || iu + 1 >= v->dw || iv + 1 >= v->dh)
+        if (iu < 0 || iv < 0 || iu >= v->dw || iv >= v->dh)
                 return false;
-        for (int j = 0; j < 4; j++) {
-                float d = v->depth[(size_t)(iv + j / 2) * v->dw + iu + j % 2];
-                if (isfinite(d) && d > dmax)
-                        dmax = d;
-        }
-        return dmax == 0 || z <= dmax * (1 + (float)AP_RENDER_BIAS);
+        d = v->depth[(size_t)iv * v->dw + iu];
+        return fabsf(d - z) <= tol;
 }
 
 /* Adds wgt times view v's weights at object point p to acc; false where p is hidden from v
- * or outside its mask. */
+ * or outside its mask. Each bilinear tap counts only where the view's mask holds and its
+ * depth map sees the point's surface there (no blending across occlusion edges). */
 static bool sample_view(const struct rview *v, const float p[3], int K, float wgt, float *acc)
 {
-        float x[3], xd, yd, u, w, tw = 0, bw[4];
+        float x[3], xd, yd, pu, pv, u, w, tw = 0, bw[4], tol;
         const float *tx[4];
         int x0, y0;
 
@@ -197,22 +194,26 @@ static bool sample_view(const struct rview *v, const float p[3], int K, float wg
         if (x[2] <= 0)
                 return false;
         xd = x[0] / x[2], yd = x[1] / x[2];
-        if (!visible(v, v->fx * xd + v->cx, v->fy * yd + v->cy, x[2]))
-                return false;
+        pu = v->fx * xd + v->cx, pv = v->fy * yd + v->cy;
+        tol = x[2] * fmaxf((float)AP_RENDER_BIAS, (float)AP_RENDER_SLOPE / v->fx);
         if (v->distorted)
                 distortf(v->dist, x[0] / x[2], x[1] / x[2], &xd, &yd);
         u = v->fx * xd + v->cx, w = v->fy * yd + v->cy;
         x0 = (int)floorf(u), y0 = (int)floorf(w);
-        u -= (float)x0, w -= (float)y0;
         for (int j = 0; j < 4; j++) {
                 int xx = x0 + j % 2, yy = y0 + j / 2;
                 bool in = xx >= 0 && yy >= 0 && xx < v->width && yy < v->height;
                 size_t i = in ? (size_t)yy * v->width + xx : 0;
-                bw[j] = in && v->mask[i] ? (j % 2 ? u : 1 - u) * (j / 2 ? w : 1 - w) : 0;
+                float a = u - (float)x0, b = w - (float)y0;
+                bw[j] = in && v->mask[i] &&
+                                        same_surface(v, pu + (float)xx - u, pv + (float)yy - w,
+                                                     x[2], tol)
+                                ? (j % 2 ? a : 1 - a) * (j / 2 ? b : 1 - b)
+                                : 0;
                 tx[j] = v->weights + i * K;
                 tw += bw[j];
         }
-        if (!(tw > 0))
+        if (!(tw > 1e-3f))
                 return false;
         for (int j = 0; j < 4; j++)
                 bw[j] *= wgt / tw;
