@@ -29,3 +29,8 @@ void ap_mesh_free(struct ap_mesh *m);
 /* Rasterises m seen by c: depth (width * height, INFINITY where nothing) and, when tri is
  * not NULL, the index of the triangle seen (-1 where nothing). Returns 0 or -ENOMEM. */
 int ap_raster(const struct ap_mesh *m, const struct ap_pinhole *c, float *depth, int32_t *tri);
+
+/* Like ap_raster for the rows y0 <= y < y1 only (0 <= y0 <= y1 <= height): the other rows of
+ * depth and tri are left as they are, so threads can share a frame by bands. */
+int ap_raster_band(const struct ap_mesh *m, const struct ap_pinhole *c, int y0, int y1,
+                   float *depth, int32_t *tri);

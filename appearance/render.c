@@ -128,6 +128,7 @@ static int build_view(struct ap_renderer *r, size_t i)
                 v->R[j] = (float)c->R[j];
         for (int j = 0; j < 3; j++)
                 v->t[j] = (float)c->t[j];
+        v->tol = (float)fmax(AP_RENDER_BIAS, AP_RENDER_SLOPE / c->fx);
         for (int j = 0; j < 5; j++) {
                 v->dist[j] = (float)c->dist[j];
                 v->distorted |= c->dist[j] != 0;
@@ -264,6 +265,8 @@ static int frame_camera(struct frame *f, const struct ap_camera *cam, enum ap_vi
                 return -EINVAL;
         f->cam = cam;
         f->mode = mode;
+        f->ifxy[0] = (float)(1 / cam->fx), f->ifxy[1] = (float)(1 / cam->fy);
+        f->cxy[0] = (float)cam->cx, f->cxy[1] = (float)cam->cy;
         for (int i = 0; i < 3; i++) {
                 double c = 0;
                 for (int j = 0; j < 3; j++) {

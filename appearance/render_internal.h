@@ -14,6 +14,7 @@ struct rview {
         int width, height;
         int dw, dh; /* its depth map: the pinhole image grown by mx, my each side */
         float mx, my;
+        float tol; /* depth tolerance of a tap relative to the depth (AP_RENDER_BIAS, _SLOPE) */
         float *depth;
         const float *weights;
         const uint8_t *mask;
@@ -41,7 +42,8 @@ struct ap_renderer {
 struct frame {
         const struct ap_renderer *r;
         const struct ap_camera *cam;
-        float Rt[9], C[3]; /* camera to object rotation, camera centre (object frame) */
+        float Rt[9], C[3];     /* camera to object rotation, camera centre (object frame) */
+        float ifxy[2], cxy[2]; /* 1 / fx, 1 / fy, cx, cy */
         enum ap_view_mode mode;
         int oidx[3], on; /* the per-object mode's views and weights */
         float ow[3];
@@ -53,9 +55,10 @@ struct frame {
         uint8_t *mask;
 };
 
-/* Rasterises r's mesh for cam into r->ras* (and r->rays when cam is distorted). Returns 0
- * or -ENOMEM. */
+/* Sizes r's raster for cam (r->ras*, and r->rays when cam is distorted). Returns 0 or
+ * -ENOMEM. */
 int render_prepare_raster(struct ap_renderer *r, const struct ap_camera *cam);
 
-/* Shades every pixel of frame f on threads threads. Returns 0 or -errno of pthread_create. */
+/* Rasterises the mesh into r's raster by bands, then shades every pixel of frame f, on up to
+ * threads threads. Returns 0 or -ENOMEM. */
 int render_run(const struct frame *f, int threads);

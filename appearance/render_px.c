@@ -128,7 +128,7 @@ int render_prepare_raster(struct ap_renderer *r, const struct ap_camera *cam)
                 r->ras_tri = t;
                 r->ras_cap = n;
         }
-        return ap_raster(r->mesh, &r->ras, r->ras_depth, r->ras_tri);
+        return 0;
 }
 
 /* The surface point p (object frame) seen at output pixel (x, y); false where none. */
@@ -149,7 +149,7 @@ static bool surface_point(const struct frame *f, int x, int y, float p[3])
                 xn = ray[0], yn = ray[1];
                 tri = r->ras_tri[(size_t)iv * r->ras.width + iu];
         } else {
-                xn = (float)((x - c->cx) / c->fx), yn = (float)((y - c->cy) / c->fy);
+                xn = ((float)x - f->cxy[0]) * f->ifxy[0], yn = ((float)y - f->cxy[1]) * f->ifxy[1];
                 tri = r->ras_tri[(size_t)y * c->width + x];
         }
         if (tri < 0)
@@ -166,59 +166,59 @@ static bool surface_point(const struct frame *f, int x, int y, float p[3])
         return true;
 }
 
-/* True when the depth map of v at pinhole position (u, v) holds a surface within tol of z:
- * the tap there sees the point's surface, not an occluder or a surface behind. */
-static bool same_surface(const struct rview *v, float u, float w, float z, float tol)
+static inline int ifloor(float v)
 {
-        int iu = (int)lrintf(u + v->mx), iv = (int)lrintf(w + v->my);
-        float d;
+        int i = (int)v;
 
-        if (iu < 0 || iv < 0 || iu >= v->dw || iv >= v->dh)
-                return false;
-        d = v->depth[(size_t)iv * v->dw + iu];
-        return fabsf(d - z) <= tol;
+        return i - (v < (float)i);
 }
 
 /* Adds wgt times view v's weights at object point p to acc; false where p is hidden from v
  * or outside its mask. Each bilinear tap counts only where the view's mask holds and its
- * depth map sees the point's surface there (no blending across occlusion edges). */
+ * depth map sees the point's surface there, within v->tol times the depth (no blending
+ * across occlusion edges: a tap on an occluder, or on a surface behind, is dropped). The
+ * depth map is read at the pinhole position of each tap (its offset from the point's). */
 static bool sample_view(const struct rview *v, const float p[3], int K, float wgt, float *acc)
 {
-        float x[3], xd, yd, pu, pv, u, w, tw = 0, bw[4], tol;
-        const float *tx[4];
-        int x0, y0;
+        float x[3], iz, xd, yd, pu, pv, u, w, a, b, tw = 0, bw[4], tol, du, dv;
+        const float *t0, *dp;
+        const uint8_t *mp;
+        int x0, y0, W = v->width;
 
         for (int i = 0; i < 3; i++)
                 x[i] = v->R[3 * i] * p[0] + v->R[3 * i + 1] * p[1] + v->R[3 * i + 2] * p[2] +
                        v->t[i];
         if (x[2] <= 0)
                 return false;
-        xd = x[0] / x[2], yd = x[1] / x[2];
+        iz = 1 / x[2];
+        xd = x[0] * iz, yd = x[1] * iz;
         pu = v->fx * xd + v->cx, pv = v->fy * yd + v->cy;
-        tol = x[2] * fmaxf((float)AP_RENDER_BIAS, (float)AP_RENDER_SLOPE / v->fx);
         if (v->distorted)
-                distortf(v->dist, x[0] / x[2], x[1] / x[2], &xd, &yd);
+                distortf(v->dist, x[0] * iz, x[1] * iz, &xd, &yd);
         u = v->fx * xd + v->cx, w = v->fy * yd + v->cy;
-        x0 = (int)floorf(u), y0 = (int)floorf(w);
-        for (int j = 0; j < 4; j++) {
-                int xx = x0 + j % 2, yy = y0 + j / 2;
-                bool in = xx >= 0 && yy >= 0 && xx < v->width && yy < v->height;
-                size_t i = in ? (size_t)yy * v->width + xx : 0;
-                float a = u - (float)x0, b = w - (float)y0;
-                bw[j] = in && v->mask[i] &&
-                                        same_surface(v, pu + (float)xx - u, pv + (float)yy - w,
-                                                     x[2], tol)
-                                ? (j % 2 ? a : 1 - a) * (j / 2 ? b : 1 - b)
-                                : 0;
-                tx[j] = v->weights + i * K;
-                tw += bw[j];
-        }
+        x0 = ifloor(u), y0 = ifloor(w);
+        a = u - (float)x0, b = w - (float)y0;
+        du = pu - a + v->mx + 0.5f, dv = pv - b + v->my + 0.5f;
+        if (x0 < 0 || y0 < 0 || x0 + 1 >= W || y0 + 1 >= v->height || du < 0 || dv < 0 ||
+            (int)du + 1 >= v->dw || (int)dv + 1 >= v->dh)
+                return false;
+        dp = v->depth + (size_t)(int)dv * v->dw + (int)du;
+        mp = v->mask + (size_t)y0 * W + x0;
+        tol = x[2] * v->tol;
+        bw[0] = mp[0] && fabsf(dp[0] - x[2]) <= tol ? (1 - a) * (1 - b) : 0;
+        bw[1] = mp[1] && fabsf(dp[1] - x[2]) <= tol ? a * (1 - b) : 0;
+        bw[2] = mp[W] && fabsf(dp[v->dw] - x[2]) <= tol ? (1 - a) * b : 0;
+        bw[3] = mp[W + 1] && fabsf(dp[v->dw + 1] - x[2]) <= tol ? a * b : 0;
+        tw = bw[0] + bw[1] + bw[2] + bw[3];
         if (!(tw > 1e-3f))
                 return false;
+        tw = wgt / tw;
         for (int j = 0; j < 4; j++)
-                bw[j] *= wgt / tw;
+                bw[j] *= tw;
+        t0 = v->weights + ((size_t)y0 * W + x0) * K;
         for (int k = 0; k < K; k++)
-                acc[k] += bw[0] * tx[0][k] + bw[1] * tx[1][k] + bw[2] * tx[2][k] + bw[3] * tx[3][k];
+                acc[k] += bw[0] * t0[k] + bw[1] * t0[K + k] + bw[2] * t0[W * K + k] +
+                          bw[3] * t0[(W + 1) * K + k];
         return true;
 }
 
@@ -230,8 +230,9 @@ static void cube_sample(const struct ap_renderer *r, const float l[3], float *ou
         int face = ap_cube_face(l, &s, &t), i0, j0, i1, j1;
         const float *q00, *q01, *q10, *q11;
 
-        fs = fminf(fmaxf((s + 1) * 0.5f * n - 0.5f, 0), n - 1);
-        ft = fminf(fmaxf((t + 1) * 0.5f * n - 0.5f, 0), n - 1);
+        fs = (s + 1) * 0.5f * n - 0.5f, ft = (t + 1) * 0.5f * n - 0.5f;
+        fs = fs < 0 ? 0 : fs > n - 1 ? n - 1 : fs;
+        ft = ft < 0 ? 0 : ft > n - 1 ? n - 1 : ft;
         i0 = (int)fs, j0 = (int)ft;
         i1 = i0 + 1 < n ? i0 + 1 : i0, j1 = j0 + 1 < n ? j0 + 1 : j0;
         a = fs - (float)i0, b = ft - (float)j0;
@@ -244,7 +245,7 @@ static void cube_sample(const struct ap_renderer *r, const float l[3], float *ou
                          b * ((1 - a) * q10[i] + a * q11[i]);
 }
 
-static void shade(const struct frame *f, int x, int y)
+static inline __attribute__((always_inline)) void shade(const struct frame *f, int x, int y)
 {
         const struct ap_renderer *r = f->r;
         size_t i = (size_t)y * f->cam->width + x;
@@ -281,10 +282,13 @@ static void shade(const struct frame *f, int x, int y)
                 L = lt;
                 s /= r2;
         }
+        ws = 1 / ws;
+        for (int k = 0; k < K; k++)
+                acc[k] *= ws;
         for (int c = 0; c < 3; c++) {
                 float v = L[c];
                 for (int k = 0; k < K; k++)
-                        v += acc[k] / ws * L[(k + 1) * 3 + c];
+                        v += acc[k] * L[(k + 1) * 3 + c];
                 f->rgb[3 * i + c] = s * v;
         }
         f->mask[i] = 1;
@@ -292,34 +296,67 @@ static void shade(const struct frame *f, int x, int y)
 
 struct band_ctx {
         const struct frame *f;
-        atomic_int next;
+        int bands;
+        atomic_int next_band, next_row, error;
 };
 
-static void *band_worker(void *arg)
+/* Rasterises bands of the frame's raster until none is left. */
+static void *raster_worker(void *arg)
+{
+        struct band_ctx *b = arg;
+        const struct ap_renderer *r = b->f->r;
+        int i, h = r->ras.height, e;
+
+        while ((i = atomic_fetch_add(&b->next_band, 1)) < b->bands)
+                if ((e = ap_raster_band(r->mesh, &r->ras, h * i / b->bands, h * (i + 1) / b->bands,
+                                        r->ras_depth, r->ras_tri)) < 0)
+                        atomic_store(&b->error, e);
+        return NULL;
+}
+
+static void shade_row(const struct frame *f, int y)
+{
+        for (int x = 0; x < f->cam->width; x++)
+                shade(f, x, y);
+}
+
+/* Shades bands of BAND_ROWS rows until none is left. */
+static void *shade_worker(void *arg)
 {
         struct band_ctx *b = arg;
         const struct frame *f = b->f;
         int y0;
 
-        while ((y0 = atomic_fetch_add(&b->next, BAND_ROWS)) < f->cam->height)
+        while ((y0 = atomic_fetch_add(&b->next_row, BAND_ROWS)) < f->cam->height)
                 for (int y = y0; y < y0 + BAND_ROWS && y < f->cam->height; y++)
-                        for (int x = 0; x < f->cam->width; x++)
-                                shade(f, x, y);
+                        shade_row(f, y);
         return NULL;
+}
+
+/* Runs fn on up to threads threads, this one included (fewer when a thread cannot be
+ * created: fn takes work from a shared counter, so what is left is done here). */
+static void parallel(void *(*fn)(void *), void *arg, int threads)
+{
+        pthread_t th[threads > 1 ? threads - 1 : 1];
+        int started = 0;
+
+        while (started < threads - 1 && pthread_create(&th[started], NULL, fn, arg) == 0)
+                started++;
+        fn(arg);
+        for (int i = 0; i < started; i++)
+                pthread_join(th[i], NULL);
 }
 
 int render_run(const struct frame *f, int threads)
 {
-        struct band_ctx b = {.f = f};
-        pthread_t th[threads > 1 ? threads - 1 : 1];
-        int started = 0, e = 0;
+        struct band_ctx b = {.f = f, .bands = threads};
 
-        atomic_init(&b.next, 0);
-        for (; started < threads - 1; started++)
-                if ((e = -pthread_create(&th[started], NULL, band_worker, &b)) < 0)
-                        break;
-        band_worker(&b);
-        for (int i = 0; i < started; i++)
-                pthread_join(th[i], NULL);
-        return e;
+        atomic_init(&b.next_band, 0);
+        atomic_init(&b.next_row, 0);
+        atomic_init(&b.error, 0);
+        parallel(raster_worker, &b, threads);
+        if (atomic_load(&b.error) < 0)
+                return atomic_load(&b.error);
+        parallel(shade_worker, &b, threads);
+        return 0;
 }

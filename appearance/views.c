@@ -15,9 +15,11 @@
 #include "appearance/views.h"
 #include "common/cleanup.h"
 
-#define PLANE_EPS 1e-9 /* a point this close to a plane is on it */
-#define DUP_COS   (1.0 - 5e-13)
-#define BARY_EPS  -1e-6f
+#define PLANE_EPS      1e-9 /* a point this close to a plane is on it */
+#define DUP_COS        (1.0 - 5e-13)
+#define BARY_EPS       -1e-6f
+#define CUBE_OUTSIDE   -2
+#define CUBE_TEXEL_RAD (1.5 * M_PI / 2 / AP_VIEWS_CUBE) /* beyond a texel's half diagonal */
 
 struct face {
         int v[3];      /* counter-clockwise seen from outside */
@@ -320,6 +322,52 @@ static size_t cube_texel(const float d[3], int n)
         return ((size_t)face * (size_t)n + (size_t)it) * (size_t)n + (size_t)is;
 }
 
+/* The nearest boundary edge or view of d: up to two views in idx and w; the angle. */
+static double nearest_boundary(const struct ap_views *v, const double d[3], int idx[3], float w[3])
+{
+        double len = sqrt(dot3(d, d)), best = -2; /* the cosine of the nearest's angle */
+
+        for (size_t l = 0; l < v->n; l++) /* vertices: nearest view alone */
+                if (!v->dup[l] && dot3(d, v->dir[l]) / len > best) {
+                        best = dot3(d, v->dir[l]) / len;
+                        idx[0] = idx[1] = idx[2] = (int)l;
+                        w[0] = 1, w[1] = w[2] = 0;
+                }
+        for (size_t i = 0; i < v->nb; i++) {
+                const struct edge *e = &v->bnd[i];
+                double h = dot3(d, e->n), p[3], c[3], wa, wb, cs;
+                for (int j = 0; j < 3; j++)
+                        p[j] = d[j] - h * e->n[j];
+                cs = sqrt(dot3(p, p)) / len;
+                if (cs <= best)
+                        continue;
+                cross3(p, v->dir[e->b], c);
+                wa = dot3(c, e->n);
+                cross3(v->dir[e->a], p, c);
+                wb = dot3(c, e->n);
+                if (wa < 0 || wb < 0 || wa + wb <= 0)
+                        continue;
+                best = cs;
+                idx[0] = e->a, idx[1] = e->b, idx[2] = e->a;
+                w[0] = (float)(wa / (wa + wb)), w[1] = (float)(wb / (wa + wb)), w[2] = 0;
+        }
+        return acos(fmax(-1, fmin(1, best)));
+}
+
+/* The start face of the texel around d: the face d is in, else CUBE_OUTSIDE where the
+ * whole texel is farther than CUBE_TEXEL_RAD from the covered region, else -1 (search). */
+static int32_t texel_start(const struct ap_views *v, const float d[3])
+{
+        double dd[3] = {d[0], d[1], d[2]};
+        int idx[3];
+        float w[3];
+        int f = find_face(v, d);
+
+        if (f >= 0 || !v->n_valid)
+                return f;
+        return nearest_boundary(v, dd, idx, w) > CUBE_TEXEL_RAD ? CUBE_OUTSIDE : -1;
+}
+
 static int build_cube(struct ap_views *v)
 {
         const int n = AP_VIEWS_CUBE;
@@ -333,7 +381,7 @@ static int build_cube(struct ap_views *v)
                                 float d[3];
                                 ap_cube_dir(face, 2 * (is + 0.5f) / n - 1, 2 * (it + 0.5f) / n - 1,
                                             d);
-                                v->cube[cube_texel(d, n)] = find_face(v, d);
+                                v->cube[cube_texel(d, n)] = texel_start(v, d);
                         }
         return 0;
 }
@@ -390,37 +438,6 @@ size_t ap_views_n_faces(const struct ap_views *v)
         return v ? v->n_valid : 0;
 }
 
-/* The nearest boundary edge or view of d: up to two views in idx and w; the angle. */
-static double nearest_boundary(const struct ap_views *v, const double d[3], int idx[3], float w[3])
-{
-        double best = -2;
-
-        for (size_t l = 0; l < v->n; l++) /* vertices: nearest view alone */
-                if (!v->dup[l] && dot3(d, v->dir[l]) > best) {
-                        best = dot3(d, v->dir[l]);
-                        idx[0] = idx[1] = idx[2] = (int)l;
-                        w[0] = 1, w[1] = w[2] = 0;
-                }
-        best = acos(fmax(-1, fmin(1, best)));
-        for (size_t i = 0; i < v->nb; i++) {
-                const struct edge *e = &v->bnd[i];
-                double h = dot3(d, e->n), p[3], c[3], wa, wb, ang;
-                for (int j = 0; j < 3; j++)
-                        p[j] = d[j] - h * e->n[j];
-                cross3(p, v->dir[e->b], c);
-                wa = dot3(c, e->n);
-                cross3(v->dir[e->a], p, c);
-                wb = dot3(c, e->n);
-                ang = atan2(fabs(h), sqrt(dot3(p, p)));
-                if (wa < 0 || wb < 0 || wa + wb <= 0 || ang >= best)
-                        continue;
-                best = ang;
-                idx[0] = e->a, idx[1] = e->b, idx[2] = e->a;
-                w[0] = (float)(wa / (wa + wb)), w[1] = (float)(wb / (wa + wb)), w[2] = 0;
-        }
-        return best;
-}
-
 static int finish(const struct face *f, const float raw[3], int idx[3], float w[3])
 {
         float s = raw[0] + raw[1] + raw[2];
@@ -439,6 +456,9 @@ static int finish(const struct face *f, const float raw[3], int idx[3], float w[
 static int walk(const struct ap_views *v, const float d[3], float raw[3])
 {
         int f = v->cube[cube_texel(d, AP_VIEWS_CUBE)];
+
+        if (f == CUBE_OUTSIDE)
+                return f;
 
         for (size_t step = 0; f >= 0 && step < v->nf; step++) {
                 int m = 0;
@@ -460,9 +480,9 @@ int ap_views_weights(const struct ap_views *v, const float d[3], int idx[3], flo
 {
         double dd[3] = {d[0], d[1], d[2]};
         float raw[3];
-        int f = v->n_valid ? walk(v, d, raw) : -1;
+        int f = v->n_valid ? walk(v, d, raw) : CUBE_OUTSIDE;
 
-        if (f < 0 && v->n_valid && (f = find_face(v, d)) >= 0)
+        if (f == -1 && (f = find_face(v, d)) >= 0)
                 face_weights(&v->f[f], d, raw);
         if (f >= 0)
                 return finish(&v->f[f], raw, idx, w);
