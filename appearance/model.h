@@ -60,7 +60,7 @@ struct ap_model {
         float *basis; /* K x 3M, row-major */
         size_t n_views;
         struct ap_view *views;
-        char notes[512]; /* fallbacks taken by the fit, stated for the user ("" none) */
+        char notes[1024]; /* fallbacks taken by the fit, stated for the user ("" none) */
         double light_distance_mm, light_intensity; /* the light T is relative to (Units) */
         char reg[16];       /* the fit's regularisation: "tikhonov" or "tsvd" */
         double reg_param;   /* its lambda (relative to the largest singular value) or the

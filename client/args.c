@@ -253,6 +253,8 @@ int args_parse(int argc, char **argv, struct args *a)
 
                 if (options_done || !is_option(s)) {
                         a->words[a->nwords++] = argv[i];
+                        /* `model` subcommands parse their own options (client/model.h) */
+                        options_done |= a->nwords == 1 && strcmp(s, "model") == 0;
                         continue;
                 }
                 if (strcmp(s, "--") == 0) {

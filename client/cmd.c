@@ -2,6 +2,7 @@
  * JSON-RPC method from the command line and how to print its result. One runner does
  * the rest: connect, hello (checks the protocol version), call, print, exit code. */
 #include <errno.h>
+#include <limits.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <string.h>
@@ -13,6 +14,7 @@
 #include "client/scan_capture.h"
 #include "client/cmd.h"
 #include "client/conn.h"
+#include "client/model.h"
 #include "client/output.h"
 #include "client/scan.h"
 #include "client/session.h"
@@ -279,6 +281,13 @@ static const struct cmd commands[] = {
          NULL, 0, 1,
          ARG_FROM | ARG_FORCE | ARG_CALIBRATION | ARG_SPHERE | ARG_LAMP_RADIUS | ARG_NOMINAL,
          TIMEOUT_S, NULL, calibrate_print_lamps, .local = calibrate_lamps},
+        {NULL, "model",
+         "fit DATASET [--name N] [--order P] [--components K] [--sample F] [--reg tikhonov|tsvd] "
+         "[--reg-param X] [--tile N] [--threads N] [--calibration FILE|nominal] [--mesh FILE] "
+         "[--force]",
+         "fit the appearance model of DATASET into DATASET/models/N (docs/appearance.md; no "
+         "goniod)",
+         NULL, 1, INT_MAX, 0, TIMEOUT_S, NULL, model_print, .local = model_command},
         {NULL, "call", "METHOD [JSON-PARAMS]", "send any request, print its result", NULL, 1, 2, 0,
          TIMEOUT_S, p_call, out_print_pretty},
 };

@@ -27,9 +27,9 @@ void aps_opts_default(struct aps_opts *o, enum aps_material m)
                                .height = 72,
                                .n_cameras = 1,
                                .turntable_angles = 2,
-                               .arm_angles = 12,
-                               .n_lamps = 5,
-                               .lamp_elevation_deg = {-30, 0, 25, 50, 75},
+                               .arm_angles = 18,
+                               .n_lamps = 6,
+                               .lamp_elevation_deg = {-40, -15, 10, 35, 60, 85},
                                .lamp_radius_mm = 500,
                                .intensity = 7e5,
                                .shape = "sphere",
@@ -141,14 +141,15 @@ void aps_lamp_position(const struct apscene *s, int lamp, double arm, double p[3
         CHECK_INT(sim_lamp_position(s->t.s, &st, lamp, p), 0);
 }
 
-/* The true sphere as a UV mesh with exact normals. */
-static void write_sphere_mesh(const char *dir)
+void aps_write_mesh(const struct apscene *s, const char *dir)
 {
         const int rings = MESH_RINGS, segs = 2 * MESH_RINGS;
         struct cal_mesh m = {0};
         double r = APS_SIZE_MM / 2;
         _cleanup_close_ int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
 
+        if (strcmp(s->o.shape, "sphere") != 0)
+                return;
         m.v = calloc((size_t)(rings + 1) * segs, sizeof(*m.v));
         m.tri = calloc((size_t)rings * segs * 6, sizeof(*m.tri));
         CHECK(m.v && m.tri && fd >= 0);
@@ -201,7 +202,7 @@ struct ds *aps_make_dataset(struct apscene *s, const char *path)
                                 for (int l = 0; l < o->n_lamps; l++)
                                         store(s, d, cam, 360.0 * v / o->turntable_angles,
                                               o->arm_offset_deg + 360.0 * a / o->arm_angles, l);
-        if (o->mesh && strcmp(o->shape, "sphere") == 0)
-                write_sphere_mesh(path);
+        if (o->mesh)
+                aps_write_mesh(s, path);
         return d;
 }

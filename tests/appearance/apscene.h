@@ -50,7 +50,7 @@ struct apscene {
         uint64_t seq;
 };
 
-/* Defaults: 96x72, one camera, 2 turntable angles, 12 arm angles, 5 lamps (-30 to 75
+/* Defaults: 96x72, one camera, 2 turntable angles, 18 arm angles, 6 lamps (-40 to 85
  * degrees) 500 mm away, a sphere with material m, its mesh stored. */
 void aps_opts_default(struct aps_opts *o, enum aps_material m);
 
@@ -71,6 +71,10 @@ void aps_render_light(struct apscene *s, int cam, double tt, const double p[3], 
 
 /* World position (mm) of lamp `lamp` with the light arm at arm degrees. */
 void aps_lamp_position(const struct apscene *s, int lamp, double arm, double p[3]);
+
+/* Writes the true surface of a sphere (a UV mesh, exact normals) as dir/mesh.ply (calib/ply.h);
+ * nothing for other shapes. */
+void aps_write_mesh(const struct apscene *s, const char *dir);
 
 /* A dataset at path (must not exist) with the rig file and every view (camera, turntable
  * angle) under every light (lamp, arm angle), 16-bit, noise off; with o.mesh the true surface

@@ -1,0 +1,443 @@
+/* fit.c - the appearance fit of a dataset (fit.h): its rows grouped into views and lights,
+ * the geometry (fit_geom.c), a pilot pass over every few views whose coefficient vectors
+ * sample the PCA (fit_pca.c), then every view fitted and projected (fit_view.c), views in
+ * parallel; every fallback stated in the model's notes.
+ *
+ * DESIGN: the coefficient vectors of a whole seed-scale dataset (76 views x 720 x 480 x 108
+ * floats, 11 GB) do not fit in memory, and the basis must be known before any view can be
+ * projected. The pilot views (one in AP_PILOT_EVERY, at least one) are fitted twice: once
+ * to sample, once to project, so the images are decoded 1 + 1/AP_PILOT_EVERY times. Each
+ * worker holds one view's L x 3N matrix (about 400 MB at seed scale). */
+#include <cblas.h>
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "appearance/fit_internal.h"
+#include "common/cleanup.h"
+
+#define AP_PILOT_EVERY     8
+#define MIN_SAMPLE_PER_DIM 50 /* the pilot views' vectors sampled: at least this many x 3M */
+
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct rig_config *, rigconf_free);
+
+void ap_fit_opts_default(struct ap_fit_opts *o)
+{
+        *o = (struct ap_fit_opts){.name = "default",
+                                  .order = AP_ORDER_DEFAULT,
+                                  .k = AP_K_DEFAULT,
+                                  .sample = AP_SAMPLE_DEFAULT,
+                                  .reg = AP_REG_TIKHONOV,
+                                  .reg_param = -1,
+                                  .tile = AP_TILE_DEFAULT,
+                                  .threads = 2,
+                                  .background = 0.01,
+                                  .saturation = 0.995};
+}
+
+double ap_fit_reg_default(enum ap_reg reg)
+{
+        return 1e-2; /* both: docs/appearance.md, "Regularisation" */
+}
+
+void fit_note(struct fit_ctx *c, const char *fmt, ...)
+{
+        size_t len = strlen(c->notes);
+        char buf[512];
+        va_list ap;
+
+        va_start(ap, fmt);
+        vsnprintf(buf, sizeof(buf), fmt, ap);
+        va_end(ap);
+        snprintf(c->notes + len, sizeof(c->notes) - len, "%s%s", len ? "; " : "", buf);
+}
+
+int fit_fail(struct fit_ctx *c, int r, const char *fmt, ...)
+{
+        va_list ap;
+
+        pthread_mutex_lock(&c->lock);
+        if (!c->error) {
+                va_start(ap, fmt);
+                vsnprintf(c->err, sizeof(c->err), fmt, ap);
+                va_end(ap);
+                c->error = r;
+        }
+        pthread_mutex_unlock(&c->lock);
+        return r;
+}
+
+static bool opts_valid(const struct ap_fit_opts *o)
+{
+        return o && o->name && o->name[0] && o->name[0] != '.' && !strchr(o->name, '/') &&
+               strlen(o->name) < AP_NAME_MAX && o->order >= 1 && o->order <= AP_ORDER_MAX &&
+               o->k >= 1 && o->k <= AP_K_MAX && o->sample > 0 && o->sample <= 1 &&
+               (o->reg == AP_REG_TIKHONOV || o->reg == AP_REG_TSVD) && o->tile >= 1 &&
+               o->tile <= 64 && o->threads >= 1 && o->threads <= 16 && o->backends &&
+               o->saturation > 0 && o->background >= 0;
+}
+
+/* ---- rows to views and lights ---- */
+
+/* A lamp-lit image row and what groups it. */
+struct rowkey {
+        const struct ds_capture *r;
+        int cam, lamp, bracket;
+        long tt, ca, arm; /* millidegrees in [0, 360000), -1: no such axis */
+};
+
+static long mdeg(double a)
+{
+        return isnan(a) ? -1 : (long)llround(fmod(fmod(a, 360) + 360, 360) * 1000) % 360000;
+}
+
+static int cmp_key(const void *pa, const void *pb)
+{
+        const struct rowkey *a = pa, *b = pb;
+        long d[] = {a->cam - b->cam, a->tt - b->tt,           a->ca - b->ca,      a->lamp - b->lamp,
+                    a->arm - b->arm, a->bracket - b->bracket, a->r->id - b->r->id};
+
+        for (size_t i = 0; i < sizeof(d) / sizeof(d[0]); i++)
+                if (d[i])
+                        return d[i] < 0 ? -1 : 1;
+        return 0;
+}
+
+static int camera_index(const struct rig_config *rc, const char *name)
+{
+        for (size_t i = 0; i < rc->n_cameras; i++)
+                if (strcmp(rc->cameras[i].name, name) == 0)
+                        return (int)i;
+        return -1;
+}
+
+/* The key of row r, false when it is no lamp-lit image of a rig camera. */
+static bool key_of(const struct rig_config *rc, const struct ds_capture *r, struct rowkey *k)
+{
+        uint32_t l = r->pose.lamps;
+
+        if ((strcmp(r->kind, "image") != 0 && r->kind[0]) || r->pose.laser || !l || (l & (l - 1)))
+                return false;
+        *k = (struct rowkey){.r = r,
+                             .cam = camera_index(rc, r->camera),
+                             .lamp = __builtin_ctz(l),
+                             .bracket = r->bracket,
+                             .tt = mdeg(r->pose.deg[GN_ROLE_TURNTABLE]),
+                             .ca = mdeg(r->pose.deg[GN_ROLE_CAMERA_ARM]),
+                             .arm = mdeg(r->pose.deg[GN_ROLE_LIGHT_ARM])};
+        return k->cam >= 0 && (size_t)k->lamp < rc->n_lamps;
+}
+
+static bool same_view(const struct rowkey *a, const struct rowkey *b)
+{
+        return a->cam == b->cam && a->tt == b->tt && a->ca == b->ca;
+}
+
+/* Fills view v from the sorted keys k[0 .. n) of one view. */
+static int make_view(struct fit_view *v, const struct rowkey *k, size_t n)
+{
+        v->cam = k[0].cam;
+        v->tt_deg = k[0].r->pose.deg[GN_ROLE_TURNTABLE];
+        v->arm_deg = k[0].r->pose.deg[GN_ROLE_CAMERA_ARM];
+        v->rows = malloc(n * sizeof(*v->rows));
+        v->lights = calloc(n, sizeof(*v->lights));
+        if (!v->rows || !v->lights)
+                return -ENOMEM;
+        for (size_t i = 0; i < n; i++) {
+                v->rows[v->n_rows++] = k[i].r;
+                if (i == 0 || k[i].lamp != k[i - 1].lamp || k[i].arm != k[i - 1].arm)
+                        v->lights[v->n_lights++] =
+                                (struct fit_light){.lamp = k[i].lamp,
+                                                   .arm_deg = k[i].r->pose.deg[GN_ROLE_LIGHT_ARM],
+                                                   .first = i};
+                v->lights[v->n_lights - 1].n++;
+        }
+        return 0;
+}
+
+/* Groups c->all's lamp-lit image rows into c->views; the reference exposure and gain. */
+static int group_views(struct fit_ctx *c)
+{
+        _cleanup_free_ struct rowkey *k = malloc((c->n_all + 1) * sizeof(*k));
+        size_t n = 0, skipped = 0;
+        int r = 0;
+
+        if (!k)
+                return -ENOMEM;
+        for (size_t i = 0; i < c->n_all; i++)
+                if (key_of(c->rc, &c->all[i], &k[n]))
+                        n++;
+        if (n == 0)
+                return fit_fail(c, -ENODATA, "no image rows with one lamp lit (%zu rows)",
+                                c->n_all);
+        qsort(k, n, sizeof(*k), cmp_key);
+        c->views = calloc(n, sizeof(*c->views));
+        if (!c->views)
+                return -ENOMEM;
+        for (size_t i = 0, j; r == 0 && i < n; i = j) {
+                for (j = i + 1; j < n && same_view(&k[i], &k[j]);)
+                        j++;
+                r = make_view(&c->views[c->n_views++], k + i, j - i);
+        }
+        for (size_t i = 0; i < c->n_all; i++)
+                skipped += strcmp(c->all[i].kind, "image") == 0 && !c->all[i].pose.lamps;
+        if (skipped)
+                fit_note(c, "%zu image rows without a lamp lit not used", skipped);
+        c->exposure_ref = k[0].r->exposure_us > 0 ? k[0].r->exposure_us : 1;
+        c->gain_ref = k[0].r->gain > 0 ? k[0].r->gain : 1;
+        return r;
+}
+
+/* Views that have image rows but none lit by one lamp: stated as skipped. */
+static void note_unlit_views(struct fit_ctx *c)
+{
+        size_t skipped = 0;
+
+        for (size_t i = 0; i < c->n_all; i++) {
+                const struct ds_capture *r = &c->all[i];
+                struct rowkey k = {.r = r,
+                                   .cam = camera_index(c->rc, r->camera),
+                                   .tt = mdeg(r->pose.deg[GN_ROLE_TURNTABLE]),
+                                   .ca = mdeg(r->pose.deg[GN_ROLE_CAMERA_ARM])};
+                bool seen = false;
+                if (strcmp(r->kind, "image") != 0 || k.cam < 0)
+                        continue;
+                for (size_t j = 0; j < i && !seen; j++) /* counted once: its first row */
+                        seen = strcmp(c->all[j].kind, "image") == 0 &&
+                               strcmp(c->all[j].camera, r->camera) == 0 &&
+                               mdeg(c->all[j].pose.deg[GN_ROLE_TURNTABLE]) == k.tt &&
+                               mdeg(c->all[j].pose.deg[GN_ROLE_CAMERA_ARM]) == k.ca;
+                for (size_t v = 0; v < c->n_views && !seen; v++) {
+                        struct rowkey w = {.cam = c->views[v].cam,
+                                           .tt = mdeg(c->views[v].tt_deg),
+                                           .ca = mdeg(c->views[v].arm_deg)};
+                        seen = same_view(&k, &w);
+                }
+                skipped += !seen;
+        }
+        if (skipped)
+                fit_note(c, "%zu views without a lamp-lit capture skipped", skipped);
+}
+
+/* Drops views with fewer than 4 lights, and lowers the order to what the fewest lights of a
+ * view support, stating both. */
+static int choose_order(struct fit_ctx *c)
+{
+        size_t kept = 0, fewest = SIZE_MAX;
+
+        for (size_t i = 0; i < c->n_views; i++) {
+                struct fit_view *v = &c->views[i];
+                if (v->n_lights < 4) {
+                        free(v->rows);
+                        free(v->lights);
+                        continue;
+                }
+                fewest = MIN(fewest, v->n_lights);
+                c->views[kept++] = *v;
+        }
+        if (kept < c->n_views)
+                fit_note(c, "%zu views with fewer than 4 lights skipped", c->n_views - kept);
+        c->n_views = kept;
+        if (kept == 0)
+                return fit_fail(c, -ENODATA, "no view has 4 lights or more: nothing to fit");
+        c->order = c->o->order;
+        while ((size_t)c->order * c->order > fewest)
+                c->order--;
+        if (c->order < c->o->order)
+                fit_note(c, "order %d needs %d lights per view, a view has %zu: order %d fitted",
+                         c->o->order, c->o->order * c->o->order, fewest, c->order);
+        c->M = c->order * c->order;
+        return 0;
+}
+
+/* ---- running the passes ---- */
+
+struct pass {
+        struct fit_ctx *c;
+        bool pilot;
+        size_t next;
+};
+
+static void *pass_worker(void *arg)
+{
+        struct pass *p = arg;
+        struct fit_ctx *c = p->c;
+
+        for (;;) {
+                size_t i;
+                pthread_mutex_lock(&c->lock);
+                while (p->next < c->n_views && p->pilot && !c->views[p->next].pilot)
+                        p->next++;
+                i = c->error ? c->n_views : p->next++;
+                pthread_mutex_unlock(&c->lock);
+                if (i >= c->n_views)
+                        return NULL;
+                fit_view(c, i, p->pilot);
+        }
+}
+
+/* Fits the views (pilot: only the pilot views) on o->threads threads. */
+static int run_pass(struct fit_ctx *c, bool pilot)
+{
+        struct pass p = {c, pilot, 0};
+        pthread_t t[16];
+        int n = 0;
+
+        while (n < c->o->threads - 1 && pthread_create(&t[n], NULL, pass_worker, &p) == 0)
+                n++;
+        pass_worker(&p);
+        while (n > 0)
+                pthread_join(t[--n], NULL);
+        return c->error;
+}
+
+/* Marks the pilot views and the sampling stride: about o->sample of every view's pixels,
+ * at least MIN_SAMPLE_PER_DIM x 3M vectors from the pilots when they have them. */
+static void choose_pilots(struct fit_ctx *c)
+{
+        size_t every = (c->n_views + AP_PILOT_EVERY - 1) / AP_PILOT_EVERY, all = 0, pilot = 0;
+
+        for (size_t i = 0; i < c->n_views; i++) {
+                size_t px = (size_t)c->views[i].geom.width * c->views[i].geom.height;
+                c->views[i].pilot = i % every == 0;
+                all += px;
+                pilot += c->views[i].pilot ? px : 0;
+        }
+        c->stride = (size_t)fmax(1, floor(pilot / (c->o->sample * all)));
+        c->stride = MIN(c->stride, MAX(1, pilot / (MIN_SAMPLE_PER_DIM * 3 * (size_t)c->M)));
+}
+
+/* ---- the model ---- */
+
+/* The model's header and views (their weights come from the final pass). */
+static int model_new(struct fit_ctx *c)
+{
+        int k = MIN(c->o->k, 3 * c->M), r;
+
+        if (k < c->o->k)
+                fit_note(c, "%d components asked, %d coefficients: %d kept", c->o->k, 3 * c->M, k);
+        r = ap_model_new(c->order, k, c->n_views, &c->model);
+        if (r < 0)
+                return r;
+        for (size_t i = 0; i < c->n_views; i++) {
+                struct ap_view *mv = &c->model->views[i];
+                const struct fit_view *v = &c->views[i];
+                snprintf(mv->camera, sizeof(mv->camera), "%s", c->rc->cameras[v->cam].name);
+                mv->turntable_deg = v->tt_deg;
+                mv->camera_arm_deg = v->arm_deg;
+                mv->cam = v->geom;
+                memcpy(mv->dir, v->dir, sizeof(mv->dir));
+        }
+        return 0;
+}
+
+/* The figures and the last notes into the model. */
+static void model_finish(struct fit_ctx *c, double t0)
+{
+        struct ap_model *m = c->model;
+        struct timespec ts;
+
+        snprintf(m->name, sizeof(m->name), "%s", c->o->name);
+        snprintf(m->reg, sizeof(m->reg), "%s", c->o->reg == AP_REG_TSVD ? "tsvd" : "tikhonov");
+        m->reg_param = c->o->reg_param;
+        m->light_distance_mm = c->d_ref;
+        m->light_intensity = c->i_ref;
+        m->rms_sh = c->n_sse ? sqrt(c->sse_sh / c->n_sse) : 0;
+        if (c->cond_max > 1e3)
+                fit_note(c,
+                         "lights on part of the sphere only (condition number %.3g): "
+                         "regularised, %s %g",
+                         c->cond_max, m->reg, m->reg_param);
+        if (c->masked_saturated)
+                fit_note(c, "%zu pixels masked for a saturated sample", c->masked_saturated);
+        snprintf(m->notes, sizeof(m->notes), "%s", c->notes);
+        clock_gettime(CLOCK_MONOTONIC, &ts);
+        m->fit_seconds = ts.tv_sec + ts.tv_nsec * 1e-9 - t0;
+}
+
+static void ctx_free(struct fit_ctx *c)
+{
+        for (size_t i = 0; c->views && i < c->n_views; i++) {
+                free(c->views[i].rows);
+                free(c->views[i].lights);
+                free(c->views[i].points);
+        }
+        free(c->views);
+        free(c->all);
+        free(c->sample);
+        fit_mesh_free(&c->mesh);
+        rigconf_free(c->rc);
+        ap_model_free(c->model);
+        pthread_mutex_destroy(&c->lock);
+}
+
+/* Everything but the passes: the rig, the rows, views, order, geometry, points, model. */
+static int prepare(struct fit_ctx *c, struct ds *d)
+{
+        char path[4200], msg[512];
+        int r;
+
+        snprintf(path, sizeof(path), "%s/rig.yaml", c->dir);
+        r = rigconf_load_stored(path, c->o->backends, &c->rc, msg, sizeof(msg));
+        if (r < 0)
+                return fit_fail(c, r, "%s", msg);
+        if (c->rc->n_lamps == 0)
+                return fit_fail(c, -ENODATA, "%s: the rig has no lamps: no appearance to fit",
+                                path);
+        r = ds_rows_collect(d, NULL, NULL, &c->all, &c->n_all);
+        if (r < 0)
+                return fit_fail(c, r, "reading the index: %s", ds_last_error(d));
+        r = group_views(c);
+        if (r == 0)
+                note_unlit_views(c);
+        if (r == 0)
+                r = choose_order(c);
+        if (r == 0)
+                r = fit_geometry(c);
+        if (r == 0)
+                r = fit_mesh_read(c);
+        for (size_t i = 0; r == 0 && i < c->n_views; i++)
+                r = fit_tile_points(c, &c->views[i]);
+        if (r == 0)
+                r = model_new(c);
+        return r;
+}
+
+int ap_fit(struct ds *d, const struct ap_fit_opts *o, struct ap_model **ret, char *err,
+           size_t errlen)
+{
+        struct ap_fit_opts opts = o ? *o : (struct ap_fit_opts){0};
+        struct fit_ctx c = {.o = &opts};
+        struct timespec ts;
+        int r;
+
+        if (!d || !ret || !opts_valid(o))
+                return -EINVAL;
+        clock_gettime(CLOCK_MONOTONIC, &ts);
+        if (opts.reg_param < 0)
+                opts.reg_param = ap_fit_reg_default(opts.reg);
+        c.dir = ds_path(d);
+        pthread_mutex_init(&c.lock, NULL);
+        openblas_set_num_threads(1); /* the views run in parallel */
+        r = prepare(&c, d);
+        if (r == 0) {
+                choose_pilots(&c);
+                r = run_pass(&c, true);
+        }
+        if (r == 0 && (r = fit_pca(&c)) < 0)
+                fit_fail(&c, r, "the PCA failed: %zu sample vectors", c.n_sample);
+        if (r == 0)
+                r = run_pass(&c, false);
+        if (r == 0) {
+                model_finish(&c, ts.tv_sec + ts.tv_nsec * 1e-9);
+                *ret = TAKE_PTR(c.model);
+        } else if (err) {
+                snprintf(err, errlen, "%s", c.err[0] ? c.err : strerror(-r));
+        }
+        ctx_free(&c);
+        return r;
+}

@@ -1,0 +1,386 @@
+/* fit_view.c - one view of the fit (fit_internal.h): its lights' images read (brackets
+ * merged, dark frames subtracted, values normalised to the reference exposure) into an
+ * L x 3N matrix whose columns are grouped by tile; per tile the light matrix of SH values at
+ * the directions from the tile's surface point (scaled by intensity and distance), its
+ * regularised pseudo-inverse, and one product with the tile's columns; pixels masked where
+ * the object is not or a sample saturated. The pilot pass samples coefficient vectors for the
+ * PCA; the final pass projects every vector on the basis with one product per view. */
+#include <cblas.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <lapacke.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "appearance/fit_internal.h"
+#include "appearance/sh.h"
+#include "common/cleanup.h"
+#include "common/fileio.h"
+#include "dataset/ds_png.h"
+
+#define PNG_MAX ((size_t)1 << 30)
+
+/* A view's images in memory, columns by tile. */
+struct vdata {
+        int W, H, T, tw, th;
+        size_t N;      /* 3 x pixels: the columns */
+        int L;         /* lights: the rows */
+        float *D;      /* L x N */
+        uint32_t *col; /* pixel (image order) -> its first column */
+        float *maxv;   /* per pixel: the largest sample over lights and channels */
+        uint8_t *sat;  /* per pixel: a sample saturated in some light */
+};
+
+static void vdata_free(struct vdata *d)
+{
+        free(d->D);
+        free(d->col);
+        free(d->maxv);
+        free(d->sat);
+}
+
+static int vdata_init(struct vdata *d, const struct fit_ctx *c, const struct fit_view *v)
+{
+        size_t n = (size_t)v->geom.width * v->geom.height, base = 0;
+
+        *d = (struct vdata){.W = v->geom.width,
+                            .H = v->geom.height,
+                            .T = c->o->tile,
+                            .N = 3 * n,
+                            .L = (int)v->n_lights};
+        d->tw = (d->W + d->T - 1) / d->T;
+        d->th = (d->H + d->T - 1) / d->T;
+        d->D = malloc((size_t)d->L * d->N * sizeof(float));
+        d->col = malloc(n * sizeof(uint32_t));
+        d->maxv = calloc(n, sizeof(float));
+        d->sat = calloc(n, 1);
+        if (!d->D || !d->col || !d->maxv || !d->sat)
+                return -ENOMEM;
+        for (int ty = 0; ty < d->th; ty++)
+                for (int tx = 0; tx < d->tw; tx++) {
+                        int x0 = tx * d->T, y0 = ty * d->T, w = MIN(d->T, d->W - x0);
+                        for (int y = y0; y < MIN(y0 + d->T, d->H); y++)
+                                for (int x = x0; x < x0 + w; x++, base += 3)
+                                        d->col[(size_t)y * d->W + x] = (uint32_t)base;
+                }
+        return 0;
+}
+
+/* Decodes the image of row r (its file in the dataset). */
+static int load(struct fit_ctx *c, const struct ds_capture *r, struct gn_frame *f)
+{
+        _cleanup_free_ void *buf = NULL;
+        char path[4400];
+        size_t len;
+        int e;
+
+        snprintf(path, sizeof(path), "%s/%s", c->dir, r->file);
+        e = gn_read_file_at(AT_FDCWD, path, PNG_MAX, &buf, &len);
+        if (e == 0)
+                e = ds_png_decode(buf, len, f);
+        return e < 0 ? fit_fail(c, e, "%s: %s", path, strerror(-e)) : 0;
+}
+
+/* The dark frame of row r (a row of c->all), or NULL. */
+static const struct ds_capture *dark_of(const struct fit_ctx *c, const struct ds_capture *r)
+{
+        size_t lo = 0, hi = c->n_all;
+
+        while (r->dark_id > 0 && lo < hi) { /* c->all is in id order */
+                size_t mid = (lo + hi) / 2;
+                if (c->all[mid].id == r->dark_id)
+                        return &c->all[mid];
+                if (c->all[mid].id < r->dark_id)
+                        lo = mid + 1;
+                else
+                        hi = mid;
+        }
+        return NULL;
+}
+
+static double sample(const struct gn_frame *f, size_t p, int ch)
+{
+        const uint8_t *row = f->data + (p / f->width) * f->stride;
+        size_t i = (p % f->width) * f->channels + (f->channels == 3 ? ch : 0);
+
+        return f->bits == 8 ? row[i] / 255.0 : ((const uint16_t *)row)[i] / 65535.0;
+}
+
+/* Adds bracket r (image f, dark frame dk or NULL) to the merge sums acc/wsum (per sample). */
+static void merge_bracket(const struct fit_ctx *c, const struct ds_capture *r,
+                          const struct gn_frame *f, const struct gn_frame *dk, float *acc,
+                          float *wsum)
+{
+        double gain = r->gain > 0 ? r->gain : 1;
+        double k = c->exposure_ref / (r->exposure_us > 0 ? r->exposure_us : c->exposure_ref) *
+                   c->gain_ref / gain;
+        float w = (float)(r->exposure_us > 0 ? r->exposure_us : 1);
+
+        for (size_t p = 0; p < (size_t)f->width * f->height; p++)
+                for (int ch = 0; ch < 3; ch++) {
+                        double x = sample(f, p, ch);
+                        if (x >= c->o->saturation)
+                                continue;
+                        if (dk)
+                                x -= sample(dk, p, ch);
+                        acc[3 * p + ch] += w * (float)(x * k);
+                        wsum[3 * p + ch] += w;
+                }
+}
+
+/* Reads light j of view v (its brackets, each minus its dark frame) into row j of d. */
+static int load_light(struct fit_ctx *c, const struct fit_view *v, int j, struct vdata *d)
+{
+        const struct fit_light *l = &v->lights[j];
+        size_t n = (size_t)d->W * d->H;
+        _cleanup_free_ float *acc = calloc(3 * n, sizeof(float));
+        _cleanup_free_ float *wsum = calloc(3 * n, sizeof(float));
+        float *row = d->D + (size_t)j * d->N;
+        int r = acc && wsum ? 0 : -ENOMEM;
+
+        for (size_t b = 0; r == 0 && b < l->n; b++) {
+                const struct ds_capture *cap = v->rows[l->first + b], *dc = dark_of(c, cap);
+                struct gn_frame f = {0}, dk = {0};
+                r = load(c, cap, &f);
+                if (r == 0 && dc)
+                        r = load(c, dc, &dk);
+                if (r == 0 && (f.width != d->W || f.height != d->H ||
+                               (dc && (dk.width != d->W || dk.height != d->H)))) {
+                        r = fit_fail(c, -EBADMSG, "%s: %dx%d, the camera's images are %dx%d",
+                                     cap->file, f.width, f.height, d->W, d->H);
+                }
+                if (r == 0)
+                        merge_bracket(c, cap, &f, dc ? &dk : NULL, acc, wsum);
+                gn_frame_free_data(&f);
+                gn_frame_free_data(&dk);
+        }
+        for (size_t p = 0; r == 0 && p < n; p++)
+                for (int ch = 0; ch < 3; ch++) {
+                        float x = wsum[3 * p + ch] > 0 ? acc[3 * p + ch] / wsum[3 * p + ch] : 0;
+                        d->sat[p] |= wsum[3 * p + ch] == 0;
+                        d->maxv[p] = fmaxf(d->maxv[p], x);
+                        row[d->col[p] + ch] = x;
+                }
+        return r;
+}
+
+/* The L x M light matrix of tile t: SH at the direction from its point to each lamp, times
+ * the lamp's intensity and inverse-square distance relative to the reference. */
+static void light_matrix(const struct fit_ctx *c, const struct fit_view *v, size_t t, double *A)
+{
+        const float *X = &v->points[3 * t];
+
+        for (size_t j = 0; j < v->n_lights; j++) {
+                const struct fit_light *l = &v->lights[j];
+                double d[3] = {l->pos[0] - X[0], l->pos[1] - X[1], l->pos[2] - X[2]};
+                double r = hypot(hypot(d[0], d[1]), d[2]),
+                       s = l->scale * c->d_ref * c->d_ref / (r * r);
+                for (int k = 0; k < 3; k++)
+                        d[k] /= r;
+                ap_sh_eval(c->order, d, &A[j * c->M]);
+                for (int m = 0; m < c->M; m++)
+                        A[j * c->M + m] *= s;
+        }
+}
+
+/* The coefficient vectors of a view's masked pixels, compact: vector i is pixel pix[i]. */
+struct vcoef {
+        float *coef; /* n x 3M */
+        uint32_t *pix;
+        size_t n;
+        double sse; /* squared residuals of the sampled pixels (pilot pass) */
+        size_t n_sse;
+        double cond; /* the worst tile's condition number */
+};
+
+/* Pixel p takes part: the object seen (some light above the background), no saturated
+ * sample, a surface point for its tile. */
+static bool masked_in(const struct fit_ctx *c, const struct fit_view *v, const struct vdata *d,
+                      size_t p)
+{
+        size_t t = (p / d->W) / d->T * d->tw + (p % d->W) / d->T;
+
+        return !d->sat[p] && d->maxv[p] >= c->o->background && !isnan(v->points[3 * t]);
+}
+
+/* Residual of pixel p's vector x (3M) against its data: adds to vc->sse. */
+static void residual(const struct fit_ctx *c, const struct vdata *d, const double *A, size_t p,
+                     const float *x, struct vcoef *vc)
+{
+        for (int j = 0; j < d->L; j++)
+                for (int ch = 0; ch < 3; ch++) {
+                        double e = d->D[(size_t)j * d->N + d->col[p] + ch];
+                        for (int m = 0; m < c->M; m++)
+                                e -= A[j * c->M + m] * x[m * 3 + ch];
+                        vc->sse += e * e;
+                        vc->n_sse++;
+                }
+}
+
+/* Solves tile (tx, ty): the coefficient vectors of its masked pixels appended to vc. */
+static int solve_tile(const struct fit_ctx *c, const struct fit_view *v, const struct vdata *d,
+                      int tx, int ty, double *A, float *P, float *Ct, struct vcoef *vc)
+{
+        int x0 = tx * d->T, y0 = ty * d->T, w = MIN(d->T, d->W - x0), h = MIN(d->T, d->H - y0);
+        size_t first = (size_t)y0 * d->W + x0, ncols = 3 * (size_t)w * h, M3 = 3 * (size_t)c->M;
+        double cond;
+        bool any = false;
+        int r;
+
+        for (int y = y0; y < y0 + h && !any; y++)
+                for (int x = x0; x < x0 + w && !any; x++)
+                        any = masked_in(c, v, d, (size_t)y * d->W + x);
+        if (!any)
+                return 0;
+        light_matrix(c, v, (size_t)ty * d->tw + tx, A);
+        r = ap_fit_pinv(A, d->L, c->M, c->o->reg, c->o->reg_param, P, &cond);
+        if (r < 0)
+                return r;
+        vc->cond = fmax(vc->cond, cond);
+        cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, c->M, (int)ncols, d->L, 1, P, d->L,
+                    d->D + d->col[first], (int)d->N, 0, Ct, (int)ncols);
+        for (int y = y0; y < y0 + h; y++)
+                for (int x = x0; x < x0 + w; x++) {
+                        size_t p = (size_t)y * d->W + x, lp = (size_t)(y - y0) * w + (x - x0);
+                        float *out = vc->coef + vc->n * M3;
+                        if (!masked_in(c, v, d, p))
+                                continue;
+                        for (int m = 0; m < c->M; m++)
+                                for (int ch = 0; ch < 3; ch++)
+                                        out[m * 3 + ch] = Ct[m * ncols + lp * 3 + ch];
+                        vc->pix[vc->n++] = (uint32_t)p;
+                }
+        return 0;
+}
+
+static int solve_view(const struct fit_ctx *c, const struct fit_view *v, const struct vdata *d,
+                      struct vcoef *vc)
+{
+        size_t n = (size_t)d->W * d->H, T2 = (size_t)d->T * d->T;
+        _cleanup_free_ double *A = malloc((size_t)d->L * c->M * sizeof(double));
+        _cleanup_free_ float *P = malloc((size_t)d->L * c->M * sizeof(float));
+        _cleanup_free_ float *Ct = malloc(3 * T2 * c->M * sizeof(float));
+        int r = 0;
+
+        vc->coef = malloc(n * 3 * c->M * sizeof(float));
+        vc->pix = malloc(n * sizeof(uint32_t));
+        if (!A || !P || !Ct || !vc->coef || !vc->pix)
+                return -ENOMEM;
+        for (int ty = 0; r == 0 && ty < d->th; ty++)
+                for (int tx = 0; r == 0 && tx < d->tw; tx++)
+                        r = solve_tile(c, v, d, tx, ty, A, P, Ct, vc);
+        return r;
+}
+
+/* Pilot pass: every stride-th vector into c's sample, with its residual. */
+static int add_sample(struct fit_ctx *c, const struct fit_view *v, const struct vdata *d,
+                      struct vcoef *vc)
+{
+        size_t M3 = 3 * (size_t)c->M, n = (vc->n + c->stride - 1) / c->stride;
+        _cleanup_free_ double *A = malloc((size_t)d->L * c->M * sizeof(double));
+        int r = 0;
+
+        if (!A)
+                return -ENOMEM;
+        for (size_t i = 0; i < vc->n; i += c->stride) {
+                size_t p = vc->pix[i];
+                light_matrix(c, v, (p / d->W) / d->T * d->tw + (p % d->W) / d->T, A);
+                residual(c, d, A, p, vc->coef + i * M3, vc);
+        }
+        pthread_mutex_lock(&c->lock);
+        if (c->n_sample + n > c->cap_sample) {
+                size_t cap = MAX(2 * c->cap_sample, c->n_sample + n);
+                float *s = realloc(c->sample, cap * M3 * sizeof(float));
+                if (s)
+                        c->sample = s, c->cap_sample = cap;
+                else
+                        r = -ENOMEM;
+        }
+        for (size_t i = 0; r == 0 && i < vc->n; i += c->stride)
+                memcpy(c->sample + c->n_sample++ * M3, vc->coef + i * M3, M3 * sizeof(float));
+        c->sse_sh += vc->sse;
+        c->n_sse += vc->n_sse;
+        pthread_mutex_unlock(&c->lock);
+        return r;
+}
+
+/* Final pass: the weights and mask of model view mv from the vectors. */
+static int project(struct fit_ctx *c, struct ap_view *mv, const struct vdata *d,
+                   const struct vcoef *vc)
+{
+        const struct ap_model *m = c->model;
+        _cleanup_free_ float *w = malloc((vc->n + 1) * m->k * sizeof(float));
+        size_t n_sat = 0;
+        int r = ap_view_alloc(mv, m->k);
+
+        if (r < 0 || !w)
+                return -ENOMEM;
+        fit_pca_project(m, vc->coef, vc->n, w);
+        for (size_t i = 0; i < vc->n; i++) {
+                mv->mask[vc->pix[i]] = 1;
+                memcpy(mv->weights + (size_t)vc->pix[i] * m->k, w + i * m->k, m->k * sizeof(float));
+        }
+        for (size_t p = 0; p < (size_t)d->W * d->H; p++)
+                n_sat += d->sat[p] && d->maxv[p] >= c->o->background;
+        pthread_mutex_lock(&c->lock);
+        c->masked_saturated += n_sat;
+        pthread_mutex_unlock(&c->lock);
+        return 0;
+}
+
+int fit_view(struct fit_ctx *c, size_t i, bool pilot_pass)
+{
+        struct fit_view *v = &c->views[i];
+        _cleanup_(vdata_free) struct vdata d = {0};
+        struct vcoef vc = {0};
+        int r = vdata_init(&d, c, v);
+
+        for (int j = 0; r == 0 && j < d.L; j++)
+                r = load_light(c, v, j, &d);
+        if (r == 0)
+                r = solve_view(c, v, &d, &vc);
+        if (r == 0 && pilot_pass)
+                r = add_sample(c, v, &d, &vc);
+        else if (r == 0)
+                r = project(c, &c->model->views[i], &d, &vc);
+        pthread_mutex_lock(&c->lock);
+        c->cond_max = fmax(c->cond_max, vc.cond);
+        pthread_mutex_unlock(&c->lock);
+        free(vc.coef);
+        free(vc.pix);
+        return r;
+}
+
+int ap_fit_pinv(const double *A, int L, int M, enum ap_reg reg, double param, float *pinv,
+                double *cond)
+{
+        int k = MIN(L, M);
+        _cleanup_free_ double *a = malloc((size_t)L * M * sizeof(double));
+        _cleanup_free_ double *u = malloc((size_t)L * k * sizeof(double));
+        _cleanup_free_ double *vt = malloc((size_t)k * M * sizeof(double));
+        double s[AP_ORDER_MAX * AP_ORDER_MAX], f[AP_ORDER_MAX * AP_ORDER_MAX];
+
+        if (L < 1 || M < 1 || M > AP_ORDER_MAX * AP_ORDER_MAX || param < 0)
+                return -EINVAL;
+        if (!a || !u || !vt)
+                return -ENOMEM;
+        memcpy(a, A, (size_t)L * M * sizeof(double));
+        if (LAPACKE_dgesdd(LAPACK_ROW_MAJOR, 'S', L, M, a, M, s, u, k, vt, M) != 0)
+                return -EDOM;
+        for (int i = 0; i < k; i++)
+                f[i] = reg == AP_REG_TSVD ? (s[i] > param * s[0] ? 1 / s[i] : 0)
+                                          : s[i] / (s[i] * s[i] + param * param * s[0] * s[0]);
+        for (int m = 0; m < M; m++)
+                for (int j = 0; j < L; j++) {
+                        double x = 0;
+                        for (int i = 0; i < k; i++)
+                                x += vt[i * M + m] * f[i] * u[j * k + i];
+                        pinv[m * L + j] = (float)x;
+                }
+        if (cond)
+                *cond = s[k - 1] > 0 ? s[0] / s[k - 1] : INFINITY;
+        return 0;
+}

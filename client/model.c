@@ -1,0 +1,193 @@
+/* model.c - gonioctl model fit DATASET [--name N] [--order P] [--components K] [--sample F]
+ * [--reg tikhonov|tsvd] [--reg-param X] [--tile N] [--threads N] [--calibration FILE|nominal]
+ * [--mesh FILE] [--force]: the appearance fit of a dataset (appearance/fit.h) written as
+ * models/<name>/ of the dataset (appearance/model.h), without goniod; the summary as text or
+ * JSON (docs/appearance.md, "gonioctl model fit"). */
+#include <errno.h>
+#include <getopt.h>
+#include <limits.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "appearance/fit.h"
+#include "client/cmd.h"
+#include "client/model.h"
+#include "common/cleanup.h"
+#include "dataset/ds.h"
+#include "drivers/registry.h"
+
+#define WHAT "model fit"
+
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct ds *, ds_close);
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_model *, ap_model_free);
+
+/* What the command line asks beyond the fit's options. */
+struct fit_cli {
+        struct ap_fit_opts o;
+        const char *dataset;
+        bool force;
+};
+
+/* Stores option c's value v into f. Returns 0 or -EINVAL (message printed). */
+static int set_opt(struct fit_cli *f, int c, const char *v)
+{
+        double x = 0;
+        long n = 0;
+        bool num = args_parse_double(v, &x) == 0, integer = args_parse_long(v, 1, 64, &n) == 0;
+
+        switch (c) {
+        case 'n':
+                f->o.name = v;
+                return 0;
+        case 'c':
+                f->o.calibration = v;
+                return 0;
+        case 'm':
+                f->o.mesh = v;
+                return 0;
+        case 'P':
+                f->o.order = (int)n;
+                return integer && n <= AP_ORDER_MAX ? 0 : -EINVAL;
+        case 'K':
+                f->o.k = (int)n;
+                return integer && n <= AP_K_MAX ? 0 : -EINVAL;
+        case 's':
+                f->o.sample = x;
+                return num && x > 0 && x <= 1 ? 0 : -EINVAL;
+        case 'x':
+                f->o.reg_param = x;
+                return num && x >= 0 ? 0 : -EINVAL;
+        case 't':
+                f->o.tile = (int)n;
+                return integer ? 0 : -EINVAL;
+        case 'j':
+                f->o.threads = (int)n;
+                return integer && n <= 16 ? 0 : -EINVAL;
+        case 'r':
+                f->o.reg = strcmp(v, "tsvd") == 0 ? AP_REG_TSVD : AP_REG_TIKHONOV;
+                return strcmp(v, "tsvd") == 0 || strcmp(v, "tikhonov") == 0 ? 0 : -EINVAL;
+        }
+        return -EINVAL;
+}
+
+/* Parses words[0 .. n) ("fit" first) into f. Returns 0 or -EINVAL (message printed). */
+static int parse_fit(int n, char **words, struct fit_cli *f)
+{
+        static const struct option opts[] = {
+                {"name", required_argument, NULL, 'n'},
+                {"order", required_argument, NULL, 'P'},
+                {"components", required_argument, NULL, 'K'},
+                {"sample", required_argument, NULL, 's'},
+                {"reg", required_argument, NULL, 'r'},
+                {"reg-param", required_argument, NULL, 'x'},
+                {"tile", required_argument, NULL, 't'},
+                {"threads", required_argument, NULL, 'j'},
+                {"calibration", required_argument, NULL, 'c'},
+                {"mesh", required_argument, NULL, 'm'},
+                {"force", no_argument, NULL, 'f'},
+                {},
+        };
+        int c, li = 0;
+
+        ap_fit_opts_default(&f->o);
+        f->o.backends = registry_backends;
+        optind = 0; /* glibc: a full reset, words is not the process's argv */
+        opterr = 0;
+        while ((c = getopt_long(n, words, "", opts, &li)) != -1) {
+                if (c == 'f')
+                        f->force = true;
+                else if (c == '?' || c == ':')
+                        return args_usage_error(WHAT, "unknown option or missing value '%s'",
+                                                words[optind - 1]);
+                else if (set_opt(f, c, optarg) < 0)
+                        return args_usage_error(WHAT, "invalid value '%s' of --%s", optarg,
+                                                opts[li].name);
+        }
+        if (optind != n - 1)
+                return args_usage_error(WHAT, "needs one DATASET (usage: model fit DATASET "
+                                              "[--name N] [--order P] [--components K] ...)");
+        f->dataset = words[optind];
+        return 0;
+}
+
+/* The summary of model m written at dir. */
+static json_t *summary_json(const struct ap_model *m, const char *dir)
+{
+        return json_pack("{s:s,s:s,s:i,s:i,s:I,s:s,s:f,s:f,s:f,s:f,s:s}", "model", dir, "name",
+                         m->name, "order", m->order, "components", m->k, "views",
+                         (json_int_t)m->n_views, "regularisation", m->reg, "parameter",
+                         m->reg_param, "rms_sh", m->rms_sh, "rms_pca", m->rms_pca, "seconds",
+                         m->fit_seconds, "notes", m->notes);
+}
+
+/* Fits, writes and summarises the model of f's dataset. */
+static int model_fit(const struct fit_cli *f, struct out *o, json_t **ret)
+{
+        _cleanup_(ds_closep) struct ds *d = NULL;
+        _cleanup_(ap_model_freep) struct ap_model *m = NULL;
+        char err[1024], dir[4200];
+        int r;
+
+        if ((r = ds_open(f->dataset, &d)) < 0) {
+                out_error(o, WHAT, "cannot open dataset %s: %s", f->dataset, strerror(-r));
+                return EXIT_INVALID;
+        }
+        snprintf(dir, sizeof(dir), "%s/models/%s", ds_path(d), f->o.name);
+        if (!f->force && access(dir, F_OK) == 0) {
+                out_error(o, WHAT, "%s exists (--force replaces it)", dir);
+                return EXIT_INVALID;
+        }
+        if ((r = ap_fit(d, &f->o, &m, err, sizeof(err))) < 0) {
+                out_error(o, WHAT, "%s: %s", f->dataset, err);
+                return cmd_exit_for_errno(r);
+        }
+        if ((r = ap_model_write(m, ds_path(d))) < 0) {
+                out_error(o, WHAT, "cannot write %s: %s", dir, strerror(-r));
+                return EXIT_STORAGE;
+        }
+        *ret = summary_json(m, dir);
+        return *ret ? EXIT_OK : EXIT_PROTOCOL;
+}
+
+int model_command(const struct args *a, struct out *o, json_t **ret)
+{
+        char **words = a->words + 1;
+        int n = a->nwords - 1;
+        struct fit_cli f = {0};
+
+        if (n >= 1 && strcmp(words[0], "render") == 0) /* prints its own result */
+                return model_render_command(n, words);
+        if (n < 1 || strcmp(words[0], "fit") != 0) {
+                args_usage_error("model",
+                                 n < 1 ? "missing subcommand (fit)"
+                                       : "unknown subcommand '%s' (fit)",
+                                 n < 1 ? "" : words[0]);
+                return EXIT_USAGE;
+        }
+        if (parse_fit(n, words, &f) < 0)
+                return EXIT_USAGE;
+        return model_fit(&f, o, ret);
+}
+
+void model_print(json_t *res)
+{
+        const char *notes = json_string_value(json_object_get(res, "notes"));
+
+        if (!res) /* model render: printed already */
+                return;
+        printf("model %s: order %d, %d components, %d views, %s %g\n",
+               json_string_value(json_object_get(res, "model")),
+               (int)json_integer_value(json_object_get(res, "order")),
+               (int)json_integer_value(json_object_get(res, "components")),
+               (int)json_integer_value(json_object_get(res, "views")),
+               json_string_value(json_object_get(res, "regularisation")),
+               json_real_value(json_object_get(res, "parameter")));
+        printf("residual RMS: SH fit %.5f, PCA %.5f; %.2f s\n",
+               json_real_value(json_object_get(res, "rms_sh")),
+               json_real_value(json_object_get(res, "rms_pca")),
+               json_real_value(json_object_get(res, "seconds")));
+        if (notes && *notes)
+                printf("notes: %s\n", notes);
+}
