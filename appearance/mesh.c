@@ -14,9 +14,11 @@
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct rig_config *, rigconf_free);
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct sim_scene *, sim_scene_free);
 
-static void take(struct sim_mesh *m, struct ap_mesh *out)
+/* Takes m's arrays into out, oriented (ap_mesh_orient). */
+static int take(struct sim_mesh *m, struct ap_mesh *out)
 {
-        *out = (struct ap_mesh){m->nv, m->nt, m->pos, m->idx};
+        *out = (struct ap_mesh){m->nv, m->nt, m->pos, m->idx, 0};
+        return ap_mesh_orient(out);
 }
 
 static int from_rig(const char *rig, const struct rig_backend *const *backends, struct ap_mesh *out,
@@ -34,8 +36,7 @@ static int from_rig(const char *rig, const struct rig_backend *const *backends, 
                 snprintf(err, errlen, "%s: the scene has no object to render on", rig);
                 return r;
         }
-        take(&m, out);
-        return 0;
+        return take(&m, out);
 }
 
 int ap_mesh_for_dataset(const char *ds_dir, const struct rig_backend *const *backends,
@@ -50,9 +51,8 @@ int ap_mesh_for_dataset(const char *ds_dir, const struct rig_backend *const *bac
         if (access(path, F_OK) == 0) {
                 if ((r = sim_mesh_read(path, &m, err, errlen)) < 0)
                         return r;
-                take(&m, out);
                 snprintf(src, srclen, "scan %s", path);
-                return 0;
+                return take(&m, out);
         }
         snprintf(path, sizeof(path), "%s/rig.yaml", ds_dir);
         if (access(path, F_OK) != 0) {

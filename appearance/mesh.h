@@ -11,9 +11,10 @@
 
 #define AP_MESH_SPHERE_ROWS 96 /* tessellation of an analytic sphere of the simulator */
 
-/* Loads the mesh of dataset ds_dir into *out (free with ap_mesh_free) and names where it
- * came from in src ("scan PATH" or "simulator RIG"). backends parse the rig file's device
- * maps (drivers/registry.h's registry_backends). Returns 0, -ENOENT (no mesh.ply and no
- * rig.yaml, or a rig whose scene has no object) or -errno, with the cause in err. */
+/* Loads the mesh of dataset ds_dir into *out (free with ap_mesh_free), oriented
+ * (ap_mesh_orient), and names where it came from in src ("scan PATH" or "simulator RIG"). backends
+ * parse the rig file's device maps (drivers/registry.h's registry_backends). Returns 0, -ENOENT (no
+ * mesh.ply and no rig.yaml, or a rig whose scene has no object) or -errno, with the cause in err.
+ */
 int ap_mesh_for_dataset(const char *ds_dir, const struct rig_backend *const *backends,
                         struct ap_mesh *out, char *src, size_t srclen, char *err, size_t errlen);

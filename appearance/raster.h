@@ -8,12 +8,15 @@
 #include <stdint.h>
 
 #define AP_RASTER_NEAR_MM 1.0
+#define AP_MESH_WELD      1e-6 /* ap_mesh_orient welds vertices this close (times the extent) */
 
 /* A triangle mesh in the object frame (mm). */
 struct ap_mesh {
         size_t nv, nt;
         float *pos;    /* 3 * nv */
         uint32_t *idx; /* 3 * nt, each < nv */
+        int front;     /* 0: both sides drawn; 1 (-1): a closed surface wound counter-clockwise
+                        * (clockwise) seen from outside, back faces skipped (ap_mesh_orient) */
 };
 
 /* A pinhole camera without distortion: x_cam = R x_obj + t, u = fx x / z + cx. */
@@ -25,6 +28,13 @@ struct ap_pinhole {
 
 /* Frees m's arrays and zeroes it. Safe on a zeroed mesh. */
 void ap_mesh_free(struct ap_mesh *m);
+
+/* Sets m->front to 1 or -1 when m is a closed surface (its vertices welded where their
+ * positions agree to AP_MESH_WELD, collapsed faces ignored, every edge run by exactly two
+ * faces in opposite directions) enclosing a positive or negative volume, else to 0: a camera
+ * outside a closed surface never sees a back face first, so the rasteriser skips them.
+ * Returns 0 or -ENOMEM (m->front 0). */
+int ap_mesh_orient(struct ap_mesh *m);
 
 /* Rasterises m seen by c: depth (width * height, INFINITY where nothing) and, when tri is
  * not NULL, the index of the triangle seen (-1 where nothing). Returns 0 or -ENOMEM. */

@@ -156,6 +156,8 @@ int main(void)
         size_t cov;
 
         sphere(&mesh);
+        if (ap_mesh_orient(&mesh) < 0)
+                return 1;
         m = make_model(&mesh);
         t0 = now_s();
         if (!rgb || !mask || ap_renderer_new(m, &mesh, &r) < 0)
@@ -163,8 +165,9 @@ int main(void)
         setup = now_s() - t0;
         fps_obj = run(r, AP_VIEW_OBJECT, rgb, mask, &cov, &cpu_obj);
         fps_px = run(r, AP_VIEW_PIXEL, rgb, mask, &cov, &cpu_px);
-        printf("relight: %zu triangles, %zu views, K=%d, P=%d; renderer setup %.3f s\n", mesh.nt,
-               m->n_views, K, ORDER, setup);
+        printf("relight: %zu triangles (%s), %zu views, K=%d, P=%d; renderer setup %.3f s\n",
+               mesh.nt, mesh.front ? "closed: back faces skipped" : "open", m->n_views, K, ORDER,
+               setup);
         printf("relight: 640x480, %zu object pixels in the last frame (%.0f%%), 2 threads\n", cov,
                100.0 * cov / (640 * 480));
         printf("relight: per-object view mode %.1f fps, %.1f ms CPU a frame\n", fps_obj, cpu_obj);

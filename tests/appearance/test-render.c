@@ -347,13 +347,83 @@ static void test_args(void)
         ap_mesh_free(&me);
 }
 
+/* A cube of side 2h about c, each face's corners its own vertices (welded by position),
+ * wound counter-clockwise seen from outside; with open, one face left out. */
+static struct ap_mesh cube(double h, const double c[3], bool open)
+{
+        struct ap_mesh m = {24, open ? 10 : 12, malloc(72 * sizeof(float)),
+                            malloc(36 * sizeof(uint32_t))};
+
+        CHECK(m.pos && m.idx);
+        for (int f = 0; f < 6; f++) { /* axis f / 2, side +-1 */
+                int ax = f / 2, u = (ax + 1) % 3, v = (ax + 2) % 3;
+                double sg = f % 2 ? -1 : 1;
+                for (int k = 0; k < 4; k++) {
+                        double q[3];
+                        q[ax] = sg;
+                        q[u] = (k == 1 || k == 2) ? 1 : -1;
+                        q[v] = (k >= 2 ? 1 : -1) * sg; /* counter-clockwise about +-axis */
+                        for (int j = 0; j < 3; j++)
+                                m.pos[3 * (4 * f + k) + j] = (float)(c[j] + h * q[j]);
+                }
+                if (open && f == 5)
+                        break;
+                uint32_t t[6] = {0, 1, 2, 0, 2, 3};
+                for (int i = 0; i < 6; i++)
+                        m.idx[6 * f + i] = (uint32_t)(4 * f) + t[i];
+        }
+        return m;
+}
+
+/* Closed surfaces are oriented and their back faces skipped with the same image; open ones
+ * and inside-out ones are told apart. */
+static void test_cull(void)
+{
+        static const double c[3] = {10, -5, 20};
+        struct ap_mesh m = cube(30, c, false), open = cube(30, c, true);
+        size_t n = (size_t)out_intr.width * out_intr.height;
+        _cleanup_free_ float *d0 = malloc(n * sizeof(float)), *d1 = malloc(n * sizeof(float));
+        _cleanup_free_ int32_t *t0 = malloc(n * sizeof(int32_t)), *t1 = malloc(n * sizeof(int32_t));
+        size_t seen = 0;
+
+        CHECK(d0 && d1 && t0 && t1);
+        CHECK_INT(ap_mesh_orient(&open), 0);
+        CHECK_INT(open.front, 0);
+        CHECK_INT(ap_mesh_orient(&m), 0);
+        CHECK_INT(m.front, 1);
+        for (int v = 0; v < 8; v++) {
+                struct ap_camera cam;
+                struct ap_pinhole ph = {out_intr.width, out_intr.height, out_intr.fx,
+                                        out_intr.fy,    out_intr.cx,     out_intr.cy};
+                view_camera(45.0 * v + 10, v % 2 ? 50 : -30, &out_intr, &cam);
+                memcpy(ph.R, cam.R, sizeof(ph.R));
+                memcpy(ph.t, cam.t, sizeof(ph.t));
+                m.front = 0;
+                CHECK_INT(ap_raster(&m, &ph, d0, t0), 0);
+                m.front = 1;
+                CHECK_INT(ap_raster(&m, &ph, d1, t1), 0);
+                for (size_t i = 0; i < n; i++) {
+                        CHECK(t0[i] == t1[i] && (d0[i] == d1[i] || isinf(d0[i])));
+                        seen += t0[i] >= 0;
+                }
+        }
+        CHECK(seen > 1000);                 /* the cube is in the images */
+        for (size_t t = 0; t < m.nt; t++) { /* inside out */
+                uint32_t i = m.idx[3 * t + 1];
+                m.idx[3 * t + 1] = m.idx[3 * t + 2];
+                m.idx[3 * t + 2] = i;
+        }
+        CHECK_INT(ap_mesh_orient(&m), 0);
+        CHECK_INT(m.front, -1);
+        ap_mesh_free(&m);
+        ap_mesh_free(&open);
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
-                {"occlusion", test_occlusion},
-                {"modes", test_modes},
-                {"lights", test_lights},
-                {"args", test_args},
+                {"occlusion", test_occlusion}, {"modes", test_modes}, {"lights", test_lights},
+                {"args", test_args},           {"cull", test_cull},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
