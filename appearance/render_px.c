@@ -245,52 +245,79 @@ static void cube_sample(const struct ap_renderer *r, const float l[3], float *ou
                          b * ((1 - a) * q10[i] + a * q11[i]);
 }
 
-static inline __attribute__((always_inline)) void shade(const struct frame *f, int x, int y)
+/* Step 4.1 at surface point p: the weights of the views around its view direction blended
+ * into acc (K values, normalised by the views that see p). False where no view sees p. */
+static inline __attribute__((always_inline)) bool blend_views(const struct frame *f,
+                                                              const float p[3], float *acc)
 {
         const struct ap_renderer *r = f->r;
-        size_t i = (size_t)y * f->cam->width + x;
-        int K = r->m->k, idx[3], n;
-        float p[3], w[3], acc[AP_K_MAX] = {0}, ws = 0, lt[(AP_K_MAX + 1) * 3], s = f->scale;
-        const float *L = f->lconst;
+        int idx[3], n = f->on, K = r->m->k;
+        float w[3], ws = 0;
 
-        f->mask[i] = 0;
-        f->rgb[3 * i] = f->rgb[3 * i + 1] = f->rgb[3 * i + 2] = 0;
-        if (!surface_point(f, x, y, p))
-                return;
-        if (f->mode == AP_VIEW_OBJECT) {
-                memcpy(idx, f->oidx, sizeof(idx));
-                memcpy(w, f->ow, sizeof(w));
-                n = f->on;
-        } else {
+        memcpy(idx, f->oidx, sizeof(idx));
+        memcpy(w, f->ow, sizeof(w));
+        if (f->mode == AP_VIEW_PIXEL) {
                 float v[3] = {f->C[0] - p[0], f->C[1] - p[1], f->C[2] - p[2]};
-                float len = sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+                float len = 1 / sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
                 for (int j = 0; j < 3; j++)
-                        v[j] /= len;
+                        v[j] *= len;
                 n = ap_views_weights(r->views, v, idx, w);
         }
         for (int j = 0; j < n; j++)
                 if (w[j] > 0 && sample_view(&r->rv[idx[j]], p, K, w[j], acc))
                         ws += w[j];
         if (!(ws > 0))
-                return;
-        if (f->kind == AP_LIGHT_POINT) {
-                float l[3] = {f->lpos[0] - p[0], f->lpos[1] - p[1], f->lpos[2] - p[2]};
-                float r2 = l[0] * l[0] + l[1] * l[1] + l[2] * l[2], rl = 1 / sqrtf(r2);
-                for (int j = 0; j < 3; j++)
-                        l[j] *= rl;
-                cube_sample(r, l, lt);
-                L = lt;
-                s /= r2;
-        }
+                return false;
         ws = 1 / ws;
         for (int k = 0; k < K; k++)
                 acc[k] *= ws;
-        for (int c = 0; c < 3; c++) {
-                float v = L[c];
-                for (int k = 0; k < K; k++)
-                        v += acc[k] * L[(k + 1) * 3 + c];
-                f->rgb[3 * i + c] = s * v;
+        return true;
+}
+
+/* Pixel i: s (L row 0 + sum_k acc_k L row k + 1). */
+static inline __attribute__((always_inline)) void light_sum(const struct frame *f, const float *L,
+                                                            const float *acc, float s, size_t i)
+{
+        float q[3] = {L[0], L[1], L[2]};
+
+        for (int k = 0; k < f->r->m->k; k++) {
+                q[0] += acc[k] * L[(k + 1) * 3];
+                q[1] += acc[k] * L[(k + 1) * 3 + 1];
+                q[2] += acc[k] * L[(k + 1) * 3 + 2];
         }
+        for (int c = 0; c < 3; c++)
+                f->rgb[3 * i + c] = s * q[c];
+}
+
+/* Step 4.2: pixel i from the blended weights acc at surface point p. */
+static inline __attribute__((always_inline)) void
+apply_light(const struct frame *f, const float p[3], const float *acc, size_t i)
+{
+        float lt[(AP_K_MAX + 1) * 3], l[3], r2, rl;
+
+        if (f->kind != AP_LIGHT_POINT) {
+                light_sum(f, f->lconst, acc, f->scale, i);
+                return;
+        }
+        for (int j = 0; j < 3; j++)
+                l[j] = f->lpos[j] - p[j];
+        r2 = l[0] * l[0] + l[1] * l[1] + l[2] * l[2], rl = 1 / sqrtf(r2);
+        for (int j = 0; j < 3; j++)
+                l[j] *= rl, lt[j] = 0; /* (lt: gcc cannot see that K >= 0 fills it) */
+        cube_sample(f->r, l, lt);
+        light_sum(f, lt, acc, f->scale / r2, i);
+}
+
+static inline __attribute__((always_inline)) void shade(const struct frame *f, int x, int y)
+{
+        size_t i = (size_t)y * f->cam->width + x;
+        float p[3], acc[AP_K_MAX] = {0};
+
+        f->mask[i] = 0;
+        f->rgb[3 * i] = f->rgb[3 * i + 1] = f->rgb[3 * i + 2] = 0;
+        if (!surface_point(f, x, y, p) || !blend_views(f, p, acc))
+                return;
+        apply_light(f, p, acc, i);
         f->mask[i] = 1;
 }
 
