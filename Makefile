@@ -3,6 +3,9 @@
 BUILD      ?= build
 ASAN_BUILD ?= build-asan
 MESON_OPTS ?=
+# Tests at once: most end-to-end tests wait on the simulated rig, so three keep 2 cores busy
+# (those that compare rig time with wall time run alone: tests/e2e/meson.build).
+TEST_JOBS  ?= 3
 
 .PHONY: all deps build demo test test-fast test-asan bench format clean
 
@@ -29,12 +32,12 @@ test: test-fast test-asan
 	@scripts/test-summary $(BUILD) $(ASAN_BUILD)
 
 test-fast: build
-	meson test -C $(BUILD) --print-errorlogs
+	meson test -C $(BUILD) --print-errorlogs --num-processes $(TEST_JOBS)
 
 test-asan: deps $(ASAN_BUILD)/build.ninja
 	ninja -C $(ASAN_BUILD)
 	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
-		meson test -C $(ASAN_BUILD) --print-errorlogs --timeout-multiplier 3
+		meson test -C $(ASAN_BUILD) --print-errorlogs --timeout-multiplier 3 --num-processes $(TEST_JOBS)
 
 bench: build
 	scripts/bench $(BUILD)

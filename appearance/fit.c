@@ -5,9 +5,10 @@
  *
  * DESIGN: the coefficient vectors of a whole seed-scale dataset (76 views x 720 x 480 x 108
  * floats, 11 GB) do not fit in memory, and the basis must be known before any view can be
- * projected. The pilot views (one in AP_PILOT_EVERY, at least one) are fitted twice: once
- * to sample, once to project, so the images are decoded 1 + 1/AP_PILOT_EVERY times. Each
- * worker holds one view's L x 3N matrix (about 400 MB at seed scale). */
+ * projected. The pilot views (one in AP_PILOT_EVERY, at least one) are fitted first; their
+ * vectors are sampled for the PCA and kept (about 60 MB a view at seed scale) until the final
+ * pass projects them with the others: every image is read once. Each worker holds one view's
+ * L x 3N matrix (about 400 MB at seed scale). */
 #include <cblas.h>
 #include <errno.h>
 #include <math.h>
@@ -120,7 +121,7 @@ static bool key_of(const struct rig_config *rc, const struct ds_capture *r, stru
 {
         uint32_t l = r->pose.lamps;
 
-        if ((strcmp(r->kind, "image") != 0 && r->kind[0]) || r->pose.laser || !l || (l & (l - 1)))
+        if ((strcmp(r->kind, "image") != 0 && r->kind[0]) || r->pose.lasers || !l || (l & (l - 1)))
                 return false;
         *k = (struct rowkey){.r = r,
                              .cam = camera_index(rc, r->camera),
@@ -266,6 +267,7 @@ static void *pass_worker(void *arg)
 {
         struct pass *p = arg;
         struct fit_ctx *c = p->c;
+        int r;
 
         for (;;) {
                 size_t i;
@@ -276,7 +278,10 @@ static void *pass_worker(void *arg)
                 pthread_mutex_unlock(&c->lock);
                 if (i >= c->n_views)
                         return NULL;
-                fit_view(c, i, p->pilot);
+                r = fit_view(c, i, p->pilot);
+                if (r < 0) /* kept when a sentence came first */
+                        fit_fail(c, r, "view %zu (%s): %s", i, c->rc->cameras[c->views[i].cam].name,
+                                 strerror(-r));
         }
 }
 
@@ -365,6 +370,8 @@ static void ctx_free(struct fit_ctx *c)
                 free(c->views[i].rows);
                 free(c->views[i].lights);
                 free(c->views[i].points);
+                free(c->views[i].kept);
+                free(c->views[i].kept_pix);
         }
         free(c->views);
         free(c->all);

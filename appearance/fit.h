@@ -58,9 +58,11 @@ int ap_fit(struct ds *d, const struct ap_fit_opts *o, struct ap_model **ret, cha
            size_t errlen);
 
 /* The regularised pseudo-inverse of the L x M matrix A (row-major, rows = lights) into pinv
- * (M x L, row-major, float): Tikhonov or truncated SVD with param relative to the largest
- * singular value. *cond (may be NULL) gets the largest over the smallest singular value.
- * Returns 0, -EINVAL or -ENOMEM. Any thread. */
+ * (M x L, row-major, float), from the eigen-decomposition of A^T A (the singular values
+ * squared): Tikhonov or truncated SVD with param relative to the largest singular value.
+ * *cond (may be NULL) gets the largest over the smallest singular value (1e8 at most: the
+ * smaller ones are lost in the squares' rounding). Returns 0, -EINVAL
+ * or -EDOM (LAPACK failed). Any thread. */
 int ap_fit_pinv(const double *A, int L, int M, enum ap_reg reg, double param, float *pinv,
                 double *cond);
 

@@ -29,6 +29,10 @@ struct fit_view {
         size_t n_lights;
         float *points; /* 3 per tile: the tile's surface point (object frame); NAN: none */
         bool pilot;    /* its coefficient vectors feed the PCA's sample */
+        float *kept;   /* a pilot's vectors (3M each) kept for the final pass */
+        uint32_t *kept_pix;
+        size_t n_kept;
+        size_t n_sat; /* pixels masked for a saturated sample */
 };
 
 /* A triangle mesh in the object frame (read from a PLY file). */
@@ -85,8 +89,9 @@ int fit_mesh_read(struct fit_ctx *c);
 int fit_tile_points(const struct fit_ctx *c, struct fit_view *v);
 
 /* Fits view i: its images (merged, dark subtracted, normalised) to coefficients, masked; in
- * the pilot pass (pca NULL) adds its sample vectors to c; else projects them on the model's
- * basis into the model's view i. Returns 0 or -errno with c->err. Any thread. */
+ * the pilot pass adds its sample vectors to c and keeps them in the view; in the final pass
+ * projects them (the kept ones, else fitted again) on the model's basis into the model's
+ * view i. Returns 0 or -errno (with c->err when it has a sentence). Any thread. */
 int fit_view(struct fit_ctx *c, size_t i, bool pilot_pass);
 
 /* Mean and K principal components of c's sample into the model; c->model->rms_pca. Returns

@@ -7,6 +7,7 @@
  * PCA; the final pass projects every vector on the basis with one product per view. */
 #include <cblas.h>
 #include <errno.h>
+#include <float.h>
 #include <fcntl.h>
 #include <lapacke.h>
 #include <math.h>
@@ -26,12 +27,13 @@
 /* A view's images in memory, columns by tile. */
 struct vdata {
         int W, H, T, tw, th;
-        size_t N;      /* 3 x pixels: the columns */
-        int L;         /* lights: the rows */
-        float *D;      /* L x N */
-        uint32_t *col; /* pixel (image order) -> its first column */
-        float *maxv;   /* per pixel: the largest sample over lights and channels */
-        uint8_t *sat;  /* per pixel: a sample saturated in some light */
+        size_t N;          /* 3 x pixels: the columns */
+        int L;             /* lights: the rows */
+        float *D;          /* L x N */
+        uint32_t *col;     /* pixel (image order) -> its first column */
+        float *maxv;       /* per pixel: the largest sample over lights and channels */
+        uint8_t *sat;      /* per pixel: a sample saturated in some light */
+        float *acc, *wsum; /* 3 per pixel: the merge of one light's brackets */
 };
 
 static void vdata_free(struct vdata *d)
@@ -40,6 +42,8 @@ static void vdata_free(struct vdata *d)
         free(d->col);
         free(d->maxv);
         free(d->sat);
+        free(d->acc);
+        free(d->wsum);
 }
 
 static int vdata_init(struct vdata *d, const struct fit_ctx *c, const struct fit_view *v)
@@ -57,7 +61,9 @@ static int vdata_init(struct vdata *d, const struct fit_ctx *c, const struct fit
         d->col = malloc(n * sizeof(uint32_t));
         d->maxv = calloc(n, sizeof(float));
         d->sat = calloc(n, 1);
-        if (!d->D || !d->col || !d->maxv || !d->sat)
+        d->acc = malloc(3 * n * sizeof(float));
+        d->wsum = malloc(3 * n * sizeof(float));
+        if (!d->D || !d->col || !d->maxv || !d->sat || !d->acc || !d->wsum)
                 return -ENOMEM;
         for (int ty = 0; ty < d->th; ty++)
                 for (int tx = 0; tx < d->tw; tx++) {
@@ -101,12 +107,10 @@ static const struct ds_capture *dark_of(const struct fit_ctx *c, const struct ds
         return NULL;
 }
 
-static double sample(const struct gn_frame *f, size_t p, int ch)
+/* Sample i of row of frame f, full scale 1. */
+static inline float sample(const struct gn_frame *f, const uint8_t *row, size_t i)
 {
-        const uint8_t *row = f->data + (p / f->width) * f->stride;
-        size_t i = (p % f->width) * f->channels + (f->channels == 3 ? ch : 0);
-
-        return f->bits == 8 ? row[i] / 255.0 : ((const uint16_t *)row)[i] / 65535.0;
+        return f->bits == 8 ? row[i] * (1 / 255.0f) : ((const uint16_t *)row)[i] * (1 / 65535.0f);
 }
 
 /* Adds bracket r (image f, dark frame dk or NULL) to the merge sums acc/wsum (per sample). */
@@ -115,20 +119,50 @@ static void merge_bracket(const struct fit_ctx *c, const struct ds_capture *r,
                           float *wsum)
 {
         double gain = r->gain > 0 ? r->gain : 1;
-        double k = c->exposure_ref / (r->exposure_us > 0 ? r->exposure_us : c->exposure_ref) *
-                   c->gain_ref / gain;
-        float w = (float)(r->exposure_us > 0 ? r->exposure_us : 1);
+        float w = (float)(r->exposure_us > 0 ? r->exposure_us : c->exposure_ref);
+        float k = (float)(c->exposure_ref / w * c->gain_ref / gain), sat = (float)c->o->saturation;
+        int step = f->channels == 3 ? 1 : 0;
 
-        for (size_t p = 0; p < (size_t)f->width * f->height; p++)
-                for (int ch = 0; ch < 3; ch++) {
-                        double x = sample(f, p, ch);
-                        if (x >= c->o->saturation)
-                                continue;
-                        if (dk)
-                                x -= sample(dk, p, ch);
-                        acc[3 * p + ch] += w * (float)(x * k);
-                        wsum[3 * p + ch] += w;
+        for (int y = 0; y < f->height; y++) {
+                const uint8_t *row = f->data + (size_t)y * f->stride;
+                const uint8_t *drow = dk ? dk->data + (size_t)y * dk->stride : NULL;
+                float *a = acc + (size_t)y * f->width * 3, *ws = wsum + (size_t)y * f->width * 3;
+                for (int x = 0; x < f->width; x++)
+                        for (int ch = 0; ch < 3; ch++) {
+                                size_t i = (size_t)x * f->channels + ch * step;
+                                float v = sample(f, row, i);
+                                if (v >= sat)
+                                        continue;
+                                if (drow)
+                                        v -= sample(dk, drow, (size_t)x * dk->channels + ch * step);
+                                a[3 * x + ch] += w * v * k;
+                                ws[3 * x + ch] += w;
+                        }
+        }
+}
+
+/* One image f without dark frame nor other brackets straight into row (the layout of d). */
+static void direct(const struct fit_ctx *c, const struct ds_capture *r, const struct gn_frame *f,
+                   struct vdata *d, float *row)
+{
+        double gain = r->gain > 0 ? r->gain : 1, e = r->exposure_us > 0 ? r->exposure_us : 0;
+        float k = (float)((e > 0 ? c->exposure_ref / e : 1) * c->gain_ref / gain);
+        float sat = (float)c->o->saturation;
+        int step = f->channels == 3 ? 1 : 0;
+
+        for (int y = 0; y < f->height; y++) {
+                const uint8_t *src = f->data + (size_t)y * f->stride;
+                for (int x = 0; x < f->width; x++) {
+                        size_t p = (size_t)y * f->width + x;
+                        float *out = row + d->col[p];
+                        for (int ch = 0; ch < 3; ch++) {
+                                float v = sample(f, src, (size_t)x * f->channels + ch * step);
+                                d->sat[p] |= v >= sat;
+                                out[ch] = v * k;
+                                d->maxv[p] = out[ch] > d->maxv[p] ? out[ch] : d->maxv[p];
+                        }
                 }
+        }
 }
 
 /* Reads light j of view v (its brackets, each minus its dark frame) into row j of d. */
@@ -136,11 +170,13 @@ static int load_light(struct fit_ctx *c, const struct fit_view *v, int j, struct
 {
         const struct fit_light *l = &v->lights[j];
         size_t n = (size_t)d->W * d->H;
-        _cleanup_free_ float *acc = calloc(3 * n, sizeof(float));
-        _cleanup_free_ float *wsum = calloc(3 * n, sizeof(float));
-        float *row = d->D + (size_t)j * d->N;
-        int r = acc && wsum ? 0 : -ENOMEM;
+        float *row = d->D + (size_t)j * d->N, *acc = d->acc, *wsum = d->wsum;
+        int r = 0;
 
+        if (l->n > 1 || dark_of(c, v->rows[l->first])) { /* else direct() */
+                memset(acc, 0, 3 * n * sizeof(float));
+                memset(wsum, 0, 3 * n * sizeof(float));
+        }
         for (size_t b = 0; r == 0 && b < l->n; b++) {
                 const struct ds_capture *cap = v->rows[l->first + b], *dc = dark_of(c, cap);
                 struct gn_frame f = {0}, dk = {0};
@@ -152,6 +188,11 @@ static int load_light(struct fit_ctx *c, const struct fit_view *v, int j, struct
                         r = fit_fail(c, -EBADMSG, "%s: %dx%d, the camera's images are %dx%d",
                                      cap->file, f.width, f.height, d->W, d->H);
                 }
+                if (r == 0 && l->n == 1 && !dc) {
+                        direct(c, cap, &f, d, row);
+                        gn_frame_free_data(&f);
+                        return 0;
+                }
                 if (r == 0)
                         merge_bracket(c, cap, &f, dc ? &dk : NULL, acc, wsum);
                 gn_frame_free_data(&f);
@@ -161,7 +202,7 @@ static int load_light(struct fit_ctx *c, const struct fit_view *v, int j, struct
                 for (int ch = 0; ch < 3; ch++) {
                         float x = wsum[3 * p + ch] > 0 ? acc[3 * p + ch] / wsum[3 * p + ch] : 0;
                         d->sat[p] |= wsum[3 * p + ch] == 0;
-                        d->maxv[p] = fmaxf(d->maxv[p], x);
+                        d->maxv[p] = x > d->maxv[p] ? x : d->maxv[p];
                         row[d->col[p] + ch] = x;
                 }
         return r;
@@ -308,12 +349,11 @@ static int add_sample(struct fit_ctx *c, const struct fit_view *v, const struct 
 }
 
 /* Final pass: the weights and mask of model view mv from the vectors. */
-static int project(struct fit_ctx *c, struct ap_view *mv, const struct vdata *d,
+static int project(struct fit_ctx *c, struct ap_view *mv, const struct fit_view *v,
                    const struct vcoef *vc)
 {
         const struct ap_model *m = c->model;
         _cleanup_free_ float *w = malloc((vc->n + 1) * m->k * sizeof(float));
-        size_t n_sat = 0;
         int r = ap_view_alloc(mv, m->k);
 
         if (r < 0 || !w)
@@ -323,32 +363,57 @@ static int project(struct fit_ctx *c, struct ap_view *mv, const struct vdata *d,
                 mv->mask[vc->pix[i]] = 1;
                 memcpy(mv->weights + (size_t)vc->pix[i] * m->k, w + i * m->k, m->k * sizeof(float));
         }
-        for (size_t p = 0; p < (size_t)d->W * d->H; p++)
-                n_sat += d->sat[p] && d->maxv[p] >= c->o->background;
         pthread_mutex_lock(&c->lock);
-        c->masked_saturated += n_sat;
+        c->masked_saturated += v->n_sat;
         pthread_mutex_unlock(&c->lock);
         return 0;
 }
 
-int fit_view(struct fit_ctx *c, size_t i, bool pilot_pass)
+/* Pilot pass: keeps the view's vectors for the final pass (a pilot view is read once). */
+static void keep(const struct fit_ctx *c, struct fit_view *v, struct vcoef *vc)
 {
-        struct fit_view *v = &c->views[i];
+        float *coef = realloc(vc->coef, (vc->n + 1) * 3 * c->M * sizeof(float));
+
+        v->kept = coef ?: vc->coef;
+        v->kept_pix = vc->pix;
+        v->n_kept = vc->n;
+        vc->coef = NULL;
+        vc->pix = NULL;
+}
+
+/* Loads and solves view v into vc; counts its saturated pixels. */
+static int solve(struct fit_ctx *c, struct fit_view *v, struct vcoef *vc, bool pilot_pass)
+{
         _cleanup_(vdata_free) struct vdata d = {0};
-        struct vcoef vc = {0};
         int r = vdata_init(&d, c, v);
 
         for (int j = 0; r == 0 && j < d.L; j++)
                 r = load_light(c, v, j, &d);
         if (r == 0)
-                r = solve_view(c, v, &d, &vc);
+                r = solve_view(c, v, &d, vc);
+        for (size_t p = 0; r == 0 && p < (size_t)d.W * d.H; p++)
+                v->n_sat += d.sat[p] && d.maxv[p] >= c->o->background;
         if (r == 0 && pilot_pass)
-                r = add_sample(c, v, &d, &vc);
-        else if (r == 0)
-                r = project(c, &c->model->views[i], &d, &vc);
+                r = add_sample(c, v, &d, vc);
         pthread_mutex_lock(&c->lock);
-        c->cond_max = fmax(c->cond_max, vc.cond);
+        c->cond_max = fmax(c->cond_max, vc->cond);
         pthread_mutex_unlock(&c->lock);
+        return r;
+}
+
+int fit_view(struct fit_ctx *c, size_t i, bool pilot_pass)
+{
+        struct fit_view *v = &c->views[i];
+        struct vcoef vc = {.coef = v->kept, .pix = v->kept_pix, .n = v->n_kept};
+        int r = 0;
+
+        v->kept = NULL, v->kept_pix = NULL;
+        if (!vc.coef)
+                r = solve(c, v, &vc, pilot_pass);
+        if (r == 0 && pilot_pass)
+                keep(c, v, &vc);
+        else if (r == 0)
+                r = project(c, &c->model->views[i], v, &vc);
         free(vc.coef);
         free(vc.pix);
         return r;
@@ -357,30 +422,37 @@ int fit_view(struct fit_ctx *c, size_t i, bool pilot_pass)
 int ap_fit_pinv(const double *A, int L, int M, enum ap_reg reg, double param, float *pinv,
                 double *cond)
 {
-        int k = MIN(L, M);
-        _cleanup_free_ double *a = malloc((size_t)L * M * sizeof(double));
-        _cleanup_free_ double *u = malloc((size_t)L * k * sizeof(double));
-        _cleanup_free_ double *vt = malloc((size_t)k * M * sizeof(double));
-        double s[AP_ORDER_MAX * AP_ORDER_MAX], f[AP_ORDER_MAX * AP_ORDER_MAX];
+        enum { MM = AP_ORDER_MAX * AP_ORDER_MAX };
+        double N[MM * MM], ev[MM], G[MM * MM], top;
 
-        if (L < 1 || M < 1 || M > AP_ORDER_MAX * AP_ORDER_MAX || param < 0)
+        if (L < 1 || M < 1 || M > MM || param < 0)
                 return -EINVAL;
-        if (!a || !u || !vt)
-                return -ENOMEM;
-        memcpy(a, A, (size_t)L * M * sizeof(double));
-        if (LAPACKE_dgesdd(LAPACK_ROW_MAJOR, 'S', L, M, a, M, s, u, k, vt, M) != 0)
+        /* the normal matrix A^T A = V diag(ev) V^T (ascending) */
+        cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, M, L, 1, A, M, 0, N, M);
+        if (LAPACKE_dsyevd(LAPACK_ROW_MAJOR, 'V', 'U', M, N, M, ev) != 0)
                 return -EDOM;
-        for (int i = 0; i < k; i++)
-                f[i] = reg == AP_REG_TSVD ? (s[i] > param * s[0] ? 1 / s[i] : 0)
-                                          : s[i] / (s[i] * s[i] + param * param * s[0] * s[0]);
-        for (int m = 0; m < M; m++)
+        top = fmax(ev[M - 1], DBL_MIN);
+        /* G = V diag(f) V^T, f the regularised inverse of each eigenvalue (sigma^2) */
+        for (int a = 0; a < M; a++)
+                for (int b = a; b < M; b++) {
+                        double x = 0;
+                        for (int i = 0; i < M; i++) {
+                                double e = fmax(ev[i], 0);
+                                double f = reg == AP_REG_TSVD
+                                                   ? (e > param * param * top ? 1 / e : 0)
+                                                   : 1 / (e + param * param * top);
+                                x += N[a * M + i] * f * N[b * M + i];
+                        }
+                        G[a * M + b] = G[b * M + a] = x;
+                }
+        for (int m = 0; m < M; m++) /* pinv = G A^T */
                 for (int j = 0; j < L; j++) {
                         double x = 0;
-                        for (int i = 0; i < k; i++)
-                                x += vt[i * M + m] * f[i] * u[j * k + i];
+                        for (int i = 0; i < M; i++)
+                                x += G[m * M + i] * A[j * M + i];
                         pinv[m * L + j] = (float)x;
                 }
-        if (cond)
-                *cond = s[k - 1] > 0 ? s[0] / s[k - 1] : INFINITY;
+        if (cond) /* eigenvalues below 1e-16 of the largest are rounding: 1e8 at most */
+                *cond = sqrt(top / fmax(ev[0], 1e-16 * top));
         return 0;
 }

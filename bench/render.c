@@ -163,7 +163,7 @@ int main(int argc, char **argv)
 {
         struct rig_config *rc = NULL;
         struct sim_scene *s = NULL;
-        struct gn_pose st = {.deg[GN_ROLE_TURNTABLE] = 10, .lamps = 1, .laser = true};
+        struct gn_pose st = {.deg[GN_ROLE_TURNTABLE] = 10, .lamps = 1, .lasers = 1};
         struct raw raw = {0};
         double secs = argc > 1 ? atof(argv[1]) : 3, t0, fps, raw_fps, t_render = 0, t_raw = 0;
         int frames = 0, raw_frames = 0;

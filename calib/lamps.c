@@ -535,7 +535,7 @@ static int add_row(const struct ds_capture *c, void *userdata)
         struct ds_views *r = userdata;
         int cam = camera_index(r->o, c->camera), lamp = __builtin_ffs((int)c->pose.lamps) - 1;
 
-        if ((c->kind[0] && strcmp(c->kind, "image")) || c->bracket != 0 || c->pose.laser ||
+        if ((c->kind[0] && strcmp(c->kind, "image")) || c->bracket != 0 || c->pose.lasers ||
             cam < 0 || __builtin_popcount(c->pose.lamps) != 1 || lamp >= (int)r->o->rc->n_lamps)
                 return 0;
         if (r->n == r->cap) {

@@ -9,6 +9,7 @@
 
 #include <stdbool.h>
 #include <stddef.h>
+#include <stdint.h>
 
 #include "calib/laserline.h"
 #include "calib/section.h"
@@ -30,6 +31,8 @@ struct cal_lp_opts {
         struct cal_board board;
         struct cal_intrinsics k;
         int channel;      /* the laser's channel (rig_config.laser_channel) */
+        uint32_t lasers;  /* cal_laser_solve_ds: the rows lit by exactly these lasers (bit set
+                           * by rig-file index, as gn_pose.lasers); 0: any laser */
         int min_views;    /* 0: CAL_LP_MIN_VIEWS */
         int min_points;   /* 0: CAL_LP_MIN_POINTS */
         double inlier_mm; /* 0: CAL_LP_INLIER_MM */
@@ -53,11 +56,11 @@ int cal_laser_solve(const struct cal_lp_view *v, size_t n, const struct cal_lp_o
                     struct cal_laser *out, char *err, size_t errlen);
 
 /* cal_laser_solve on camera's rows of kind "image" or "laser" (bracket 0) in dataset d: each
- * row with the laser on paired with the nearest (by row order) laser-off row of the same pose
- * (angles within 0.01 deg, same lamps); a laser row with no lamp lit and no such partner (a
- * session's laser frame) is used alone with the board found in the nearest lit laser-off row
- * of the same angles. Returns as cal_laser_solve, or -ENODATA (no such pair: what was
- * seen in err), -ENOENT (no images of camera), -EINVAL (camera NULL) or the dataset's -errno. */
+ * row with o->lasers on (any laser when 0) paired with the nearest (by row order) laser-off row of
+ * the same pose (angles within 0.01 deg, same lamps); a laser row with no lamp lit and no such
+ * partner (a session's laser frame) is used alone with the board found in the nearest lit laser-off
+ * row of the same angles. Returns as cal_laser_solve, or -ENODATA (no such pair: what was seen in
+ * err), -ENOENT (no images of camera), -EINVAL (camera NULL) or the dataset's -errno. */
 int cal_laser_solve_ds(struct ds *d, const char *camera, const struct cal_lp_opts *o,
                        struct cal_laser *out, char *err, size_t errlen);
 
@@ -114,6 +117,14 @@ struct cal_lr_result {
  * small error) or -ENOMEM, with a sentence in err. One thread; allocates its work arrays. */
 int cal_lasers_refine(struct sec_ctx *c, const struct cal_lr_opts *o, struct cal_lr_result *out,
                       char *err, size_t errlen);
+
+/* How well the surfaces of the two or more lasers of scan c agree, as cal_lasers_refine
+ * measures it (its rms_before, offset_before), changing nothing: *rms (mm) over *pairs
+ * matched points, each laser's mean signed distance from the others' surfaces in offset
+ * (NULL: not wanted). match_mm 0: CAL_LR_MATCH_MM. Needs the normals (sec_normals). Returns
+ * 0, -EINVAL (fewer than two lasers), -ENODATA (fewer than 100 matched points) or -ENOMEM. */
+int cal_lasers_agreement(const struct sec_ctx *c, double match_mm, double *rms, size_t *pairs,
+                         double offset[SEC_MAX_LASERS]);
 
 /* Sets the plane of laser `laser` of scan c to p (world frame) and moves its points along
  * their camera rays onto it (their normals kept). Returns 0, -EINVAL (no such laser, p's

@@ -541,6 +541,28 @@ int cal_lasers_refine(struct sec_ctx *c, const struct cal_lr_opts *o, struct cal
         return 0;
 }
 
+int cal_lasers_agreement(const struct sec_ctx *c, double match_mm, double *rms, size_t *pairs,
+                         double offset[SEC_MAX_LASERS])
+{
+        double h = match_mm > 0 ? match_mm : CAL_LR_MATCH_MM, off[SEC_MAX_LASERS];
+        long np;
+
+        if (!c || c->n_lasers < 2)
+                return -EINVAL;
+        size_t cap = c->n_pts * (size_t)(c->n_lasers - 1) + 1;
+        _cleanup_free_ struct lr_ray *rays = malloc((c->n_pts + 1) * sizeof(*rays));
+        _cleanup_free_ struct lr_pair *pr = malloc(cap * sizeof(*pr));
+        _cleanup_free_ double *abs_r = malloc(cap * sizeof(double));
+        if (!rays || !pr || !abs_r)
+                return -ENOMEM;
+        size_t n = lr_rays(c, -1, rays);
+        if ((np = lr_match_all(rays, n, c->n_lasers, h, pr, abs_r)) < LR_MIN_PAIR)
+                return np < 0 ? (int)np : -ENODATA;
+        lr_stats(rays, pr, (size_t)np, c->n_lasers, rms, offset ? offset : off);
+        *pairs = (size_t)np;
+        return 0;
+}
+
 int cal_laser_replane(struct sec_ctx *c, int laser, const struct cal_plane *p)
 {
         struct lr_planes P;

@@ -10,6 +10,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "calib/laserplane.h"
 #include "calib/obj.h"
 #include "calib/ply.h"
 #include "calib/scan.h"
@@ -29,6 +30,7 @@ struct rows {
 struct todo {
         double deg; /* turntable angle in [0, 360) */
         size_t row;
+        int laser; /* the one laser lit (rig-file index) */
 };
 
 static void rows_free(struct rows *r)
@@ -63,7 +65,7 @@ int scan_nominal_calib(const struct rig_config *rc, const char *camera, double c
                         cc = &rc->cameras[i];
         if (!cc)
                 return -ENOENT;
-        if (!rc->has_laser)
+        if (!rc->n_lasers)
                 return -ENODATA;
         out->cam = (struct sec_camera){
                 .k = {.fx = cc->fx, .fy = cc->fy, .cx = cc->cx, .cy = cc->cy},
@@ -72,8 +74,10 @@ int scan_nominal_calib(const struct rig_config *rc, const char *camera, double c
         };
         memcpy(out->cam.k.dist, cc->dist, sizeof(out->cam.k.dist));
         riggeom_camera_pose(cc, isnan(camera_arm_deg) ? 0 : camera_arm_deg, out->cam.R, out->cam.t);
-        sec_rig_laser_plane(rc->laser.laser_azimuth_deg, out->plane_p[0], out->plane_n[0]);
-        out->n_lasers = 1;
+        for (size_t i = 0; i < rc->n_lasers && i < SEC_MAX_LASERS; i++)
+                sec_rig_laser_plane(rc->lasers[i].laser_azimuth_deg, out->plane_p[i],
+                                    out->plane_n[i]);
+        out->n_lasers = (int)MIN(rc->n_lasers, (size_t)SEC_MAX_LASERS);
         return 0;
 }
 
@@ -89,7 +93,7 @@ static size_t count_rows(const struct rows *r, const char *camera, bool laser)
         size_t n = 0;
 
         for (size_t i = 0; i < r->n; i++)
-                n += (!laser || r->c[i].pose.laser) && strcmp(r->c[i].camera, camera) == 0;
+                n += (!laser || r->c[i].pose.lasers) && strcmp(r->c[i].camera, camera) == 0;
         return n;
 }
 
@@ -109,8 +113,8 @@ static int pick_camera(const struct rig_config *rc, const struct rows *r, const 
                 return 0;
         }
         snprintf(err, errlen,
-                 "dataset %s has no frames with the laser on%s%s (%zu image rows): capture a "
-                 "session with 'laser: true'",
+                 "dataset %s has no frames with a laser on%s%s (%zu image rows): capture a "
+                 "session with 'laser: each'",
                  dsname, camera ? " of camera " : "", camera ? camera : "", r->n);
         return -ENODATA;
 }
@@ -138,7 +142,7 @@ static ssize_t partner(const struct rows *r, size_t i, bool lit)
 
         for (size_t k = 0; k < r->n; k++) {
                 const struct ds_capture *c = &r->c[k];
-                if (c->pose.laser || (c->pose.lamps != 0) != lit || !same_view(c, on))
+                if (c->pose.lasers || (c->pose.lamps != 0) != lit || !same_view(c, on))
                         continue;
                 if (lit ? c->bracket == 0 && strcmp(c->kind, "laser") != 0
                         : c->exposure_us == on->exposure_us && c->gain == on->gain)
@@ -155,10 +159,19 @@ static int cmp_todo(const void *a, const void *b)
                                 : (x->row > y->row) - (x->row < y->row);
 }
 
-/* The camera's laser rows of the first laser row's camera-arm angle (*arm), sorted by
- * turntable angle, into *ret (*n of them); the others are counted in out->other_view. */
-static int sort_rows(const struct rows *r, struct scan_result *out, struct todo **ret, size_t *n,
-                     double *arm)
+/* The laser lit alone in c, if the calibration has its plane (n_planes); else -1. */
+static int lone_laser(const struct ds_capture *c, int n_planes)
+{
+        int l = __builtin_ctz(c->pose.lasers | 1u << 31);
+
+        return l < n_planes && c->pose.lasers == UINT32_C(1) << l ? l : -1;
+}
+
+/* The camera's laser rows of the first laser row's camera-arm angle (*arm) lit by one laser
+ * of the n_planes calibrated, sorted by turntable angle, into *ret (*n of them); the others
+ * are counted in out->other_view and out->shared. */
+static int sort_rows(const struct rows *r, int n_planes, struct scan_result *out, struct todo **ret,
+                     size_t *n, double *arm)
 {
         struct todo *t = calloc(out->laser_rows ? out->laser_rows : 1, sizeof(*t));
         bool first = true;
@@ -169,7 +182,7 @@ static int sort_rows(const struct rows *r, struct scan_result *out, struct todo 
         for (size_t i = 0; i < r->n; i++) {
                 const struct ds_capture *c = &r->c[i];
                 double a = c->pose.deg[GN_ROLE_TURNTABLE];
-                if (!c->pose.laser || strcmp(c->camera, out->camera))
+                if (!c->pose.lasers || strcmp(c->camera, out->camera))
                         continue;
                 if (first)
                         *arm = c->pose.deg[GN_ROLE_CAMERA_ARM];
@@ -178,8 +191,12 @@ static int sort_rows(const struct rows *r, struct scan_result *out, struct todo 
                         out->other_view++;
                         continue;
                 }
+                if (lone_laser(c, n_planes) < 0) {
+                        out->shared++;
+                        continue;
+                }
                 a = isnan(a) ? 0 : fmod(a, 360);
-                t[(*n)++] = (struct todo){a < 0 ? a + 360 : a, i};
+                t[(*n)++] = (struct todo){a < 0 ? a + 360 : a, i, lone_laser(c, n_planes)};
         }
         qsort(t, *n, sizeof(*t), cmp_todo);
         *ret = t;
@@ -226,10 +243,11 @@ static int view_load(struct ds *d, const struct rows *r, size_t i, const struct 
         return 0;
 }
 
-/* Extracts and triangulates the line of laser row t->row into c. */
-static int scan_row(struct ds *d, const struct rows *r, const struct todo *t, int channel,
-                    struct sec_ctx *c, struct scan_result *out)
+/* Extracts and triangulates the line of laser row t->row into c, on its laser's plane. */
+static int scan_row(struct ds *d, const struct rig_config *rc, const struct rows *r,
+                    const struct todo *t, struct sec_ctx *c, struct scan_result *out)
 {
+        int channel = (size_t)t->laser < rc->n_lasers ? rc->lasers[t->laser].laser_channel : 0;
         _cleanup_(view_free) struct view v = {0};
         _cleanup_free_ float *centre = malloc((size_t)c->cam.height * sizeof(*centre));
         struct laserline_result res = {.centre = centre, .n = c->cam.height};
@@ -248,8 +266,9 @@ static int scan_row(struct ds *d, const struct rows *r, const struct todo *t, in
                 return 0;
         }
         tex = v.has_tex ? &v.tex : v.has_off ? &v.off : NULL;
-        if ((n = sec_add_line(c, 0, t->deg, &res, false, tex)) < 0)
+        if ((n = sec_add_line(c, t->laser, t->deg, &res, false, tex)) < 0)
                 return n;
+        out->laser_points[t->laser] += (size_t)n;
         out->used++;
         out->paired += v.has_off;
         out->textured += v.has_tex;
@@ -286,30 +305,35 @@ static int start_ctx(const struct rig_config *rc, const struct scan_calib *cal, 
         return 0;
 }
 
-/* Reads the rows, picks the camera and triangulates its laser rows into c. */
-static int reconstruct(struct ds *d, const struct rig_config *rc, const struct scan_opts *o,
-                       const struct scan_calib *cal, struct sec_ctx *c, struct scan_result *out,
-                       char *err, size_t errlen)
+int scan_section(struct ds *d, const struct rig_config *rc, const struct scan_opts *o,
+                 const struct scan_calib *cal, struct sec_ctx *c, struct scan_result *out,
+                 char *err, size_t errlen)
 {
         _cleanup_(rows_free) struct rows r = {0};
         _cleanup_free_ struct todo *t = NULL;
-        int ch = rc->has_laser ? rc->laser.laser_channel : 0, e;
         double arm = NAN;
         size_t n;
+        int e;
 
+        memset(out, 0, sizeof(*out));
+        out->agree_rms_mm = NAN;
         if ((e = ds_rows_collect(d, keep_row, NULL, &r.c, &r.n)) < 0) {
                 snprintf(err, errlen, "cannot read dataset %s: %s", ds_name(d), ds_last_error(d));
                 return e;
         }
         if ((e = pick_camera(rc, &r, o->camera, ds_name(d), out, err, errlen)) < 0 ||
-            (e = sort_rows(&r, out, &t, &n, &arm)) < 0 ||
+            (e = sort_rows(&r, cal ? cal->n_lasers : (int)MIN(rc->n_lasers, SEC_MAX_LASERS), out,
+                           &t, &n, &arm)) < 0 ||
             (e = start_ctx(rc, cal, out->camera, arm, c, err, errlen)) < 0)
                 return e;
         for (size_t i = 0; i < n; i++)
-                if ((e = scan_row(d, &r, &t[i], ch, c, out)) < 0)
+                if ((e = scan_row(d, rc, &r, &t[i], c, out)) < 0)
                         return e;
         out->points = c->n_pts;
         out->rejected = c->rejected;
+        for (int l = 0; l < SEC_MAX_LASERS; l++)
+                out->n_lasers += out->laser_points[l] > 0;
+        sec_normals(c);
         if (!c->n_pts) {
                 snprintf(err, errlen,
                          "no laser line in any of the %zu laser frames of camera %s (%zu "
@@ -344,7 +368,9 @@ static int write_outputs(int dir_fd, struct sec_ctx *c, const struct scan_opts *
         const char *what = SCAN_FILE_POINTS;
         int r;
 
-        sec_normals(c);
+        if (out->n_lasers > 1 && cal_lasers_agreement(c, 0, &out->agree_rms_mm, &out->agree_pairs,
+                                                      out->agree_offset_mm) < 0)
+                out->agree_rms_mm = NAN; /* the clouds do not overlap: nothing to compare */
         r = ply_write_points(dir_fd, SCAN_FILE_POINTS, c->pts, c->n_pts);
         if (r >= 0 && (r = cal_mesh_from_grid(c, &o->mesh, &m)) >= 0) {
                 out->triangles = m.n_tri;
@@ -380,7 +406,7 @@ int scan_dataset(struct ds *d, const struct rig_config *rc, const struct scan_op
                 return r;
         }
         if ((r = check_outputs(dir_fd, o->force, ds_name(d), err, errlen)) < 0 ||
-            (r = reconstruct(d, rc, o, cal, &c, out, err, errlen)) < 0 ||
+            (r = scan_section(d, rc, o, cal, &c, out, err, errlen)) < 0 ||
             (r = write_outputs(dir_fd, &c, o, out, err, errlen)) < 0)
                 return r;
         out->seconds = (double)(gn_monotonic_ns() - t0) / 1e9;

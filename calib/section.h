@@ -17,7 +17,7 @@
 #include "calib/laserline.h"
 #include "common/frame.h"
 
-#define SEC_MAX_LASERS 4
+#define SEC_MAX_LASERS 8
 
 /* A calibrated camera: intrinsics and distortion, and its world-to-camera pose
  * (x_cam = R x_world + t, R row-major, OpenCV camera frame as riggeom_camera_pose). */

@@ -100,7 +100,7 @@ int cal_turntable_solve_ds(struct ds *d, const char *camera, const struct cal_tt
                 return e;
         for (size_t i = 0; i < r.n; i++) {
                 const struct gn_frame *f = &r.f[i];
-                if (r.c[i].pose.laser)
+                if (r.c[i].pose.lasers)
                         continue;
                 v[n++] = (struct cal_tt_view){
                         {f->data, f->width, f->height, f->channels, f->bits, f->stride},
@@ -127,10 +127,10 @@ static bool same_pose(const struct ds_capture *a, const struct ds_capture *b, bo
 static ssize_t partner(const struct rows *r, size_t i, bool any_light)
 {
         for (size_t k = 1; k < r->n; k++) {
-                if (k <= i && !r->c[i - k].pose.laser &&
+                if (k <= i && !r->c[i - k].pose.lasers &&
                     same_pose(&r->c[i], &r->c[i - k], any_light))
                         return i - k;
-                if (i + k < r->n && !r->c[i + k].pose.laser &&
+                if (i + k < r->n && !r->c[i + k].pose.lasers &&
                     same_pose(&r->c[i], &r->c[i + k], any_light))
                         return i + k;
         }
@@ -165,7 +165,7 @@ int cal_laser_solve_ds(struct ds *d, const char *camera, const struct cal_lp_opt
         if ((e = load_views(d, &r, sizeof(*v), (void **)&v, err, errlen)) < 0)
                 return e;
         for (size_t i = 0; i < r.n; i++) {
-                if (!r.c[i].pose.laser)
+                if (!r.c[i].pose.lasers || (o->lasers && r.c[i].pose.lasers != o->lasers))
                         continue;
                 on++;
                 n += laser_view(&r, i, &v[n]);

@@ -20,6 +20,7 @@
 #include "calib/lamps.h"
 #include "calib/scan.h"
 #include "calib/scan_cal.h"
+#include "calib/turntable_geom.h"
 #include "client/conn.h"
 #include "client/session.h"
 #include "common/riggeom.h"
@@ -28,6 +29,7 @@
 #include "drivers/registry.h"
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ds *, ds_close);
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct rig_config *, rigconf_free);
 
 struct solve;
 
@@ -261,15 +263,19 @@ static int rig_check(struct solve *s, const char *kind, const struct rig_info *r
 }
 
 /* The session file of the capture of kind ("camera", "turntable", "laser", "lamps") named
- * name: the board seen by the camera at 12 turntable angles with the first lamp lit (and the
- * laser), or the mirror sphere seen by every camera at LAMPS_ANGLES angles with each lamp lit
- * alone. */
-static char *session_text(const char *kind, const char *name, const struct rig_info *ri)
+ * name: the board seen by the camera at 12 turntable angles with the first lamp lit (and
+ * each laser alone, or only one_laser), or the mirror sphere seen by every camera at LAMPS_ANGLES
+ * angles with each lamp lit alone. */
+static char *session_text(const char *kind, const char *name, const struct rig_info *ri,
+                          const char *one_laser)
 {
         char *text = NULL, cams[DS_NAME_MAX + 2], lamps[DS_NAME_MAX + 2], sweep[64];
+        char lasers[DS_NAME_MAX + 2] = "false";
         bool camera = strcmp(kind, "camera") == 0, laser = strcmp(kind, "laser") == 0,
              sphere = strcmp(kind, "lamps") == 0;
 
+        if (laser)
+                snprintf(lasers, sizeof(lasers), one_laser ? "[%s]" : "each", one_laser);
         snprintf(cams, sizeof(cams), sphere ? "all" : "[%s]", ri->camera);
         snprintf(lamps, sizeof(lamps), sphere ? "all" : "[%s]", ri->lamp);
         snprintf(sweep, sizeof(sweep), "{ from: 0, to: 359, step: %g }",
@@ -280,7 +286,7 @@ static char *session_text(const char *kind, const char *name, const struct rig_i
                      "skip_occluded: false\nskip_glare: false\n"
                      "sweep:\n  turntable: %s\n%s",
                      kind, sphere ? "the mirror sphere" : "the board", name, name, cams, lamps,
-                     laser ? "true" : "false", sweep,
+                     lasers, sweep,
                      camera && ri->camera_arm ? "  camera_arm: [-15, 0, 15]\n" : "") < 0)
                 return NULL;
         return text;
@@ -303,7 +309,7 @@ static int capture(struct solve *s, struct conn *c, const char *kind, const stru
 
         strftime(stamp, sizeof(stamp), "%Y%m%d-%H%M%S", gmtime_r(&now, &tm));
         snprintf(name, sizeof(name), "calib-%s-%s", kind, stamp);
-        text = session_text(kind, name, ri);
+        text = session_text(kind, name, ri, s->a->laser);
         if (!text || sfd < 0)
                 return EXIT_PROTOCOL;
         r = call(s, c, "session.run", json_pack("{s:s,s:s}", "file", name, "text", text), &st);
@@ -465,27 +471,59 @@ static int solve_turntable(struct solve *s, json_t **ret)
 
 /* ---- laser ---- */
 
-/* The laser's name (--laser, else the dataset's rig file's, else "laser") and channel (the
- * rig file's when it names that laser, else red). */
-static void laser_of_rig(struct solve *s, char *name, size_t len, int *channel)
+/* The lasers to solve: their names, channels and the rows of each (cal_lp_opts.lasers). */
+struct laser_set {
+        char name[RIG_MAX_LASERS][DS_NAME_MAX];
+        int channel[RIG_MAX_LASERS];
+        uint32_t rows[RIG_MAX_LASERS];
+        int n;
+};
+
+/* Adds the laser of rig-file mapping m (index i of n) to ls unless --laser names another. */
+static void add_laser(struct solve *s, struct yconf *yc, struct fy_node *m, int i, int n,
+                      struct laser_set *ls)
 {
         static const char *const channels[] = {"red", "green", "blue"};
-        char path[PATH_MAX + 16], rig_name[DS_NAME_MAX] = "laser", ch[16] = "red", err[256];
-        struct yconf yc = {0};
-        struct fy_node *m = NULL;
+        char name[DS_NAME_MAX] = "laser", ch[16] = "red";
 
+        if (yconf_str(yc, m, "name", name, sizeof(name)) < 0 ||
+            yconf_str(yc, m, "channel", ch, sizeof(ch)) < 0 ||
+            (s->a->laser && strcmp(s->a->laser, name) != 0) || ls->n == RIG_MAX_LASERS)
+                return;
+        snprintf(ls->name[ls->n], sizeof(ls->name[0]), "%s", name);
+        for (int k = 0; k < 3; k++)
+                if (strcmp(ch, channels[k]) == 0)
+                        ls->channel[ls->n] = k;
+        ls->rows[ls->n++] = n > 1 ? UINT32_C(1) << i : 0;
+}
+
+/* The lasers of the dataset's rig file (`lasers`, or the one `laser`; --laser: that one
+ * alone), each from the rows it lit alone (any laser row with one laser); without a rig
+ * file or a laser in it, one laser, --laser or "laser", red. Returns 0 or -ENOENT (--laser
+ * names no laser of the rig file). */
+static int lasers_of_rig(struct solve *s, struct laser_set *ls)
+{
+        char path[PATH_MAX + 16], err[256];
+        struct yconf yc = {0};
+        struct fy_node *list = NULL, *one = NULL;
+        int n;
+
+        *ls = (struct laser_set){0};
         snprintf(path, sizeof(path), "%s/rig.yaml", ds_path(s->d));
-        if (yconf_open(&yc, path, err, sizeof(err)) == 0)
-                m = yconf_get(yconf_root(&yc), "laser");
-        if (m && (yconf_str(&yc, m, "name", rig_name, sizeof(rig_name)) < 0 ||
-                  yconf_str(&yc, m, "channel", ch, sizeof(ch)) < 0))
-                snprintf(ch, sizeof(ch), "red");
+        if (yconf_open(&yc, path, err, sizeof(err)) == 0) {
+                list = yconf_get(yconf_root(&yc), "lasers");
+                one = yconf_get(yconf_root(&yc), "laser");
+        }
+        n = list ? MAX(yconf_seq_len(&yc, list, "lasers"), 0) : one != NULL;
+        for (int i = 0; i < n; i++)
+                add_laser(s, &yc, list ? yconf_seq_item(list, i) : one, i, n, ls);
         yconf_close(&yc);
-        snprintf(name, len, "%s", s->a->laser ?: rig_name);
-        *channel = 0;
-        for (int i = 0; i < 3 && strcmp(name, rig_name) == 0; i++)
-                if (strcmp(ch, channels[i]) == 0)
-                        *channel = i;
+        if (!n)
+                snprintf(ls->name[ls->n++], sizeof(ls->name[0]), "%s", s->a->laser ?: "laser");
+        if (!ls->n)
+                snprintf(s->err, sizeof(s->err), "the dataset's rig file has no laser %s",
+                         s->a->laser);
+        return ls->n ? 0 : -ENOENT;
 }
 
 static json_t *laser_json(const struct cal_file_laser *l, const char *unused, const char *file)
@@ -515,20 +553,113 @@ static int laser_summary(struct solve *s, const char *name, const char *unused, 
         return 0;
 }
 
-static int solve_laser(struct solve *s, json_t **ret)
+/* Puts "NAME: " before s->err. */
+static void prefix_err(struct solve *s, const char *name)
 {
-        struct cal_lp_opts opts = {.board = s->board, .k = s->k};
-        struct cal_laser l = {0};
-        char name[DS_NAME_MAX];
+        char msg[sizeof(s->err)];
+
+        snprintf(msg, sizeof(msg), "%s", s->err);
+        snprintf(s->err, sizeof(s->err), "%s: %s", name, msg);
+}
+
+/* Writes plane p (turntable frame) of laser `name` over its section in f (the figures of its
+ * solve kept), moved into the camera frame of the turntable section tt (the inverse of
+ * cal_plane_to_turntable: x_cam = R x_tt + t). */
+static int rewrite_plane(struct solve *s, const struct cal_file *f, const struct cal_turntable *tt,
+                         const char *name, const double n_tt[3], double d_tt)
+{
+        const struct cal_file_laser *fl = cal_file_laser(f, name);
+        struct cal_laser l;
+
+        if (!fl)
+                return -ENOENT;
+        l = (struct cal_laser){.rms_mm = fl->rms_mm,
+                               .spread_mm = fl->spread_mm,
+                               .points = (size_t)fl->points,
+                               .inliers = (size_t)fl->inliers,
+                               .n_views = fl->n_views,
+                               .n_used = fl->n_used};
+        cal_mat_vec(tt->R, n_tt, l.plane.n);
+        l.plane.d = d_tt - cal_dot(l.plane.n, tt->t);
+        snprintf(l.unused, sizeof(l.unused), "refined jointly with the rig's other lasers");
+        return cal_laser_write(s->file, name, s->camera, &l, ds_path(s->d), true, s->err,
+                               sizeof(s->err));
+}
+
+/* The lasers' planes in the file just written, refined jointly (cal_lasers_refine, every
+ * plane through the axis, the first laser's kept) on the dataset's laser frames triangulated
+ * with them, and written back. The outcome as JSON: refined or why not (the clouds of the
+ * capture do not overlap enough: then the planes stay as solved). */
+static json_t *refine_lasers(struct solve *s)
+{
+        _cleanup_(rigconf_freep) struct rig_config *rc = NULL;
+        _cleanup_(sec_free) struct sec_ctx c = {0};
+        _cleanup_free_ struct cal_file *f = NULL;
+        const struct cal_turntable *tt;
+        struct cal_lr_opts lo = {.through_axis = true};
+        struct cal_lr_result lr;
+        struct scan_result sr;
+        struct scan_calib cal;
+        struct scan_opts so;
+        char err[1024] = "";
         int r;
 
-        laser_of_rig(s, name, sizeof(name), &opts.channel);
-        r = cal_laser_solve_ds(s->d, s->camera, &opts, &l, s->err, sizeof(s->err));
+        scan_opts_default(&so);
+        so.camera = s->camera;
+        if ((r = scan_load_rig(s->d, registry_backends, &rc, err, sizeof(err))) >= 0 &&
+            (r = read_calfile(s, false, &f)) >= 0 &&
+            (r = scan_calib_from_file(f, rc, s->camera, &cal, err, sizeof(err))) >= 0 &&
+            (r = scan_section(s->d, rc, &so, &cal, &c, &sr, err, sizeof(err))) >= 0)
+                r = cal_lasers_refine(&c, &lo, &lr, err, sizeof(err));
+        if (r < 0)
+                return json_pack("{s:b,s:s}", "refined", false, "reason",
+                                 err[0] ? err : strerror(-r));
+        tt = &cal_file_turntable(f, s->camera)->tt;
+        for (int i = 0; r >= 0 && i < c.n_lasers; i++)
+                r = rewrite_plane(s, f, tt, rc->lasers[i].name, c.plane_n[i],
+                                  -cal_dot(c.plane_n[i], c.plane_p[i]));
+        return json_pack("{s:b,s:f,s:f,s:I,s:s*}", "refined", r >= 0, "rms_before_mm",
+                         lr.rms_before, "rms_after_mm", lr.rms_after, "pairs",
+                         (json_int_t)lr.pairs_after, "reason", r < 0 ? s->err : NULL);
+}
+
+/* Solves and writes laser i of ls; its summary into *ret. */
+static int solve_one_laser(struct solve *s, const struct laser_set *ls, int i, json_t **ret)
+{
+        struct cal_lp_opts opts = {
+                .board = s->board, .k = s->k, .channel = ls->channel[i], .lasers = ls->rows[i]};
+        struct cal_laser l = {0};
+        int r = cal_laser_solve_ds(s->d, s->camera, &opts, &l, s->err, sizeof(s->err));
+
         if (r >= 0)
-                r = cal_laser_write(s->file, name, s->camera, &l, ds_path(s->d),
+                r = cal_laser_write(s->file, ls->name[i], s->camera, &l, ds_path(s->d),
                                     s->a->given & ARG_FORCE, s->err, sizeof(s->err));
         if (r >= 0)
-                r = laser_summary(s, name, l.unused, ret);
+                r = laser_summary(s, ls->name[i], l.unused, ret);
+        if (r < 0 && ls->n > 1) /* say which laser */
+                prefix_err(s, ls->name[i]);
+        return r;
+}
+
+/* Every laser of the rig (or --laser's), each from the frames it lit alone; with two or more,
+ * their planes refined jointly (refine_lasers). The summary is the first laser's, with
+ * "lasers": every laser's, and "joint": the refinement. */
+static int solve_laser(struct solve *s, json_t **ret)
+{
+        struct laser_set ls;
+        json_t *all = json_array(), *one = NULL;
+        int r = all ? lasers_of_rig(s, &ls) : -ENOMEM;
+
+        for (int i = 0; r >= 0 && i < ls.n; i++) {
+                r = solve_one_laser(s, &ls, i, &one);
+                if (r >= 0 && (!one || json_array_append_new(all, one) < 0))
+                        r = -ENOMEM;
+        }
+        if (r >= 0 && (*ret = json_deep_copy(json_array_get(all, 0))))
+                r = json_object_set_new(*ret, "joint", ls.n > 1 ? refine_lasers(s) : json_null());
+        if (r >= 0 && *ret)
+                json_object_set(*ret, "lasers", all);
+        json_decref(all);
         return r;
 }
 
@@ -908,7 +1039,8 @@ void calibrate_print_turntable(json_t *res)
         printf("written to %s\n", json_string_value(json_object_get(res, "file")));
 }
 
-void calibrate_print_laser(json_t *res)
+/* One laser's summary. */
+static void print_laser(json_t *res)
 {
         json_t *plane = json_object_get(res, "plane");
         const char *unused = json_string_value(json_object_get(res, "unused"));
@@ -925,6 +1057,24 @@ void calibrate_print_laser(json_t *res)
                num(res, "axis_angle_deg"), num(res, "axis_dist_mm"));
         if (unused && unused[0])
                 printf("  not used: %s\n", unused);
+}
+
+void calibrate_print_laser(json_t *res)
+{
+        json_t *all = json_object_get(res, "lasers"), *joint = json_object_get(res, "joint"), *l;
+        size_t i;
+
+        if (json_array_size(all) == 0)
+                print_laser(res);
+        json_array_foreach(all, i, l) print_laser(l);
+        if (json_is_true(json_object_get(joint, "refined")))
+                printf("refined jointly: the surfaces agree within %.4f mm RMS (%.4f mm before, "
+                       "%.0f points matched)\n",
+                       num(joint, "rms_after_mm"), num(joint, "rms_before_mm"),
+                       num(joint, "pairs"));
+        else if (json_is_object(joint))
+                printf("not refined jointly: %s\n",
+                       json_string_value(json_object_get(joint, "reason")));
         printf("written to %s\n", json_string_value(json_object_get(res, "file")));
 }
 

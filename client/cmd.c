@@ -6,7 +6,7 @@
 #include <signal.h>
 #include <stdarg.h>
 #include <string.h>
-#include <sys/signalfd.h>
+#include <fcntl.h>
 #include <unistd.h>
 
 #include "drivers/discover.h"
@@ -138,6 +138,8 @@ static int p_laser(const struct cmd *c, const struct args *a, char **argv, int a
 
         if (parse_onoff(c, argv[0], &on) < 0)
                 return -EINVAL;
+        if (argc > 1 && set(*ret, "laser", json_string(argv[1])) < 0)
+                return -ENOMEM;
         return set(*ret, "on", json_boolean(on));
 }
 
@@ -205,7 +207,7 @@ static int discover_here(const struct args *a, struct out *o, json_t **ret)
 }
 
 static const struct cmd commands[] = {
-        {NULL, "status", "", "rig state, axes, lamps, laser, cameras, dataset", "status", 0, 0, 0,
+        {NULL, "status", "", "rig state, axes, lamps, lasers, cameras, dataset", "status", 0, 0, 0,
          TIMEOUT_S, NULL, out_print_status},
         {NULL, "describe", "", "devices, backends and their options", "describe", 0, 0, 0,
          TIMEOUT_S, NULL, out_print_describe},
@@ -216,8 +218,8 @@ static const struct cmd commands[] = {
         {NULL, "stop", "", "stop all motion now", "stop", 0, 0, 0, TIMEOUT_S, NULL, out_print_stop},
         {NULL, "lamp", "N|NAME on|off", "switch a lamp", "lamp.set", 2, 2, 0, TIMEOUT_S, p_lamp,
          out_print_lamp},
-        {NULL, "laser", "on|off", "switch the laser", "laser.set", 1, 1, 0, TIMEOUT_S, p_laser,
-         out_print_laser},
+        {NULL, "laser", "on|off [NAME]", "switch the laser NAME, or every laser", "laser.set", 1, 2,
+         0, TIMEOUT_S, p_laser, out_print_laser},
         {NULL, "capture", "[--camera NAME] [--exposure US] [--gain G] [--bits 8|16]",
          "capture into the open dataset", "capture", 0, 0,
          ARG_CAMERA | ARG_EXPOSURE | ARG_GAIN | ARG_BITS, TIMEOUT_LONG_S, p_capture,
@@ -461,18 +463,39 @@ int cmd_connect(const struct args *a, struct out *o, struct conn **ret)
         return EXIT_OK;
 }
 
+/* The write end of the pipe cmd_intr_fd() returned last: what its signal handler writes to. */
+static int intr_pipe_w = -1;
+
+static void on_intr_signal(int sig)
+{
+        int saved = errno;
+        unsigned char b = (unsigned char)sig;
+
+        (void)!write(intr_pipe_w, &b, 1);
+        errno = saved;
+}
+
+/* A handler, not a blocked mask and a signalfd: a mask is per thread, and a library may have
+ * started threads before main() (OpenBLAS under OpenCV does), so a blocked signal would still
+ * reach one of those and kill gonioctl by its default action. */
 int cmd_intr_fd(void)
 {
-        sigset_t mask;
-        int fd;
+        struct sigaction sa = {.sa_handler = on_intr_signal, .sa_flags = SA_RESTART};
+        int p[2];
 
-        sigemptyset(&mask);
-        sigaddset(&mask, SIGINT);
-        sigaddset(&mask, SIGTERM);
-        if (sigprocmask(SIG_BLOCK, &mask, NULL) < 0)
+        if (pipe2(p, O_CLOEXEC | O_NONBLOCK) < 0)
                 return -errno;
-        fd = signalfd(-1, &mask, SFD_CLOEXEC);
-        return fd < 0 ? -errno : fd;
+        if (intr_pipe_w >= 0)
+                close(intr_pipe_w);
+        intr_pipe_w = p[1];
+        sigemptyset(&sa.sa_mask);
+        if (sigaction(SIGINT, &sa, NULL) < 0 || sigaction(SIGTERM, &sa, NULL) < 0) {
+                int r = -errno;
+
+                close(p[0]);
+                return r;
+        }
+        return p[0];
 }
 
 /* Prints notifications until SIGINT/SIGTERM, --count N, or --timeout. */
@@ -484,7 +507,7 @@ static int run_watch(const struct args *a, struct out *o, struct conn *conn)
         long n = 0;
 
         if (sfd < 0) {
-                out_error(o, "watch", "signalfd: %s", strerror(-sfd));
+                out_error(o, "watch", "catching signals: %s", strerror(-sfd));
                 return EXIT_PROTOCOL;
         }
         for (;;) {
@@ -508,12 +531,12 @@ struct interruption {
 /* r is -EINTR (a signal, read from sfd) or -ETIMEDOUT (after timeout_s). */
 static void read_interruption(int sfd, int r, double timeout_s, struct interruption *why)
 {
-        struct signalfd_siginfo si = {};
+        unsigned char sig = 0;
 
         if (r == -ETIMEDOUT) {
                 why->code = "timeout";
                 snprintf(why->text, sizeof(why->text), "no reply within %g s", timeout_s);
-        } else if (read(sfd, &si, sizeof(si)) == sizeof(si) && si.ssi_signo == SIGTERM) {
+        } else if (read(sfd, &sig, 1) == 1 && sig == SIGTERM) {
                 why->code = "SIGTERM";
                 snprintf(why->text, sizeof(why->text), "SIGTERM");
         } else {

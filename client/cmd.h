@@ -43,7 +43,8 @@ struct out;
  * version). Returns EXIT_OK with a new connection in *ret, or the exit code (error printed). */
 int cmd_connect(const struct args *a, struct out *o, struct conn **ret);
 
-/* Blocks SIGINT and SIGTERM and returns a signalfd that reports them, or -errno. */
+/* Catches SIGINT and SIGTERM from now on: returns a descriptor that becomes readable with one
+ * byte per signal (its number), or -errno. */
 int cmd_intr_fd(void);
 
 struct conn_error;

@@ -329,7 +329,8 @@ static void section(json_t *arr, void (*fn)(json_t *))
 void out_print_status(json_t *r)
 {
         json_t *fault = json_object_get(r, "fault"), *ds = json_object_get(r, "dataset");
-        json_t *laser = json_object_get(r, "laser");
+        json_t *lasers = json_object_get(r, "lasers"), *l;
+        size_t i;
         struct table t = {.ncols = 2, .align = "ll"};
 
         kv(&t, "state", "%s", get_str(r, "state"));
@@ -343,10 +344,9 @@ void out_print_status(json_t *r)
                    json_integer_value(json_object_get(ds, "count")), get_str(ds, "path"));
         else
                 kv(&t, "dataset", "-");
-        if (json_is_object(laser))
-                kv(&t, "laser", "%s %s", get_str(laser, "name"),
-                   json_is_true(json_object_get(laser, "on")) ? "on" : "off");
-        else
+        json_array_foreach(lasers, i, l) kv(&t, "laser", "%s %s", get_str(l, "name"),
+                                            json_is_true(json_object_get(l, "on")) ? "on" : "off");
+        if (json_array_size(lasers) == 0)
                 kv(&t, "laser", "-");
         table_print(&t);
         section(json_object_get(r, "axes"), print_axes);

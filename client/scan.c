@@ -2,6 +2,7 @@
  * (calib/scan.h) with its rig file's nominal calibration, the summary as text or JSON
  * (docs/scanning.md, "gonioctl scan --from"). */
 #include <errno.h>
+#include <math.h>
 #include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
@@ -55,7 +56,7 @@ static int pick_calib(const struct args *a, struct out *o, struct ds *d,
                 if (cal_file_turntable(f, rc->cameras[i].name))
                         camera = rc->cameras[i].name;
         if (r >= 0)
-                r = scan_calib_from_file(f, camera ?: rc->cameras[0].name, rc->laser.name, cal, err,
+                r = scan_calib_from_file(f, rc, camera ?: rc->cameras[0].name, cal, err,
                                          sizeof(err));
         if (r < 0) {
                 out_error(o, WHAT, "calibration %s: %s", path, *err ? err : strerror(-r));
@@ -70,14 +71,33 @@ static int pick_calib(const struct args *a, struct out *o, struct ds *d,
         return 0;
 }
 
+/* Each laser's points, and how well the lasers agree (null with fewer than two). */
+static json_t *lasers_json(const struct scan_result *s, const struct rig_config *rc,
+                           const struct scan_calib *cal)
+{
+        json_t *a = json_array();
+
+        for (size_t i = 0; a && i < rc->n_lasers && i < SEC_MAX_LASERS; i++)
+                json_array_append_new(
+                        a, json_pack("{s:s,s:I,s:o,s:b}", "name", rc->lasers[i].name, "points",
+                                     (json_int_t)s->laser_points[i], "offset_mm",
+                                     isnan(s->agree_rms_mm) ? json_null()
+                                                            : json_real(s->agree_offset_mm[i]),
+                                     "nominal", !cal || (cal->nominal >> i & 1)));
+        return json_pack("{s:o,s:o,s:I}", "each", a, "agree_rms_mm",
+                         isnan(s->agree_rms_mm) ? json_null() : json_real(s->agree_rms_mm),
+                         "agree_pairs", (json_int_t)s->agree_pairs);
+}
+
 static json_t *summary_json(const struct scan_result *s, const struct scan_opts *o, const char *dir)
 {
         json_t *rows = json_pack(
-                "{s:I,s:I,s:I,s:I,s:I,s:I,s:{s:I,s:I,s:I}}", "laser", (json_int_t)s->laser_rows,
+                "{s:I,s:I,s:I,s:I,s:I,s:I,s:{s:I,s:I,s:I,s:I}}", "laser", (json_int_t)s->laser_rows,
                 "used", (json_int_t)s->used, "paired", (json_int_t)s->paired, "alone",
                 (json_int_t)(s->used - s->paired), "textured", (json_int_t)s->textured, "no_line",
                 (json_int_t)s->no_line, "skipped", "unreadable", (json_int_t)s->unreadable,
-                "wrong_size", (json_int_t)s->wrong_size, "other_view", (json_int_t)s->other_view);
+                "wrong_size", (json_int_t)s->wrong_size, "other_view", (json_int_t)s->other_view,
+                "shared", (json_int_t)s->shared);
 
         return json_pack("{s:s,s:s,s:I,s:I,s:I,s:I,s:I,s:f,s:I,s:b,s:o,s:f,s:[sss]}", "dataset",
                          dir, "camera", s->camera, "points", (json_int_t)s->points, "rejected",
@@ -125,14 +145,35 @@ int scan_reconstruct(const struct args *a, struct out *o, json_t **ret)
                 return cmd_exit_for_errno(r);
         }
         *ret = summary_json(&res, &opts, ds_path(d));
-        if (*ret)
+        if (*ret) {
                 json_object_set_new(*ret, "calibration", json_string(source));
+                json_object_set_new(*ret, "lasers", lasers_json(&res, rc, use));
+        }
         return *ret ? EXIT_OK : EXIT_PROTOCOL;
 }
 
 static json_int_t num(json_t *o, const char *key)
 {
         return json_integer_value(json_object_get(o, key));
+}
+
+/* Each laser's points, and the lasers' agreement when there are two or more. */
+static void print_lasers(json_t *lasers)
+{
+        json_t *each = json_object_get(lasers, "each"), *l;
+        json_t *rms = json_object_get(lasers, "agree_rms_mm");
+        size_t i;
+
+        json_array_foreach(each, i, l)
+                printf("  laser %s: %lld points%s\n", json_string_value(json_object_get(l, "name")),
+                       num(l, "points"),
+                       json_is_true(json_object_get(l, "nominal")) ? " (nominal plane)" : "");
+        if (json_is_number(rms))
+                printf("  lasers agree: %.3f mm RMS between their surfaces (%lld points "
+                       "matched)\n",
+                       json_number_value(rms), num(lasers, "agree_pairs"));
+        else if (json_array_size(each) > 1)
+                printf("  lasers agree: not measured (their surfaces do not overlap)\n");
 }
 
 void scan_print(json_t *res)
@@ -149,8 +190,10 @@ void scan_print(json_t *res)
                num(rows, "paired"), num(rows, "alone"), num(rows, "textured"),
                num(rows, "no_line"));
         printf("  skipped: %lld unreadable, %lld of another size, %lld at another camera-arm "
-               "angle\n",
-               num(skip, "unreadable"), num(skip, "wrong_size"), num(skip, "other_view"));
+               "angle, %lld with lasers lit together\n",
+               num(skip, "unreadable"), num(skip, "wrong_size"), num(skip, "other_view"),
+               num(skip, "shared"));
+        print_lasers(json_object_get(res, "lasers"));
         printf("  mesh: %lld triangles over the grid%s, %lld after simplification (target %lld, "
                "error %.3f mm, %lld folds dropped)\n",
                num(res, "triangles"),

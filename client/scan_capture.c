@@ -1,6 +1,7 @@
 /* scan_capture.c - gonioctl scan DATASET (see scan_capture.h): continuous mode asks goniod
- * for scan.continuous on the open dataset; stop-and-go mode writes a session file (the
- * turntable sweep, the laser, the lamps given, the camera) and runs it as a session. */
+ * for scan.continuous on the open dataset (one pass per laser); stop-and-go mode writes a
+ * session file (the turntable sweep, each laser alone and the unlit frame at every angle,
+ * the lamps given, the camera) and runs it as a session. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -57,10 +58,24 @@ static int open_dataset(struct out *o, struct conn *conn, const char *name, json
         return EXIT_OK;
 }
 
+/* The number of the rig's lasers (goniod's status), at least 1. */
+static size_t rig_lasers(struct conn *conn)
+{
+        struct conn_error e;
+        json_t *st = NULL;
+        size_t n = 1;
+
+        if (conn_call(conn, "status", json_object(), conn_now_ms() + SCAN_CALL_S * 1000, -1, NULL,
+                      NULL, &st, &e) >= 0)
+                n = MAX(json_array_size(json_object_get(st, "lasers")), (size_t)1);
+        json_decref(st);
+        return n;
+}
+
 static int scan_continuous(const struct args *a, struct out *o, struct conn *conn,
                            const char *dataset, const struct range *rg, json_t **ret)
 {
-        double frames = fabs(rg->to - rg->from) / rg->step + 1;
+        double frames = (fabs(rg->to - rg->from) / rg->step + 1) * (double)rig_lasers(conn);
         json_t *params = json_pack("{s:s,s:f,s:f,s:f}", "dataset", dataset, "from", rg->from, "to",
                                    rg->to, "step", rg->step);
         struct conn_error e;
@@ -99,7 +114,7 @@ static int stop_session_text(const struct args *a, const char *dataset, const st
                      "  turntable: { from: %.17g, to: %.17g, step: %.17g }\n"
                      "cameras: %s\n"
                      "lamps: %s\n"
-                     "laser: true\n"
+                     "laser: each\n"
                      "unlit: true\n"
                      "%s%s",
                      (long long)time(NULL), dataset, rg->from, rg->to, rg->step, cameras, lamps,
@@ -166,14 +181,17 @@ int scan_capture(const struct args *a, struct out *o, json_t **ret)
 
 void scan_capture_print(json_t *r)
 {
+        json_t *lasers = json_object_get(r, "lasers"), *l;
+        size_t n = MAX(json_array_size(lasers), (size_t)1), i;
+
         if (!json_object_get(r, "stored")) /* stop-and-go: the session's status */
                 return out_print_session_status(r);
-        printf("scan -> dataset %s, camera %s: %lld of %lld angles stored (%lld frames, %lld "
-               "late), %.2f deg/s in %lld legs, %.1f s\n",
+        printf("scan -> dataset %s, camera %s: %lld of %lld angles x %zu laser(s) stored (%lld "
+               "frames, %lld late), %.2f deg/s in %lld legs per laser, %.1f s\n",
                json_string_value(json_object_get(r, "dataset")),
                json_string_value(json_object_get(r, "camera")),
                json_integer_value(json_object_get(r, "stored")),
-               json_integer_value(json_object_get(r, "positions")),
+               json_integer_value(json_object_get(r, "positions")) * (json_int_t)n, n,
                json_integer_value(json_object_get(r, "frames")),
                json_integer_value(json_object_get(r, "late")),
                json_number_value(json_object_get(r, "speed_deg_s")),
@@ -182,4 +200,6 @@ void scan_capture_print(json_t *r)
         printf("largest gap between stored angles %.3f deg; read-backs at most %.3f deg apart\n",
                json_number_value(json_object_get(r, "max_gap_deg")),
                json_number_value(json_object_get(r, "interp_spread_deg")));
+        json_array_foreach(lasers, i, l)
+                printf("pass %zu: laser %s\n", i + 1, json_string_value(l));
 }

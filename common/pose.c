@@ -48,7 +48,7 @@ double gn_angle_distance(double a, double b)
 
 bool gn_pose_equal(const struct gn_pose *a, const struct gn_pose *b, double tol_deg)
 {
-        if (a->lamps != b->lamps || a->laser != b->laser)
+        if (a->lamps != b->lamps || a->lasers != b->lasers)
                 return false;
         for (int i = 0; i < GN_ROLE_COUNT; i++) {
                 if (isnan(a->deg[i]) != isnan(b->deg[i]))
@@ -59,18 +59,17 @@ bool gn_pose_equal(const struct gn_pose *a, const struct gn_pose *b, double tol_
         return true;
 }
 
-int gn_pose_lamp_list(const struct gn_pose *p, const char *const *names, size_t n, char *buf,
-                      size_t len)
+int gn_name_list(uint32_t bits, const char *const *names, size_t n, char *buf, size_t len)
 {
         size_t used = 0;
 
         if (len == 0)
                 return -ENOBUFS;
         buf[0] = 0;
-        for (size_t i = 0; i < n && i < GN_POSE_MAX_LAMPS; i++) {
+        for (size_t i = 0; i < n && i < 32; i++) {
                 int w;
 
-                if (!(p->lamps & (UINT32_C(1) << i)))
+                if (!(bits & (UINT32_C(1) << i)))
                         continue;
                 w = snprintf(buf + used, len - used, "%s%s", used ? "," : "", names[i]);
                 if (w < 0 || (size_t)w >= len - used)
@@ -78,4 +77,10 @@ int gn_pose_lamp_list(const struct gn_pose *p, const char *const *names, size_t 
                 used += w;
         }
         return (int)used;
+}
+
+int gn_pose_lamp_list(const struct gn_pose *p, const char *const *names, size_t n, char *buf,
+                      size_t len)
+{
+        return gn_name_list(p->lamps, names, n, buf, len);
 }

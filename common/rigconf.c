@@ -45,6 +45,19 @@ static int read_name(struct yconf *yc, struct fy_node *m, char *out, size_t len)
         return 0;
 }
 
+int rigconf_laser(const struct rig_config *rc, const char *name)
+{
+        for (size_t i = 0; i < rc->n_lasers; i++)
+                if (strcmp(rc->lasers[i].name, name) == 0)
+                        return i;
+        return -ENOENT;
+}
+
+uint32_t rigconf_all_lasers(const struct rig_config *rc)
+{
+        return (uint32_t)((UINT64_C(1) << rc->n_lasers) - 1);
+}
+
 int rigconf_axis_of_role(const struct rig_config *rc, enum gn_role role)
 {
         for (size_t i = 0; i < rc->n_axes; i++)
@@ -448,8 +461,6 @@ static int parse_laser(struct rig_config *rc, struct fy_node *m, struct rig_swit
                                       .laser_origin = {600, 0, 150},
                                       .laser_width_mm = 0.5,
                                       .laser_power = 1e3};
-        if (fy_node_get_type(m) != FYNT_MAPPING)
-                return yconf_error(yc, m, "laser", "expected a mapping");
         if ((r = parse_switch_common(rc, m, keys, s)) < 0 ||
             (r = yconf_double(yc, m, "azimuth", -360, 360, &s->laser_azimuth_deg)) < 0 ||
             (r = yconf_doubles(yc, m, "origin", s->laser_origin, 3, 3, NULL)) < 0 ||
@@ -548,10 +559,38 @@ static int parse_section(struct rig_config *rc, struct fy_node *root, const char
         return n < 0 ? n : 0;
 }
 
-/* The mapping of entry index of section; for the laser, the mapping itself. */
+/* The lasers: the list `lasers`, or the one mapping `laser` (the shorthand of one-laser rigs),
+ * not both. */
+static int parse_lasers(struct rig_config *rc, struct fy_node *root)
+{
+        struct fy_node *one = yconf_get(root, "laser"), *list = yconf_get(root, "lasers");
+
+        struct fy_node *later = one && list && yconf_line(one) > yconf_line(list) ? one : list;
+
+        if (one && list)
+                return yconf_error(&rc->yc, later, later == one ? "laser" : "lasers",
+                                   "write either 'laser' (one mapping) or 'lasers' (a list), "
+                                   "not both");
+        if (list)
+                return parse_section(rc, root, "lasers", rc->lasers, sizeof(rc->lasers[0]),
+                                     RIG_MAX_LASERS, &rc->n_lasers, (parse_fn)parse_laser);
+        if (!one)
+                return 0;
+        if (fy_node_get_type(one) != FYNT_MAPPING)
+                return yconf_error(&rc->yc, one, "laser",
+                                   "expected a mapping (several lasers: a list 'lasers')");
+        rc->n_lasers = 1;
+        return parse_laser(rc, one, &rc->lasers[0]);
+}
+
+/* The mapping of entry index of section; for lasers written as the one mapping `laser`,
+ * that mapping. */
 static struct fy_node *entry_node(struct yconf *yc, const char *section, int index)
 {
         struct fy_node *n = yconf_get(yconf_root(yc), section);
+
+        if (!n && strcmp(section, "lasers") == 0)
+                n = yconf_get(yconf_root(yc), "laser");
 
         return n && fy_node_get_type(n) == FYNT_SEQUENCE ? yconf_seq_item(n, index) : n;
 }
@@ -608,8 +647,8 @@ static size_t device_refs(const struct rig_config *rc, struct ref *refs)
         }
         for (size_t i = 0; i < rc->n_lamps; i++)
                 refs[n++] = switch_ref("lamps", i, &rc->lamps[i]);
-        if (rc->has_laser)
-                refs[n++] = switch_ref("laser", 0, &rc->laser);
+        for (size_t i = 0; i < rc->n_lasers; i++)
+                refs[n++] = switch_ref("lasers", i, &rc->lasers[i]);
         for (size_t i = 0; i < rc->n_cameras; i++) {
                 const struct rig_camera_conf *c = &rc->cameras[i];
 
@@ -721,7 +760,8 @@ static int check_roles(struct yconf *yc, const struct rig_config *rc)
 /* Names of devices, buses and profiles; Modbus addresses; bus ports; axis roles. */
 static int check_unique(struct yconf *yc, const struct rig_config *rc)
 {
-        struct ref refs[RIG_MAX_BUSES + RIG_MAX_AXES + RIG_MAX_LAMPS + 1 + RIG_MAX_CAMERAS];
+        struct ref refs[RIG_MAX_BUSES + RIG_MAX_AXES + RIG_MAX_LAMPS + RIG_MAX_LASERS +
+                        RIG_MAX_CAMERAS];
         size_t n = device_refs(rc, refs);
         int r;
 
@@ -765,7 +805,7 @@ static int check_bus(struct yconf *yc, const struct rig_config *rc, const struct
 
 static int check_references(struct yconf *yc, const struct rig_config *rc)
 {
-        struct ref refs[RIG_MAX_AXES + RIG_MAX_LAMPS + 1 + RIG_MAX_CAMERAS];
+        struct ref refs[RIG_MAX_AXES + RIG_MAX_LAMPS + RIG_MAX_LASERS + RIG_MAX_CAMERAS];
         size_t n = device_refs(rc, refs);
         int r = 0;
 
@@ -812,9 +852,10 @@ static int read_calibration(struct rig_config *rc, struct fy_node *root)
 static int parse_root(struct rig_config *rc)
 {
         struct yconf *yc = &rc->yc;
-        static const char *const keys[] = {"rig",   "profiles", "buses", "axes",        "lamps",
-                                           "laser", "cameras",  "scene", "calibration", NULL};
-        struct fy_node *root = yconf_root(yc), *laser;
+        static const char *const keys[] = {"rig",   "profiles",    "buses",  "axes",
+                                           "lamps", "laser",       "lasers", "cameras",
+                                           "scene", "calibration", NULL};
+        struct fy_node *root = yconf_root(yc);
         int r;
 
         if (!root)
@@ -834,15 +875,10 @@ static int parse_root(struct rig_config *rc)
                                &rc->n_axes, (parse_fn)parse_axis)) < 0 ||
             (r = parse_section(rc, root, "lamps", rc->lamps, sizeof(rc->lamps[0]), RIG_MAX_LAMPS,
                                &rc->n_lamps, (parse_fn)parse_lamp)) < 0 ||
+            (r = parse_lasers(rc, root)) < 0 ||
             (r = parse_section(rc, root, "cameras", rc->cameras, sizeof(rc->cameras[0]),
                                RIG_MAX_CAMERAS, &rc->n_cameras, (parse_fn)parse_camera)) < 0)
                 return r;
-        laser = yconf_get(root, "laser");
-        if (laser) {
-                if ((r = parse_laser(rc, laser, &rc->laser)) < 0)
-                        return r;
-                rc->has_laser = true;
-        }
         if ((r = read_calibration(rc, root)) < 0 || (r = check_unique(yc, rc)) < 0)
                 return r;
         return check_references(yc, rc);
@@ -913,7 +949,8 @@ struct rig_config *rigconf_free(struct rig_config *rc)
                 free((void *)rc->axes[i].backend.conf);
         for (size_t i = 0; i < RIG_MAX_LAMPS; i++)
                 free((void *)rc->lamps[i].backend.conf);
-        free((void *)rc->laser.backend.conf);
+        for (size_t i = 0; i < RIG_MAX_LASERS; i++)
+                free((void *)rc->lasers[i].backend.conf);
         for (size_t i = 0; i < RIG_MAX_CAMERAS; i++)
                 free((void *)rc->cameras[i].backend.conf);
         yconf_close(&rc->yc);

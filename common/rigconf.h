@@ -24,6 +24,7 @@
 #define RIG_MAX_AXES    8
 #define RIG_MAX_LAMPS   16
 #define RIG_MAX_CAMERAS 8
+#define RIG_MAX_LASERS  8
 
 /* Ranges of a camera's default exposure and gain in the rig file: those of the sim camera's
  * option table (drivers/camera/sim/api.c), so that a rig file that loads never asks a camera
@@ -183,8 +184,9 @@ struct rig_config {
         size_t n_axes;
         struct rig_switch_conf lamps[RIG_MAX_LAMPS];
         size_t n_lamps;
-        struct rig_switch_conf laser;
-        bool has_laser;
+        /* the line lasers: the list `lasers`, or the one mapping `laser` (shorthand) */
+        struct rig_switch_conf lasers[RIG_MAX_LASERS];
+        size_t n_lasers;
         struct rig_camera_conf cameras[RIG_MAX_CAMERAS];
         size_t n_cameras;
         /* the calibration file (key `calibration`), an absolute path; "" when the rig file
@@ -220,6 +222,12 @@ const char *rigconf_bus_type_name(enum rig_bus_type t);
 /* Lookups by name; NULL if absent. */
 const struct rig_bus_conf *rigconf_bus(const struct rig_config *rc, const char *name);
 const struct rig_modbus_profile *rigconf_profile(const struct rig_config *rc, const char *name);
+
+/* Index of the laser named name in rc, or -ENOENT when the rig has none of that name. */
+int rigconf_laser(const struct rig_config *rc, const char *name);
+
+/* The bit set of all of rc's lasers (struct gn_pose.lasers). */
+uint32_t rigconf_all_lasers(const struct rig_config *rc);
 
 /* Index of the axis of role in rc, or -ENOENT when the rig has none. */
 int rigconf_axis_of_role(const struct rig_config *rc, enum gn_role role);

@@ -230,6 +230,11 @@ static const char *lamp_name(const struct rig_config *rc, size_t i)
         return rc->lamps[i].name;
 }
 
+static const char *laser_name(const struct rig_config *rc, size_t i)
+{
+        return rc->lasers[i].name;
+}
+
 /* Index of the device named name, or an error at n listing the known names. */
 static int device_index(struct sparse *p, const struct devices *d, struct fy_node *n,
                         const char *key, const char *name)
@@ -282,6 +287,39 @@ static int parse_names(struct sparse *p, struct fy_node *root, const char *key,
         return 0;
 }
 
+/* The key `laser`: false (none), true or `all` (one frame, every laser lit together), `each`
+ * (one frame per laser, each alone), a name or a list of names (one frame, those lit
+ * together). */
+static int parse_laser(struct sparse *p, struct fy_node *root)
+{
+        const struct devices d = {"laser", p->rc->n_lasers, laser_name};
+        struct fy_node *v = yconf_get(root, "laser");
+        const char *s = v && fy_node_get_type(v) == FYNT_SCALAR ? fy_node_get_scalar0(v) : NULL;
+        struct session_conf *sc = p->sc;
+        uint32_t set = rigconf_all_lasers(p->rc);
+        int k;
+
+        if (!v || (s && yconf_bool_word(s) == 0))
+                return 0;
+        if (!p->rc->n_lasers)
+                return yconf_error(&p->yc, v, "laser", "rig '%s' has no laser", p->rc->name);
+        if (s && strcmp(s, "each") == 0) {
+                for (size_t i = 0; i < p->rc->n_lasers; i++)
+                        sc->laser_shots[sc->n_laser_shots++] = UINT32_C(1) << i;
+                return 0;
+        }
+        if (!s && (k = parse_names(p, root, "laser", &d, &set)) < 0)
+                return k;
+        if (s && yconf_bool_word(s) < 0 && strcmp(s, "all") != 0) {
+                if ((k = device_index(p, &d, v, "laser", s)) < 0)
+                        return k;
+                set = UINT32_C(1) << k;
+        }
+        if (set)
+                sc->laser_shots[sc->n_laser_shots++] = set;
+        return 0;
+}
+
 static int parse_devices(struct sparse *p, struct fy_node *root)
 {
         const struct devices cams = {"camera", p->rc->n_cameras, camera_name};
@@ -293,7 +331,7 @@ static int parse_devices(struct sparse *p, struct fy_node *root)
         sc->lamps = p->rc->n_lamps ? (uint32_t)((1ull << p->rc->n_lamps) - 1) : 0;
         if ((r = parse_names(p, root, "cameras", &cams, &sc->cameras)) < 0 ||
             (r = parse_names(p, root, "lamps", &lamps, &sc->lamps)) < 0 ||
-            (r = yconf_bool(&p->yc, root, "laser", &sc->laser)) < 0 ||
+            (r = parse_laser(p, root)) < 0 ||
             (r = yconf_bool(&p->yc, root, "unlit", &sc->unlit)) < 0)
                 return r;
         sc->flat_lamps = sc->lamps ?: (uint32_t)((1ull << p->rc->n_lamps) - 1);
@@ -302,10 +340,7 @@ static int parse_devices(struct sparse *p, struct fy_node *root)
         if (!sc->cameras)
                 return yconf_error(&p->yc, at(root, "cameras"), "cameras",
                                    "no camera to capture with");
-        if (sc->laser && !p->rc->has_laser)
-                return yconf_error(&p->yc, yconf_get(root, "laser"), "laser",
-                                   "rig '%s' has no laser", p->rc->name);
-        if (!sc->lamps && !sc->laser && !sc->unlit)
+        if (!sc->lamps && !sc->n_laser_shots && !sc->unlit)
                 return yconf_error(&p->yc, at(root, "lamps"), "lamps",
                                    "nothing to capture: no lamp, no laser and no unlit frame");
         return 0;

@@ -41,9 +41,12 @@ struct session_conf {
         double gain;       /* 0: each camera's default */
         size_t n_brackets; /* >= 1 */
         double bracket_ev[SESS_MAX_BRACKETS]; /* exposure x 2^ev; default 1 bracket of 0 */
-        bool laser;          /* also a laser frame (lamps off, laser on) per pose */
-        bool unlit;          /* also a frame with lamps and laser off per pose, next to the
-                              * laser frame: its reference (laser minus unlit: no room light) */
+        /* the laser frames (lamps off) per pose: shot i lights the lasers of bit set
+         * laser_shots[i] together (key `laser`: true, a name, a list, `each`) */
+        uint32_t laser_shots[RIG_MAX_LASERS];
+        size_t n_laser_shots;
+        bool unlit;          /* also a frame with lamps and lasers off per pose, next to the laser
+                              * frames: their reference (laser minus unlit: no room light) */
         int dark_frames;     /* dark frames per (camera, exposure, gain) at the start; 0 none */
         int dark_max_age_s;  /* dark library: reuse darks younger than this (default 86400) */
         int flat_frames;     /* flat-field frames per camera at the start; 0 none */

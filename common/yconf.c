@@ -341,23 +341,32 @@ int yconf_int(struct yconf *ctx, struct fy_node *map, const char *key, long min,
         return 1;
 }
 
-int yconf_bool(struct yconf *ctx, struct fy_node *map, const char *key, bool *out)
+int yconf_bool_word(const char *text)
 {
         static const char *const yes[] = {"true", "yes", "on", "1"};
         static const char *const no[] = {"false", "no", "off", "0"};
+
+        for (size_t i = 0; i < ELEMENTSOF(yes); i++) {
+                if (strcasecmp(text, yes[i]) == 0)
+                        return 1;
+                if (strcasecmp(text, no[i]) == 0)
+                        return 0;
+        }
+        return -1;
+}
+
+int yconf_bool(struct yconf *ctx, struct fy_node *map, const char *key, bool *out)
+{
         struct fy_node *n;
         const char *text;
-        int r = scalar(ctx, map, key, &n, &text);
+        int r = scalar(ctx, map, key, &n, &text), b;
 
         if (r <= 0)
                 return r;
-        for (size_t i = 0; i < ELEMENTSOF(yes); i++) {
-                if (strcasecmp(text, yes[i]) == 0)
-                        return *out = true, 1;
-                if (strcasecmp(text, no[i]) == 0)
-                        return *out = false, 1;
-        }
-        return yconf_error(ctx, n, key, "'%s' is not a boolean (true/false)", text);
+        if ((b = yconf_bool_word(text)) < 0)
+                return yconf_error(ctx, n, key, "'%s' is not a boolean (true/false)", text);
+        *out = b;
+        return 1;
 }
 
 int yconf_seq_len(struct yconf *ctx, struct fy_node *seq, const char *key)

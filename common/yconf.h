@@ -56,6 +56,10 @@ int yconf_int(struct yconf *ctx, struct fy_node *map, const char *key, long min,
 int yconf_double(struct yconf *ctx, struct fy_node *map, const char *key, double min, double max,
                  double *out);
 int yconf_bool(struct yconf *ctx, struct fy_node *map, const char *key, bool *out);
+
+/* 1 when text is a word of true ("true", "yes", "on", "1", any case), 0 for one of false,
+ * -1 for anything else. */
+int yconf_bool_word(const char *text);
 /* Reads a sequence of exactly n numbers (or between nmin and n when nmin < n); *count gets
  * the number read when count is non-NULL. */
 int yconf_doubles(struct yconf *ctx, struct fy_node *map, const char *key, double *out, size_t nmin,

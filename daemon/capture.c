@@ -198,7 +198,7 @@ static bool as_planned(const struct gn_pose *got, const struct gn_pose *want)
                     (isnan(got->deg[r]) ||
                      gn_angle_distance(got->deg[r], want->deg[r]) > DS_PLAN_POSE_TOL_DEG))
                         return false;
-        return got->lamps == want->lamps && got->laser == want->laser;
+        return got->lamps == want->lamps && got->lasers == want->lasers;
 }
 
 /* Hands shot i's frame to the storage pool, or records why it cannot be stored. */

@@ -56,13 +56,13 @@ static json_t *num_or_null(double v)
 
 json_t *datasets_row_json(const struct ds_capture *c)
 {
-        return json_pack("{sIsssssssisisssosososssb}", "id", (json_int_t)c->id, "camera", c->camera,
-                         "file", c->file, "sha256", c->sha256, "width", c->width, "height",
-                         c->height, "pixfmt", c->pixfmt, "turntable",
+        return json_pack("{sIsssssssisisssosososssbsI}", "id", (json_int_t)c->id, "camera",
+                         c->camera, "file", c->file, "sha256", c->sha256, "width", c->width,
+                         "height", c->height, "pixfmt", c->pixfmt, "turntable",
                          num_or_null(c->pose.deg[GN_ROLE_TURNTABLE]), "light_arm",
                          num_or_null(c->pose.deg[GN_ROLE_LIGHT_ARM]), "camera_arm",
                          num_or_null(c->pose.deg[GN_ROLE_CAMERA_ARM]), "lamps", c->lamps, "laser",
-                         c->pose.laser);
+                         c->pose.lasers != 0, "lasers", (json_int_t)c->pose.lasers);
 }
 
 /* ---- jobs (worker thread) ---- */
@@ -258,11 +258,18 @@ static void closed_done(int result, void *userdata)
         job_free(j);
 }
 
-/* Closes d on the worker, answering nobody. */
+/* Closes d on the worker, answering nobody; at once when the loop has finished (shutdown:
+ * a load that completed as goniod stopped), since no worker takes jobs any more and the
+ * loop's thread may block again. */
 static void close_later(struct manager *m, struct ds *d)
 {
-        struct ds_job *j = calloc(1, sizeof(*j));
+        struct ds_job *j;
 
+        if (sd_event_get_state(m->event) == SD_EVENT_FINISHED) {
+                ds_close(d);
+                return;
+        }
+        j = calloc(1, sizeof(*j));
         if (j) {
                 *j = (struct ds_job){.m = m, .old = d};
                 m->ds_busy = true;

@@ -8,6 +8,7 @@
 #include <systemd/sd-event.h>
 
 #include "common/log.h"
+#include "common/sigroute.h"
 #include "drivers/registry.h"
 #include "calcopy.h"
 #include "datasets.h"
@@ -120,7 +121,8 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
                 log_error_errno(r, "Cannot create data directory %s: %m", data_dir);
                 goto fail;
         }
-        if ((r = sd_event_default(&m->event)) < 0 ||
+        if ((r = gn_sigroute_here((const int[]){SIGTERM, SIGINT}, 2)) < 0 ||
+            (r = sd_event_default(&m->event)) < 0 ||
             (r = sd_event_add_signal(m->event, NULL, SIGTERM | SD_EVENT_SIGNAL_PROCMASK, on_signal,
                                      m)) < 0 ||
             (r = sd_event_add_signal(m->event, NULL, SIGINT | SD_EVENT_SIGNAL_PROCMASK, on_signal,

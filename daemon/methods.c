@@ -278,9 +278,10 @@ static int m_stop(struct srv_req *req, json_t *params, void *userdata)
         return 0;
 }
 
-/* Switches lamp i (or the laser, i < 0) and answers with {key: name, on}. */
-static int switch_and_reply(struct srv_req *req, struct manager *m, int i, bool on, const char *key,
-                            const char *name)
+/* Switches the n switches of indices first.. (a lamp, or lasers: RIG_SW_LASER) and answers
+ * with {key: name, on} once all are done; name lists them, comma-separated. */
+static int switch_and_reply(struct srv_req *req, struct manager *m, int first, int n, bool on,
+                            const char *key, const char *name)
 {
         struct op *o;
         int r;
@@ -289,13 +290,14 @@ static int switch_and_reply(struct srv_req *req, struct manager *m, int i, bool 
                 return r;
         if (!(o = op_new(req, json_pack("{sssb}", key, name, "on", on))))
                 return -ENOMEM;
-        o->pending = 1;
-        r = rig_switch(m->rig, i, on, on_rig_done, o);
-        if (r < 0) {
-                json_decref(o->result);
-                free(o);
-                return srv_req_errmsg(req, r, "%s: %s", name, refusal(m, r));
+        o->m = m;
+        o->pending = n + 1;
+        for (int i = first; i < first + n; i++) {
+                r = rig_switch(m->rig, i, on, on_rig_done, o);
+                if (r < 0)
+                        op_refused(o, r, rig_switch_conf_of(m->rc, i)->name);
         }
+        op_part_done(o, 0, NULL);
         return 0;
 }
 
@@ -320,23 +322,35 @@ static int m_lamp_set(struct srv_req *req, json_t *params, void *userdata)
                 return srv_req_errmsg(req, -EINVAL, "param 'on' is required");
         if ((i = rig_lamp_index(m->rig, name)) < 0)
                 return srv_req_errmsg(req, -ENOENT, "no lamp '%s'", name);
-        return switch_and_reply(req, m, i, on, "lamp", m->rc->lamps[i].name);
+        return switch_and_reply(req, m, i, 1, on, "lamp", m->rc->lamps[i].name);
 }
 
+/* laser.set {laser?, on}: the laser named, or every laser of the rig. */
 static int m_laser_set(struct srv_req *req, json_t *params, void *userdata)
 {
         struct manager *m = userdata;
+        json_t *laser = json_object_get(params, "laser");
+        const char *names[RIG_MAX_LASERS];
+        char list[RIG_MAX_LASERS * RIG_NAME_MAX];
         bool on = false;
-        int r;
+        int r, k = 0, n = m->rc->n_lasers;
 
-        if ((r = srv_params_check(req, params, KEYS("on"))) < 0 ||
+        if ((r = srv_params_check(req, params, KEYS("laser", "on"))) < 0 ||
             (r = srv_param_bool(req, params, "on", &on)) < 0)
                 return r;
         if (r == 0)
                 return srv_req_errmsg(req, -EINVAL, "param 'on' is required");
-        if (!m->rc->has_laser)
+        if (laser && !json_is_string(laser))
+                return srv_req_errmsg(req, -EINVAL, "param 'laser': expected a name");
+        if (n == 0)
                 return srv_req_errmsg(req, -ENOENT, "this rig has no laser");
-        return switch_and_reply(req, m, -1, on, "laser", m->rc->laser.name);
+        if (laser && (k = rigconf_laser(m->rc, json_string_value(laser))) < 0)
+                return srv_req_errmsg(req, -ENOENT, "no laser '%s'", json_string_value(laser));
+        n = laser ? 1 : n;
+        for (int i = 0; i < n; i++)
+                names[i] = m->rc->lasers[k + i].name;
+        (void)gn_name_list((UINT32_C(1) << n) - 1, names, n, list, sizeof(list));
+        return switch_and_reply(req, m, RIG_SW_LASER(k + n - 1), n, on, "laser", list);
 }
 
 static int m_fault_clear(struct srv_req *req, json_t *params, void *userdata)

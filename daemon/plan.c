@@ -34,9 +34,11 @@
 
 /* Two angles closer than this (degrees) are one. */
 #define PLAN_ANGLE_EPS 1e-6
-/* No light lit (struct builder.light); -1 is the laser, >= 0 a lamp. */
-#define LIGHT_NONE  (-2)
-#define LIGHT_LASER (-1)
+/* The lights of a shot (struct builder.light): >= 0 a lamp, LIGHT_NONE nothing lit,
+ * LIGHT_LASER(i) the session's laser shot i (session_conf.laser_shots). */
+#define LIGHT_NONE        (-1)
+#define LIGHT_LASER(i)    (-2 - (int)(i))
+#define LIGHT_LASER_OF(l) (-2 - (l))
 
 /* ---- timing model ---- */
 
@@ -102,12 +104,12 @@ double plan_shot_time(const struct rig_config *rc, const struct plan_shot *s)
 struct track {
         double deg[GN_ROLE_COUNT]; /* NAN: unknown */
         uint32_t lamps;
-        bool laser;
+        uint32_t lasers;
 };
 
 static struct track track_start(const struct gn_pose *start)
 {
-        struct track t = {.lamps = start ? start->lamps : 0, .laser = start && start->laser};
+        struct track t = {.lamps = start ? start->lamps : 0, .lasers = start ? start->lasers : 0};
 
         for (int r = 0; r < GN_ROLE_COUNT; r++)
                 t.deg[r] = start ? start->deg[r] : NAN;
@@ -138,19 +140,27 @@ static double move_to(const struct rig_config *rc, struct track *st, const struc
         return t;
 }
 
+/* The longest (longest: true) or shortest warm-up in seconds of the switches sw[0..n) in
+ * the bit set on; 0 (longest) or INFINITY for none. */
+static double warmup(const struct rig_switch_conf *sw, size_t n, uint32_t on, bool longest)
+{
+        double t = longest ? 0 : INFINITY;
+
+        for (size_t i = 0; i < n; i++)
+                if (on & (UINT32_C(1) << i))
+                        t = longest ? fmax(t, sw[i].warmup_ms / 1000.0)
+                                    : fmin(t, sw[i].warmup_ms / 1000.0);
+        return t;
+}
+
 /* Seconds for the lights of shot s to be ready: the warm-up of those it switches on. */
 static double light_to(const struct rig_config *rc, struct track *st, const struct plan_shot *s)
 {
-        uint32_t on = s->pose.lamps & ~st->lamps;
-        double t = 0;
+        double t = fmax(warmup(rc->lamps, rc->n_lamps, s->pose.lamps & ~st->lamps, true),
+                        warmup(rc->lasers, rc->n_lasers, s->pose.lasers & ~st->lasers, true));
 
-        for (size_t l = 0; l < rc->n_lamps; l++)
-                if (on & (1u << l))
-                        t = fmax(t, rc->lamps[l].warmup_ms / 1000.0);
-        if (s->pose.laser && !st->laser && rc->has_laser)
-                t = fmax(t, rc->laser.warmup_ms / 1000.0);
         st->lamps = s->pose.lamps;
-        st->laser = s->pose.laser;
+        st->lasers = s->pose.lasers;
         return t;
 }
 
@@ -301,7 +311,7 @@ static int add_calibration(struct builder *b)
                 if ((r = add_frames(b, PLAN_DARK, 0, i, sc->dark_frames)) < 0)
                         return r;
         }
-        if (!ev0 && (sc->laser || sc->unlit || sc->flat_frames) &&
+        if (!ev0 && (sc->n_laser_shots || sc->unlit || sc->flat_frames) &&
             (r = add_frames(b, PLAN_DARK, 0, -1, sc->dark_frames)) < 0)
                 return r;
         return add_frames(b, PLAN_FLAT, sc->flat_lamps, -1, sc->flat_frames);
@@ -323,7 +333,7 @@ static int add_skip(struct builder *b, const struct gn_pose *pose, int camera, i
         k = &p->skips[p->n_skips++];
         *k = (struct plan_skip){.pose = *pose, .camera = camera, .lamp = lamp};
         k->pose.lamps = 1u << lamp;
-        k->pose.laser = false;
+        k->pose.lasers = 0;
         va_start(ap, fmt);
         vsnprintf(k->reason, sizeof(k->reason), fmt, ap);
         va_end(ap);
@@ -411,7 +421,7 @@ static int lamp_cameras(struct builder *b, const struct gn_pose *pose, int lamp,
         return 0;
 }
 
-/* The shots of one light (a lamp, LIGHT_LASER, or LIGHT_NONE: the unlit frame) at pose for
+/* The shots of one light (a lamp, LIGHT_LASER(i), or LIGHT_NONE: the unlit frame) at pose for
  * cameras. The laser and unlit frames are taken once, at 0 EV (bracket -1). */
 static int add_light(struct builder *b, const struct gn_pose *pose, int light, uint32_t cameras)
 {
@@ -419,10 +429,10 @@ static int add_light(struct builder *b, const struct gn_pose *pose, int light, u
         int r;
 
         lit.lamps = light >= 0 ? 1u << light : 0;
-        lit.laser = light == LIGHT_LASER;
+        lit.lasers = light < LIGHT_NONE ? b->sc->laser_shots[LIGHT_LASER_OF(light)] : 0;
         if (light < 0) {
-                struct plan_shot s = shot_new(b, light == LIGHT_LASER ? PLAN_LASER : PLAN_IMAGE,
-                                              &lit, cameras, -1);
+                struct plan_shot s = shot_new(b, light < LIGHT_NONE ? PLAN_LASER : PLAN_IMAGE, &lit,
+                                              cameras, -1);
                 return add_shots(b, &s);
         }
         for (size_t k = 0; k < b->sc->n_brackets; k++) {
@@ -435,11 +445,11 @@ static int add_light(struct builder *b, const struct gn_pose *pose, int light, u
 }
 
 /* The shots at one pose: each lamp that lights a camera, then the unlit frame, then the
- * laser; reversed when that starts with the light still lit from the last pose. */
+ * laser shots; reversed when that starts with the light still lit from the last pose. */
 static int add_pose(struct builder *b, const struct gn_pose *pose)
 {
-        int lights[RIG_MAX_LAMPS + 2], n = 0, r;
-        uint32_t masks[RIG_MAX_LAMPS + 2];
+        int lights[RIG_MAX_LAMPS + 1 + RIG_MAX_LASERS], n = 0, r;
+        uint32_t masks[RIG_MAX_LAMPS + 1 + RIG_MAX_LASERS];
         bool rev;
 
         for (size_t l = 0; l < b->rc->n_lamps; l++) {
@@ -454,9 +464,9 @@ static int add_pose(struct builder *b, const struct gn_pose *pose)
                 masks[n] = b->sc->cameras;
                 lights[n++] = LIGHT_NONE;
         }
-        if (b->sc->laser) {
+        for (size_t i = 0; i < b->sc->n_laser_shots; i++) {
                 masks[n] = b->sc->cameras;
-                lights[n++] = LIGHT_LASER;
+                lights[n++] = LIGHT_LASER(i);
         }
         rev = !b->naive && n > 1 && lights[n - 1] == b->light && lights[0] != b->light;
         for (int i = 0; i < n; i++) {
@@ -632,7 +642,7 @@ static bool same_state(const struct gn_pose *a, const struct gn_pose *b)
         for (int r = 0; r < GN_ROLE_COUNT; r++)
                 if (!(isnan(a->deg[r]) && isnan(b->deg[r])) && a->deg[r] != b->deg[r])
                         return false;
-        return a->lamps == b->lamps && a->laser == b->laser;
+        return a->lamps == b->lamps && a->lasers == b->lasers;
 }
 
 static bool same_angles(const struct gn_pose *a, const struct gn_pose *b)
@@ -640,7 +650,7 @@ static bool same_angles(const struct gn_pose *a, const struct gn_pose *b)
         struct gn_pose x = *a;
 
         x.lamps = b->lamps;
-        x.laser = b->laser;
+        x.lasers = b->lasers;
         return same_state(&x, b);
 }
 
@@ -703,19 +713,15 @@ static double min_pose_change(const struct builder *b)
  * image and laser shots use. */
 static double min_light_change(const struct rig_config *rc, const struct plan_shot *s, size_t n)
 {
-        uint32_t lamps = 0;
-        bool laser = false;
-        double best = INFINITY;
+        uint32_t lamps = 0, lasers = 0;
 
         for (size_t i = 0; i < n; i++)
                 if (s[i].kind == PLAN_IMAGE || s[i].kind == PLAN_LASER) {
                         lamps |= s[i].pose.lamps;
-                        laser = laser || s[i].pose.laser;
+                        lasers |= s[i].pose.lasers;
                 }
-        for (size_t l = 0; l < rc->n_lamps; l++)
-                if (lamps & (1u << l))
-                        best = fmin(best, rc->lamps[l].warmup_ms / 1000.0);
-        return laser ? fmin(best, rc->laser.warmup_ms / 1000.0) : best;
+        return fmin(warmup(rc->lamps, rc->n_lamps, lamps, false),
+                    warmup(rc->lasers, rc->n_lasers, lasers, false));
 }
 
 /* The least time of the first move from start: each swept role that starts at none of its
@@ -837,12 +843,16 @@ static int build_one(const struct rig_config *rc, const struct session_conf *sc,
 static bool fits(const struct rig_config *rc, const struct session_conf *sc)
 {
         uint64_t cams = (1ull << rc->n_cameras) - 1, lamps = (1ull << rc->n_lamps) - 1;
+        uint32_t lasers = 0;
+
+        for (size_t i = 0; i < sc->n_laser_shots; i++)
+                lasers |= sc->laser_shots[i];
 
         for (int r = 0; r < GN_ROLE_COUNT; r++)
                 if (sc->sweep[r].n && rigconf_axis_of_role(rc, r) < 0)
                         return false;
         return !(sc->cameras & ~cams) && !(sc->lamps & ~lamps) && !(sc->flat_lamps & ~lamps) &&
-               (!sc->laser || rc->has_laser);
+               !(lasers & ~rigconf_all_lasers(rc));
 }
 
 /* Whether the plan of sc, one camera per shot when naive, fits PLAN_MAX_SHOTS (counted
@@ -853,7 +863,7 @@ static bool small_enough(const struct rig_config *rc, const struct session_conf 
 
         for (int r = 0; r < GN_ROLE_COUNT; r++)
                 poses *= sc->sweep[r].n ? (double)sc->sweep[r].n : 1;
-        per_pose = (double)__builtin_popcount(sc->lamps) * sc->n_brackets + sc->laser;
+        per_pose = (double)__builtin_popcount(sc->lamps) * sc->n_brackets + sc->n_laser_shots;
         calib = (double)sc->dark_frames * (sc->n_brackets + 1) + sc->flat_frames;
         return (poses * per_pose + calib) * (naive ? rc->n_cameras : 1) <= PLAN_MAX_SHOTS;
 }

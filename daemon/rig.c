@@ -59,14 +59,19 @@ void rig_update_state(struct rig *rig)
         }
 }
 
-static struct rig_switch *switch_slot(struct rig *rig, int i)
+struct rig_switch *rig_switch_slot(struct rig *rig, int i)
 {
-        return i < 0 ? &rig->laser : &rig->lamps[i];
+        return i < 0 ? &rig->lasers[RIG_SW_LASER_OF(i)] : &rig->lamps[i];
+}
+
+const struct rig_switch_conf *rig_switch_conf_of(const struct rig_config *rc, int i)
+{
+        return i < 0 ? &rc->lasers[RIG_SW_LASER_OF(i)] : &rc->lamps[i];
 }
 
 static const char *switch_name(const struct rig *rig, int i)
 {
-        return i < 0 ? rig->rc->laser.name : rig->rc->lamps[i].name;
+        return rig_switch_conf_of(rig->rc, i)->name;
 }
 
 static const char *job_device(const struct job *j)
@@ -98,7 +103,8 @@ static struct bus *job_bus(const struct job *j)
 
         if (rig_is_camera_job(j->kind))
                 return rig->cams[j->idx]->bus;
-        return is_axis_job(j->kind) ? rig->axes[j->idx].ax->bus : switch_slot(rig, j->idx)->sw->bus;
+        return is_axis_job(j->kind) ? rig->axes[j->idx].ax->bus
+                                    : rig_switch_slot(rig, j->idx)->sw->bus;
 }
 
 /* After a successful open or reset, reads the drive's state into the job (worker). */
@@ -164,14 +170,14 @@ static int job_call(struct bus *b, struct job *j)
         case J_RESET:
                 return poll_after(j, a, axis_reset(a->ax));
         case J_OPEN_SW:
-                r = sw_open(switch_slot(rig, j->idx)->sw);
-                return r < 0 ? r : sw_get(switch_slot(rig, j->idx)->sw, &j->on);
+                r = sw_open(rig_switch_slot(rig, j->idx)->sw);
+                return r < 0 ? r : sw_get(rig_switch_slot(rig, j->idx)->sw, &j->on);
         case J_CHECK_SW:
-                return sw_get(switch_slot(rig, j->idx)->sw, &j->on);
+                return sw_get(rig_switch_slot(rig, j->idx)->sw, &j->on);
         case J_SWITCH:
-                if (j->on && j->gen != atomic_load(&switch_slot(rig, j->idx)->gen))
+                if (j->on && j->gen != atomic_load(&rig_switch_slot(rig, j->idx)->gen))
                         return -ECANCELED; /* queued before the safe state */
-                return sw_set(switch_slot(rig, j->idx)->sw, j->on);
+                return sw_set(rig_switch_slot(rig, j->idx)->sw, j->on);
         case J_OPEN_CAM:
                 return cam_open(rig->cams[j->idx]);
         case J_CAPTURE:
@@ -193,7 +199,7 @@ static const char *device_error(const struct job *j)
                 return rig->axes[j->idx].ax->last_error;
         if (rig_is_camera_job(j->kind))
                 return rig->cams[j->idx]->last_error;
-        return switch_slot(rig, j->idx)->sw->last_error;
+        return rig_switch_slot(rig, j->idx)->sw->last_error;
 }
 
 /* Runs on the bus worker: the job, and the driver's message if it failed. */
@@ -239,7 +245,7 @@ int rig_submit_new(struct rig *rig, enum job_kind kind, int idx, double arg, boo
 
 static void switch_submit(struct rig *rig, struct job *j, bool urgent)
 {
-        struct rig_switch *s = switch_slot(rig, j->idx);
+        struct rig_switch *s = rig_switch_slot(rig, j->idx);
 
         s->changing++;
         j->gen = atomic_load(&s->gen);
@@ -263,10 +269,10 @@ void rig_safe_state(struct rig *rig)
                 else if (a->open)
                         (void)rig_submit_new(rig, J_STOP, i, 0, false, true);
         }
-        for (int i = rig->rc->has_laser ? -1 : 0; i < (int)rig->rc->n_lamps; i++) {
+        for (int i = -(int)rig->rc->n_lasers; i < (int)rig->rc->n_lamps; i++) {
                 struct job *j;
-                atomic_fetch_add(&switch_slot(rig, i)->gen, 1);
-                if (!switch_slot(rig, i)->open || !(j = calloc(1, sizeof(*j))))
+                atomic_fetch_add(&rig_switch_slot(rig, i)->gen, 1);
+                if (!rig_switch_slot(rig, i)->open || !(j = calloc(1, sizeof(*j))))
                         continue;
                 *j = (struct job){.rig = rig, .kind = J_SWITCH, .idx = i, .on = false};
                 switch_submit(rig, j, true);
@@ -591,21 +597,21 @@ static void finish_switch_later(struct rig *rig, struct rig_switch *s, int ms, r
 
 /* A laser nobody here switched on (goniod restarted, a hand on the relay) goes off: only
  * a client or a session that owns it may have it on. */
-static void laser_found_on(struct rig *rig)
+static void laser_found_on(struct rig *rig, int i)
 {
         struct job *j = calloc(1, sizeof(*j));
 
-        log_warning("laser '%s' found on when opened: switching it off", rig->rc->laser.name);
+        log_warning("laser '%s' found on when opened: switching it off", switch_name(rig, i));
         if (!j)
                 return;
-        *j = (struct job){.rig = rig, .kind = J_SWITCH, .idx = -1, .on = false};
+        *j = (struct job){.rig = rig, .kind = J_SWITCH, .idx = i, .on = false};
         switch_submit(rig, j, true);
 }
 
 static void switch_job_done(struct job *j, int result)
 {
         struct rig *rig = j->rig;
-        struct rig_switch *s = switch_slot(rig, j->idx);
+        struct rig_switch *s = rig_switch_slot(rig, j->idx);
         const char *name = job_device(j);
 
         if (j->kind == J_OPEN_SW)
@@ -626,7 +632,7 @@ static void switch_job_done(struct job *j, int result)
                 return;
         }
         if (j->kind == J_OPEN_SW && j->idx < 0 && j->on)
-                laser_found_on(rig);
+                laser_found_on(rig, j->idx);
         if (j->kind != J_SWITCH)
                 return;
         rig_emit(rig, &(struct rig_event){.type = RIG_EVENT_SWITCH, .device = name, .on = j->on});
@@ -794,7 +800,7 @@ int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata
 {
         struct job *j;
 
-        if (i < 0 && !rig->rc->has_laser)
+        if (i < 0 ? RIG_SW_LASER_OF(i) >= (int)rig->rc->n_lasers : i >= (int)rig->rc->n_lamps)
                 return -ENOENT;
         if (on && rig->closing)
                 return -ESHUTDOWN;
@@ -802,7 +808,7 @@ int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata
                 return -ESTALE;
         if (rig->exposure)
                 return snprintf(rig->busy, sizeof(rig->busy), "a capture is being exposed"), -EBUSY;
-        if (!switch_slot(rig, i)->open)
+        if (!rig_switch_slot(rig, i)->open)
                 return -ENODEV;
         j = calloc(1, sizeof(*j));
         if (!j)
@@ -840,7 +846,9 @@ struct gn_pose rig_pose(const struct rig *rig)
         for (size_t i = 0; i < rig->rc->n_lamps && i < GN_POSE_MAX_LAMPS; i++)
                 if (rig->lamps[i].sw->on)
                         p.lamps |= UINT32_C(1) << i;
-        p.laser = rig->rc->has_laser && rig->laser.sw->on;
+        for (size_t i = 0; i < rig->rc->n_lasers; i++)
+                if (rig->lasers[i].sw->on)
+                        p.lasers |= UINT32_C(1) << i;
         return p;
 }
 
@@ -872,8 +880,9 @@ static void open_devices(struct rig *rig)
         for (size_t i = 0; i < rig->rc->n_lamps; i++)
                 if (!rig->lamps[i].open)
                         (void)rig_submit_new(rig, J_OPEN_SW, i, 0, false, false);
-        if (rig->rc->has_laser && !rig->laser.open)
-                (void)rig_submit_new(rig, J_OPEN_SW, -1, 0, false, false);
+        for (size_t i = 0; i < rig->rc->n_lasers; i++)
+                if (!rig->lasers[i].open)
+                        (void)rig_submit_new(rig, J_OPEN_SW, RIG_SW_LASER(i), 0, false, false);
         for (size_t i = 0; i < rig->rc->n_cameras; i++)
                 if (!rig->cam_open[i])
                         (void)rig_submit_new(rig, J_OPEN_CAM, i, 0, false, false);
@@ -893,8 +902,8 @@ int rig_clear_fault(struct rig *rig, rig_done_fn done, void *userdata)
         for (size_t i = 0; i < rig->rc->n_axes; i++)
                 if (rig->axes[i].open)
                         (void)rig_submit_new(rig, J_RESET, i, 0, false, false);
-        for (int i = rig->rc->has_laser ? -1 : 0; i < (int)rig->rc->n_lamps; i++)
-                if (switch_slot(rig, i)->open)
+        for (int i = -(int)rig->rc->n_lasers; i < (int)rig->rc->n_lamps; i++)
+                if (rig_switch_slot(rig, i)->open)
                         (void)rig_submit_new(rig, J_CHECK_SW, i, 0, false, false);
         open_devices(rig);
         rig->clear_collect = false;
@@ -957,9 +966,10 @@ static int build_devices(struct rig *rig)
                 if ((r = sw_new(&rc->lamps[i], bus_of(rig, rc->lamps[i].bus), &rig->lamps[i].sw)) <
                     0)
                         return log_error_errno(r, "lamp '%s': %m", rc->lamps[i].name);
-        if (rc->has_laser &&
-            (r = sw_new(&rc->laser, bus_of(rig, rc->laser.bus), &rig->laser.sw)) < 0)
-                return log_error_errno(r, "laser '%s': %m", rc->laser.name);
+        for (size_t i = 0; i < rc->n_lasers; i++)
+                if ((r = sw_new(&rc->lasers[i], bus_of(rig, rc->lasers[i].bus),
+                                &rig->lasers[i].sw)) < 0)
+                        return log_error_errno(r, "laser '%s': %m", rc->lasers[i].name);
         for (size_t i = 0; i < rc->n_cameras; i++)
                 if ((r = cam_new(&rc->cameras[i], bus_of(rig, rc->cameras[i].bus), &rig->cams[i])) <
                     0)
@@ -1022,7 +1032,8 @@ struct rig *rig_free(struct rig *rig)
         }
         for (size_t i = 0; i < rig->rc->n_lamps; i++)
                 sw_free(rig->lamps[i].sw);
-        sw_free(rig->laser.sw);
+        for (size_t i = 0; i < rig->rc->n_lasers; i++)
+                sw_free(rig->lasers[i].sw);
         for (size_t i = 0; i < rig->rc->n_cameras; i++)
                 cam_free(rig->cams[i]);
         free(rig);

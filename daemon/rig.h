@@ -4,7 +4,7 @@
  * Every operation is queued on the device's bus worker and completes through a
  * callback on the loop thread. Motion is followed by polling the drive until it
  * is in position and settled. On any device fault the rig records the fault and
- * goes to its safe state: motion stopped, laser off, lamps off. */
+ * goes to its safe state: motion stopped, lasers off, lamps off. */
 #pragma once
 
 #include <jansson.h>
@@ -28,7 +28,7 @@ enum rig_event_type {
         RIG_EVENT_STATE,      /* state changed: state */
         RIG_EVENT_AXIS_MOVED, /* progress of a moving axis: device, position, moving */
         RIG_EVENT_MOVE_DONE,  /* a move or homing ended in position: device, position */
-        RIG_EVENT_SWITCH,     /* a lamp or the laser was switched: device, on */
+        RIG_EVENT_SWITCH,     /* a lamp or a laser was switched: device, on */
         RIG_EVENT_FAULT,      /* a fault was latched: device, error, message */
 };
 
@@ -131,7 +131,15 @@ void rig_stream_stop(struct rig *rig, int i);
  * moving into stopped (may be NULL; room for RIG_MAX_AXES) and returns their number. */
 size_t rig_stop(struct rig *rig, int *stopped);
 
-/* Switches lamp i (or the laser when i < 0) and waits for its warm-up. */
+/* Switch indices (rig_switch(), the switch jobs): lamp i is i >= 0, laser k (rig-file
+ * order) is RIG_SW_LASER(k) < 0. */
+#define RIG_SW_LASER(k)    (-1 - (int)(k))
+#define RIG_SW_LASER_OF(i) (-1 - (i))
+
+/* The rig-file entry of switch index i. */
+const struct rig_switch_conf *rig_switch_conf_of(const struct rig_config *rc, int i);
+
+/* Switches lamp i (or a laser, RIG_SW_LASER(k)) and waits for its warm-up. */
 int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata);
 
 /* Exposes cams[0..n) (camera indices) with req: reads every axis back from its drive,
@@ -159,7 +167,7 @@ const char *rig_busy_reason(const struct rig *rig);
 void rig_fault(struct rig *rig, const char *device, int err, const char *fmt, ...)
         __attribute__((format(printf, 4, 5)));
 
-/* Stops every axis and switches lamps and laser off, urgently (asynchronous). Running
+/* Stops every axis and switches lamps and lasers off, urgently (asynchronous). Running
  * moves complete with -ECANCELED, as do moves and switch-ons queued before (they would run
  * after the urgent stops); axes in motion are followed until they stand still. */
 void rig_safe_state(struct rig *rig);
@@ -173,7 +181,7 @@ void rig_shutdown(struct rig *rig);
 unsigned rig_pending(const struct rig *rig);
 
 /* The last confirmed pose: angles by role (NAN where the rig has no such axis, or where
- * it is not homed, so its angle means nothing in the world frame), lit lamps, laser. */
+ * it is not homed, so its angle means nothing in the world frame), lit lamps, lasers. */
 struct gn_pose rig_pose(const struct rig *rig);
 
 /* The last error message a device of the rig reported (device, operation, cause), or ""

@@ -202,11 +202,11 @@ static int refusal(struct rig *rig, const int *cams, size_t n)
                         return snprintf(rig->busy, sizeof(rig->busy), "axis '%s' is moving",
                                         rig->rc->axes[i].name),
                                -EBUSY;
-        for (int i = rig->rc->has_laser ? -1 : 0; i < (int)rig->rc->n_lamps; i++)
-                if ((i < 0 ? &rig->laser : &rig->lamps[i])->changing)
+        for (int i = -(int)rig->rc->n_lasers; i < (int)rig->rc->n_lamps; i++)
+                if (rig_switch_slot(rig, i)->changing)
                         return snprintf(rig->busy, sizeof(rig->busy), "%s '%s' is switching",
                                         i < 0 ? "laser" : "lamp",
-                                        i < 0 ? rig->rc->laser.name : rig->rc->lamps[i].name),
+                                        rig_switch_conf_of(rig->rc, i)->name),
                                -EBUSY;
         for (size_t i = 0; i < n; i++)
                 if (!rig->cam_open[cams[i]])

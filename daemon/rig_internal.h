@@ -57,7 +57,7 @@ struct rig {
         struct rig_config *rc;
         struct bus *buses[RIG_MAX_BUSES];
         struct rig_axis axes[RIG_MAX_AXES];
-        struct rig_switch lamps[RIG_MAX_LAMPS], laser;
+        struct rig_switch lamps[RIG_MAX_LAMPS], lasers[RIG_MAX_LASERS];
         struct cam *cams[RIG_MAX_CAMERAS];
         bool cam_open[RIG_MAX_CAMERAS];
         unsigned pending;           /* jobs in flight */
@@ -104,7 +104,7 @@ enum job_kind {
 struct job {
         struct rig *rig;
         enum job_kind kind;
-        int idx; /* device index; -1 = the laser for switch jobs */
+        int idx; /* device index; < 0: laser RIG_SW_LASER_OF(idx) for switch jobs */
         unsigned gen;
         double arg;
         double speed;    /* J_MOVE: deg/s, 0: max_speed */
@@ -139,6 +139,9 @@ void rig_axis_stop_and_follow(struct rig_axis *a, const char *why);
 
 /* Completion of an exposure's poll or capture job (rig_expose.c). */
 void rig_expose_job_done(struct job *j, int result);
+
+/* The slot of switch index i (a lamp, or a laser when i < 0: RIG_SW_LASER). */
+struct rig_switch *rig_switch_slot(struct rig *rig, int i);
 
 /* True for the camera jobs (open, capture, streaming). */
 bool rig_is_camera_job(enum job_kind kind);

@@ -22,7 +22,8 @@ static json_t *switch_status(const struct rig_switch *s)
 json_t *rig_status(const struct rig *rig)
 {
         const struct rig_config *rc = rig->rc;
-        json_t *axes = json_array(), *lamps = json_array(), *cams = json_array();
+        json_t *axes = json_array(), *lamps = json_array(), *lasers = json_array(),
+               *cams = json_array();
         bool homed = rc->n_axes > 0;
 
         for (size_t i = 0; i < rc->n_axes; i++) {
@@ -31,15 +32,17 @@ json_t *rig_status(const struct rig *rig)
         }
         for (size_t i = 0; i < rc->n_lamps; i++)
                 json_array_append_new(lamps, switch_status(&rig->lamps[i]));
+        for (size_t i = 0; i < rc->n_lasers; i++)
+                json_array_append_new(lasers, switch_status(&rig->lasers[i]));
         for (size_t i = 0; i < rc->n_cameras; i++)
                 json_array_append_new(
                         cams, json_pack("{sssisisisb}", "name", rc->cameras[i].name, "width",
                                         rc->cameras[i].width, "height", rc->cameras[i].height,
                                         "bits", rc->cameras[i].bits, "open", rig->cam_open[i]));
-        return json_pack("{sssbsososososo}", "state", rig_state(rig), "homed", homed, "axes", axes,
-                         "lamps", lamps, "laser",
-                         rc->has_laser ? switch_status(&rig->laser) : json_null(), "cameras", cams,
-                         "fault",
+        return json_pack("{sssbsosososososo}", "state", rig_state(rig), "homed", homed, "axes",
+                         axes, "lamps", lamps, "lasers", lasers, "laser",
+                         rc->n_lasers ? switch_status(&rig->lasers[0]) : json_null(), "cameras",
+                         cams, "fault",
                          rig->fault ? json_pack("{ssss}", "device", rig->fault_device, "message",
                                                 rig->fault_msg)
                                     : json_null());
@@ -76,8 +79,9 @@ json_t *rig_describe(const struct rig *rig)
                                       device_json("axis", rc->axes[i].name, ax->ops->name,
                                                   rc->axes[i].bus, ax->ops->opts, ax->ops->n_opts));
         }
-        for (size_t i = 0; i < rc->n_lamps + rc->has_laser; i++) {
-                const struct sw *s = i < rc->n_lamps ? rig->lamps[i].sw : rig->laser.sw;
+        for (size_t i = 0; i < rc->n_lamps + rc->n_lasers; i++) {
+                const struct sw *s =
+                        i < rc->n_lamps ? rig->lamps[i].sw : rig->lasers[i - rc->n_lamps].sw;
                 json_array_append_new(devs, device_json(i < rc->n_lamps ? "lamp" : "laser",
                                                         s->conf->name, s->ops->name, s->conf->bus,
                                                         s->ops->opts, s->ops->n_opts));

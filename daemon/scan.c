@@ -9,9 +9,19 @@
  * bus answers while it moves) is unwrapped and kept with its time; a frame waits until a
  * read-back later than its mid-exposure exists, then its angle is interpolated between the
  * two read-backs around that time. A frame is stored when its time falls in a leg's move
- * and its angle in that leg's range, so every angle is covered by one leg only. Everything
- * runs on the loop thread; the first error ends the scan: stream stopped, motion stopped,
- * laser off, stores finished, then the reply. */
+ * and its angle in that leg's range, so every angle is covered by one leg only.
+ *
+ * Several lasers: one pass of all the legs per laser, that laser alone on (switched off,
+ * the next one on, between passes while the table goes back to the first run-up; the stream
+ * goes on). Each leg records its laser, so a frame's laser is that of the leg its time falls
+ * in. Switching the laser frame by frame instead would need the switch synchronised to the
+ * exposures, which no switch backend offers (a G-code or Modbus round trip is several ms
+ * and jitters), and a frame exposed across a switch would be lost or, worse, stored with
+ * the wrong laser. The passes cost one run-up and the switching per laser: the scan stays
+ * within a few percent of the camera bound for N x the frames (docs/scanning.md).
+ *
+ * Everything runs on the loop thread; the first error ends the scan: stream stopped, motion
+ * stopped, every laser off, stores finished, then the reply. */
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
@@ -46,9 +56,16 @@ struct pend {
 struct leg {
         double lo, hi;           /* angles stored by this leg: [lo, hi) */
         uint64_t t_start, t_end; /* CLOCK_REALTIME of its move; t_end UINT64_MAX while it runs */
+        int laser;               /* the laser on during it (rig-file index) */
 };
 
-enum step { S_IDLE, S_TO_START, S_LASER_ON, S_LEG, S_BACK, S_ENDING };
+/* A stored frame's angle, and its pass (laser). */
+struct angle {
+        double deg;
+        int pass;
+};
+
+enum step { S_IDLE, S_TO_START, S_LASER_ON, S_LEG, S_BACK, S_LASER_OFF, S_ENDING };
 
 struct scan {
         struct manager *m;
@@ -62,17 +79,19 @@ struct scan {
         int error;
         char msg[256];
         double v, run;
-        size_t n_pos, n_legs, leg;
-        struct leg legs[SCAN_MAX_LEGS];
+        size_t n_pos, n_legs, leg; /* n_legs per pass; leg: index in legs, over the passes */
+        size_t n_passes;           /* one per laser, in rig-file order */
+        struct leg legs[SCAN_MAX_LEGS * RIG_MAX_LASERS];
         struct sample *samples; /* ring of SCAN_SAMPLES */
         size_t n_samples, head; /* head: index of the next write */
         double last_raw;
         uint64_t min_rtt;
         struct pend pending[SCAN_PENDING];
         size_t n_pending;
-        double *angles; /* stored angles, n_pos + extra room */
+        struct angle *angles; /* stored angles, n_pos x passes + extra room */
         size_t n_angles, cap_angles;
         unsigned stores; /* in flight */
+        unsigned offs;   /* lasers being switched off at the end */
         size_t frames, late, outside;
         double spread;
         int64_t first_id, last_id;
@@ -145,34 +164,53 @@ const char *scan_busy_reason(const struct scan *s)
 
 /* ---- the reply ---- */
 
-static int cmp_double(const void *a, const void *b)
+static int cmp_angle(const void *a, const void *b)
 {
-        double x = *(const double *)a, y = *(const double *)b;
+        const struct angle *x = a, *y = b;
 
-        return (x > y) - (x < y);
+        if (x->pass != y->pass)
+                return x->pass - y->pass;
+        return (x->deg > y->deg) - (x->deg < y->deg);
 }
 
-/* The largest step between consecutive stored angles, and from the range's ends. */
+/* The largest step between consecutive stored angles of one pass, and from the range's
+ * ends, over the passes. */
 static double max_gap(struct scan *s)
 {
         double lo = s->p.from, hi = s->p.from + (s->n_pos - 1) * s->p.step, gap = 0;
+        size_t b = 0, e;
 
-        if (s->n_angles == 0)
-                return hi - lo + s->p.step;
-        qsort(s->angles, s->n_angles, sizeof(double), cmp_double);
-        gap = fmax(s->angles[0] - lo, hi - s->angles[s->n_angles - 1]);
-        for (size_t i = 1; i < s->n_angles; i++)
-                gap = fmax(gap, s->angles[i] - s->angles[i - 1]);
+        qsort(s->angles, s->n_angles, sizeof(*s->angles), cmp_angle);
+        for (int pass = 0; pass < (int)s->n_passes; pass++, b = e) {
+                for (e = b; e < s->n_angles && s->angles[e].pass == pass; e++)
+                        if (e > b)
+                                gap = fmax(gap, s->angles[e].deg - s->angles[e - 1].deg);
+                if (e == b)
+                        return hi - lo + s->p.step; /* a pass stored nothing */
+                gap = fmax(gap, fmax(s->angles[b].deg - lo, hi - s->angles[e - 1].deg));
+        }
         return gap;
+}
+
+/* The names of the scan's lasers, one per pass. */
+static json_t *lasers_json(const struct scan *s)
+{
+        json_t *a = json_array();
+
+        for (size_t i = 0; a && i < s->n_passes; i++)
+                json_array_append_new(
+                        a, json_string(s->m->rc->lasers[s->legs[i * s->n_legs].laser].name));
+        return a;
 }
 
 static json_t *result_json(struct scan *s)
 {
         const struct rig_config *rc = s->m->rc;
-        size_t missed = s->n_pos > s->n_angles ? s->n_pos - s->n_angles : 0;
+        size_t want = s->n_pos * s->n_passes;
+        size_t missed = want > s->n_angles ? want - s->n_angles : 0;
 
         return json_pack("{s:s, s:s, s:I, s:I, s:I, s:I, s:I, s:I, s:f, s:f, s:f, s:I, s:f, s:I, "
-                         "s:I}",
+                         "s:I, s:o}",
                          "dataset", capture_dataset_name(s->m->capture) ?: "", "camera",
                          rc->cameras[s->p.cam].name, "positions", (json_int_t)s->n_pos, "stored",
                          (json_int_t)s->n_angles, "frames", (json_int_t)s->frames, "missed",
@@ -180,10 +218,11 @@ static json_t *result_json(struct scan *s)
                          (json_int_t)s->outside, "max_gap_deg", max_gap(s), "interp_spread_deg",
                          s->spread, "speed_deg_s", s->v, "legs", (json_int_t)s->n_legs,
                          "duration_s", (s->t_end - s->t_begin) / 1e9, "first_id",
-                         (json_int_t)s->first_id, "last_id", (json_int_t)s->last_id);
+                         (json_int_t)s->first_id, "last_id", (json_int_t)s->last_id, "lasers",
+                         lasers_json(s));
 }
 
-/* Answers once the laser is off, the stream stopped and every store answered. */
+/* Answers once the lasers are off, the stream stopped and every store answered. */
 static void maybe_reply(struct scan *s)
 {
         struct srv_req *req = s->req;
@@ -207,13 +246,13 @@ static void on_laser_off(struct rig *rig, int result, const char *msg, void *use
 
         if (s->step == S_IDLE)
                 return; /* abandoned */
-        s->waiting = false;
+        s->waiting = --s->offs > 0;
         if (result < 0 && s->error == 0)
                 fail(s, result, "switching the laser off failed: %s", msg ?: strerror(-result));
         maybe_reply(s);
 }
 
-/* Stops the stream and the tracking, switches the laser off; the reply follows. */
+/* Stops the stream and the tracking, switches every laser off; the reply follows. */
 static void end(struct scan *s)
 {
         struct rig *rig = s->m->rig;
@@ -225,10 +264,15 @@ static void end(struct scan *s)
                 rig_stream_stop(rig, s->p.cam);
         s->streaming = false;
         rig_track(rig, -1, NULL, NULL);
-        r = rig_switch(rig, -1, false, on_laser_off, s);
-        s->waiting = r >= 0;
-        if (r < 0)
-                log_warning("continuous scan: cannot switch the laser off now: %s", strerror(-r));
+        s->offs = 1; /* held until every switch is asked */
+        for (size_t i = 0; i < s->m->rc->n_lasers; i++) {
+                r = rig_switch(rig, RIG_SW_LASER(i), false, on_laser_off, s);
+                s->offs += r >= 0;
+                if (r < 0)
+                        log_warning("continuous scan: cannot switch laser '%s' off now: %s",
+                                    s->m->rc->lasers[i].name, strerror(-r));
+        }
+        s->waiting = --s->offs > 0;
         maybe_reply(s);
 }
 
@@ -288,7 +332,7 @@ static bool bracket(const struct scan *s, uint64_t t, size_t *after, bool *too_o
 /* The leg whose move was running at t, or NULL. */
 static const struct leg *leg_at(const struct scan *s, uint64_t t)
 {
-        for (size_t k = 0; k < s->n_legs; k++)
+        for (size_t k = 0; k < s->n_legs * s->n_passes; k++)
                 if (s->legs[k].t_start && t >= s->legs[k].t_start && t <= s->legs[k].t_end)
                         return &s->legs[k];
         return NULL;
@@ -311,15 +355,15 @@ static void on_stored(struct capture *cp, const struct capture_result *res, void
         maybe_reply(s);
 }
 
-/* Stores frame f at turntable angle deg (scan angles). */
-static void store(struct scan *s, struct gn_frame *f, double deg)
+/* Stores frame f at turntable angle deg (scan angles), taken during leg. */
+static void store(struct scan *s, struct gn_frame *f, double deg, const struct leg *leg)
 {
         struct gn_pose pose = rig_pose(s->m->rig);
         const struct capture_tag tag = {.kind = "image"};
         int r;
 
         pose.deg[GN_ROLE_TURNTABLE] = s->continuous ? fmod(fmod(deg, 360) + 360, 360) : deg;
-        pose.laser = true;
+        pose.lasers = UINT32_C(1) << leg->laser;
         r = capture_store_frame(s->m->capture, s->p.cam, f, &pose, &tag, on_stored, s);
         if (r == -EAGAIN) {
                 s->late++; /* the storage queue is full */
@@ -329,7 +373,7 @@ static void store(struct scan *s, struct gn_frame *f, double deg)
                 return fail(s, r, "storing a frame failed: %s", strerror(-r));
         s->stores++;
         if (s->n_angles < s->cap_angles)
-                s->angles[s->n_angles++] = deg;
+                s->angles[s->n_angles++] = (struct angle){deg, (int)((leg - s->legs) / s->n_legs)};
 }
 
 /* Gives the oldest pending frame its angle and stores or drops it. False: it must wait. */
@@ -353,7 +397,7 @@ static bool resolve_one(struct scan *s)
                 leg = leg_at(s, p->t_mid);
                 if (leg && deg >= leg->lo && deg < leg->hi) {
                         s->spread = fmax(s->spread, fabs(hi->deg - lo->deg));
-                        store(s, &p->f, deg);
+                        store(s, &p->f, deg, leg);
                 } else
                         s->outside++;
         }
@@ -442,47 +486,64 @@ static int move_to(struct scan *s, double deg, double speed)
         return r;
 }
 
-/* Starts the stream, then the first leg. */
-static int start_legs(struct scan *s)
+/* Starts leg s->leg: the move through its range at the scan's speed. */
+static int start_leg(struct scan *s)
 {
-        int r = rig_stream_start(s->m->rig, s->p.cam, &s->p.req, on_frame, s);
-
-        if (r < 0)
-                return r;
-        s->streaming = true;
-        rig_track(s->m->rig, s->axis, on_track, s);
-        s->t_begin = gn_realtime_ns();
         s->step = S_LEG;
-        s->leg = 0;
-        s->legs[0].t_start = gn_realtime_ns();
-        s->legs[0].t_end = UINT64_MAX;
-        return move_to(s, s->legs[0].hi + s->run, s->v);
+        s->legs[s->leg].t_start = gn_realtime_ns();
+        s->legs[s->leg].t_end = UINT64_MAX;
+        return move_to(s, s->legs[s->leg].hi + s->run, s->v);
+}
+
+/* Starts the stream (the first pass), then the pass's first leg. */
+static int start_pass(struct scan *s)
+{
+        int r;
+
+        if (!s->streaming) {
+                if ((r = rig_stream_start(s->m->rig, s->p.cam, &s->p.req, on_frame, s)) < 0)
+                        return r;
+                s->streaming = true;
+                rig_track(s->m->rig, s->axis, on_track, s);
+                s->t_begin = gn_realtime_ns();
+        }
+        return start_leg(s);
+}
+
+/* Switches the laser of leg s->leg on or off. */
+static int switch_laser(struct scan *s, bool on)
+{
+        int r = rig_switch(s->m->rig, RIG_SW_LASER(s->legs[s->leg].laser), on, on_rig_done, s);
+
+        s->waiting = r >= 0;
+        return r;
 }
 
 /* The next stage once the last one's operation has completed. */
 static int next_step(struct scan *s)
 {
-        int r;
-
         switch (s->step) {
         case S_TO_START:
                 s->step = S_LASER_ON;
-                r = rig_switch(s->m->rig, -1, true, on_rig_done, s);
-                s->waiting = r >= 0;
-                return r;
+                return switch_laser(s, true);
         case S_LASER_ON:
-                return start_legs(s);
+                return start_pass(s);
         case S_LEG:
-                if (s->leg + 1 == s->n_legs)
+                if (s->leg + 1 == s->n_legs * s->n_passes)
                         return end(s), 0;
+                if ((s->leg + 1) % s->n_legs == 0) { /* the pass's last leg */
+                        s->step = S_LASER_OFF;
+                        return switch_laser(s, false);
+                }
                 s->step = S_BACK;
                 return move_to(s, s->legs[s->leg + 1].lo - s->run, 0);
+        case S_LASER_OFF:
         case S_BACK:
-                s->step = S_LEG;
+                s->step = s->step == S_BACK ? S_LEG : S_TO_START;
                 s->leg++;
-                s->legs[s->leg].t_start = gn_realtime_ns();
-                s->legs[s->leg].t_end = UINT64_MAX;
-                return move_to(s, s->legs[s->leg].hi + s->run, s->v);
+                if (s->step == S_LEG)
+                        return start_leg(s);
+                return move_to(s, s->legs[s->leg].lo - s->run, 0);
         default:
                 return 0;
         }
@@ -529,9 +590,14 @@ static int plan_legs(struct scan *s, const struct rig_axis_conf *ax, char *msg, 
         s->n_legs = (size_t)ceil(span / leg_max);
         if (s->n_legs > SCAN_MAX_LEGS || span > 360 + 1e-9)
                 return snprintf(msg, len, "the scan covers more than one turn"), -ERANGE;
-        for (size_t k = 0; k < s->n_legs; k++)
-                s->legs[k] = (struct leg){.lo = p->from - p->step / 2 + span * k / s->n_legs,
-                                          .hi = p->from - p->step / 2 + span * (k + 1) / s->n_legs};
+        s->n_passes = s->m->rc->n_lasers;
+        for (size_t i = 0; i < s->n_legs * s->n_passes; i++) {
+                size_t k = i % s->n_legs;
+
+                s->legs[i] = (struct leg){.lo = p->from - p->step / 2 + span * k / s->n_legs,
+                                          .hi = p->from - p->step / 2 + span * (k + 1) / s->n_legs,
+                                          .laser = (int)(i / s->n_legs)};
+        }
         return 0;
 }
 
@@ -553,7 +619,7 @@ static int refusal(struct scan *s, char *msg, size_t len)
                 return snprintf(msg, len, "the rig is busy (%s)", state), -EBUSY;
         if ((s->axis = rigconf_axis_of_role(m->rc, GN_ROLE_TURNTABLE)) < 0)
                 return snprintf(msg, len, "this rig has no turntable"), -ENOENT;
-        if (!m->rc->has_laser)
+        if (!m->rc->n_lasers)
                 return snprintf(msg, len, "this rig has no laser"), -ENOENT;
         if (isnan(rig_pose(m->rig).deg[GN_ROLE_TURNTABLE]))
                 return snprintf(msg, len, "the turntable is not homed (home first)"), -EPERM;
@@ -590,8 +656,8 @@ int scan_start(struct scan *s, struct srv_req *req, const struct scan_params *p,
         s->continuous = rc->axes[axis].continuous;
         if ((r = plan_legs(s, &rc->axes[axis], msg, len)) < 0)
                 return r;
-        s->cap_angles = s->n_pos * 2 + 64;
-        if (!(s->angles = malloc(s->cap_angles * sizeof(double))))
+        s->cap_angles = (s->n_pos * 2 + 64) * s->n_passes;
+        if (!(s->angles = malloc(s->cap_angles * sizeof(*s->angles))))
                 return snprintf(msg, len, "out of memory"), -ENOMEM;
         r = move_to(s, s->legs[0].lo - s->run, 0);
         if (r < 0)
@@ -602,7 +668,8 @@ int scan_start(struct scan *s, struct srv_req *req, const struct scan_params *p,
         snprintf(s->reason, sizeof(s->reason),
                  "a continuous scan with camera '%s' into dataset '%s' is running",
                  rc->cameras[p->cam].name, capture_dataset_name(s->m->capture));
-        log_info("continuous scan: %zu angles from %g deg, step %g deg, at %.2f deg/s in %zu legs",
-                 s->n_pos, p->from, p->step, s->v, s->n_legs);
+        log_info("continuous scan: %zu angles from %g deg, step %g deg, at %.2f deg/s in %zu legs, "
+                 "%zu pass(es), one per laser",
+                 s->n_pos, p->from, p->step, s->v, s->n_legs, s->n_passes);
         return 0;
 }

@@ -313,7 +313,7 @@ static int move_axes(struct session_runner *s, const struct run_shot *sh, const 
         return settle_ms;
 }
 
-/* Switches lamp i (the laser: -1) to on unless it is so already. */
+/* Switches lamp i (a laser: RIG_SW_LASER) to on unless it is so already. */
 static void switch_to(struct session_runner *s, int i, bool on, bool is_on)
 {
         int r;
@@ -322,21 +322,21 @@ static void switch_to(struct session_runner *s, int i, bool on, bool is_on)
                 return;
         r = rig_switch(s->m->rig, i, on, on_op_done, s);
         if (r < 0)
-                session_set_error(s, r, "switch %s %s: %s",
-                                  i < 0 ? rc_of(s)->laser.name : rc_of(s)->lamps[i].name,
+                session_set_error(s, r, "switch %s %s: %s", rig_switch_conf_of(rc_of(s), i)->name,
                                   on ? "on" : "off",
                                   r == -EBUSY ? rig_busy_reason(s->m->rig) : strerror(-r));
         else
                 s->ops++;
 }
 
-/* Switches lamps and laser to the lighting of pose (all off for NULL). */
+/* Switches lamps and lasers to the lighting of pose (all off for NULL). */
 static void light(struct session_runner *s, const struct gn_pose *pose, const struct gn_pose *now)
 {
         for (size_t i = 0; i < rc_of(s)->n_lamps; i++)
                 switch_to(s, i, pose && (pose->lamps >> i & 1), now->lamps >> i & 1);
-        if (rc_of(s)->has_laser)
-                switch_to(s, -1, pose && pose->laser, now->laser);
+        for (size_t i = 0; i < rc_of(s)->n_lasers; i++)
+                switch_to(s, RIG_SW_LASER(i), pose && (pose->lasers >> i & 1),
+                          now->lasers >> i & 1);
 }
 
 /* Moves and switches the rig into the next shot's pose, then waits the session's settle time:

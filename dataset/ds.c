@@ -463,17 +463,24 @@ void ds_name_part(char *out, size_t outlen, const char *in, const char *empty)
         out[n] = 0;
 }
 
-/* Sets c->file to "images/NNNNNN_<camera>_<lamps>[_laser].png", the lamps part "dark"
- * without lamps and left out for a frame lit by the laser alone; returns the base name. */
+/* Sets c->file to "images/NNNNNN_<camera>_<lamps>[_laser<k...>].png", the lamps part "dark"
+ * without lamps and left out for a frame lit by lasers alone, the laser part "_laser" for
+ * laser 0 alone (as before several lasers), else "_laser" and the digits of the lit lasers'
+ * indices ("_laser1", "_laser01"); returns the base name. */
 static const char *image_name(struct ds_capture *c)
 {
-        char cam[DS_NAME_MAX], lamps[128];
-        bool laser = c->pose.laser;
+        char cam[DS_NAME_MAX], lamps[128], laser[16] = "";
+        uint32_t lit = c->pose.lasers;
 
+        if (lit)
+                snprintf(laser, sizeof(laser), "_laser");
+        for (int i = 0; lit != 1 && i < 8; i++)
+                if (lit & (UINT32_C(1) << i))
+                        snprintf(laser + strlen(laser), sizeof(laser) - strlen(laser), "%d", i);
         ds_name_part(cam, sizeof(cam), c->camera, "camera");
-        ds_name_part(lamps, sizeof(lamps), c->lamps, laser ? "" : "dark");
+        ds_name_part(lamps, sizeof(lamps), c->lamps, lit ? "" : "dark");
         snprintf(c->file, sizeof(c->file), "%s/%06lld_%s%s%s%s.png", DS_IMAGES, (long long)c->id,
-                 cam, lamps[0] ? "_" : "", lamps, laser ? "_laser" : "");
+                 cam, lamps[0] ? "_" : "", lamps, laser);
         return c->file + strlen(DS_IMAGES "/");
 }
 

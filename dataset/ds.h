@@ -34,7 +34,9 @@ struct ds_capture {
         int64_t id;                /* row id, set by ds_store */
         char session[DS_NAME_MAX]; /* may be empty */
         struct gn_pose pose;       /* angles NAN (NULL in the index) where the rig has no axis
-                                    * of that role; lamp bit set by rig-file index; laser */
+                                    * of that role; lamp and laser bit sets by rig-file
+                                    * index (index column laser: 0/1 rows of datasets from
+                                    * one-laser rigs read as laser 0) */
         char camera[DS_NAME_MAX];
         char lamps[256]; /* names of the lamps lit in pose, comma-separated, "" for none;
                           * written by the caller (gn_pose_lamp_list) */

@@ -317,7 +317,7 @@ static int bind_capture(sqlite3_stmt *s, const struct ds_capture *c)
         rc |= sqlite3_bind_text(s, i++, c->camera, -1, SQLITE_STATIC);
         rc |= sqlite3_bind_text(s, i++, c->lamps, -1, SQLITE_STATIC);
         rc |= sqlite3_bind_int64(s, i++, c->pose.lamps);
-        rc |= sqlite3_bind_int(s, i++, c->pose.laser);
+        rc |= sqlite3_bind_int64(s, i++, c->pose.lasers);
         rc |= sqlite3_bind_int(s, i++, c->exposure_us);
         rc |= sqlite3_bind_double(s, i++, c->gain);
         rc |= sqlite3_bind_int64(s, i++, (sqlite3_int64)c->t_request_ns);
@@ -408,7 +408,7 @@ void ds_db_read_row(sqlite3_stmt *s, struct ds_capture *c)
         ds_db_column_text(s, i++, c->camera, sizeof(c->camera));
         ds_db_column_text(s, i++, c->lamps, sizeof(c->lamps));
         c->pose.lamps = (uint32_t)sqlite3_column_int64(s, i++);
-        c->pose.laser = sqlite3_column_int(s, i++) != 0;
+        c->pose.lasers = (uint32_t)sqlite3_column_int64(s, i++);
         c->exposure_us = sqlite3_column_int(s, i++);
         c->gain = sqlite3_column_double(s, i++);
         c->t_request_ns = (uint64_t)sqlite3_column_int64(s, i++);

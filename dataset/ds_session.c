@@ -87,7 +87,7 @@ static int insert_item(struct ds *d, sqlite3_stmt *s, const char *session,
         rc |= sqlite3_bind_int(s, 6, it->bracket);
         rc |= ds_db_bind_angles(s, 7, &it->pose);
         rc |= sqlite3_bind_int64(s, 10, it->pose.lamps);
-        rc |= sqlite3_bind_int(s, 11, it->pose.laser);
+        rc |= sqlite3_bind_int64(s, 11, it->pose.lasers);
         rc |= sqlite3_bind_int(s, 12, it->exposure_us);
         rc |= sqlite3_bind_double(s, 13, it->gain);
         if (rc == SQLITE_OK)
@@ -292,7 +292,7 @@ static void read_item(sqlite3_stmt *s, struct ds_plan_item *it)
         it->bracket = sqlite3_column_int(s, 4);
         ds_db_column_angles(s, 5, &it->pose);
         it->pose.lamps = (uint32_t)sqlite3_column_int64(s, 8);
-        it->pose.laser = sqlite3_column_int(s, 9) != 0;
+        it->pose.lasers = (uint32_t)sqlite3_column_int64(s, 9);
         it->exposure_us = sqlite3_column_int(s, 10);
         it->gain = sqlite3_column_double(s, 11);
 }

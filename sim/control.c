@@ -39,12 +39,16 @@ static bool lamp_lit(const struct gn_pose *st, size_t i)
 
 json_t *sim_pose_json(const struct rig_config *rc, const struct gn_pose *st)
 {
-        json_t *o = json_pack("{s:o, s:b}", "lamps", json_array(), "laser", st->laser);
+        json_t *o = json_pack("{s:o, s:o, s:b}", "lamps", json_array(), "lasers", json_array(),
+                              "laser", st->lasers != 0);
         int r = o ? 0 : -ENOMEM;
 
         for (size_t i = 0; r >= 0 && i < rc->n_lamps; i++)
                 r = json_array_append_new(json_object_get(o, "lamps"),
                                           json_boolean(lamp_lit(st, i)));
+        for (size_t i = 0; r >= 0 && i < rc->n_lasers; i++)
+                r = json_array_append_new(json_object_get(o, "lasers"),
+                                          json_boolean(st->lasers >> i & 1));
         for (int i = 0; r >= 0 && i < GN_ROLE_COUNT; i++) {
                 json_t *deg = gn_pose_has(st, i) ? json_real(st->deg[i]) : json_null();
                 r = json_object_set_new(o, gn_role_name(i), deg);
@@ -76,13 +80,15 @@ static json_t *lamp_json(struct sim_control *c, const struct gn_pose *st, int i)
                          "on", lamp_lit(st, (size_t)i));
 }
 
-static json_t *laser_json(struct sim_control *c, const struct gn_pose *st)
+/* Laser i's plane and state; null when the rig has no laser i. */
+static json_t *laser_json(struct sim_control *c, const struct gn_pose *st, int i)
 {
         double n[3], d;
 
-        if (!c->rc->has_laser || sim_laser_plane(c->scene, n, &d) < 0)
+        if (sim_laser_plane(c->scene, i, n, &d) < 0)
                 return json_null();
-        return json_pack("{s:o, s:f, s:b}", "n", reals(n, 3), "d", d, "on", st->laser);
+        return json_pack("{s:s, s:o, s:f, s:b}", "name", c->rc->lasers[i].name, "n", reals(n, 3),
+                         "d", d, "on", (st->lasers >> i & 1) != 0);
 }
 
 /* ---- commands ---- */
@@ -100,7 +106,7 @@ static int do_state(struct sim_control *c, struct sim_req *rq, json_t **reply)
 static int do_geometry(struct sim_control *c, struct sim_req *rq, json_t **reply)
 {
         struct gn_pose st;
-        json_t *cams = json_array(), *lamps = json_array();
+        json_t *cams = json_array(), *lamps = json_array(), *lasers = json_array();
         int r = 0;
 
         sim_emu_snapshot(c->emu, &st);
@@ -108,13 +114,17 @@ static int do_geometry(struct sim_control *c, struct sim_req *rq, json_t **reply
                 r = json_array_append_new(cams, camera_json(c, &st, (int)i));
         for (size_t i = 0; r >= 0 && i < c->rc->n_lamps; i++)
                 r = json_array_append_new(lamps, lamp_json(c, &st, (int)i));
+        for (size_t i = 0; r >= 0 && i < c->rc->n_lasers; i++)
+                r = json_array_append_new(lasers, laser_json(c, &st, (int)i));
         if (r < 0) {
                 json_decref(cams);
                 json_decref(lamps);
+                json_decref(lasers);
                 return sim_req_fail(rq, EIO, "geometry of the scene unavailable");
         }
-        *reply = json_pack("{s:b, s:o, s:o, s:o, s:o}", "ok", 1, "state", sim_pose_json(c->rc, &st),
-                           "cameras", cams, "lamps", lamps, "laser", laser_json(c, &st));
+        *reply = json_pack("{s:b, s:o, s:o, s:o, s:o, s:o}", "ok", 1, "state",
+                           sim_pose_json(c->rc, &st), "cameras", cams, "lamps", lamps, "lasers",
+                           lasers, "laser", laser_json(c, &st, 0));
         return 0;
 }
 

@@ -810,8 +810,9 @@ static int add_devices(struct sim_gcode *g)
         for (size_t i = 0; r >= 0 && i < rc->n_lamps; i++)
                 if (is_laser(&rc->lamps[i]))
                         r = bus_of(g, rc->lamps[i].bus, GC_FLAVOR_HORUS, rc->lamps[i].name, &b);
-        if (r >= 0 && rc->has_laser && is_laser(&rc->laser))
-                r = bus_of(g, rc->laser.bus, GC_FLAVOR_HORUS, rc->laser.name, &b);
+        for (size_t i = 0; r >= 0 && i < rc->n_lasers; i++)
+                if (is_laser(&rc->lasers[i]))
+                        r = bus_of(g, rc->lasers[i].bus, GC_FLAVOR_HORUS, rc->lasers[i].name, &b);
         return r;
 }
 
@@ -893,7 +894,8 @@ void sim_gcode_snapshot(struct sim_gcode *g, struct gn_pose *st)
                 }
                 for (size_t l = 0; l < rc->n_lamps && l < GN_POSE_MAX_LAMPS; l++)
                         st->lamps |= (uint32_t)laser_on(b, &rc->lamps[l]) << l;
-                st->laser = st->laser || (rc->has_laser && laser_on(b, &rc->laser));
+                for (size_t l = 0; l < rc->n_lasers; l++)
+                        st->lasers |= (uint32_t)laser_on(b, &rc->lasers[l]) << l;
                 pthread_mutex_unlock(&b->lock);
         }
 }

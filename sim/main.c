@@ -16,6 +16,7 @@
 #include "common/fileio.h"
 #include "common/log.h"
 #include "common/rigconf.h"
+#include "common/sigroute.h"
 #include "drivers/registry.h"
 #include "sim/frame_server.h"
 #include "sim/modbus_emu.h"
@@ -195,11 +196,13 @@ static int run(const struct args *a)
                 control = NULL;
         if ((a->control || a->dir) && !control)
                 return -ENOMEM;
-        /* Blocked before any thread starts, so that only sigwait() below takes them. */
+        /* Blocked before any thread of ours starts, so that only sigwait() below takes them. */
         sigemptyset(&sigs);
         sigaddset(&sigs, SIGTERM);
         sigaddset(&sigs, SIGINT);
-        sigprocmask(SIG_BLOCK, &sigs, NULL);
+        r = gn_sigroute_here((const int[]){SIGTERM, SIGINT}, 2);
+        if (r < 0)
+                return r;
 
         r = load(a, &rc, &scene);
         if (r >= 0)

@@ -1,5 +1,6 @@
 /* modbus_emu.c - emulated Modbus controllers of gonio-sim: axis drives of the
- * gonio-default register profile (docs/modbus-profile.md) and relay modules,
+ * register profiles of docs/modbus-profile.md (the generic family of the rig file's
+ * profiles and "gonio-default", and Oriental Motor's AZ series, "azd") and relay modules,
  * served by the real libmodbus on pseudo-terminals (RTU) or loopback TCP. The drive
  * physics live in drive.c and the pty setup in pty.c; this file maps registers and coils
  * onto them and frames the requests.
@@ -15,7 +16,9 @@
  * - Device state (drives, registers, coils) is guarded by one mutex, shared with
  *   sim_emu_snapshot() on the frame server's thread. Axis registers are refreshed
  *   from the drive model right before each reply; commands take
- *   effect right after the reply that accepted them.
+ *   effect right after the reply that accepted them. Each profile family has its
+ *   own register mapping (struct emu_family) over the one drive model, so both
+ *   families move with the same timing.
  * - Emulated time is CLOCK_MONOTONIC since creation times time_scale.
  * - The threads poll with a short timeout and check the stop flag, so
  *   sim_emu_free() returns promptly. */
@@ -53,7 +56,9 @@
 
 struct emu_axis {
         struct sim_drive drive;
-        struct rig_modbus_profile prof;
+        const struct mbax_conf *conf; /* unit, family, profile: borrowed from the rig config */
+        const struct emu_family *fam;
+        uint16_t inputs; /* azd: the driver input command (lower word) as last written */
 };
 
 struct emu_unit {
@@ -132,70 +137,23 @@ static int32_t get_i32(const uint16_t *regs, uint16_t addr, bool swap)
 
 /* ---- axis drive registers ---- */
 
-static void axis_refresh(struct emu_axis *a, modbus_mapping_t *map, double now)
+/* How a register-map family of drives is emulated: its registers (span, refresh before
+ * each reply) and what a request does (check before the reply: a Modbus exception or 0;
+ * execute after it). */
+struct emu_family {
+        const struct mbax_family *family;
+        int (*span)(const struct emu_axis *a);
+        void (*refresh)(struct emu_axis *a, modbus_mapping_t *map, double now);
+        int (*check)(struct emu_axis *a, const modbus_mapping_t *map, const uint8_t *req, int len,
+                     int off, double now);
+        void (*execute)(struct emu_axis *a, modbus_mapping_t *map, const uint8_t *req, int len,
+                        int off, double now);
+};
+
+/* The value a write request (at PDU offset off) puts into register reg, or -1. */
+static int written_value(uint16_t reg, const uint8_t *req, int len, int off)
 {
-        const struct rig_modbus_profile *p = &a->prof;
-        struct sim_drive_status st = sim_drive_status(&a->drive, now);
-
-        map->tab_registers[p->reg_status] =
-                (uint16_t)(1u << 0 | (unsigned)st.homed << 1 | (unsigned)st.moving << 2 |
-                           (unsigned)st.in_position << 3 | (unsigned)st.fault << 4 |
-                           (unsigned)st.home_switch << 5);
-        map->tab_registers[p->reg_fault] = (uint16_t)a->drive.fault_code;
-        long long counts = llround(sim_drive_position(&a->drive, now) * p->scale);
-        put_u32(map->tab_registers, p->reg_position, p->word_swap, (uint32_t)counts);
-}
-
-static double reg_speed(const struct emu_axis *a, const modbus_mapping_t *map)
-{
-        return map->tab_registers[a->prof.reg_speed] / 10.0;
-}
-
-static double reg_accel(const struct emu_axis *a, const modbus_mapping_t *map)
-{
-        return map->tab_registers[a->prof.reg_accel] / 10.0;
-}
-
-/* Modbus exception for command cmd, or 0 when the drive accepts it. */
-static int axis_check(struct emu_axis *a, const modbus_mapping_t *map, int cmd, double now)
-{
-        const struct rig_modbus_profile *p = &a->prof;
-
-        if (cmd == p->cmd_move || cmd == p->cmd_home) {
-                int r = sim_drive_check_move(&a->drive, now, reg_speed(a, map), reg_accel(a, map));
-                return r == -EIO      ? MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE
-                       : r == -EINVAL ? MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE
-                                      : 0;
-        }
-        if (cmd == p->cmd_stop || cmd == p->cmd_reset)
-                return 0;
-        return MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE;
-}
-
-static void axis_execute(struct emu_axis *a, modbus_mapping_t *map, int cmd, double now)
-{
-        const struct rig_modbus_profile *p = &a->prof;
-        double v = reg_speed(a, map), acc = reg_accel(a, map);
-
-        /* Checked by axis_check before the reply. */
-        if (cmd == p->cmd_move)
-                (void)sim_drive_move(&a->drive, now,
-                                     get_i32(map->tab_registers, p->reg_target, p->word_swap) /
-                                             p->scale,
-                                     v, acc);
-        else if (cmd == p->cmd_home)
-                (void)sim_drive_home(&a->drive, now, v, acc);
-        else if (cmd == p->cmd_stop)
-                sim_drive_stop(&a->drive, now);
-        else if (cmd == p->cmd_reset)
-                sim_drive_reset(&a->drive);
-        map->tab_registers[p->reg_command] = 0;
-}
-
-/* The value a write request (at PDU offset off) puts into the command register, or -1. */
-static int command_in_request(const struct emu_axis *a, const uint8_t *req, int len, int off)
-{
-        uint16_t reg = a->prof.reg_command, addr = be16(req + off + 1);
+        uint16_t addr = be16(req + off + 1);
 
         if (req[off] == MODBUS_FC_WRITE_SINGLE_REGISTER && len >= off + 5)
                 return addr == reg ? be16(req + off + 3) : -1;
@@ -208,22 +166,184 @@ static int command_in_request(const struct emu_axis *a, const uint8_t *req, int 
         return be16(req + at);
 }
 
+/* The drive's position at now in counts of the axis's scale. */
+static uint32_t position_counts(struct emu_axis *a, double now)
+{
+        return (uint32_t)llround(sim_drive_position(&a->drive, now) * a->conf->scale);
+}
+
+/* -- generic: a rig_modbus_profile's registers, commands in one register -- */
+
+static int generic_span(const struct emu_axis *a)
+{
+        const struct rig_modbus_profile *p = a->conf->profile;
+        int n = MAX(p->reg_status, p->reg_fault) + 1;
+
+        n = MAX(n, MAX(p->reg_position, p->reg_target) + 2);
+        return MAX(n, MAX(p->reg_speed, MAX(p->reg_accel, p->reg_command)) + 1);
+}
+
+static void generic_refresh(struct emu_axis *a, modbus_mapping_t *map, double now)
+{
+        const struct rig_modbus_profile *p = a->conf->profile;
+        struct sim_drive_status st = sim_drive_status(&a->drive, now);
+
+        map->tab_registers[p->reg_status] =
+                (uint16_t)(1u << 0 | (unsigned)st.homed << 1 | (unsigned)st.moving << 2 |
+                           (unsigned)st.in_position << 3 | (unsigned)st.fault << 4 |
+                           (unsigned)st.home_switch << 5);
+        map->tab_registers[p->reg_fault] = (uint16_t)a->drive.fault_code;
+        put_u32(map->tab_registers, p->reg_position, p->word_swap, position_counts(a, now));
+}
+
+static double reg_speed(const struct emu_axis *a, const modbus_mapping_t *map)
+{
+        return map->tab_registers[a->conf->profile->reg_speed] / 10.0;
+}
+
+static double reg_accel(const struct emu_axis *a, const modbus_mapping_t *map)
+{
+        return map->tab_registers[a->conf->profile->reg_accel] / 10.0;
+}
+
+/* Modbus exception for the command a request writes, or 0 when the drive accepts it (or
+ * it writes none). */
+static int generic_check(struct emu_axis *a, const modbus_mapping_t *map, const uint8_t *req,
+                         int len, int off, double now)
+{
+        const struct rig_modbus_profile *p = a->conf->profile;
+        int cmd = written_value(p->reg_command, req, len, off);
+
+        if (cmd < 0 || cmd == p->cmd_stop || cmd == p->cmd_reset)
+                return 0;
+        if (cmd == p->cmd_move || cmd == p->cmd_home) {
+                int r = sim_drive_check_move(&a->drive, now, reg_speed(a, map), reg_accel(a, map));
+                return r == -EIO      ? MODBUS_EXCEPTION_SLAVE_OR_SERVER_FAILURE
+                       : r == -EINVAL ? MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE
+                                      : 0;
+        }
+        return MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE;
+}
+
+static void generic_execute(struct emu_axis *a, modbus_mapping_t *map, const uint8_t *req, int len,
+                            int off, double now)
+{
+        const struct rig_modbus_profile *p = a->conf->profile;
+        int cmd = written_value(p->reg_command, req, len, off);
+        double v = reg_speed(a, map), acc = reg_accel(a, map);
+
+        if (cmd < 0)
+                return;
+        /* Checked by generic_check before the reply. */
+        if (cmd == p->cmd_move)
+                (void)sim_drive_move(&a->drive, now,
+                                     get_i32(map->tab_registers, p->reg_target, p->word_swap) /
+                                             a->conf->scale,
+                                     v, acc);
+        else if (cmd == p->cmd_home)
+                (void)sim_drive_home(&a->drive, now, v, acc);
+        else if (cmd == p->cmd_stop)
+                sim_drive_stop(&a->drive, now);
+        else if (cmd == p->cmd_reset)
+                sim_drive_reset(&a->drive);
+        map->tab_registers[p->reg_command] = 0;
+}
+
+/* -- azd: Oriental Motor AZ series (drivers/axis/modbus/azd.c) -- */
+
+static int azd_span(const struct emu_axis *a)
+{
+        (void)a;
+        return AZD_REG_FEEDBACK_POS + 2;
+}
+
+static void azd_refresh(struct emu_axis *a, modbus_mapping_t *map, double now)
+{
+        struct sim_drive_status st = sim_drive_status(&a->drive, now);
+        uint16_t *regs = map->tab_registers;
+
+        put_u32(regs, AZD_REG_OUTPUT, false,
+                (st.homed ? AZD_OUT_HOME_END : 0) | (!st.moving && !st.fault ? AZD_OUT_READY : 0) |
+                        (st.fault ? AZD_OUT_ALM_A : 0) | (st.moving ? AZD_OUT_MOVE : 0) |
+                        (st.in_position ? AZD_OUT_IN_POS : 0));
+        put_u32(regs, AZD_REG_ALARM, false,
+                a->drive.fault_code == SIM_DRIVE_FAULT_STALL ? AZD_ALARM_DEVIATION
+                                                             : (uint32_t)a->drive.fault_code);
+        put_u32(regs, AZD_REG_FEEDBACK_POS, false, position_counts(a, now));
+}
+
+static int azd_check(struct emu_axis *a, const modbus_mapping_t *map, const uint8_t *req, int len,
+                     int off, double now)
+{
+        (void)a, (void)map, (void)req, (void)len, (void)off, (void)now;
+        return 0; /* the AZ takes the data; a move during an alarm starts nothing */
+}
+
+/* A direct data operation whose trigger a request set to 1: an absolute positioning at the
+ * block's speed and starting rate starts (not during an alarm), and the trigger returns
+ * to 0. Other operation types are not emulated. */
+static void azd_direct(struct emu_axis *a, uint16_t *regs, double now)
+{
+        double s = a->conf->scale;
+
+        if (get_i32(regs, AZD_REG_DIRECT_TRIG, false) != 1)
+                return;
+        put_u32(regs, AZD_REG_DIRECT_TRIG, false, 0);
+        if (get_i32(regs, AZD_REG_DIRECT + 2, false) != AZD_OP_ABSOLUTE) {
+                log_warning("axis '%s': direct data operation type %d is not emulated",
+                            a->drive.conf->name, get_i32(regs, AZD_REG_DIRECT + 2, false));
+                return;
+        }
+        (void)sim_drive_move(&a->drive, now, get_i32(regs, AZD_REG_DIRECT + 4, false) / s,
+                             get_i32(regs, AZD_REG_DIRECT + 6, false) / s,
+                             get_i32(regs, AZD_REG_DIRECT + 8, false) / s);
+}
+
+/* Rising edges of the driver input command: ZHOME homes (at the axis's max_speed and accel,
+ * as the drive's return-to-home parameters), STOP stops, ALM-RST clears the alarm. */
+static void azd_inputs(struct emu_axis *a, uint16_t in, double now)
+{
+        uint16_t rising = in & (uint16_t)~a->inputs;
+
+        a->inputs = in;
+        if (rising & AZD_IN_STOP)
+                sim_drive_stop(&a->drive, now);
+        if (rising & AZD_IN_ALM_RST)
+                sim_drive_reset(&a->drive);
+        if (rising & AZD_IN_ZHOME)
+                (void)sim_drive_home(&a->drive, now, a->drive.conf->max_speed,
+                                     a->drive.conf->accel);
+}
+
+static void azd_execute(struct emu_axis *a, modbus_mapping_t *map, const uint8_t *req, int len,
+                        int off, double now)
+{
+        int in = written_value(AZD_REG_INPUT + 1, req, len, off);
+
+        if (written_value(AZD_REG_DIRECT_TRIG + 1, req, len, off) >= 0)
+                azd_direct(a, map->tab_registers, now);
+        if (in >= 0)
+                azd_inputs(a, (uint16_t)in, now);
+}
+
+static const struct emu_family emu_families[] = {
+        {&mbax_generic, generic_span, generic_refresh, generic_check, generic_execute},
+        {&mbax_azd, azd_span, azd_refresh, azd_check, azd_execute},
+};
+
 static int axis_reply(struct emu_unit *u, modbus_t *ctx, const uint8_t *req, int len, int off,
                       double now)
 {
         struct emu_axis *a = &u->axis;
 
-        axis_refresh(a, u->map, now);
-        int cmd = command_in_request(a, req, len, off);
-        if (cmd >= 0) {
-                int exc = axis_check(a, u->map, cmd, now);
-                if (exc)
-                        return modbus_reply_exception(ctx, req, (unsigned)exc);
-        }
+        a->fam->refresh(a, u->map, now);
+        int exc = a->fam->check(a, u->map, req, len, off, now);
+        if (exc)
+                return modbus_reply_exception(ctx, req, (unsigned)exc);
         int r = modbus_reply(ctx, req, len, u->map);
-        if (r >= 0 && cmd >= 0) {
-                axis_execute(a, u->map, cmd, now);
-                axis_refresh(a, u->map, now);
+        if (r >= 0) {
+                a->fam->execute(a, u->map, req, len, off, now);
+                a->fam->refresh(a, u->map, now);
         }
         return r;
 }
@@ -624,15 +744,6 @@ static int add_unit(struct sim_emu *e, const char *bus, int id, bool axis, const
         return 0;
 }
 
-/* Number of holding registers a profile needs (32-bit values take two). */
-static int profile_span(const struct rig_modbus_profile *p)
-{
-        int n = MAX(p->reg_status, p->reg_fault) + 1;
-        n = MAX(n, MAX(p->reg_position, p->reg_target) + 2);
-        n = MAX(n, MAX(p->reg_speed, MAX(p->reg_accel, p->reg_command)) + 1);
-        return n;
-}
-
 static uint16_t reg_tenths(double v)
 {
         return (uint16_t)CLAMP(llround(v * 10.0), 1, 65535);
@@ -648,14 +759,23 @@ static int add_axis(struct sim_emu *e, const struct rig_axis_conf *c)
                 return r;
 
         struct emu_axis *a = &u->axis;
-        a->prof = *mc->profile;
+        a->conf = mc;
+        for (size_t i = 0; i < ELEMENTSOF(emu_families); i++)
+                if (emu_families[i].family == mc->family)
+                        a->fam = &emu_families[i];
+        if (!a->fam)
+                return log_error_errno(SYNTHETIC_ERRNO(EOPNOTSUPP),
+                                       "axis '%s': profile family '%s' is not emulated", c->name,
+                                       mc->family->name);
         sim_drive_init(&a->drive, c);
 
-        u->map = modbus_mapping_new(0, 0, profile_span(&a->prof), 0);
+        u->map = modbus_mapping_new(0, 0, a->fam->span(a), 0);
         if (!u->map)
                 return log_error_errno(errno, "axis '%s': %m", c->name);
-        u->map->tab_registers[a->prof.reg_speed] = reg_tenths(c->max_speed);
-        u->map->tab_registers[a->prof.reg_accel] = reg_tenths(c->accel);
+        if (mc->profile) { /* the generic family's rate registers */
+                u->map->tab_registers[mc->profile->reg_speed] = reg_tenths(c->max_speed);
+                u->map->tab_registers[mc->profile->reg_accel] = reg_tenths(c->accel);
+        }
         return 0;
 }
 
@@ -682,8 +802,9 @@ static int add_devices(struct sim_emu *e)
         for (size_t i = 0; r >= 0 && i < rc->n_lamps; i++)
                 if (strcmp(rc->lamps[i].backend.name, "modbus-coil") == 0)
                         r = add_coil(e, &rc->lamps[i]);
-        if (r >= 0 && rc->has_laser && strcmp(rc->laser.backend.name, "modbus-coil") == 0)
-                r = add_coil(e, &rc->laser);
+        for (size_t i = 0; r >= 0 && i < rc->n_lasers; i++)
+                if (strcmp(rc->lasers[i].backend.name, "modbus-coil") == 0)
+                        r = add_coil(e, &rc->lasers[i]);
         for (size_t i = 0; r >= 0 && i < e->n_units; i++) {
                 struct emu_unit *u = &e->units[i];
                 if (!u->is_axis && !(u->map = modbus_mapping_new(u->n_coils, 0, 0, 0)))
@@ -767,7 +888,8 @@ void sim_emu_snapshot(struct sim_emu *e, struct gn_pose *st)
         }
         for (size_t i = 0; i < rc->n_lamps && i < GN_POSE_MAX_LAMPS; i++)
                 st->lamps |= (uint32_t)coil_state(e, &rc->lamps[i]) << i;
-        st->laser = rc->has_laser && coil_state(e, &rc->laser);
+        for (size_t i = 0; i < rc->n_lasers; i++)
+                st->lasers |= (uint32_t)coil_state(e, &rc->lasers[i]) << i;
         pthread_mutex_unlock(&e->lock);
         if (e->gcode)
                 sim_gcode_snapshot(e->gcode, st);

@@ -49,13 +49,13 @@ int sim_lamp_position(const struct sim_scene *s, const struct gn_pose *st, int l
         return 0;
 }
 
-int sim_laser_plane(const struct sim_scene *s, double n[3], double *d)
+int sim_laser_plane(const struct sim_scene *s, int laser, double n[3], double *d)
 {
         double phi;
 
-        if (!s || !s->rc->has_laser)
+        if (!s || laser < 0 || (size_t)laser >= s->rc->n_lasers)
                 return -ENOENT;
-        phi = s->rc->laser.laser_azimuth_deg * M_PI / 180;
+        phi = s->rc->lasers[laser].laser_azimuth_deg * M_PI / 180;
         n[0] = -sin(phi);
         n[1] = cos(phi);
         n[2] = 0;

@@ -38,6 +38,13 @@ struct emitter {
         float r2, radiance;
 };
 
+/* A lit laser's sheet in the object frame: plane n.x = 0 through the axis, emitter o. */
+struct laser_sheet {
+        struct v3 n, o;
+        float sigma, power; /* Gaussian half-width (mm), power */
+        int ch;             /* colour channel */
+};
+
 struct fctx {
         const struct sim_scene *s;
         const struct rig_camera_conf *cc;
@@ -53,10 +60,8 @@ struct fctx {
         struct v3 *dome_dir; /* object frame */
         float *dome_w;
         int n_dome;
-        bool laser;
-        struct v3 lz_n, lz_o;
-        float lz_sigma, lz_power;
-        int lz_ch;
+        struct laser_sheet lz[RIG_MAX_LASERS]; /* the lit lasers */
+        int n_lz;
         double escale;
         struct sensor_rt sensor;
         struct gn_frame *out;
@@ -281,7 +286,8 @@ static void shade_lamps(const struct fctx *c, struct hits *h)
         }
 }
 
-static void shade_laser(const struct fctx *c, struct hits *h)
+/* Adds laser sheet lz's light to the hits of h. */
+static void shade_laser(const struct fctx *c, const struct laser_sheet *lz, struct hits *h)
 {
         struct RTCRay16 r;
         PACKET_MASK on[LANES];
@@ -290,20 +296,20 @@ static void shade_laser(const struct fctx *c, struct hits *h)
         int any = 0;
 
         for (int i = 0; i < LANES; i++) /* most packets miss the sheet: test before filling */
-                any |= h->on[i] && fabsf(v3_dot(c->lz_n, h->p[i])) <= 5 * c->lz_sigma;
+                any |= h->on[i] && fabsf(v3_dot(lz->n, h->p[i])) <= 5 * lz->sigma;
         if (!any)
                 return;
         for (int i = 0; i < LANES; i++) {
-                float dp = h->on[i] ? v3_dot(c->lz_n, h->p[i]) : INFINITY;
+                float dp = h->on[i] ? v3_dot(lz->n, h->p[i]) : INFINITY;
                 struct v3 l;
                 on[i] = 0;
                 ray_off(&r, i);
-                if (fabsf(dp) > 5 * c->lz_sigma)
+                if (fabsf(dp) > 5 * lz->sigma)
                         continue;
-                l = v3_sub(c->lz_o, h->p[i]);
+                l = v3_sub(lz->o, h->p[i]);
                 if (v3_dot(l, h->ng[i]) <= 0)
                         continue;
-                g[i] = expf(-dp * dp / (2 * c->lz_sigma * c->lz_sigma));
+                g[i] = expf(-dp * dp / (2 * lz->sigma * lz->sigma));
                 dist[i] = v3_len(l);
                 ray_set(&r, i, v3_madd(h->p[i], h->ng[i], eps_at(h->p[i])),
                         v3_scale(l, 1 / dist[i]), dist[i] * (1 - 1e-5f));
@@ -313,7 +319,7 @@ static void shade_laser(const struct fctx *c, struct hits *h)
         for (int i = 0; i < LANES; i++)
                 if (on[i])
                         accumulate(h, i, v3(r.dir_x[i], r.dir_y[i], r.dir_z[i]),
-                                   c->lz_power * g[i] / dist[i], c->lz_ch);
+                                   lz->power * g[i] / dist[i], lz->ch);
 }
 
 static void shade_dome(const struct fctx *c, struct hits *h)
@@ -410,8 +416,8 @@ static void shade_packet(const struct fctx *c, struct RTCRayHit16 *rh, const int
                 resolve_lane(c, rh, i, pix[i], h);
         }
         shade_lamps(c, h);
-        if (c->laser)
-                shade_laser(c, h);
+        for (int i = 0; i < c->n_lz; i++)
+                shade_laser(c, &c->lz[i], h);
         if (c->n_dome)
                 shade_dome(c, h);
         shade_mirrors(c, h, depth);
@@ -598,20 +604,25 @@ static void setup_lights(struct fctx *c, const struct gn_pose *st)
         }
 }
 
-static void setup_laser(struct fctx *c, const struct gn_pose *st)
+/* The sheets of the lasers lit in st, in the object frame. */
+static void setup_lasers(struct fctx *c, const struct gn_pose *st)
 {
-        const struct rig_switch_conf *lz = &c->s->rc->laser;
         double n[3], d, Rzi[9];
 
-        c->laser = st->laser && sim_laser_plane(c->s, n, &d) == 0 && lz->laser_width_mm > 0;
-        if (!c->laser)
-                return;
         m3d_rot_z(-pose_deg(st, GN_ROLE_TURNTABLE), Rzi);
-        c->lz_n = to_obj(Rzi, n);
-        c->lz_o = to_obj(Rzi, lz->laser_origin);
-        c->lz_sigma = (float)lz->laser_width_mm;
-        c->lz_power = (float)lz->laser_power;
-        c->lz_ch = CLAMP(lz->laser_channel, 0, 2);
+        c->n_lz = 0;
+        for (size_t i = 0; i < c->s->rc->n_lasers; i++) {
+                const struct rig_switch_conf *lz = &c->s->rc->lasers[i];
+
+                if (!(st->lasers & (UINT32_C(1) << i)) || sim_laser_plane(c->s, i, n, &d) < 0 ||
+                    lz->laser_width_mm <= 0)
+                        continue;
+                c->lz[c->n_lz++] = (struct laser_sheet){.n = to_obj(Rzi, n),
+                                                        .o = to_obj(Rzi, lz->laser_origin),
+                                                        .sigma = (float)lz->laser_width_mm,
+                                                        .power = (float)lz->laser_power,
+                                                        .ch = CLAMP(lz->laser_channel, 0, 2)};
+        }
 }
 
 static int setup_dome(struct fctx *c, const struct gn_pose *st)
@@ -710,7 +721,7 @@ int sim_render(struct sim_scene *s, const struct gn_pose *st, int cam, const str
         c->n_tiles = c->tiles_x * ((c->h + 3) / 4);
         setup_camera(c, st);
         setup_lights(c, st);
-        setup_laser(c, st);
+        setup_lasers(c, st);
         r = setup_dome(c, st);
         if (r >= 0)
                 r = setup_frame(c, exp, seq, out);

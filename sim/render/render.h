@@ -17,7 +17,7 @@
 struct sim_scene;
 
 /* The rig's state when a frame is exposed is a struct gn_pose (common/pose.h): angles by
- * axis role, lamps as a bit set by rig-file index, the laser. An angle that is NAN (the rig
+ * axis role, lamps and lasers as bit sets by rig-file index. An angle that is NAN (the rig
  * has no axis of that role) renders as 0. */
 
 /* Exposure of one frame. 0 fields take the camera's defaults from the rig file. */
@@ -74,8 +74,9 @@ int sim_camera_geom(const struct sim_scene *s, const struct gn_pose *st, int cam
 /* World position (mm) of lamp i in state st. Returns 0 or -EINVAL. */
 int sim_lamp_position(const struct sim_scene *s, const struct gn_pose *st, int lamp, double out[3]);
 
-/* The laser plane in world coordinates as n.x + d = 0 with |n| = 1. Returns 0 or -ENOENT. */
-int sim_laser_plane(const struct sim_scene *s, double n[3], double *d);
+/* The plane of laser `laser` (rig-file index) in world coordinates as n.x + d = 0 with
+ * |n| = 1. Returns 0 or -ENOENT (no such laser). */
+int sim_laser_plane(const struct sim_scene *s, int laser, double n[3], double *d);
 
 /* Frees the arrays of a truth struct. */
 void sim_truth_free(struct sim_truth *t);

@@ -134,6 +134,18 @@ void aps_render_light(struct apscene *s, int cam, double tt, const double p[3], 
         render(s, cam, tt, 0, s->probe, f, flags, truth);
 }
 
+void aps_render_view(struct apscene *s, int cam, double elevation_deg, double tt, const double p[3],
+                     struct gn_frame *f, unsigned flags, struct sim_truth *truth)
+{
+        struct rig_camera_conf *cc = &s->t.rc->cameras[cam];
+        double keep = cc->elevation_deg;
+
+        CHECK(cam >= 0 && cam < s->o.n_cameras);
+        cc->elevation_deg = elevation_deg; /* read by the renderer at each frame */
+        aps_render_light(s, cam, tt, p, f, flags, truth);
+        cc->elevation_deg = keep;
+}
+
 void aps_lamp_position(const struct apscene *s, int lamp, double arm, double p[3])
 {
         struct gn_pose st = {{0, arm, NAN}, 0, false};

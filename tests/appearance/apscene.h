@@ -69,6 +69,12 @@ void aps_render_lamp(struct apscene *s, int cam, double tt, double arm, int lamp
 void aps_render_light(struct apscene *s, int cam, double tt, const double p[3], struct gn_frame *f,
                       unsigned flags, struct sim_truth *truth);
 
+/* Like aps_render_light with camera cam moved to elevation_deg (same distance, azimuth and
+ * target): a view between the dataset's. sim_camera_geom of the scene gives its geometry only
+ * during the call; the camera is put back after. */
+void aps_render_view(struct apscene *s, int cam, double elevation_deg, double tt, const double p[3],
+                     struct gn_frame *f, unsigned flags, struct sim_truth *truth);
+
 /* World position (mm) of lamp `lamp` with the light arm at arm degrees. */
 void aps_lamp_position(const struct apscene *s, int lamp, double arm, double p[3]);
 

@@ -5,6 +5,9 @@
 
 #include "appearance/fit.h"
 #include "appearance/sh.h"
+#ifdef AP_CALFILE
+#include "calib/calfile.h"
+#endif
 #include "common/cleanup.h"
 #include "drivers/registry.h"
 #include "tests/appearance/apscene.h"
@@ -48,11 +51,18 @@ static void test_scene(void)
                 _cleanup_(ds_closep) struct ds *d = aps_make_dataset(&s, path);
                 CHECK_INT(ds_count(d), 2 * 18 * 6);
         }
-        fprintf(stderr, "dataset of 120 captures in %.2f s\n", now_s() - t0);
+        fprintf(stderr, "dataset of %d captures in %.2f s\n", 2 * 18 * 6, now_s() - t0);
         aps_render_lamp(&s, 0, 30, 60, 2, &a, 0, NULL);
         aps_lamp_position(&s, 2, 60, p);
         aps_render_light(&s, 0, 30, p, &b, 0, NULL);
         CHECK(tu_frames_equal(&a, &b));
+        gn_frame_free_data(&b);
+        aps_render_view(&s, 0, 15, 30, p, &b, 0, NULL); /* the camera's own elevation */
+        CHECK(tu_frames_equal(&a, &b));
+        gn_frame_free_data(&b);
+        aps_render_view(&s, 0, 25, 30, p, &b, 0, NULL);
+        CHECK(!tu_frames_equal(&a, &b));
+        CHECK(s.t.rc->cameras[0].elevation_deg == 15);
         for (int l = 0; l < o.n_lamps; l++) {
                 gn_frame_free_data(&a);
                 aps_render_lamp(&s, 0, 0, 0, l, &a, 0, NULL);
@@ -68,17 +78,13 @@ static void test_scene(void)
         aps_close(&s);
 }
 
-/* The model's value of channel ch at pixel p of view v for a point light of the rig's
- * intensity at P (object frame) seen from surface point X: the reference evaluation. */
-static double model_value(const struct ap_model *m, const struct ap_view *v, size_t p,
-                          const double P[3], const float X[3], int ch)
+/* The model's radiance T of channel ch at pixel p of view v for a light from direction d. */
+static double model_radiance(const struct ap_model *m, const struct ap_view *v, size_t p,
+                             const double d[3], int ch)
 {
-        double d[3] = {P[0] - X[0], P[1] - X[1], P[2] - X[2]}, y[AP_ORDER_MAX * AP_ORDER_MAX];
-        double r = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]), sum = 0;
+        double y[AP_ORDER_MAX * AP_ORDER_MAX], sum = 0;
         int D = 3 * m->n_coef;
 
-        for (int k = 0; k < 3; k++)
-                d[k] /= r;
         ap_sh_eval(m->order, d, y);
         for (int j = 0; j < m->n_coef; j++) {
                 double c = m->mean[j * 3 + ch];
@@ -86,7 +92,21 @@ static double model_value(const struct ap_model *m, const struct ap_view *v, siz
                         c += v->weights[p * m->k + k] * m->basis[k * D + j * 3 + ch];
                 sum += y[j] * c;
         }
-        return sum * m->light_distance_mm * m->light_distance_mm / (r * r);
+        return sum;
+}
+
+/* The model's value of channel ch at pixel p of view v for a point light of the rig's
+ * intensity at P (object frame) seen from surface point X: the reference evaluation. */
+static double model_value(const struct ap_model *m, const struct ap_view *v, size_t p,
+                          const double P[3], const float X[3], int ch)
+{
+        double d[3] = {P[0] - X[0], P[1] - X[1], P[2] - X[2]};
+        double r = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+
+        for (int k = 0; k < 3; k++)
+                d[k] /= r;
+        return model_radiance(m, v, p, d, ch) * m->light_distance_mm * m->light_distance_mm /
+               (r * r);
 }
 
 /* PSNR (peak: full scale) inside the model's mask of view vi relit by a light at world
@@ -178,9 +198,9 @@ static void test_heldout(void)
         CHECK(glossy.mean >= 35 && glossy.worst >= 24);
 }
 
-/* A fit of the dataset at path with the defaults but order P and tiles of 4; *m the model
- * (ap_fit's return). */
-static int fit_at(const char *path, int P, struct ap_model **m, char *err, size_t errlen)
+/* A fit of the dataset at path with the defaults but order P, K components and tiles of 4; *m
+ * the model (ap_fit's return). */
+static int fit_at(const char *path, int P, int K, struct ap_model **m, char *err, size_t errlen)
 {
         _cleanup_(ds_closep) struct ds *d = NULL;
         struct ap_fit_opts o;
@@ -188,7 +208,7 @@ static int fit_at(const char *path, int P, struct ap_model **m, char *err, size_
         CHECK_INT(ds_open(path, &d), 0);
         ap_fit_opts_default(&o);
         o.backends = registry_backends;
-        o.order = P, o.tile = 4;
+        o.order = P, o.k = K, o.tile = 4;
         *m = NULL;
         return ap_fit(d, &o, m, err, errlen);
 }
@@ -236,7 +256,7 @@ static void test_few_lights(void)
         o.n_lamps = 3, o.arm_angles = 5; /* 15 lights: order 3 */
         path = make(dir, "few", &o, &s);
         store_unlit(&s, path, 90);
-        CHECK_INT(fit_at(path, 6, &m, err, sizeof(err)), 0);
+        CHECK_INT(fit_at(path, 6, 12, &m, err, sizeof(err)), 0);
         fprintf(stderr, "notes: %s\n", m->notes);
         CHECK_INT(m->order, 3);
         CHECK_INT(m->n_views, 2);
@@ -272,7 +292,7 @@ static void test_one_side(void)
         o.n_lamps = 4, o.arm_angles = 12, o.intensity *= 3;
         o.lamp_elevation_deg[0] = 20, o.lamp_elevation_deg[1] = 40;
         o.lamp_elevation_deg[2] = 60, o.lamp_elevation_deg[3] = 80;
-        CHECK_INT(fit_at(make(dir, "side", &o, &s), 6, &m, err, sizeof(err)), 0);
+        CHECK_INT(fit_at(make(dir, "side", &o, &s), 6, 12, &m, err, sizeof(err)), 0);
         fprintf(stderr, "notes: %s\n", m->notes);
         CHECK_STR_CONTAINS(m->notes, "lights on part of the sphere only");
         CHECK_STR_CONTAINS(m->notes, "regularised, tikhonov 0.01");
@@ -308,7 +328,7 @@ static void test_no_lamps(void)
         o.turntable_angles = 0;
         path = make(dir, "dark", &o, &s);
         store_unlit(&s, path, 0);
-        CHECK_INT(fit_at(path, 6, &m, err, sizeof(err)), -ENODATA);
+        CHECK_INT(fit_at(path, 6, 12, &m, err, sizeof(err)), -ENODATA);
         CHECK_STR_CONTAINS(err, "no image rows with one lamp lit");
         CHECK_INT(ds_open(path, &d), 0);
         ap_fit_opts_default(&fo);
@@ -317,6 +337,46 @@ static void test_no_lamps(void)
         CHECK_INT(ap_fit(d, &fo, &m, err, sizeof(err)), -EINVAL);
         aps_close(&s);
 }
+
+#ifdef AP_CALFILE
+/* A calibration file with the lamps' sections: used (stated as calibrated), its positions
+ * those of the fit (a lamp moved 100 mm in the file changes the model). */
+static void test_calibration(void)
+{
+        _cleanup_(rm_rfp) char *dir = tu_tmpdir();
+        _cleanup_(ap_model_freep) struct ap_model *m = NULL, *moved = NULL;
+        struct aps_opts o;
+        struct apscene s;
+        char err[512], cal[600];
+        const char *path;
+        double diff = 0;
+
+        aps_opts_default(&o, APS_DIFFUSE);
+        o.n_lamps = 4, o.arm_angles = 12;
+        path = make(dir, "cal", &o, &s);
+        snprintf(cal, sizeof(cal), "%s/calibration.yaml", path);
+        for (int l = 0; l < o.n_lamps; l++) {
+                struct cal_lamp_pos lp = {.rms_mm = 0.1, .n_obs = 10};
+                snprintf(lp.name, sizeof(lp.name), "l%d", l);
+                aps_lamp_position(&s, l, 0, lp.pos);
+                CHECK_INT(cal_lamp_write(cal, &lp, true, err, sizeof(err)), 0);
+        }
+        CHECK_INT(fit_at(path, 4, 12, &m, err, sizeof(err)), 0);
+        fprintf(stderr, "notes: %s\n", m->notes);
+        CHECK_STR_CONTAINS(m->notes, "0 of 2 views' cameras and 96 of 96 lights' lamps calibrated");
+        {
+                struct cal_lamp_pos lp = {.name = "l0", .rms_mm = 0.01, .n_obs = 10};
+                aps_lamp_position(&s, 0, 0, lp.pos);
+                lp.pos[2] += 100;
+                CHECK_INT(cal_lamp_write(cal, &lp, true, err, sizeof(err)), 0);
+        }
+        CHECK_INT(fit_at(path, 4, 12, &moved, err, sizeof(err)), 0);
+        for (int i = 0; i < 48; i++)
+                diff = fmax(diff, fabs(m->mean[i] - moved->mean[i]));
+        CHECK(diff > 1e-3);
+        aps_close(&s);
+}
+#endif
 
 /* gonioctl model fit through the command line: written, read back, not replaced without
  * --force, options checked. */
@@ -354,6 +414,89 @@ static void test_gonioctl(void)
         CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 2);
         CHECK_INT(test_run_gonioctl("model fit /nonexistent", out, sizeof(out)), 6);
         CHECK_INT(test_run_gonioctl("model", out, sizeof(out)), 2);
+        aps_close(&s);
+}
+
+/* Scales the 16-bit samples of f by k and adds b (full scale 1), clipping at full scale. */
+static void expose(struct gn_frame *f, double k, double b)
+{
+        uint16_t *px = (uint16_t *)f->data;
+
+        for (int i = 0; i < f->width * f->height * 3; i++)
+                px[i] = (uint16_t)lrint(fmin(px[i] * k + b * 65535, 65535));
+}
+
+/* The scene's dataset taken as two brackets (2x and 1/2 the exposure, the long one saturated
+ * on the highlights) over a dark frame: merged and dark-subtracted, the fit gives the model
+ * of the plain dataset, in units of its base exposure (the long one, twice the plain's);
+ * order 3 and K = 27, a lossless PCA, to compare the fits alone. */
+/* The hdr dataset of test_hdr at path: per light two brackets (40 ms: 2x, saturating; 10 ms:
+ * 1/2) over one dark frame of 0.02 full scale that every image references. */
+static void make_hdr(struct apscene *s, const char *path)
+{
+        _cleanup_(ds_closep) struct ds *d = NULL;
+        struct ds_capture dk = {.pose = {{0, 0, NAN}, 0}, .exposure_us = 40000, .kind = "dark"};
+        struct gn_frame f;
+
+        CHECK_INT(ds_create(path, "hdr", s->t.rc->text, &d), 0);
+        aps_write_mesh(s, path);
+        snprintf(dk.camera, sizeof(dk.camera), "c0");
+        aps_render_lamp(s, 0, 0, 0, 0, &f, 0, NULL);
+        expose(&f, 0, 0.02);
+        CHECK_INT(ds_store(d, &f, &dk), 0);
+        gn_frame_free_data(&f);
+        for (int v = 0; v < 2; v++)
+                for (int a = 0; a < 12; a++)
+                        for (int l = 0; l < 6; l++)
+                                for (int b = 0; b < 2; b++) {
+                                        struct ds_capture c = {
+                                                .pose = {{180.0 * v, 30.0 * a, NAN}, 1u << l},
+                                                .exposure_us = b ? 10000 : 40000,
+                                                .bracket = b,
+                                                .dark_id = dk.id};
+                                        snprintf(c.camera, sizeof(c.camera), "c0");
+                                        aps_render_lamp(s, 0, 180.0 * v, 30.0 * a, l, &f, 0, NULL);
+                                        expose(&f, b ? 0.5 : 2, 0.02);
+                                        CHECK_INT(ds_store(d, &f, &c), 0);
+                                        gn_frame_free_data(&f);
+                                }
+}
+
+/* The scene's dataset taken as two brackets (2x and 1/2 the exposure, the long one saturated
+ * on the highlights) over a dark frame: merged and dark-subtracted, the fit gives the model
+ * of the plain dataset, in units of its base exposure (the long one, twice the plain's);
+ * order 3 and K = 27, a lossless PCA, to compare the fits alone. */
+static void test_hdr(void)
+{
+        _cleanup_(rm_rfp) char *dir = tu_tmpdir();
+        _cleanup_(ap_model_freep) struct ap_model *plain = NULL, *hdr = NULL;
+        const double d[3] = {0.36, -0.48, 0.8};
+        struct aps_opts o;
+        struct apscene s;
+        char path[512], err[512];
+        double worst = 0;
+
+        aps_opts_default(&o, APS_GLOSSY);
+        o.arm_angles = 12;
+        CHECK_INT(fit_at(make(dir, "plain", &o, &s), 3, 27, &plain, err, sizeof(err)), 0);
+        snprintf(path, sizeof(path), "%s/hdr", dir);
+        make_hdr(&s, path);
+        CHECK_INT(fit_at(path, 3, 27, &hdr, err, sizeof(err)), 0);
+        fprintf(stderr, "notes: %s\n", hdr->notes);
+        CHECK_INT(hdr->n_views, 2);
+        for (size_t v = 0; v < 2; v++)
+                for (int p = 0; p < o.width * o.height; p++) {
+                        if (!plain->views[v].mask[p])
+                                continue;
+                        CHECK(hdr->views[v].mask[p]);
+                        for (int ch = 0; ch < 3; ch++) /* the base: 40 ms, twice the plain's */
+                                worst = fmax(
+                                        worst,
+                                        fabs(2 * model_radiance(plain, &plain->views[v], p, d, ch) -
+                                             model_radiance(hdr, &hdr->views[v], p, d, ch)));
+                }
+        fprintf(stderr, "largest difference of the relit values %.3g\n", worst);
+        CHECK(worst < 1e-4);
         aps_close(&s);
 }
 
@@ -477,11 +620,46 @@ static void bandlimited_frame(const struct apscene *s, double tt, int lamp, doub
  * (order 4; the lamps' falloff and direction from each point, the true mesh, tiles of one
  * pixel), PCA with K = 8 on a 7-dimensional set: the model gives the radiance back to the
  * images' 16-bit precision. */
+/* The dataset of test_bandlimited at path: 2 views x 108 lights of bandlimited_frame. */
+static void make_bandlimited(struct apscene *s, const char *path, const double *basis)
+{
+        static double pts[3 * 96 * 72], coef[48 * 96 * 72];
+        _cleanup_(ds_closep) struct ds *d = NULL;
+        int n = s->o.width * s->o.height;
+
+        CHECK(n <= 96 * 72);
+        CHECK_INT(ds_create(path, "bandlimited", s->t.rc->text, &d), 0);
+        aps_write_mesh(s, path);
+        for (int v = 0; v < 2; v++) {
+                for (int p = 0; p < n; p++) {
+                        if (!sphere_point(s, 90.0 * v, p, &pts[3 * p]))
+                                pts[3 * p] = NAN;
+                        for (int i = 0; i < 48; i++)
+                                coef[48 * p + i] = bl_coef(basis, p, 90.0 * v, i / 3, i % 3);
+                }
+                for (int a = 0; a < 18; a++)
+                        for (int l = 0; l < 6; l++) {
+                                struct ds_capture c = {.pose = {{90.0 * v, 20.0 * a, NAN}, 1u << l},
+                                                       .exposure_us = 20000};
+                                struct gn_frame f;
+                                snprintf(c.camera, sizeof(c.camera), "c0");
+                                bandlimited_frame(s, 90.0 * v, l, 20.0 * a, coef, pts, &f);
+                                CHECK_INT(ds_store(d, &f, &c), 0);
+                                gn_frame_free_data(&f);
+                        }
+        }
+}
+
+/* The whole fit of a synthetic dataset whose radiance on the sphere is exactly band-limited
+ * (order 4; the lamps' falloff and direction from each point, the true mesh, tiles of one
+ * pixel), PCA with K = 8 on a 7-dimensional set: the model gives the radiance back to the
+ * images' 16-bit precision. */
 static void test_bandlimited(void)
 {
         _cleanup_(rm_rfp) char *dir = tu_tmpdir();
         _cleanup_(ap_model_freep) struct ap_model *m = NULL;
-        static double basis[8 * 48], dirs[108][3], pts[3 * 96 * 72], coef[48 * 96 * 72];
+        _cleanup_(ds_closep) struct ds *d = NULL;
+        static double basis[8 * 48], dirs[108][3];
         struct ap_fit_opts fo;
         struct aps_opts o;
         struct apscene s;
@@ -496,27 +674,8 @@ static void test_bandlimited(void)
                 basis[i] = i < 48 ? (i < 3 ? 0.5 / 0.28209479177387814 : 0) : 0.006 * sin(i * 1.3);
         aps_open(&s, &o);
         snprintf(path, sizeof(path), "%s/ds", dir);
-        _cleanup_(ds_closep) struct ds *d = NULL;
-        CHECK_INT(ds_create(path, "bandlimited", s.t.rc->text, &d), 0);
-        aps_write_mesh(&s, path);
-        for (int v = 0; v < 2; v++) {
-                for (int p = 0; p < o.width * o.height; p++)
-                        if (!sphere_point(&s, 90.0 * v, p, &pts[3 * p]))
-                                pts[3 * p] = NAN;
-                for (int p = 0; p < o.width * o.height; p++)
-                        for (int i = 0; i < 48; i++)
-                                coef[48 * p + i] = bl_coef(basis, p, 90.0 * v, i / 3, i % 3);
-                for (int a = 0; a < 18; a++)
-                        for (int l = 0; l < 6; l++) {
-                                struct ds_capture c = {.pose = {{90.0 * v, 20.0 * a, NAN}, 1u << l},
-                                                       .exposure_us = 20000};
-                                struct gn_frame f;
-                                snprintf(c.camera, sizeof(c.camera), "c0");
-                                bandlimited_frame(&s, 90.0 * v, l, 20.0 * a, coef, pts, &f);
-                                CHECK_INT(ds_store(d, &f, &c), 0);
-                                gn_frame_free_data(&f);
-                        }
-        }
+        make_bandlimited(&s, path, basis);
+        CHECK_INT(ds_open(path, &d), 0);
         ap_fit_opts_default(&fo);
         fo.backends = registry_backends;
         fo.order = 4, fo.k = 8, fo.reg = AP_REG_TSVD, fo.reg_param = 1e-4, fo.tile = 1;
@@ -524,22 +683,18 @@ static void test_bandlimited(void)
         sphere_dirs(dirs);
         for (size_t v = 0; v < m->n_views; v++)
                 for (int p = 0; p < o.width * o.height; p++) {
-                        double X[3];
+                        double X[3], y[16], truth;
                         if (!sphere_point(&s, 90.0 * v, p, X))
                                 continue;
                         CHECK(m->views[v].mask[p]);
                         for (int j = 0; j < 108; j += 5) {
-                                double y[16], pred = 0, truth = 0;
                                 ap_sh_eval(4, dirs[j], y);
-                                for (int q = 0; q < 16; q++) {
-                                        double w = m->mean[q * 3 + 1];
-                                        for (int k = 0; k < m->k; k++)
-                                                w += m->views[v].weights[p * m->k + k] *
-                                                     m->basis[k * 48 + q * 3 + 1];
+                                truth = 0;
+                                for (int q = 0; q < 16; q++)
                                         truth += y[q] * bl_coef(basis, p, 90.0 * v, q, 1);
-                                        pred += y[q] * w;
-                                }
-                                worst = fmax(worst, fabs(pred - truth));
+                                worst = fmax(worst,
+                                             fabs(model_radiance(m, &m->views[v], p, dirs[j], 1) -
+                                                  truth));
                         }
                 }
         fprintf(stderr, "largest error of the relit radiance %.3g (16-bit step %.3g); notes: %s\n",
@@ -555,10 +710,14 @@ int main(int argc, char **argv)
                 {"heldout", test_heldout},
                 {"bandlimited-solve", test_bandlimited_solve},
                 {"bandlimited", test_bandlimited},
+                {"hdr", test_hdr},
                 {"few-lights", test_few_lights},
                 {"one-side", test_one_side},
                 {"no-lamps", test_no_lamps},
                 {"gonioctl", test_gonioctl},
+#ifdef AP_CALFILE
+                {"calibration", test_calibration},
+#endif
         };
 
         return TEST_RUN_CASES(cases, argc, argv);

@@ -64,7 +64,7 @@ static int plate_hits(const struct sim_truth *tr, int v, int u0, int k)
 
 static void classify(struct llscene *s, const struct sim_truth *tr)
 {
-        struct gn_pose st = {.laser = true};
+        struct gn_pose st = {.lasers = 1};
         struct sim_cam_geom g;
         int k = (int)lround(6.0 * s->w / 640); /* px: the line's reach (4 sigma) at this scale */
 
@@ -91,7 +91,7 @@ static void classify(struct llscene *s, const struct sim_truth *tr)
 void ll_open(struct llscene *s, int w, int h, double laser_power, double lamp_intensity)
 {
         char cams[512], laser[256], lamps[256] = "";
-        struct gn_pose st = {.laser = true};
+        struct gn_pose st = {.lasers = 1};
         struct sim_expose ex = {.bits = 8};
         struct sim_truth tr = {0};
         struct gn_frame f;
@@ -121,7 +121,7 @@ void ll_close(struct llscene *s)
 
 void ll_render(struct llscene *s, bool laser, bool lamp, int bits, uint64_t seq, struct gn_frame *f)
 {
-        struct gn_pose st = {.laser = laser, .lamps = lamp ? 1 : 0};
+        struct gn_pose st = {.lasers = laser, .lamps = lamp ? 1 : 0};
         struct sim_expose ex = {.bits = bits};
 
         rt_render(&s->t, &st, &ex, seq, f, 0, NULL);

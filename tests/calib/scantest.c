@@ -75,7 +75,7 @@ void scan_open(struct scan *s, const char *shape, double elevation, double targe
         memcpy(cam.k.dist, cc->dist, sizeof(cam.k.dist));
         riggeom_camera_pose(cc, 0, cam.R, cam.t);
         for (int i = 0; i < n; i++)
-                sec_rig_laser_plane(s->t[i].rc->laser.laser_azimuth_deg, p[i], nv[i]);
+                sec_rig_laser_plane(s->t[i].rc->lasers[0].laser_azimuth_deg, p[i], nv[i]);
         scan_start(s, &cam, p, nv);
 }
 
@@ -90,7 +90,7 @@ void scan_close(struct scan *s)
 /* Renders laser l on and off at turntable angle deg, extracts and triangulates the line. */
 static void scan_line(struct scan *s, int l, double deg, uint64_t seq, struct sim_truth *tr)
 {
-        struct gn_pose st = {.laser = true};
+        struct gn_pose st = {.lasers = 1};
         struct sim_expose ex = {.bits = 8};
         struct laserline_opts o;
         float centre[SCAN_H];
@@ -102,7 +102,7 @@ static void scan_line(struct scan *s, int l, double deg, uint64_t seq, struct si
                 st.deg[k] = NAN;
         st.deg[GN_ROLE_TURNTABLE] = deg;
         rt_render(&s->t[l], &st, &ex, 2 * seq, &on, SIM_TRUTH_POINT, tr);
-        st.laser = false;
+        st.lasers = 0;
         rt_render(&s->t[l], &st, &ex, 2 * seq + 1, &off, 0, NULL);
         CHECK(laserline_extract(&on, &off, &o, &r) >= 0);
         CHECK(sec_add_line(&s->c, l, deg, &r, false, &on) >= 0);

@@ -60,7 +60,7 @@ static void truth(struct rtest *t, struct views *w)
 
         CHECK_INT(sim_camera_geom(t->s, &(struct gn_pose){{0, 0, 0}, 1, false}, 0, &g), 0);
         w->g = g;
-        CHECK_INT(sim_laser_plane(t->s, n, &d), 0);
+        CHECK_INT(sim_laser_plane(t->s, 0, n, &d), 0);
         cal_mat_vec(g.R, n, w->truth.n);
         w->truth.d = d - cal_dot(w->truth.n, g.t);
         for (int i = 0; i < 3; i++) {

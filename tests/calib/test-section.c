@@ -196,9 +196,10 @@ static void test_args(void)
         CHECK_INT(sec_add_laser(&c, p, nz), 0);
         CHECK_INT(sec_add_laser(&c, px, nx), 1);
         CHECK_INT(sec_add_laser(&c, p, nz), 2);
-        CHECK_INT(sec_add_laser(&c, p, nz), 3);
+        for (int i = 3; i < SEC_MAX_LASERS; i++)
+                CHECK_INT(sec_add_laser(&c, p, nz), i);
         CHECK_INT(sec_add_laser(&c, p, nz), -ENOSPC);
-        CHECK_INT(sec_add_line(&c, 4, 0, &r, false, NULL), -EINVAL);
+        CHECK_INT(sec_add_line(&c, SEC_MAX_LASERS, 0, &r, false, NULL), -EINVAL);
         r.n = H + 1;
         CHECK_INT(sec_add_line(&c, 0, 0, &r, false, NULL), -EINVAL);
         r.n = H;

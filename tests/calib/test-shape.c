@@ -522,7 +522,7 @@ static void test_plane_to_turntable(void)
         rig_yaml(&r, 0, cams, lamps, laser, sizeof(cams));
         rt_open(&t, lamps, laser, cams, "scene:\n  turntable: { radius: 0 }\n");
         CHECK_INT(sim_camera_geom(t.s, &(struct gn_pose){{0, 0, 0}, 1, false}, 0, &g), 0);
-        CHECK_INT(sim_laser_plane(t.s, n, &d), 0);
+        CHECK_INT(sim_laser_plane(t.s, 0, n, &d), 0);
         rt_close(&t);
         memcpy(tt.R, g.R, sizeof(tt.R));
         memcpy(tt.t, g.t, sizeof(tt.t));

@@ -67,7 +67,7 @@ static void test_equal_nan(void)
                 CHECK(!gn_pose_has(&none, i));
         }
         CHECK(!gn_pose_has(&none, GN_ROLE_COUNT));
-        CHECK(!none.laser && none.lamps == 0);
+        CHECK(!none.lasers && none.lamps == 0);
         CHECK(gn_pose_equal(&none, &a, 0)); /* no axis equals no axis */
         a.deg[GN_ROLE_CAMERA_ARM] = 0;
         CHECK(gn_pose_has(&a, GN_ROLE_CAMERA_ARM));
@@ -88,8 +88,26 @@ static void test_equal_switches(void)
         CHECK(!gn_pose_equal(&a, &b, 1));
         b.lamps = 1u << 3;
         CHECK(gn_pose_equal(&a, &b, 1));
-        b.laser = true;
+        b.lasers = 1;
         CHECK(!gn_pose_equal(&a, &b, 1));
+        a.lasers = 1u << 1; /* another laser: a bit set by rig-file index, not a flag */
+        CHECK(!gn_pose_equal(&a, &b, 1));
+        a.lasers = b.lasers = (1u << 1) | (1u << 7);
+        CHECK(gn_pose_equal(&a, &b, 1));
+        b.lasers = 1u << 7;
+        CHECK(!gn_pose_equal(&a, &b, 1));
+}
+
+static void test_name_list(void)
+{
+        static const char *const names[] = {"left", "right", "top"};
+        char buf[32];
+
+        CHECK_INT(gn_name_list((1u << 0) | (1u << 2), names, 3, buf, sizeof(buf)), 8);
+        CHECK_STR(buf, "left,top");
+        CHECK_INT(gn_name_list(1u << 1, names, 3, buf, sizeof(buf)), 5);
+        CHECK_STR(buf, "right");
+        CHECK_INT(gn_name_list(0, names, 3, buf, sizeof(buf)), 0);
 }
 
 static void test_lamp_list(void)
@@ -120,5 +138,6 @@ int main(void)
         test_equal_nan();
         test_equal_switches();
         test_lamp_list();
+        test_name_list();
         return 0;
 }

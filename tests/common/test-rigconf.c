@@ -2,7 +2,8 @@
  * it, and each kind of mistake is refused with file, line and key: unknown keys in every
  * kind of entry and in every backend's map, backend maps missing, doubled, misplaced or
  * naming an unknown profile, two devices on one Modbus address, two buses on one port,
- * unset environment variables, duplicate names, axis roles, camera control ranges.
+ * unset environment variables, duplicate names, axis roles, camera control ranges; a
+ * `lasers:` list (the one `laser:` mapping is its shorthand) and its mistakes.
  * Usage: test-rigconf EXAMPLE-RIG CASE; an unknown CASE fails. */
 #include <errno.h>
 #include <stdio.h>
@@ -90,13 +91,13 @@ static void case_example(void)
         CHECK_INT(rc->n_axes, 3);
         CHECK_INT(rc->n_lamps, 4);
         CHECK_INT(rc->n_cameras, 2);
-        CHECK(rc->has_laser);
+        CHECK(rc->n_lasers);
         CHECK(rc->axes[0].continuous);
         CHECK_NEAR(rc->axes[2].min_deg, -170, 0);
         CHECK_NEAR(rc->lamps[3].elevation_deg, 75, 0);
-        CHECK_STR(rc->laser.backend.name, "modbus-coil");
-        CHECK_INT(((const struct mbsw_conf *)rc->laser.backend.conf)->coil, 7);
-        CHECK_INT(((const struct mbsw_conf *)rc->laser.backend.conf)->unit, 10);
+        CHECK_STR(rc->lasers[0].backend.name, "modbus-coil");
+        CHECK_INT(((const struct mbsw_conf *)rc->lasers[0].backend.conf)->coil, 7);
+        CHECK_INT(((const struct mbsw_conf *)rc->lasers[0].backend.conf)->unit, 10);
         CHECK_STR(rc->axes[1].backend.name, "modbus");
         CHECK_STR(rc->axes[1].bus, "drives");
         CHECK_INT(((const struct mbax_conf *)rc->axes[1].backend.conf)->unit, 2);
@@ -171,6 +172,8 @@ static const struct {
         {"axes", BUS "axes:\n  - { name: a, modbus: { bus: b }, max_sped: 5 }\n", 6, "max_sped"},
         {"lamps", BUS "lamps:\n  - name: l\n    elevaton: 10\n", 7, "elevaton"},
         {"laser", BUS "laser:\n  name: x\n  orgin: [0, 0, 0]\n", 7, "orgin"},
+        {"lasers", BUS "lasers:\n  - name: x\n    modbus-coil: { bus: b }\n    azimth: 3\n", 8,
+         "azimth"},
         {"cameras", BUS "cameras:\n  - name: c\n    sim: { bus: f }\n    exposure: 100\n", 8,
          "exposure"},
         {"cameras", BUS "cameras:\n  - { name: c, sim: { bus: f }, distorsion: [0, 0] }\n", 6,
@@ -242,7 +245,7 @@ static bool covered(const char *kind)
 static void case_unknown_keys(void)
 {
         static const char *const kinds[] = {"root",  "profiles", "buses",  "axes",
-                                            "lamps", "laser",    "cameras"};
+                                            "lamps", "laser",    "lasers", "cameras"};
 
         for (size_t k = 0; k < ELEMENTSOF(kinds); k++)
                 CHECK(covered(kinds[k]));
@@ -500,6 +503,54 @@ static void case_backend_maps(void)
         backends = registry_backends;
 }
 
+/* Lines 5-: two Modbus-coil lasers, x on coil 7 and y on coil 8 of unit 10. */
+#define LASER(name, coil, az)                                                                      \
+        "  - { name: " name ", azimuth: " az ", channel: green, modbus-coil: { bus: b, unit: 10, " \
+        "coil: " coil " } }\n"
+
+/* A `lasers:` list: each entry parsed like the one `laser:` mapping, in file order; the
+ * shorthand loads as a list of one; and the mistakes of lists refused with file and line. */
+static void case_lasers(void)
+{
+        struct rig_config *rc =
+                expect_ok(BUS "lasers:\n" LASER("x", "7", "30") LASER("y", "8", "-30"));
+
+        CHECK_INT(rc->n_lasers, 2);
+        CHECK_STR(rc->lasers[1].name, "y");
+        CHECK(rc->lasers[1].kind == RIG_SWITCH_LASER);
+        CHECK_NEAR(rc->lasers[1].laser_azimuth_deg, -30, 0);
+        CHECK_INT(rc->lasers[1].laser_channel, 1);
+        CHECK_INT(((const struct mbsw_conf *)rc->lasers[1].backend.conf)->coil, 8);
+        CHECK_INT(rigconf_laser(rc, "y"), 1);
+        CHECK_INT(rigconf_laser(rc, "z"), -ENOENT);
+        CHECK_INT(rigconf_all_lasers(rc), 3);
+        rigconf_free(rc);
+        rc = expect_ok(BUS "laser: { name: x, azimuth: 12, modbus-coil: { bus: b } }\n");
+        CHECK_INT(rc->n_lasers, 1);
+        CHECK_NEAR(rc->lasers[0].laser_azimuth_deg, 12, 0);
+        rigconf_free(rc);
+        expect_at(BUS "lasers:\n" LASER("x", "7", "0") LASER("x", "8", "0"), 7, "name",
+                  "device name 'x' is used twice (first at line 6)");
+        expect_at(BUS "lamps:\n" LAMP("x", "3", "1") "lasers:\n" LASER("x", "8", "0"), 8, "name",
+                  "device name 'x' is used twice (first at line 6)");
+        expect_at(BUS "lasers:\n" LASER("x", "7", "0") LASER("y", "7", "0"), 7, "coil",
+                  "laser 'x' and laser 'y' are both on coil 7 of unit 10");
+        expect_at(BUS "laser: { name: x }\nlasers:\n" LASER("y", "8", "0"), 7, "lasers",
+                  "either 'laser' (one mapping) or 'lasers' (a list), not both");
+        expect_at(BUS "lasers:\n" LASER("x", "7", "0") "laser: { name: y }\n", 7, "laser",
+                  "not both");
+        expect_at(BUS "lasers: { name: x }\n", 5, "lasers", "expected a list");
+        expect_at(BUS "laser:\n" LASER("x", "7", "0"), 6, "laser",
+                  "expected a mapping (several lasers: a list 'lasers')");
+        expect_at(BUS "lasers:\n  - x\n", 6, "lasers", "entry 0 is not a mapping");
+        expect_at(BUS "lasers:\n  - { azimuth: 3, modbus-coil: { bus: b } }\n", 6, "name",
+                  "required key is missing");
+        expect_at(BUS "lasers:\n" LASER("a", "1", "0") LASER("b", "2", "0") LASER("c", "3", "0")
+                          LASER("d", "4", "0") LASER("e", "5", "0") LASER("f", "6", "0")
+                                  LASER("g", "7", "0") LASER("h", "8", "0") LASER("i", "9", "0"),
+                  6, "lasers", "at most 8 entries");
+}
+
 static const struct {
         const char *name;
         void (*fn)(void);
@@ -513,6 +564,7 @@ static const struct {
         {"roles", case_roles},
         {"camera-ranges", case_camera_ranges},
         {"backend-maps", case_backend_maps},
+        {"lasers", case_lasers},
 };
 
 int main(int argc, char **argv)

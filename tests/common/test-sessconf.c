@@ -83,7 +83,7 @@ static void case_examples(void)
         CHECK_INT(sc->sweep[GN_ROLE_CAMERA_ARM].n, 0);
         CHECK_INT(sc->cameras, 0x3);
         CHECK_INT(sc->lamps, 0xf);
-        CHECK(sc->laser);
+        CHECK(sc->n_laser_shots == 1 && sc->laser_shots[0] == 1);
         CHECK_INT(sc->dark_frames, 1);
         CHECK_INT(sc->settle_ms[GN_ROLE_TURNTABLE], 20);
         CHECK_STR(sc->metadata_json, "{\"purpose\": \"demo\"}");
@@ -120,7 +120,7 @@ static void case_defaults(void)
         CHECK_NEAR(sc->gain, 0, 0);
         CHECK_INT(sc->n_brackets, 1);
         CHECK_NEAR(sc->bracket_ev[0], 0, 0);
-        CHECK(!sc->laser && !sc->unlit);
+        CHECK(!sc->n_laser_shots && !sc->unlit);
         CHECK_INT(sc->dark_frames, 0);
         CHECK_INT(sc->dark_max_age_s, 86400);
         CHECK_INT(sc->flat_frames, 0);

@@ -188,7 +188,7 @@ static void check_unlit(const struct rig_config *rc)
                 if (x->kind == PLAN_LASER || x->pose.lamps)
                         continue;
                 CHECK_INT(x->kind, PLAN_IMAGE); /* the unlit frame */
-                CHECK(!x->pose.laser);
+                CHECK(!x->pose.lasers);
                 CHECK_INT(x->bracket, -1);
                 const struct plan_shot *l = i + 1 < p->n_shots && p->shots[i + 1].kind == PLAN_LASER
                                                     ? &p->shots[i + 1]
@@ -607,7 +607,7 @@ static void check_same(const struct plan *a, const struct plan *b)
                 const struct plan_shot *x = &a->shots[i], *y = &b->shots[i];
 
                 CHECK(same_angles(&x->pose, &y->pose));
-                CHECK(x->pose.lamps == y->pose.lamps && x->pose.laser == y->pose.laser);
+                CHECK(x->pose.lamps == y->pose.lamps && x->pose.lasers == y->pose.lasers);
                 CHECK(x->seq == y->seq && x->cameras == y->cameras && x->bracket == y->bracket);
                 CHECK(x->kind == y->kind && x->t_start_s == y->t_start_s);
         }

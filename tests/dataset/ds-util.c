@@ -74,7 +74,7 @@ void tu_capture(struct ds_capture *c, const char *camera, const char *lamps, int
         c->pose.deg[GN_ROLE_LIGHT_ARM] = -30.25 + i;
         c->pose.deg[GN_ROLE_CAMERA_ARM] = 45.0 / (i + 1);
         c->pose.lamps = *lamps ? 1u << (i % 3) : 0;
-        c->pose.laser = i % 2;
+        c->pose.lasers = i % 2;
         snprintf(c->camera, sizeof(c->camera), "%s", camera);
         snprintf(c->lamps, sizeof(c->lamps), "%s", lamps);
         c->exposure_us = 1000 + i;

@@ -88,7 +88,7 @@ static void make_src(struct fixture *fx)
         tu_capture(&fx->dark, "cam0", "", 3);
         snprintf(fx->dark.session, sizeof(fx->dark.session), "old");
         snprintf(fx->dark.kind, sizeof(fx->dark.kind), "dark");
-        fx->dark.pose.laser = false;
+        fx->dark.pose.lasers = 0;
         fx->dark.t_exposure_ns = T_DARK;
         CHECK_INT(ds_store(fx->src, &f, &fx->dark), 0);
         tu_capture(&img, "cam0", "l1", 4);

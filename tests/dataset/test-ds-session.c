@@ -317,7 +317,7 @@ static void test_begin(void)
         setup(&fx);
         for (int i = 0; i < 5; i++)
                 items[i] = plan_item(order[i]);
-        items[0].pose.laser = true;
+        items[0].pose.lasers = 1;
         items[0].bracket = 2;
         snprintf(items[0].kind, sizeof(items[0].kind), "laser");
         CHECK_INT(ds_session_begin(fx.d, "s1", "file: yes\n", rig_text, "{\"plan\":1}",
@@ -850,7 +850,7 @@ static void lp_session(struct fixture *fx, char files[9][256])
         snprintf(items[11].kind, sizeof(items[11].kind), "dark");
         items[11].pose.lamps = 0;
         snprintf(items[12].kind, sizeof(items[12].kind), "laser");
-        items[12].pose.laser = true;
+        items[12].pose.lasers = 1;
         CHECK_INT(ds_session_begin(fx->d, "rti 1", NULL, NULL, NULL, NULL, items, 13), 0);
         for (int i = 12; i >= 0; i--) { /* ids against seq order: files list by id */
                 item_capture(&c, "rti 1", &items[i], i % 2 ? 0.004 : -0.004);

@@ -141,7 +141,7 @@ static void check_roundtrip(struct ds *d, int ch, int bits, bool pad, int i)
         CHECK(c.t_stored_ns >= want.t_exposure_ns);
         char name[64];
         snprintf(name, sizeof(name), "images/%06d_cam0_l1+l3%s.png", i + 1,
-                 c.pose.laser ? "_laser" : "");
+                 c.pose.lasers ? "_laser" : "");
         CHECK(strcmp(c.file, name) == 0);
         CHECK_INT(ds_load_image(d, c.file, &back), 0);
         CHECK(tu_frames_equal(&f, &back));
@@ -450,7 +450,7 @@ static void test_migrate(void)
         CHECK_INT(rows.n, 1);
         CHECK(rows.c[0].pose.deg[GN_ROLE_TURNTABLE] == 10);
         CHECK(rows.c[0].pose.deg[GN_ROLE_CAMERA_ARM] == 30);
-        CHECK(rows.c[0].pose.laser);
+        CHECK(rows.c[0].pose.lasers);
         CHECK_STR(rows.c[0].lamps, "l1");
         CHECK_INT(rows.c[0].pose.lamps, 0x2); /* l1 is the second lamp of rig.yaml */
         struct ds_summary sum;

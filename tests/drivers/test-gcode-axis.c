@@ -46,7 +46,7 @@ static bool sim_laser(struct fixture *f)
         struct gn_pose st;
 
         sim_emu_snapshot(f->rig.emu, &st);
-        return st.laser;
+        return st.lasers;
 }
 
 /* Polls until the axis has stopped; returns the seconds it took. */
@@ -71,7 +71,7 @@ static void open_all(struct fixture *f)
         CHECK_INT(bus_new_sync(testrig_bus(&f->rig, "cnc"), &f->cnc), 0);
         CHECK_INT(axis_new(&f->rig.rc->axes[0], f->ciclop, &f->tt), 0);
         CHECK_INT(axis_new(&f->rig.rc->axes[1], f->cnc, &f->arm), 0);
-        CHECK_INT(sw_new(&f->rig.rc->laser, f->ciclop, &f->laser), 0);
+        CHECK_INT(sw_new(&f->rig.rc->lasers[0], f->ciclop, &f->laser), 0);
         CHECK_INT(sw_new(&f->rig.rc->lamps[0], f->ciclop, &f->right), 0);
         CHECK_INT(axis_open(f->tt), 0);
         CHECK_INT(axis_open(f->arm), 0);

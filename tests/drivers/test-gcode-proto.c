@@ -139,7 +139,7 @@ static void test_maps(void)
         CHECK(a->flavor == GC_FLAVOR_GRBL && a->axis == 2 && a->steps_per_deg == 40);
         CHECK(b->flavor == GC_FLAVOR_HORUS && b->axis == 0);
         CHECK_NEAR(b->steps_per_deg, 16.0 / 1.8, 1e-12);
-        CHECK_INT(((const struct gcsw_conf *)rc->laser.backend.conf)->tool, 2);
+        CHECK_INT(((const struct gcsw_conf *)rc->lasers[0].backend.conf)->tool, 2);
         rigconf_free(rc);
         expect_error(SERIAL "axes:\n  - { name: a, gcode: { bus: s, flavor: marlin } }\n",
                      ":5: key 'flavor': 'marlin' is no G-code flavor (horus, grbl)");

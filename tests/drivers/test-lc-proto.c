@@ -2,7 +2,8 @@
  * each pixel format converted to rgb8/mono8 with its channel order and row stride (YUYV
  * with BT.601 colours), short
  * buffers refused, the sensor clock moved onto the wall clock, the option table built from a
- * camera's controls, and the rig-file map parsed with file:line:key errors. */
+ * camera's controls, a stream's sequence check (dropped frames), and the rig-file map parsed
+ * with file:line:key errors. */
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -143,6 +144,25 @@ static int load(const char *map, char *err, size_t len, struct lccam_conf *conf)
         return r;
 }
 
+/* A stream's sequence numbers: the first frame sets them, a gap is dropped frames (-EIO,
+ * naming how many and where), a step back is an error too, and the stream goes on after. */
+static void test_seq(void)
+{
+        uint64_t next = LCPROTO_SEQ_NONE;
+        char msg[128] = "";
+
+        CHECK_INT(lcproto_check_seq(&next, 11, msg, sizeof(msg)), 0);
+        CHECK_INT(lcproto_check_seq(&next, 12, msg, sizeof(msg)), 0);
+        CHECK_INT(lcproto_check_seq(&next, 15, msg, sizeof(msg)), -EIO);
+        CHECK_STR(msg, "2 frames dropped (sequence 15 after 12)");
+        CHECK_INT(lcproto_check_seq(&next, 16, msg, sizeof(msg)), 0);
+        CHECK_INT(lcproto_check_seq(&next, 18, msg, sizeof(msg)), -EIO);
+        CHECK_STR(msg, "1 frame dropped (sequence 18 after 16)");
+        CHECK_INT(lcproto_check_seq(&next, 3, msg, sizeof(msg)), -EIO);
+        CHECK_STR(msg, "frame sequence went back (3 after 18)");
+        CHECK_INT(lcproto_check_seq(&next, 4, msg, sizeof(msg)), 0);
+}
+
 static void test_conf(void)
 {
         struct lccam_conf c;
@@ -173,6 +193,7 @@ int main(void)
 {
         test_convert();
         test_yuyv();
+        test_seq();
         test_clock();
         test_opts();
         test_conf();

@@ -41,41 +41,7 @@ struct fixture {
 
 static struct axis *open_axis(struct fixture *f, struct bus *b, int index)
 {
-        struct axis *ax = NULL;
-
-        CHECK_INT(axis_new(&f->rig.rc->axes[index], b, &ax), 0);
-        CHECK_INT(axis_open(ax), 0);
-        CHECK(ax->state.enabled);
-        return ax;
-}
-
-/* Polls until the profile has ended (moving clear); returns the seconds it took. */
-static double wait_stopped(struct axis *ax, double timeout_s)
-{
-        double t0 = testrig_now();
-
-        do {
-                CHECK_INT(axis_poll(ax), 0);
-                if (!ax->state.moving)
-                        return testrig_now() - t0;
-                testrig_sleep(0.002);
-        } while (testrig_now() - t0 < timeout_s);
-        fprintf(stderr, "axis '%s' still moving after %.1f s\n", ax->conf->name, timeout_s);
-        exit(1);
-}
-
-/* Waits for the end of the move and the drive's in-position flag. */
-static void wait_in_position(struct axis *ax)
-{
-        double t0 = testrig_now();
-
-        wait_stopped(ax, 10.0);
-        while (!ax->state.in_position && testrig_now() - t0 < 10.0) {
-                testrig_sleep(0.002);
-                CHECK_INT(axis_poll(ax), 0);
-        }
-        CHECK(ax->state.in_position);
-        CHECK(!ax->state.fault);
+        return testrig_axis_open(&f->rig, b, index);
 }
 
 static int32_t raw_position(struct axis *ax)
@@ -86,18 +52,12 @@ static int32_t raw_position(struct axis *ax)
         CHECK_INT(
                 mbus_read_regs(bus_transport(ax->bus), c->unit, c->profile->reg_position, 2, regs),
                 2);
-        return mbax_get_i32(c->profile, regs);
+        return mbax_get_i32(c->word_swap, regs);
 }
 
 static void test_home(struct fixture *f)
 {
-        CHECK_INT(axis_home(f->tt), 0);
-        CHECK_INT(axis_home(f->arm), 0);
-        wait_in_position(f->tt);
-        wait_in_position(f->arm);
-        CHECK(f->tt->state.homed && f->arm->state.homed);
-        CHECK(f->tt->state.position_deg < POS_TOL || f->tt->state.position_deg > 360 - POS_TOL);
-        CHECK_NEAR(f->arm->state.position_deg, 0.0, POS_TOL);
+        testrig_home_all((struct axis *[]){f->tt, f->arm}, 2, POS_TOL);
 }
 
 /* 0 -> 150 deg at 10 deg/s, 20 deg/s^2: 15.5 s of emulated time, 0.775 s real. */
@@ -107,11 +67,11 @@ static void test_move_timing(struct fixture *f)
 
         CHECK_NEAR(expect, 0.775, 1e-9);
         CHECK_INT(axis_move_abs(f->arm, 150.0), 0);
-        took = wait_stopped(f->arm, 10.0);
+        took = testrig_wait_stopped(f->arm, 10.0);
         fprintf(stderr, "move 150 deg: %.3f s, model %.3f s\n", took, expect);
         CHECK(took >= 0.85 * expect); /* cannot beat the profile */
         CHECK(took <= expect + 3.0);  /* generous: loaded machines */
-        wait_in_position(f->arm);
+        testrig_wait_in_position(f->arm);
         CHECK_NEAR(f->arm->state.position_deg, 150.0, POS_TOL);
 }
 
@@ -130,38 +90,29 @@ static void test_set_speed(struct fixture *f)
                 1);
         CHECK_INT(reg, 50);
         CHECK_INT(axis_move_abs(f->arm, 100.0), 0);
-        took = wait_stopped(f->arm, 10.0);
+        took = testrig_wait_stopped(f->arm, 10.0);
         fprintf(stderr, "move 50 deg at 5 deg/s: %.3f s, model %.3f s\n", took, expect);
         CHECK(took >= 0.85 * expect); /* at 10 deg/s it would take 0.54 of this */
-        wait_in_position(f->arm);
+        testrig_wait_in_position(f->arm);
         CHECK_INT(axis_set_speed(f->arm, 0), 0);
         CHECK_INT(
                 mbus_read_regs(bus_transport(f->arm->bus), c->unit, c->profile->reg_speed, 1, &reg),
                 1);
         CHECK_INT(reg, 100); /* max_speed 10 deg/s */
         CHECK_INT(axis_move_abs(f->arm, 150.0), 0);
-        wait_in_position(f->arm);
+        testrig_wait_in_position(f->arm);
 }
 
 static void test_soft_limits(struct fixture *f)
 {
-        struct transport_stats before, after;
-
-        transport_get_stats(bus_transport(f->drives), &before);
-        CHECK_INT(axis_move_abs(f->arm, 170.5), -ERANGE);
-        CHECK_INT(axis_move_abs(f->arm, -171.0), -ERANGE);
-        CHECK_INT(axis_move_abs(f->arm, NAN), -ERANGE);
-        transport_get_stats(bus_transport(f->drives), &after);
-        CHECK_INT(after.requests, before.requests); /* refused before any I/O */
-        CHECK_INT(axis_poll(f->arm), 0);
-        CHECK_NEAR(f->arm->state.position_deg, 150.0, POS_TOL);
+        testrig_check_limits(f->arm, 150.0, POS_TOL);
 }
 
 /* 0 -> 350 goes back 10 deg (raw -10000), then 350 -> 10 forward 20 deg (raw +10000). */
 static void test_shortest_way(struct fixture *f)
 {
         CHECK_INT(axis_move_abs(f->tt, 350.0), 0);
-        wait_in_position(f->tt);
+        testrig_wait_in_position(f->tt);
         CHECK_NEAR(f->tt->state.position_deg, 350.0, POS_TOL);
         CHECK_NEAR(raw_position(f->tt), -10000, 2);
 
@@ -173,7 +124,7 @@ static void test_shortest_way(struct fixture *f)
                 testrig_sleep(0.002);
                 CHECK_INT(axis_poll(f->tt), 0);
         } while (f->tt->state.moving);
-        wait_in_position(f->tt);
+        testrig_wait_in_position(f->tt);
         CHECK_NEAR(f->tt->state.position_deg, 10.0, POS_TOL);
         CHECK_NEAR(raw_position(f->tt), 10000, 2);
 }
@@ -251,7 +202,7 @@ static void test_stall(struct fixture *f)
 
         CHECK_INT(sim_emu_inject(f->rig.emu, "drives", 1, SIM_FAULT_STALL), 0); /* armed */
         CHECK_INT(axis_move_abs(f->tt, 100.0), 0);
-        wait_stopped(f->tt, 10.0);
+        testrig_wait_stopped(f->tt, 10.0);
         CHECK(f->tt->state.fault);
         CHECK_INT(f->tt->state.fault_code, MBAX_FAULT_STALL);
         CHECK(!f->tt->state.in_position);
@@ -263,7 +214,7 @@ static void test_stall(struct fixture *f)
         CHECK_INT(axis_poll(f->tt), 0);
         CHECK(!f->tt->state.fault);
         CHECK_INT(axis_move_abs(f->tt, 100.0), 0);
-        wait_in_position(f->tt);
+        testrig_wait_in_position(f->tt);
         CHECK_NEAR(f->tt->state.position_deg, 100.0, POS_TOL);
 }
 
@@ -276,7 +227,7 @@ static void test_short(struct fixture *f)
 
         CHECK_INT(sim_emu_inject(f->rig.emu, "drives", 1, SIM_FAULT_SHORT), 0); /* armed */
         CHECK_INT(axis_move_abs(f->tt, 150.0), 0);
-        wait_stopped(f->tt, 10.0);
+        testrig_wait_stopped(f->tt, 10.0);
         t0 = testrig_now();
         do { /* longer than any settle time: the flag never comes */
                 CHECK_INT(axis_poll(f->tt), 0);
@@ -289,14 +240,14 @@ static void test_short(struct fixture *f)
         CHECK_NEAR(f->tt->state.position_deg, 147.0, 0.01); /* 3 deg short */
 
         CHECK_INT(axis_move_abs(f->tt, 150.0), 0);
-        wait_in_position(f->tt);
+        testrig_wait_in_position(f->tt);
         CHECK_NEAR(f->tt->state.position_deg, 150.0, POS_TOL);
 }
 
 static void test_tcp(struct fixture *f)
 {
         CHECK_INT(axis_move_abs(f->remote, -45.0), 0);
-        wait_in_position(f->remote);
+        testrig_wait_in_position(f->remote);
         CHECK_NEAR(f->remote->state.position_deg, 315.0, POS_TOL);
 }
 

@@ -43,7 +43,7 @@ static int emu_coils(struct fixture *f)
         struct gn_pose st;
 
         sim_emu_snapshot(f->rig.emu, &st);
-        return (int)(st.lamps & 3) | st.laser << 2;
+        return (int)(st.lamps & 3) | st.lasers << 2;
 }
 
 static void test_set_readback(struct fixture *f)
@@ -127,7 +127,7 @@ static void test_worker(struct fixture *f)
 
         CHECK_INT(sd_event_new(&event), 0);
         CHECK_INT(bus_new(event, testrig_bus(&f->rig, "relays"), &b), 0);
-        CHECK_INT(sw_new(&f->rig.rc->laser, b, &ls.s), 0);
+        CHECK_INT(sw_new(&f->rig.rc->lasers[0], b, &ls.s), 0);
         CHECK_INT(bus_submit(b, job_set, job_done, &ls, false), 0);
         while (ls.n_done == 0) {
                 CHECK(testrig_now() - t0 < 10.0);
@@ -150,7 +150,7 @@ int main(void)
         CHECK_INT(bus_new_sync(testrig_bus(&f.rig, "relays"), &f.bus), 0);
         f.lamp0 = open_switch(f.bus, &f.rig.rc->lamps[0]);
         f.lamp1 = open_switch(f.bus, &f.rig.rc->lamps[1]);
-        f.laser = open_switch(f.bus, &f.rig.rc->laser);
+        f.laser = open_switch(f.bus, &f.rig.rc->lasers[0]);
 
         test_set_readback(&f);
         test_faults(&f);

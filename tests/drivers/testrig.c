@@ -1,5 +1,6 @@
 /* testrig.c - temp-dir rig files and emulators for the driver tests (see testrig.h). */
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -8,6 +9,7 @@
 
 #include "common/clock.h"
 #include "drivers/registry.h"
+#include "drivers/transport/transport.h"
 #include "tests/drivers/testrig.h"
 #include "tests/test.h"
 
@@ -84,4 +86,69 @@ void testrig_sleep(double s)
 
         while (nanosleep(&ts, &ts) < 0 && errno == EINTR)
                 ;
+}
+
+struct axis *testrig_axis_open(struct testrig *t, struct bus *b, int index)
+{
+        struct axis *ax = NULL;
+
+        CHECK_INT(axis_new(&t->rc->axes[index], b, &ax), 0);
+        CHECK_INT(axis_open(ax), 0);
+        CHECK(ax->state.enabled);
+        return ax;
+}
+
+double testrig_wait_stopped(struct axis *ax, double timeout_s)
+{
+        double t0 = testrig_now();
+
+        do {
+                CHECK_INT(axis_poll(ax), 0);
+                if (!ax->state.moving)
+                        return testrig_now() - t0;
+                testrig_sleep(0.002);
+        } while (testrig_now() - t0 < timeout_s);
+        fprintf(stderr, "axis '%s' still moving after %.1f s\n", ax->conf->name, timeout_s);
+        exit(1);
+}
+
+void testrig_wait_in_position(struct axis *ax)
+{
+        double t0 = testrig_now();
+
+        testrig_wait_stopped(ax, 10.0);
+        while (!ax->state.in_position && testrig_now() - t0 < 10.0) {
+                testrig_sleep(0.002);
+                CHECK_INT(axis_poll(ax), 0);
+        }
+        CHECK(ax->state.in_position);
+        CHECK(!ax->state.fault);
+}
+
+void testrig_check_limits(struct axis *ax, double pos, double tol)
+{
+        struct transport_stats before, after;
+
+        transport_get_stats(bus_transport(ax->bus), &before);
+        CHECK_INT(axis_move_abs(ax, ax->conf->max_deg + 0.5), -ERANGE);
+        CHECK_INT(axis_move_abs(ax, ax->conf->min_deg - 1.0), -ERANGE);
+        CHECK_INT(axis_move_abs(ax, NAN), -ERANGE);
+        transport_get_stats(bus_transport(ax->bus), &after);
+        CHECK_INT(after.requests, before.requests); /* refused before any I/O */
+        CHECK_INT(axis_poll(ax), 0);
+        CHECK_NEAR(ax->state.position_deg, pos, tol);
+}
+
+void testrig_home_all(struct axis *const *ax, int n, double tol)
+{
+        for (int i = 0; i < n; i++)
+                CHECK_INT(axis_home(ax[i]), 0);
+        for (int i = 0; i < n; i++) {
+                double p;
+
+                testrig_wait_in_position(ax[i]);
+                p = ax[i]->state.position_deg;
+                CHECK(ax[i]->state.homed);
+                CHECK(fabs(ax[i]->conf->continuous && p > 180.0 ? p - 360.0 : p) <= tol);
+        }
 }

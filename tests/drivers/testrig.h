@@ -4,6 +4,7 @@
 #pragma once
 
 #include "common/rigconf.h"
+#include "drivers/axis/axis.h"
 #include "drivers/bus/bus.h"
 #include "sim/modbus_emu.h"
 
@@ -31,3 +32,21 @@ double testrig_now(void);
 
 /* Sleeps for s seconds. */
 void testrig_sleep(double s);
+
+/* Creates and opens the axis of rc->axes[index] on bus b; exits unless it opens enabled. */
+struct axis *testrig_axis_open(struct testrig *t, struct bus *b, int index);
+
+/* Polls until the axis's move has ended (moving clear); returns the seconds it took. Exits
+ * after timeout_s. */
+double testrig_wait_stopped(struct axis *ax, double timeout_s);
+
+/* Waits for the end of the move and the drive's in-position flag, without a fault. */
+void testrig_wait_in_position(struct axis *ax);
+
+/* Checks that moves of ax just past its soft limits (and NAN) are refused with -ERANGE
+ * before any request on its bus, and that it is still at pos (within tol). */
+void testrig_check_limits(struct axis *ax, double pos, double tol);
+
+/* Homes the axes ax[0..n) at once, waits until each is in position and checks that each is
+ * homed and at 0 deg (within tol; 360 counts as 0 on continuous axes). */
+void testrig_home_all(struct axis *const *ax, int n, double tol);

@@ -155,6 +155,15 @@ json_t *sim_query(struct rigenv *e, const char *json_line)
         return r;
 }
 
+double sim_axis_deg(struct rigenv *e, const char *role)
+{
+        json_t *sim = sim_query(e, "{\"cmd\":\"state\"}\n");
+        double deg = json_number_value(json_object_get(json_object_get(sim, "state"), role));
+
+        json_decref(sim);
+        return deg;
+}
+
 json_t *wait_state(struct rigenv *e, const char *want, double timeout)
 {
         double end = now_s() + timeout;
@@ -520,14 +529,15 @@ static struct gn_pose sim_pose(json_t *st)
                         p.deg[r] = json_number_value(json_object_get(st, gn_role_name(r)));
         json_array_foreach(json_object_get(st, "lamps"), i, v) if (json_is_true(v)) p.lamps |=
                 UINT32_C(1) << i;
-        p.laser = json_is_true(json_object_get(st, "laser"));
+        json_array_foreach(json_object_get(st, "lasers"), i, v) if (json_is_true(v)) p.lasers |=
+                UINT32_C(1) << i;
         return p;
 }
 
 static void print_pose(const char *what, const struct gn_pose *p)
 {
-        fprintf(stderr, "%s: turntable %g light_arm %g camera_arm %g lamps 0x%x laser %d\n", what,
-                p->deg[0], p->deg[1], p->deg[2], p->lamps, p->laser);
+        fprintf(stderr, "%s: turntable %g light_arm %g camera_arm %g lamps 0x%x lasers 0x%x\n",
+                what, p->deg[0], p->deg[1], p->deg[2], p->lamps, p->lasers);
 }
 
 struct rows {

@@ -72,6 +72,10 @@ void sim_request(struct rigenv *e, const char *json_line);
  * checked). */
 json_t *sim_query(struct rigenv *e, const char *json_line);
 
+/* The angle of the axis of role (its name in gonio-sim's state: "turntable"...) as
+ * gonio-sim has it, from its control socket. */
+double sim_axis_deg(struct rigenv *e, const char *role);
+
 /* Polls status until field state == want (or fails the test after timeout seconds). */
 json_t *wait_state(struct rigenv *e, const char *want, double timeout);
 

@@ -1,7 +1,7 @@
 /* test-ciclop.c - the Ciclop rig of examples/rigs/ciclop.yaml end to end: gonio-sim emulates
- * its Horus G-code board (turntable + laser on one serial line) and renders its webcam;
+ * its Horus G-code board (turntable + two lasers on one serial line) and renders its webcam;
  * goniod drives it through the gcode and gcode-laser backends; gonioctl homes, turns the
- * table, switches the laser and captures; every stored row matches what gonio-sim
+ * table, switches the lasers (both, or one by name: tool 2 is the right one) and captures; every stored row matches what gonio-sim
  * rendered (the render log), and the emulated table ends where goniod says it is; a board
  * that stops answering is a fault goniod clears once it answers again. */
 #include <stdio.h>
@@ -16,15 +16,6 @@
 
 /* Half a step of the board's 8.889 steps/deg: where a move can end. */
 #define STEP_TOL_DEG 0.057
-
-static double sim_turntable(struct rigenv *e)
-{
-        json_t *sim = sim_query(e, "{\"cmd\":\"state\"}\n");
-        double deg = json_number_value(json_object_get(json_object_get(sim, "state"), "turntable"));
-
-        json_decref(sim);
-        return deg;
-}
 
 /* The board stops answering: goniod latches a fault naming a device of the board and the
  * cause, switches the laser off, refuses to clear while the board is silent, and clears
@@ -41,7 +32,7 @@ static void silent_board(struct rigenv *e)
         st = wait_state(e, "fault", 10);
         fault = json_object_get(st, "fault");
         device = json_string_value(json_object_get(fault, "device"));
-        CHECK(device && (strcmp(device, "turntable") == 0 || strcmp(device, "laser_left") == 0));
+        CHECK(device && (strcmp(device, "turntable") == 0 || strncmp(device, "laser_", 6) == 0));
         text = json_dumps(fault, JSON_COMPACT);
         CHECK_STR_CONTAINS(text, "within 300 ms");
         free(text);
@@ -75,6 +66,33 @@ static void unplugged_board(struct rigenv *e)
         CHECK_INT(check_dataset_roles(e, "after", 0), 1); /* no angle */
 }
 
+/* gonio-sim's lasers (bit set) as its state says. */
+static uint32_t sim_lasers(struct rigenv *e)
+{
+        json_t *sim = sim_query(e, "{\"cmd\":\"state\"}\n"), *v;
+        uint32_t bits = 0;
+        size_t i;
+
+        json_array_foreach(json_object_get(json_object_get(sim, "state"), "lasers"), i, v)
+                bits |= (uint32_t)json_is_true(v) << i;
+        json_decref(sim);
+        return bits;
+}
+
+/* One laser by name (the right one: tool 2, "M71 T2"), then both, then none. */
+static void lasers_by_name(struct rigenv *e)
+{
+        json_decref(ctl_ok(e, "laser", "on", "laser_right", NULL));
+        CHECK_INT(sim_lasers(e), 2);
+        json_decref(ctl_ok(e, "laser", "on", NULL));
+        CHECK_INT(sim_lasers(e), 3);
+        json_decref(ctl_ok(e, "laser", "off", "laser_left", NULL));
+        CHECK_INT(sim_lasers(e), 2);
+        CHECK_INT(ctl(e, NULL, "laser", "on", "laser_middle", NULL), 6);
+        json_decref(ctl_ok(e, "laser", "off", NULL));
+        CHECK_INT(sim_lasers(e), 0);
+}
+
 static char *read_rig(const char *path)
 {
         FILE *f = fopen(path, "re");
@@ -100,18 +118,19 @@ int main(int argc, char **argv)
         json_decref(ctl_ok(&e, "home", NULL));
         json_decref(ctl_ok(&e, "dataset", "create", "scan", NULL));
         json_decref(ctl_ok(&e, "move", "turntable", "90", NULL));
-        CHECK_NEAR(sim_turntable(&e), 90.0, STEP_TOL_DEG);
+        CHECK_NEAR(sim_axis_deg(&e, "turntable"), 90.0, STEP_TOL_DEG);
         json_decref(ctl_ok(&e, "laser", "on", NULL));
         json_decref(ctl_ok(&e, "capture", NULL));
         json_decref(ctl_ok(&e, "move", "turntable", "300", NULL)); /* back 150 deg */
-        CHECK_NEAR(sim_turntable(&e), 300.0, STEP_TOL_DEG);
+        CHECK_NEAR(sim_axis_deg(&e, "turntable"), 300.0, STEP_TOL_DEG);
         json_decref(ctl_ok(&e, "capture", NULL));
         json_decref(ctl_ok(&e, "laser", "off", NULL));
         json_decref(ctl_ok(&e, "capture", NULL));
         CHECK_INT(check_dataset_roles(&e, "scan", 1u << GN_ROLE_TURNTABLE), 3);
+        lasers_by_name(&e);
         silent_board(&e);
         json_decref(ctl_ok(&e, "move", "turntable", "45", NULL)); /* still homed */
-        CHECK_NEAR(sim_turntable(&e), 45.0, STEP_TOL_DEG);
+        CHECK_NEAR(sim_axis_deg(&e, "turntable"), 45.0, STEP_TOL_DEG);
         json_decref(ctl_ok(&e, "capture", NULL));
         CHECK_INT(check_dataset_roles(&e, "scan", 1u << GN_ROLE_TURNTABLE), 4);
         unplugged_board(&e);

@@ -164,7 +164,7 @@ static void write_calibration(const char *path, const struct rig_config *rc, dou
         CHECK_INT(cal_camera_write(path, &c, true, err, sizeof(err)), 0);
         CHECK_INT(cal_turntable_write(path, &t, true, err, sizeof(err)), 0);
         if (laser)
-                CHECK_INT(cal_laser_write(path, rc->laser.name, cc->name, &l, "", true, err,
+                CHECK_INT(cal_laser_write(path, rc->lasers[0].name, cc->name, &l, "", true, err,
                                           sizeof(err)),
                           0);
 }

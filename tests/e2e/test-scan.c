@@ -83,10 +83,10 @@ static int check_angle(const struct ds_capture *c, void *userdata)
                         (long long)c->id, c->pose.deg[GN_ROLE_TURNTABLE], fl->mid[i], fl->start[i],
                         fl->end[i]);
         CHECK(err <= ANGLE_TOL_DEG);
-        CHECK(c->pose.laser == fl->laser[i]);
+        CHECK(c->pose.lasers == fl->laser[i]);
         CHECK_STR(c->kind, "image");
         k->worst = fmax(k->worst, err);
-        k->laser_on += c->pose.laser;
+        k->laser_on += c->pose.lasers;
         return 0;
 }
 
@@ -169,11 +169,11 @@ static int count_pair(const struct ds_capture *c, void *userdata)
         int k = (int)lround(c->pose.deg[GN_ROLE_TURNTABLE] / 4.5);
 
         CHECK(k >= 0 && k < 5 && fabs(c->pose.deg[GN_ROLE_TURNTABLE] - k * 4.5) < 0.01);
-        if (c->pose.laser || !c->pose.lamps) /* the laser frame and its unlit reference */
+        if (c->pose.lasers || !c->pose.lamps) /* the laser frame and its unlit reference */
                 CHECK_STR(c->lamps, "");
         else
                 CHECK_STR(c->lamps, "lamp0");
-        seen[k] += c->pose.laser ? 1 : c->pose.lamps ? 16 : 256;
+        seen[k] += c->pose.lasers ? 1 : c->pose.lamps ? 16 : 256;
         return 0;
 }
 

@@ -281,7 +281,7 @@ static void test_switches(struct rig_config *rc, struct bus *b)
 
         CHECK_INT(sw_new(&rc->lamps[0], b, &lamp0), 0);
         CHECK_INT(sw_new(&rc->lamps[1], b, &lamp1), 0);
-        CHECK_INT(sw_new(&rc->laser, b, &laser), 0);
+        CHECK_INT(sw_new(&rc->lasers[0], b, &laser), 0);
         CHECK_INT(sw_open(lamp0), 0);
         CHECK_INT(sw_open(laser), 0);
         CHECK(sim_value("lamp") == '0');

@@ -282,7 +282,7 @@ int main(int argc, char **argv)
         CHECK_INT(bus_new_sync(rigconf_bus(rc, "usb2"), &usb2), 0);
         for (int i = 0; i < LASER; i++)
                 confs[i] = &rc->lamps[i];
-        confs[LASER] = &rc->laser;
+        confs[LASER] = &rc->lasers[0];
         for (int i = 0; i < N_SW; i++)
                 CHECK_INT(sw_new(confs[i], i == ANY ? usb2 : usb, &sw[i]), 0);
 

@@ -16,7 +16,7 @@ struct example {
 
 static struct gn_pose pose(double tt, double la, uint32_t lamps, bool laser)
 {
-        return (struct gn_pose){.deg = {tt, la, 0.0}, .lamps = lamps, .laser = laser};
+        return (struct gn_pose){.deg = {tt, la, 0.0}, .lamps = lamps, .lasers = laser};
 }
 
 static void render(struct example *e, int cam, const struct gn_pose *p, uint64_t seq,
@@ -94,7 +94,7 @@ static void test_laser(struct example *e)
         struct gn_frame a, b;
         char name[32];
 
-        CHECK(e->rc->has_laser);
+        CHECK(e->rc->n_lasers);
         for (int cam = 0; cam < (int)e->rc->n_cameras; cam++) {
                 render(e, cam, &off, 0, &a);
                 render(e, cam, &on, 0, &b);

@@ -111,7 +111,7 @@ static double centroid(const struct gn_frame *f, int v, int u0, double *peak)
 int main(void)
 {
         struct rtest t;
-        struct gn_pose st = {.laser = true};
+        struct gn_pose st = {.lasers = 1};
         struct sim_expose ex = {.bits = 16, .no_noise = true};
         struct sim_cam_geom g;
         struct gn_frame f;
@@ -119,7 +119,7 @@ int main(void)
         int rows = 0, shadowed = 0;
 
         rt_open(&t, "", laser, cams, scene);
-        CHECK_INT(sim_laser_plane(t.s, n, &d), 0);
+        CHECK_INT(sim_laser_plane(t.s, 0, n, &d), 0);
         CHECK_NEAR(n[0], 0, 1e-12);
         CHECK_NEAR(n[1], 1, 1e-12);
         CHECK_NEAR(d, 0, 1e-12);
@@ -159,7 +159,7 @@ int main(void)
                 for (int u = 0; u < f.width; u++)
                         CHECK(rt_px(&f, u, v, 1) == 0 && rt_px(&f, u, v, 2) == 0);
         gn_frame_free_data(&f);
-        st.laser = false;
+        st.lasers = 0;
         rt_render(&t, &st, &ex, 0, &f, 0, NULL);
         for (int v = 0; v < f.height; v++)
                 for (int u = 0; u < f.width; u++)

@@ -35,7 +35,7 @@ void st_open(struct rtest *t, const char *object, double elevation_deg, double t
 void st_render(struct rtest *t, double deg, bool laser, uint32_t lamps, uint64_t seq,
                struct gn_frame *f)
 {
-        struct gn_pose st = {.laser = laser, .lamps = lamps};
+        struct gn_pose st = {.lasers = laser, .lamps = lamps};
         struct sim_expose ex = {.bits = 8};
 
         for (int k = 0; k < GN_ROLE_COUNT; k++)
@@ -54,7 +54,7 @@ void st_scan(struct rtest *t, int n, struct sec_ctx *c)
         CHECK_INT(scan_nominal_calib(t->rc, "c0", NAN, &cal), 0);
         CHECK_INT(sec_init(c, &cal.cam), 0);
         CHECK_INT(sec_add_laser(c, cal.plane_p[0], cal.plane_n[0]), 0);
-        laserline_opts_default(&o, t->rc->laser.laser_channel);
+        laserline_opts_default(&o, t->rc->lasers[0].laser_channel);
         for (int i = 0; i < n; i++) {
                 double deg = 360.0 * i / n;
                 struct gn_frame on, off, lamp;

@@ -35,7 +35,7 @@ static void store(struct ds *d, struct rtest *t, double deg, double arm_deg, boo
         struct ds_capture c = {.camera = "c0", .exposure_us = exposure_us, .gain = 1};
         struct gn_frame f;
 
-        c.pose = (struct gn_pose){.deg = {deg, NAN, arm_deg}, .lamps = lamps, .laser = laser};
+        c.pose = (struct gn_pose){.deg = {deg, NAN, arm_deg}, .lamps = lamps, .lasers = laser};
         snprintf(c.kind, sizeof(c.kind), "%s", laser ? "laser" : "image");
         snprintf(c.lamps, sizeof(c.lamps), "%s", lamps ? "l0" : "");
         st_render(t, deg, laser, lamps, seq, &f);
@@ -220,7 +220,7 @@ static void test_bad(void)
         scan_opts_default(&o);
         CHECK_INT(scan_dataset(d, rc, &o, NULL, &r, err, sizeof(err)), -ENODATA);
         fprintf(stderr, "%s\n", err);
-        CHECK_STR_CONTAINS(err, "has no frames with the laser on (6 image rows)");
+        CHECK_STR_CONTAINS(err, "has no frames with a laser on (6 image rows)");
         o.camera = "c7";
         CHECK_INT(scan_dataset(d, rc, &o, NULL, &r, err, sizeof(err)), -ENOENT);
         CHECK_STR_CONTAINS(err, "no captures of camera c7");
@@ -264,7 +264,7 @@ static void test_gonioctl(void)
         json_decref(j);
         snprintf(args, sizeof(args), "scan --from %s", lamps);
         CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
-        CHECK_STR_CONTAINS(out, "dataset lamps has no frames with the laser on");
+        CHECK_STR_CONTAINS(out, "dataset lamps has no frames with a laser on");
         snprintf(args, sizeof(args), "scan --from %s --camera c7 --force", path);
         CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
         CHECK_STR_CONTAINS(out, "no captures of camera c7");

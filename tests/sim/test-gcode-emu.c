@@ -33,9 +33,9 @@ static const char rig_yaml[] =
          * home switch (sim/drive.c), so that homing lasts long enough to be seen */
         "  - { name: camera_arm, max_speed: 90, accel: 180, limits: [100, 170],\n"
         "      gcode: { bus: cnc, flavor: grbl, axis: X, steps_per_deg: 100 } }\n"
-        "lamps:\n"
-        "  - { name: right, elevation: 0, gcode-laser: { bus: ciclop, tool: 2 } }\n"
-        "laser: { name: left, gcode-laser: { bus: ciclop, tool: 1 } }\n";
+        "lasers:\n"
+        "  - { name: left, gcode-laser: { bus: ciclop, tool: 1 } }\n"
+        "  - { name: right, gcode-laser: { bus: ciclop, tool: 2 } }\n";
 
 /* Real seconds a move of dist degrees takes at 90 deg/s, 180 deg/s^2. */
 static double move_s(double dist)
@@ -106,31 +106,30 @@ static double timed(int fd, const char *req, const char *want, double limit_s)
         return simtest_now() - t0 - QUIET_S;
 }
 
-static bool laser(struct sim_emu *e)
+/* The emulated lasers that are on, by rig-file index. */
+static uint32_t lasers(struct sim_emu *e)
 {
         struct gn_pose st;
 
         sim_emu_snapshot(e, &st);
-        return st.laser;
+        return st.lasers;
 }
 
 static void test_horus_basics(struct sim_emu *e, int fd)
 {
-        struct gn_pose st;
-
         transcript(fd, "\x18", "\r\nHorus 0.2 ['$' for help]\r\n");
         transcript(fd, "?", "<Idle,MPos:0.000,0.000,0.000,WPos:0.000,0.000,0.000>\r\n");
         transcript(fd, "G1 X90\n", "error: Undefined feed rate\r\n");
         transcript(fd, "\n", ""); /* an empty line gets no answer */
         transcript(fd, "M71 T1\n", "ok\r\n");
-        CHECK(laser(e));
+        CHECK_INT(lasers(e), 1); /* tool 1: the rig's laser with tool 1, left */
         transcript(fd, "M71 T2\n", "ok\r\n");
-        sim_emu_snapshot(e, &st);
-        CHECK(st.lamps == 1);
+        CHECK_INT(lasers(e), 3);
         transcript(fd, "M50 T1\n", "780\r\nok\r\n"); /* two lasers lit the sensor */
         transcript(fd, "m70t1\n", "ok\r\n");
+        CHECK_INT(lasers(e), 2); /* tool 2 alone: right */
         transcript(fd, "M70 T2\n", "ok\r\n");
-        CHECK(!laser(e));
+        CHECK_INT(lasers(e), 0);
         transcript(fd, "M50 T1\n", "180\r\nok\r\n");
         transcript(fd, "M17\n", "ok\r\n");
         transcript(fd, "Y10\n", "error: Unsupported command\r\n");
@@ -176,7 +175,7 @@ static void test_horus_reset(struct sim_emu *e, int fd)
         transcript(fd, "\x18",
                    "ALARM: Abort during cycle\r\nok\r\n\r\nHorus 0.2 ['$' for help]\r\n"
                    "['$H'|'$X' to unlock]\r\n");
-        CHECK(!laser(e));
+        CHECK_INT(lasers(e), 0);
         transcript(fd, "G1 X0 F600\n", "error: Alarm lock\r\n");
         transcript(fd, "$X\n", "[Caution: Unlocked]\r\nok\r\n");
         transcript(fd, "G1 X0\n", "error: Undefined feed rate\r\n"); /* reset forgot F */

@@ -53,7 +53,7 @@ static void test_reads_and_units(struct sim_emu *e, modbus_t *mb)
         CHECK(modbus_read_bits(rl, 0, 8, coils) == 8);
         CHECK(!coils[0] && coils[1] && coils[7]);
         sim_emu_snapshot(e, &st);
-        CHECK(st.lamps == 2 && st.laser);
+        CHECK(st.lamps == 2 && st.lasers);
         CHECK(modbus_read_bits(rl, 8, 1, coils) == -1 && errno == EMBXILADD);
         modbus_close(rl);
         modbus_free(rl);
@@ -300,7 +300,7 @@ static void test_roles(void)
         CHECK(gn_pose_has(&st, GN_ROLE_TURNTABLE));
         CHECK(!gn_pose_has(&st, GN_ROLE_LIGHT_ARM) && !gn_pose_has(&st, GN_ROLE_CAMERA_ARM));
         CHECK(wrapped_distance(st.deg[GN_ROLE_TURNTABLE], from + 90.0) < 1e-6);
-        CHECK(st.lamps == 0 && !st.laser);
+        CHECK(st.lamps == 0 && !st.lasers);
 
         char err[256] = "";
         CHECK(sim_scene_new(rc, &scene, err, sizeof err) == 0);

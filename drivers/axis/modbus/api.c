@@ -1,7 +1,10 @@
 /* api.c - the "modbus" axis backend: a servo/stepper drive behind a register profile
- * (docs/modbus-profile.md), through the Modbus transport's retrying transactions.
- * Runs on the bus worker; caches nothing: every state comes from the drive, the unit and
- * the register profile from the backend map, parsed and resolved when the rig file loads. */
+ * (docs/modbus-profile.md), through the Modbus transport's retrying transactions. It does
+ * the I/O that the profile's family (proto.h) describes: the writes of a move or a command,
+ * the reads of a poll. Runs on the bus worker; caches nothing from the drive: every state
+ * comes from it. The unit and the profile come from the backend map, parsed and resolved
+ * when the rig file loads; the speed of the following moves is kept for families whose
+ * moves carry it. */
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -12,12 +15,13 @@
 #include "drivers/transport/modbus.h"
 #include "drivers/transport/transport.h"
 
-/* Registers read in one request when status, fault and position lie this close. */
+/* Registers read in one request when a poll's spans lie this close. */
 #define STATE_BLOCK_MAX 32
 
 /* The backend's state while open. */
 struct mbax {
         const struct mbax_conf *conf; /* borrowed from the rig config */
+        double speed;                 /* of the following moves, deg/s */
 };
 
 static const struct opt_desc mbax_opts[] = {
@@ -26,20 +30,12 @@ static const struct opt_desc mbax_opts[] = {
         {OPT_STOP, OPT_SET},
 };
 
-/* The profile of an open axis, or NULL before open. */
-static const struct rig_modbus_profile *prof(const struct axis *ax)
+/* The settings of an open axis, or NULL before open. */
+static const struct mbax_conf *conf(const struct axis *ax)
 {
         const struct mbax *m = ax->priv;
 
-        return m ? m->conf->profile : NULL;
-}
-
-/* The unit of an open axis. */
-static int unit(const struct axis *ax)
-{
-        const struct mbax *m = ax->priv;
-
-        return m->conf->unit;
+        return m ? m->conf : NULL;
 }
 
 /* Register accesses that name what failed: "read position (reg 0x0102): cause", or the
@@ -58,41 +54,38 @@ static int reg_result(struct axis *ax, int r, const char *what, int reg)
 
 static int read_regs(struct axis *ax, const char *what, int reg, int n, uint16_t *dest)
 {
-        return reg_result(ax, mbus_read_regs(bus_transport(ax->bus), unit(ax), reg, n, dest), what,
-                          reg);
+        return reg_result(ax, mbus_read_regs(bus_transport(ax->bus), conf(ax)->unit, reg, n, dest),
+                          what, reg);
 }
 
-static int write_reg(struct axis *ax, const char *what, int reg, uint16_t v)
+/* Writes w[0..n) in order, each in one request; stops at the first failure. */
+static int write_all(struct axis *ax, const struct mbax_write *w, int n)
 {
-        return reg_result(ax, mbus_write_reg(bus_transport(ax->bus), unit(ax), reg, v), what, reg);
+        struct transport *t = bus_transport(ax->bus);
+        int unit = conf(ax)->unit, r = n;
+
+        for (int i = 0; r >= 0 && i < n; i++)
+                r = reg_result(ax,
+                               w[i].n == 1 ? mbus_write_reg(t, unit, w[i].addr, w[i].regs[0])
+                                           : mbus_write_regs(t, unit, w[i].addr, w[i].n, w[i].regs),
+                               w[i].what, w[i].addr);
+        return r < 0 ? r : 0;
 }
 
-static int write_regs(struct axis *ax, const char *what, int reg, int n, const uint16_t *src)
+/* Sets the speed of the following moves: the drive's registers when its family has them. */
+static int set_rates(struct axis *ax, double speed)
 {
-        return reg_result(ax, mbus_write_regs(bus_transport(ax->bus), unit(ax), reg, n, src), what,
-                          reg);
-}
+        struct mbax_write w[MBAX_WRITES_MAX];
+        struct mbax *m = ax->priv;
 
-static int command(struct axis *ax, uint16_t cmd)
-{
-        if (!ax->priv)
-                return -ENOTCONN;
-        return write_reg(ax, "write command", prof(ax)->reg_command, cmd);
-}
-
-/* Writes a rate register unless the rig file leaves it to the drive (value 0). */
-static int write_rate(struct axis *ax, const char *what, uint16_t reg, double value)
-{
-        if (!(value > 0))
-                return 0;
-        return write_reg(ax, what, reg, mbax_rate_reg(value));
+        m->speed = speed;
+        return write_all(ax, w, m->conf->family->rates(m->conf, speed, ax->conf->accel, w));
 }
 
 static int mbax_open(struct axis *ax)
 {
         const struct mbax_conf *c = ax->conf->backend.conf;
         struct mbax *m;
-        int r;
 
         if (!c)
                 return axis_set_cause(ax, SYNTHETIC_ERRNO(EINVAL),
@@ -104,17 +97,14 @@ static int mbax_open(struct axis *ax)
                 *m = (struct mbax){.conf = c};
                 ax->priv = m;
         }
-        r = write_rate(ax, "write max speed", c->profile->reg_speed, ax->conf->max_speed);
-        if (r < 0)
-                return r;
-        return write_rate(ax, "write acceleration", c->profile->reg_accel, ax->conf->accel);
+        return set_rates(ax, ax->conf->max_speed);
 }
 
 static int mbax_set_speed(struct axis *ax, double deg_s)
 {
         if (!ax->priv)
                 return -ENOTCONN;
-        return write_rate(ax, "write max speed", prof(ax)->reg_speed, deg_s);
+        return set_rates(ax, deg_s);
 }
 
 static void mbax_close(struct axis *ax)
@@ -123,96 +113,103 @@ static void mbax_close(struct axis *ax)
         ax->priv = NULL;
 }
 
+static int command(struct axis *ax, enum mbax_cmd cmd)
+{
+        struct mbax_write w[MBAX_WRITES_MAX];
+        const struct mbax_conf *c = conf(ax);
+
+        if (!c)
+                return -ENOTCONN;
+        return write_all(ax, w, c->family->command(c, cmd, w));
+}
+
 static int mbax_home(struct axis *ax)
 {
-        return command(ax, prof(ax)->cmd_home);
+        return command(ax, MBAX_CMD_HOME);
 }
 
 static int mbax_stop(struct axis *ax)
 {
-        return command(ax, prof(ax)->cmd_stop);
+        return command(ax, MBAX_CMD_STOP);
 }
 
 static int mbax_reset(struct axis *ax)
 {
-        return command(ax, prof(ax)->cmd_reset);
+        return command(ax, MBAX_CMD_RESET);
 }
 
-static int read_position(struct axis *ax, int32_t *ret)
+/* Reads the spans of a poll into regs (concatenated in span order): in one request when
+ * they lie close, else one request each. */
+static int read_spans(struct axis *ax, uint16_t regs[MBAX_STATE_REGS])
 {
-        uint16_t regs[2];
-        int r;
+        const struct mbax_conf *c = conf(ax);
+        struct mbax_span s[MBAX_SPANS_MAX];
+        int n = c->family->spans(c, s), lo = s[0].addr, hi = s[0].addr + s[0].n, at = 0, r;
+        uint16_t block[STATE_BLOCK_MAX];
 
-        r = read_regs(ax, "read position", prof(ax)->reg_position, 2, regs);
+        for (int i = 1; i < n; i++) {
+                lo = MIN(lo, s[i].addr);
+                hi = MAX(hi, s[i].addr + s[i].n);
+        }
+        if (n > 1 && hi - lo <= STATE_BLOCK_MAX) {
+                r = read_regs(ax, "read status and position", lo, hi - lo, block);
+                for (int i = 0; r >= 0 && i < n; at += s[i++].n)
+                        memcpy(regs + at, block + (s[i].addr - lo), s[i].n * sizeof(*regs));
+                return r < 0 ? r : 0;
+        }
+        for (int i = 0; i < n; at += s[i++].n)
+                if ((r = read_regs(ax, s[i].what, s[i].addr, s[i].n, regs + at)) < 0)
+                        return r;
+        return 0;
+}
+
+/* Reads and decodes the drive's state and raw position count. */
+static int read_state(struct axis *ax, struct axis_state *st, int32_t *counts)
+{
+        uint16_t regs[MBAX_STATE_REGS];
+        int r = read_spans(ax, regs);
+
         if (r < 0)
                 return r;
-        *ret = mbax_get_i32(prof(ax), regs);
+        conf(ax)->family->decode(conf(ax), regs, st, counts);
         return 0;
 }
 
 static int mbax_move_abs(struct axis *ax, double deg)
 {
-        const struct rig_modbus_profile *p = prof(ax);
-        uint16_t regs[2];
+        struct mbax_write w[MBAX_WRITES_MAX];
+        const struct mbax *m = ax->priv;
+        const struct mbax_conf *c = conf(ax);
+        struct axis_state st;
         int32_t cur, target;
         int r;
 
-        if (!p)
+        if (!c)
                 return -ENOTCONN;
         if (ax->conf->continuous) {
-                r = read_position(ax, &cur);
+                r = read_state(ax, &st, &cur);
                 if (r < 0)
                         return r;
-                r = mbax_count_target(p, cur, axis_travel(ax->conf, cur / p->scale, deg), &target);
+                r = mbax_count_target(c->scale, cur, axis_travel(ax->conf, cur / c->scale, deg),
+                                      &target);
         } else
-                r = mbax_deg_to_counts(p, deg, &target);
-        if (r < 0)
-                return r;
-        mbax_put_i32(p, target, regs);
-        r = write_regs(ax, "write target", p->reg_target, 2, regs);
-        if (r < 0)
-                return r;
-        return command(ax, p->cmd_move);
-}
-
-/* Reads status, fault and both position registers, in one request when they are close. */
-static int read_state_regs(struct axis *ax, uint16_t *status, uint16_t *fault, uint16_t pos[2])
-{
-        const struct rig_modbus_profile *p = prof(ax);
-        int lo = MIN(MIN(p->reg_status, p->reg_fault), p->reg_position);
-        int hi = MAX(MAX(p->reg_status, p->reg_fault), p->reg_position + 1);
-        uint16_t block[STATE_BLOCK_MAX];
-        int r;
-
-        if (hi - lo >= STATE_BLOCK_MAX) {
-                r = read_regs(ax, "read status", p->reg_status, 1, status);
-                if (r >= 0)
-                        r = read_regs(ax, "read fault code", p->reg_fault, 1, fault);
-                return r < 0 ? r : read_regs(ax, "read position", p->reg_position, 2, pos);
-        }
-        r = read_regs(ax, "read status and position", lo, hi - lo + 1, block);
-        if (r < 0)
-                return r;
-        *status = block[p->reg_status - lo];
-        *fault = block[p->reg_fault - lo];
-        pos[0] = block[p->reg_position - lo];
-        pos[1] = block[p->reg_position + 1 - lo];
-        return 0;
+                r = mbax_deg_to_counts(c->scale, deg, &target);
+        if (r >= 0)
+                r = c->family->move(c, target, m->speed, ax->conf->accel, w);
+        return r < 0 ? r : write_all(ax, w, r);
 }
 
 static int mbax_poll(struct axis *ax, struct axis_state *st)
 {
-        uint16_t status, fault, pos[2];
+        int32_t counts;
         int r;
 
         if (!ax->priv)
                 return -ENOTCONN;
-        r = read_state_regs(ax, &status, &fault, pos);
+        r = read_state(ax, st, &counts);
         if (r < 0)
                 return r;
-        mbax_decode_status(status, fault, st);
-        st->position_deg =
-                mbax_counts_to_deg(prof(ax), mbax_get_i32(prof(ax), pos), ax->conf->continuous);
+        st->position_deg = mbax_counts_to_deg(conf(ax)->scale, counts, ax->conf->continuous);
         return 0;
 }
 

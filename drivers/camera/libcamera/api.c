@@ -16,6 +16,7 @@ struct cam_lc {
         struct cam_ops ops; /* cam_lc_ops with opts below; c->ops while open */
         struct opt_desc opts[LCPROTO_OPTS_MAX];
         bool streaming;
+        uint64_t next_seq; /* of the stream's next frame (lcproto_check_seq) */
 };
 
 /* Until open: every control a libcamera camera may offer, with the rig file's bounds. */
@@ -132,6 +133,7 @@ static int lc_stream_start(struct cam *c, const struct cam_request *req)
         if (r < 0)
                 return cam_set_cause(c, r, "%s", cause);
         s->streaming = true;
+        s->next_seq = LCPROTO_SEQ_NONE;
         return 0;
 }
 
@@ -184,13 +186,25 @@ static int lc_stream_fd(struct cam *c)
         return s && s->streaming ? lc_cam_fd(s->lc) : -ENOTCONN;
 }
 
+/* The next frame of the stream; a gap in the sequence numbers (frames libcamera dropped)
+ * is an error naming the frames: a stream's frames are its angles. */
 static int lc_stream_dequeue(struct cam *c, struct gn_frame *out)
 {
         struct cam_lc *s = c->priv;
+        char cause[DEV_ERROR_MAX];
+        int r;
 
         if (!s || !s->streaming)
                 return -ENOTCONN;
-        return take_frame(c, s, out);
+        r = take_frame(c, s, out);
+        if (r < 0)
+                return r;
+        r = lcproto_check_seq(&s->next_seq, out->seq, cause, sizeof(cause));
+        if (r < 0) {
+                gn_frame_free_data(out);
+                return cam_set_cause(c, r, "%s", cause);
+        }
+        return 0;
 }
 
 const struct rig_backend cam_lc_backend = {

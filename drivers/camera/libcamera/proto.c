@@ -1,6 +1,7 @@
 /* proto.c - the "libcamera" backend's pure parts (see proto.h): rig-file map, pixel format
  * conversion, clock conversion and the option table, all without libcamera or I/O. */
 #include <errno.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "common/cleanup.h"
@@ -132,4 +133,21 @@ int lcproto_opts(const struct lc_caps *caps, struct opt_desc *opts)
                 opts[n++] = (struct opt_desc){OPT_GAIN, OPT_GET | OPT_SET, .min = caps->gain_min,
                                               .max = caps->gain_max};
         return n;
+}
+
+int lcproto_check_seq(uint64_t *next, uint64_t seq, char *msg, size_t len)
+{
+        uint64_t want = *next;
+
+        *next = seq + 1;
+        if (want == LCPROTO_SEQ_NONE || seq == want)
+                return 0;
+        if (seq > want)
+                snprintf(msg, len, "%llu frame%s dropped (sequence %llu after %llu)",
+                         (unsigned long long)(seq - want), seq - want == 1 ? "" : "s",
+                         (unsigned long long)seq, (unsigned long long)(want - 1));
+        else
+                snprintf(msg, len, "frame sequence went back (%llu after %llu)",
+                         (unsigned long long)seq, (unsigned long long)(want - 1));
+        return -EIO;
 }

@@ -1,6 +1,7 @@
 /* proto.h - the "libcamera" camera backend's pure parts, without libcamera or I/O: its rig-file
  * map (which camera), the pixel formats it accepts and their conversion to gonio frames, the
- * sensor timestamp's clock, and the option table built from the controls a camera offers. */
+ * sensor timestamp's clock, the sequence check of a stream, and the option table built from
+ * the controls a camera offers. */
 #pragma once
 
 #include <stddef.h>
@@ -57,6 +58,15 @@ const char *lcproto_format_name(uint32_t fourcc);
 /* A CLOCK_MONOTONIC time (libcamera's SensorTimestamp, start of exposure) on CLOCK_REALTIME,
  * given both clocks read at one moment. Never fails; 0 when the result would be negative. */
 uint64_t lcproto_mono_to_realtime(uint64_t mono_ns, uint64_t mono_now_ns, uint64_t real_now_ns);
+
+/* The next sequence number of a stream before its first frame: any is accepted. */
+#define LCPROTO_SEQ_NONE UINT64_MAX
+
+/* Checks a streamed frame's sequence number seq against *next, the one expected
+ * (LCPROTO_SEQ_NONE before the first frame), and sets *next to seq + 1. Returns 0, or -EIO
+ * with the cause in msg when frames were dropped (a gap: "2 frames dropped (sequence 14
+ * after 11)") or seq went back. Pure. */
+int lcproto_check_seq(uint64_t *next, uint64_t seq, char *msg, size_t len);
 
 /* Longest option table lcproto_opts() writes. */
 #define LCPROTO_OPTS_MAX 3
