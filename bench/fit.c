@@ -6,7 +6,8 @@
  * the time to merely decode its images (2 threads) and the time of the fit's matrix products
  * (36 x L by L x 3N per view, OpenBLAS on 2 threads). Targets: fit at most 60 s on 2 cores and
  * at most 2 x (decode + product). Options: --turntable N (views per camera: fewer for a
- * smaller run), --arm N, --cameras N, --dir DIR. Last line: one JSON object. */
+ * smaller run), --arm N, --cameras N, --dir DIR. The CPU seconds of each part go to stderr
+ * (the machine is shared: wall times move with its load). Last line: one JSON object. */
 #include <cblas.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -16,6 +17,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -72,6 +74,16 @@ static double now_s(void)
 
         clock_gettime(CLOCK_MONOTONIC, &ts);
         return ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+/* CPU seconds of the process so far (user + system, all threads). */
+static double cpu_s(void)
+{
+        struct rusage u;
+
+        getrusage(RUSAGE_SELF, &u);
+        return u.ru_utime.tv_sec + u.ru_utime.tv_usec * 1e-6 + u.ru_stime.tv_sec +
+               u.ru_stime.tv_usec * 1e-6;
 }
 
 static void die(const char *what, int r)
@@ -230,7 +242,7 @@ int main(int argc, char **argv)
         struct opts o;
         struct ds *d;
         char path[4400], err[1024];
-        double fit_s, decode_s, gemm_s;
+        double fit_s, decode_s, gemm_s, cpu[4];
         int r;
 
         parse(argc, argv, &o);
@@ -248,8 +260,11 @@ int main(int argc, char **argv)
         }
         if ((r = ds_open(path, &d)) < 0)
                 die(path, r);
+        cpu[0] = cpu_s();
         decode_s = decode_all(d);
+        cpu[1] = cpu_s();
         gemm_s = gemm_all(o.cameras * o.turntable, o.arm * LAMPS);
+        cpu[2] = cpu_s();
         ap_fit_opts_default(&fo);
         fo.backends = registry_backends;
         fit_s = now_s();
@@ -257,13 +272,15 @@ int main(int argc, char **argv)
         if (r == 0)
                 r = ap_model_write(m, ds_path(d));
         fit_s = now_s() - fit_s;
+        cpu[3] = cpu_s();
         if (r < 0)
                 die(err, r);
         fprintf(stderr,
                 "bench/fit: %zu views: fit %.1f s (rms sh %.4f, pca %.4f; %s), decode %.1f "
-                "s, products %.1f s: %.2f x (decode + products)\n",
+                "s, products %.1f s: %.2f x (decode + products); CPU seconds: fit %.1f, decode "
+                "%.1f, products %.1f\n",
                 m->n_views, fit_s, m->rms_sh, m->rms_pca, m->notes, decode_s, gemm_s,
-                fit_s / (decode_s + gemm_s));
+                fit_s / (decode_s + gemm_s), cpu[3] - cpu[2], cpu[1] - cpu[0], cpu[2] - cpu[1]);
         printf("{\"bench\":\"fit\",\"fit_s\":%.2f,\"decode_s\":%.2f,\"gemm_s\":%.2f,\"views\":%d,"
                "\"lights\":%d}\n",
                fit_s, decode_s, gemm_s, o.cameras * o.turntable, o.arm * LAMPS);
