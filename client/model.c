@@ -157,6 +157,8 @@ int model_command(const struct args *a, struct out *o, json_t **ret)
         int n = a->nwords - 1;
         struct fit_cli f = {0};
 
+        if (n >= 1 && strcmp(words[0], "render") == 0) /* prints its own result */
+                return model_render_command(n, words);
         if (n < 1 || strcmp(words[0], "fit") != 0) {
                 args_usage_error("model",
                                  n < 1 ? "missing subcommand (fit)"
@@ -173,6 +175,8 @@ void model_print(json_t *res)
 {
         const char *notes = json_string_value(json_object_get(res, "notes"));
 
+        if (!res) /* model render: printed already */
+                return;
         printf("model %s: order %d, %d components, %d views, %s %g\n",
                json_string_value(json_object_get(res, "model")),
                (int)json_integer_value(json_object_get(res, "order")),

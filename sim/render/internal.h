@@ -111,6 +111,7 @@ struct sensor {
 
 struct sim_scene {
         struct rig_config *rc;
+        bool has_object; /* geoms[0] is the scene's object */
         RTCDevice dev;
         RTCScene scn;
         struct rgeom geoms[SIM_MAX_GEOMS];

@@ -90,3 +90,20 @@ int sim_cam_project(const struct sim_cam_geom *g, const double p[3], double uv[2
  * -EINVAL. */
 int sim_target_pose(const struct sim_scene *s, const struct gn_pose *st, int target, double R[9],
                     double t[3]);
+
+/* A triangle mesh handed out by the renderer (object frame, mm): malloc'ed arrays that the
+ * caller frees with free(). */
+struct sim_mesh {
+        size_t nv, nt;
+        float *pos;    /* 3 * nv */
+        uint32_t *idx; /* 3 * nt */
+};
+
+/* Reads the PLY or OBJ mesh at path (the reader of the scene's "mesh" shape) into *out.
+ * Returns 0 or -errno with "path:line: reason" in err. */
+int sim_mesh_read(const char *path, struct sim_mesh *out, char *err, size_t errlen);
+
+/* A copy of the triangles of the scene's object (placed: object frame at turntable angle 0)
+ * into *out; an analytic sphere (resolution 0) is tessellated with res rows. Returns 0,
+ * -ENOENT (the scene has no object) or -ENOMEM. */
+int sim_object_mesh(const struct sim_scene *s, int res, struct sim_mesh *out);

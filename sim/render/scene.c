@@ -248,6 +248,7 @@ static int parse_object(struct sim_scene *s, struct yconf *y, struct fy_node *ma
         if (smooth && g->kind == GEOM_MESH && (r = mesh_smooth_normals(&g->mesh)) < 0)
                 return r;
         place(g, &p);
+        s->has_object = true;
         return 0;
 }
 

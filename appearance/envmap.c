@@ -1,0 +1,162 @@
+/* envmap.c - lat-long environment maps (envmap.h): PNG through the dataset's decoder, PFM
+ * parsed here (a three-line text header, then float rows bottom first), and the projection
+ * onto the SH basis by summing over pixels with each row's exact solid angle. */
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "appearance/envmap.h"
+#include "appearance/model.h"
+#include "appearance/sh.h"
+#include "common/cleanup.h"
+#include "common/fileio.h"
+#include "dataset/ds_png.h"
+
+#define ENVMAP_FILE_MAX ((size_t)1 << 31)
+
+static int bad(char *err, size_t errlen, const char *path, const char *why, int r)
+{
+        snprintf(err, errlen, "%s: %s", path, why);
+        return r;
+}
+
+static int alloc_rgb(struct ap_envmap *out, long w, long h)
+{
+        if (w < 1 || h < 1 || w > AP_ENVMAP_MAX_SIDE || h > AP_ENVMAP_MAX_SIDE)
+                return -EBADMSG;
+        out->width = (int)w;
+        out->height = (int)h;
+        out->rgb = malloc(3 * (size_t)w * (size_t)h * sizeof(float));
+        return out->rgb ? 0 : -ENOMEM;
+}
+
+static int load_png(const uint8_t *buf, size_t len, struct ap_envmap *out)
+{
+        struct gn_frame f = {0};
+        int r = ds_png_decode(buf, len, &f);
+        float full;
+
+        if (r < 0)
+                return r;
+        if ((r = alloc_rgb(out, f.width, f.height)) < 0) {
+                gn_frame_free_data(&f);
+                return r;
+        }
+        full = f.bits == 16 ? 65535.f : 255.f;
+        for (int y = 0; y < f.height; y++) {
+                const uint8_t *row = f.data + (size_t)y * f.stride;
+                for (int x = 0; x < f.width; x++)
+                        for (int c = 0; c < 3; c++) {
+                                int s = (x * f.channels + (f.channels == 3 ? c : 0));
+                                float v = f.bits == 16 ? ((const uint16_t *)row)[s] : row[s];
+                                out->rgb[((size_t)y * f.width + x) * 3 + c] = v / full;
+                        }
+        }
+        gn_frame_free_data(&f);
+        return 0;
+}
+
+/* A PFM: "PF" (RGB) or "Pf" (grey), width height, scale (negative: little-endian). */
+static int load_pfm(const uint8_t *buf, size_t len, struct ap_envmap *out)
+{
+        long w, h;
+        double scale;
+        int n = 0, ch = buf[1] == 'F' ? 3 : 1, r;
+        bool le;
+
+        if (sscanf((const char *)buf + 2, "%ld %ld %lf%n", &w, &h, &scale, &n) != 3 || scale == 0 ||
+            !isfinite(scale))
+                return -EBADMSG;
+        n += 3; /* "PF" and the single whitespace after the scale */
+        if ((r = alloc_rgb(out, w, h)) < 0)
+                return r;
+        if (len < (size_t)n + (size_t)(w * h * ch) * 4)
+                return -EBADMSG;
+        le = scale < 0;
+        for (long y = 0; y < h; y++)
+                for (long x = 0; x < w; x++)
+                        for (int c = 0; c < 3; c++) {
+                                const uint8_t *p =
+                                        buf + n +
+                                        (((h - 1 - y) * w + x) * ch + (ch == 3 ? c : 0)) * 4;
+                                uint32_t u =
+                                        le ? p[0] | p[1] << 8 | p[2] << 16 | (uint32_t)p[3] << 24
+                                           : (uint32_t)p[0] << 24 | p[1] << 16 | p[2] << 8 | p[3];
+                                float v;
+                                memcpy(&v, &u, 4);
+                                out->rgb[(y * w + x) * 3 + c] = isfinite(v) ? v : 0;
+                        }
+        return 0;
+}
+
+int ap_envmap_load(const char *path, struct ap_envmap *out, char *err, size_t errlen)
+{
+        static const uint8_t png_sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+        _cleanup_free_ void *buf = NULL;
+        size_t len = 0;
+        int r;
+
+        memset(out, 0, sizeof(*out));
+        r = gn_read_file_at(AT_FDCWD, path, ENVMAP_FILE_MAX, &buf, &len);
+        if (r < 0) {
+                snprintf(err, errlen, "%s: cannot read: %s", path, strerror(-r));
+                return r;
+        }
+        if (len >= 8 && !memcmp(buf, png_sig, 8))
+                r = load_png(buf, len, out);
+        else if (len >= 3 && !memcmp(buf, "PF", 2))
+                r = load_pfm(buf, len, out);
+        else if (len >= 3 && !memcmp(buf, "Pf", 2))
+                r = load_pfm(buf, len, out);
+        else
+                return bad(err, errlen, path, "not a PNG or PFM image", -EBADMSG);
+        if (r < 0) {
+                ap_envmap_free(out);
+                return bad(err, errlen, path,
+                           r == -EOPNOTSUPP ? "PNG with alpha or a palette (use grey or RGB)"
+                           : r == -ENOMEM   ? "out of memory"
+                                            : "malformed or truncated image",
+                           r);
+        }
+        return 0;
+}
+
+void ap_envmap_free(struct ap_envmap *e)
+{
+        free(e->rgb);
+        memset(e, 0, sizeof(*e));
+}
+
+void ap_envmap_dir(int width, int height, double x, double y, double d[3])
+{
+        double phi = 2 * M_PI * x / width, theta = M_PI * y / height;
+
+        d[0] = sin(theta) * cos(phi);
+        d[1] = sin(theta) * sin(phi);
+        d[2] = cos(theta);
+}
+
+void ap_envmap_project(const struct ap_envmap *e, int order, double *coef)
+{
+        int m = ap_n_coef(order);
+        double y[AP_ORDER_MAX * AP_ORDER_MAX], d[3];
+
+        memset(coef, 0, 3 * (size_t)m * sizeof(double));
+        for (int row = 0; row < e->height; row++) {
+                double t0 = M_PI * row / e->height, t1 = M_PI * (row + 1) / e->height;
+                double dw = (cos(t0) - cos(t1)) * 2 * M_PI / e->width;
+                for (int x = 0; x < e->width; x++) {
+                        const float *px = &e->rgb[((size_t)row * e->width + x) * 3];
+                        ap_envmap_dir(e->width, e->height, x + 0.5, row + 0.5, d);
+                        ap_sh_eval(order, d, y);
+                        for (int i = 0; i < m; i++)
+                                for (int c = 0; c < 3; c++)
+                                        coef[i * 3 + c] += px[c] * y[i] * dw;
+                }
+        }
+}

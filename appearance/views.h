@@ -1,0 +1,39 @@
+/* views.h - the triangulated sphere of sampled view directions (seed 001 section 4.2):
+ * the convex hull of the unit view directions, whose faces are the spherical Delaunay
+ * triangles of the views, and the barycentric weights of the up-to-3 views around any
+ * direction (the neighbouring-view functions I(v; n) and H(v; n) of the paper).
+ *
+ * Views usually cover part of the sphere only (cameras on an upper arc). Hull faces that
+ * span a region with no views (a cap of a hemisphere or more, or a face far larger than
+ * the others: more than AP_VIEWS_HOLE_RATIO times the median face's circumradius) are
+ * holes; a direction that falls in a hole, or when every view lies on one plane (a single
+ * ring of turntable angles), is interpolated on the nearest boundary edge (two views, by
+ * the position of its projection on the arc) or takes its nearest view alone.
+ * docs/appearance.md, "Rendering". */
+#pragma once
+
+#include <stddef.h>
+
+#define AP_VIEWS_HOLE_RATIO 2.0 /* a face this many times the median circumradius is a hole */
+#define AP_VIEWS_CUBE       16  /* texels per cube-map face side of the start-face table */
+
+struct ap_views;
+
+/* Triangulates the n unit directions dirs (object frame). Directions closer than 1e-6 rad to
+ * an earlier one are never chosen (their earlier twin is). Returns 0, -EINVAL (n == 0, a
+ * zero vector) or -ENOMEM. Costs O(n^4) in the worst case: about 10 ms for 100 views. */
+int ap_views_new(const double (*dirs)[3], size_t n, struct ap_views **ret);
+
+/* Frees v; NULL is a no-op. Returns NULL. */
+struct ap_views *ap_views_free(struct ap_views *v);
+
+/* The views interpolated at unit direction d: their indices in idx and their weights in w
+ * (non-negative, summing to 1); slots past the returned count hold idx[0] and weight 0.
+ * Returns 1, 2 or 3. Thread-safe, no allocation: cheap enough to call per pixel. */
+int ap_views_weights(const struct ap_views *v, const float d[3], int idx[3], float w[3]);
+
+/* Angle in radians between d and the region the views cover (0 inside a non-hole face). */
+double ap_views_outside_angle(const struct ap_views *v, const double d[3]);
+
+/* Number of faces that are not holes (0 when the views are coplanar or fewer than 3). */
+size_t ap_views_n_faces(const struct ap_views *v);

@@ -1,0 +1,289 @@
+/* test-relit.c - fitted models (appearance/fit.h) of synthetic datasets (apscene.h) relit by
+ * the renderer (appearance/render.h) at views and lights held out of the fit, against the
+ * simulator's rendering of the same view and light (noise off): PSNR inside the object; and
+ * gonioctl model render on a model written into its dataset, with bad input. */
+#include <math.h>
+#include <stdlib.h>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "appearance/fit.h"
+#include "appearance/mesh.h"
+#include "appearance/render.h"
+#include "common/cleanup.h"
+#include "common/fileio.h"
+#include "dataset/ds_png.h"
+#include "drivers/registry.h"
+#include "tests/appearance/apscene.h"
+#include "tests/dataset/ds-util.h"
+
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct ds *, ds_close);
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_model *, ap_model_free);
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_renderer *, ap_renderer_free);
+
+#define DEG        (M_PI / 180)
+#define TT_ANGLES  12 /* views of the fit: turntable angles 30 degrees apart, one camera */
+#define ARM_ANGLES 18
+
+static void rm_rfp(char **dir)
+{
+        if (*dir)
+                tu_rm_rf(*dir);
+        free(*dir);
+}
+
+/* A fitted model (P = 6, K = 12) of a dataset written into it. */
+struct fitted {
+        struct apscene s;
+        char *dir, ds[512];
+        struct ap_model *m;
+        struct ap_mesh mesh;
+};
+
+static void fit_scene(struct fitted *f, enum aps_material mat, int tt_angles)
+{
+        struct ap_fit_opts o;
+        struct aps_opts ao;
+        char err[512], src[512];
+
+        aps_opts_default(&ao, mat);
+        ao.turntable_angles = tt_angles, ao.arm_angles = ARM_ANGLES;
+        aps_open(&f->s, &ao);
+        f->dir = tu_tmpdir();
+        snprintf(f->ds, sizeof(f->ds), "%s/ds", f->dir);
+        _cleanup_(ds_closep) struct ds *d = aps_make_dataset(&f->s, f->ds);
+        ap_fit_opts_default(&o);
+        o.backends = registry_backends;
+        o.tile = 4;
+        CHECK_INT(ap_fit(d, &o, &f->m, err, sizeof(err)), 0);
+        CHECK_INT(ap_model_write(f->m, f->ds), 0);
+        CHECK_INT(ap_mesh_for_dataset(f->ds, registry_backends, &f->mesh, src, sizeof(src), err,
+                                      sizeof(err)),
+                  0);
+        CHECK_STR_CONTAINS(src, "scan");
+}
+
+static void fitted_free(struct fitted *f)
+{
+        ap_mesh_free(&f->mesh);
+        ap_model_free(f->m);
+        aps_close(&f->s);
+        rm_rfp(&f->dir);
+}
+
+/* The PSNR of the model relit at turntable angle tt and world light position Pw against
+ * the simulator, over the pixels both give (at least 1000 samples). */
+static double relit_psnr(struct fitted *f, struct ap_renderer *r, double tt, const double Pw[3],
+                         enum ap_view_mode mode)
+{
+        _cleanup_(sim_truth_free) struct sim_truth tr = {0};
+        struct gn_pose pose = {{tt, 0, NAN}, 0, false};
+        struct sim_cam_geom g;
+        struct ap_camera cam;
+        double a = tt * DEG, sse = 0;
+        struct ap_light l = {
+                AP_LIGHT_POINT,
+                {cos(a) * Pw[0] + sin(a) * Pw[1], -sin(a) * Pw[0] + cos(a) * Pw[1], Pw[2]},
+                0,
+                NULL};
+        struct gn_frame fr;
+        size_t n = 0;
+
+        CHECK_INT(sim_camera_geom(f->s.t.s, &pose, 0, &g), 0);
+        cam = (struct ap_camera){g.width, g.height, g.fx, g.fy, g.cx, g.cy};
+        memcpy(cam.dist, g.dist, sizeof(cam.dist));
+        memcpy(cam.t, g.t, sizeof(cam.t));
+        for (int i = 0; i < 3; i++) { /* object to camera: R Rz(tt) */
+                cam.R[3 * i] = g.R[3 * i] * cos(a) + g.R[3 * i + 1] * sin(a);
+                cam.R[3 * i + 1] = -g.R[3 * i] * sin(a) + g.R[3 * i + 1] * cos(a);
+                cam.R[3 * i + 2] = g.R[3 * i + 2];
+        }
+        _cleanup_free_ float *rgb = malloc(3 * sizeof(float) * g.width * g.height);
+        _cleanup_free_ uint8_t *mask = malloc((size_t)g.width * g.height);
+        CHECK(rgb && mask);
+        CHECK_INT(ap_render(r, &cam, &l, mode, 2, rgb, mask), 0);
+        aps_render_light(&f->s, 0, tt, Pw, &fr, SIM_TRUTH_POINT, &tr);
+        for (size_t p = 0; p < (size_t)g.width * g.height; p++) {
+                if (!mask[p] || isnan(tr.point[3 * p]))
+                        continue;
+                for (int c = 0; c < 3; c++) {
+                        double e = fmin(fmax(rgb[3 * p + c], 0), 1) -
+                                   rt_px(&fr, (int)(p % g.width), (int)(p / g.width), c) / 65535;
+                        sse += e * e;
+                        n++;
+                }
+        }
+        gn_frame_free_data(&fr);
+        CHECK(n > 1000);
+        return 10 * log10(n / sse);
+}
+
+/* Held-out views (half-way between fitted turntable angles) under held-out lights (between
+ * the fitted light-arm angles and lamp elevations, as test-fit's): the mean PSNR of both view
+ * modes. */
+static void heldout(enum aps_material mat, double min_db)
+{
+        static const double tts[] = {15, 195};
+        static const double elev[] = {-27, -2, 22, 47, 72};
+        _cleanup_(ap_renderer_freep) struct ap_renderer *r = NULL;
+        struct fitted f;
+        double px = 0, obj = 0, worst = INFINITY;
+        int n = 0;
+
+        fit_scene(&f, mat, TT_ANGLES);
+        CHECK_INT(ap_renderer_new(f.m, &f.mesh, &r), 0);
+        for (size_t v = 0; v < ELEMENTSOF(tts); v++)
+                for (size_t e = 0; e < ELEMENTSOF(elev); e++)
+                        for (int i = 0; i < 4; i++, n++) {
+                                double az = (15 + 90 * i + 7 * e) * DEG, el = elev[e] * DEG;
+                                double Pw[3] = {500 * cos(el) * cos(az), 500 * cos(el) * sin(az),
+                                                500 * sin(el)};
+                                double a = relit_psnr(&f, r, tts[v], Pw, AP_VIEW_PIXEL);
+                                px += a, worst = fmin(worst, a);
+                                obj += relit_psnr(&f, r, tts[v], Pw, AP_VIEW_OBJECT);
+                        }
+        fprintf(stderr,
+                "held-out views and lights: per pixel %.2f dB (worst %.2f), per object "
+                "%.2f\n",
+                px / n, worst, obj / n);
+        CHECK(px / n >= min_db);
+        CHECK(obj / n >= min_db - 1);
+        ap_renderer_free(TAKE_PTR(r));
+        fitted_free(&f);
+}
+
+static void test_diffuse(void)
+{
+        heldout(APS_DIFFUSE, 35);
+}
+
+static void test_glossy(void)
+{
+        heldout(APS_GLOSSY, 35);
+}
+
+/* The PNG at path against the simulator's camera 0 at turntable angle tt under the point
+ * light Pw (world): PSNR over the pixels where both see the object. */
+static double png_psnr(struct fitted *f, const char *path, double tt, const double Pw[3])
+{
+        _cleanup_(sim_truth_free) struct sim_truth tr = {0};
+        _cleanup_free_ void *buf = NULL;
+        struct gn_frame png = {0}, fr;
+        double sse = 0;
+        size_t len, n = 0;
+
+        CHECK_INT(gn_read_file_at(AT_FDCWD, path, 1 << 24, &buf, &len), 0);
+        CHECK_INT(ds_png_decode(buf, len, &png), 0);
+        aps_render_light(&f->s, 0, tt, Pw, &fr, SIM_TRUTH_POINT, &tr);
+        CHECK_INT(png.width, fr.width);
+        CHECK_INT(png.height, fr.height);
+        CHECK_INT(png.bits, 8);
+        for (int y = 0; y < fr.height; y++)
+                for (int x = 0; x < fr.width; x++) {
+                        const uint8_t *q = png.data + (size_t)y * png.stride + 3 * x;
+                        if (isnan(tr.point[3 * ((size_t)y * fr.width + x)]) ||
+                            q[0] + q[1] + q[2] == 0)
+                                continue;
+                        for (int c = 0; c < 3; c++) {
+                                double e = q[c] / 255.0 - fmin(rt_px(&fr, x, y, c) / 65535, 1);
+                                sse += e * e;
+                                n++;
+                        }
+                }
+        gn_frame_free_data(&png);
+        gn_frame_free_data(&fr);
+        CHECK(n > 1000);
+        return 10 * log10(n / sse);
+}
+
+/* gonioctl model render at a held-out view (the camera at turntable angle 15 is at object
+ * azimuth -15) and light, per pixel and per object; an environment map. */
+static void test_gonioctl(void)
+{
+        struct fitted f;
+        char args[2048], out[4096], png[600], env[600];
+        double Pw[3] = {300, 250, 200}, a = 15 * DEG, db;
+        FILE *pfm;
+
+        fit_scene(&f, APS_DIFFUSE, TT_ANGLES);
+        snprintf(png, sizeof(png), "%s/out.png", f.dir);
+        for (int mode = 0; mode < 2; mode++) {
+                snprintf(args, sizeof(args),
+                         "model render %s/models/default --light %g,%g,%g --view -15,15 "
+                         "--mode %s -o %s",
+                         f.ds, cos(a) * Pw[0] + sin(a) * Pw[1], -sin(a) * Pw[0] + cos(a) * Pw[1],
+                         Pw[2], mode ? "object" : "pixel", png);
+                CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
+                CHECK_STR_CONTAINS(out, "rendered");
+                db = png_psnr(&f, png, 15, Pw);
+                fprintf(stderr, "gonioctl model render --mode %s: %.2f dB\n",
+                        mode ? "object" : "pixel", db);
+                CHECK(db >= 33);
+        }
+        snprintf(env, sizeof(env), "%s/sky.pfm", f.dir);
+        pfm = fopen(env, "wb");
+        CHECK(pfm);
+        fprintf(pfm, "PF\n8 4\n-1.0\n");
+        for (int i = 0; i < 8 * 4 * 3; i++) {
+                float v = i < 8 * 3 * 2 ? 0.05f : 0.01f; /* a brighter upper half */
+                CHECK(fwrite(&v, sizeof(v), 1, pfm) == 1);
+        }
+        fclose(pfm);
+        snprintf(args, sizeof(args),
+                 "model render %s/models/default --envmap %s --view 40,30 --size 48x36 -o %s", f.ds,
+                 env, png);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
+        fitted_free(&f);
+}
+
+/* A missing model, a bad environment map, views out of range, bad command lines. */
+static void test_gonioctl_bad(void)
+{
+        struct fitted f;
+        char args[2048], out[4096], bad[600];
+
+        fit_scene(&f, APS_DIFFUSE, 4);
+        snprintf(args, sizeof(args),
+                 "model render %s/models/nothing --dir 0,0,1 --view 0,15 -o %s/x.png", f.ds, f.dir);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
+        CHECK_STR_CONTAINS(out, "nothing");
+        snprintf(bad, sizeof(bad), "%s/bad.png", f.dir);
+        CHECK_INT(gn_write_atomic(AT_FDCWD, bad, "not an image", 12, NULL), 0);
+        snprintf(args, sizeof(args),
+                 "model render %s/models/default --envmap %s --view 0,15 -o %s/x.png", f.ds, bad,
+                 f.dir);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
+        CHECK_STR_CONTAINS(out, "not a PNG or PFM");
+        snprintf(args, sizeof(args),
+                 "model render %s/models/default --dir 0,0,1 --view 0,-80 -o %s/x.png", f.ds,
+                 f.dir);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
+        CHECK_STR_CONTAINS(out, "away from the views the model covers");
+        snprintf(args, sizeof(args),
+                 "model render %s/models/default --dir 0,0,1 --view 0,95 -o %s/x.png", f.ds, f.dir);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 2);
+        CHECK_STR_CONTAINS(out, "elevation");
+        snprintf(args, sizeof(args), "model render %s/models/default --view 0,15 -o %s/x.png", f.ds,
+                 f.dir);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 2);
+        snprintf(args, sizeof(args),
+                 "model render %s/models/default --dir 0,0 --view 0,15 -o %s/x.png", f.ds, f.dir);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 2);
+        fitted_free(&f);
+}
+
+int main(int argc, char **argv)
+{
+        static const struct test_case cases[] = {
+                {"diffuse", test_diffuse},
+                {"glossy", test_glossy},
+                {"gonioctl", test_gonioctl},
+                {"gonioctl-bad", test_gonioctl_bad},
+        };
+
+        /* the datasets' thousand fsyncs cost seconds on a disk: memory where there is one */
+        if (!getenv("TMPDIR") && access("/dev/shm", W_OK) == 0)
+                setenv("TMPDIR", "/dev/shm", 0);
+        return TEST_RUN_CASES(cases, argc, argv);
+}
