@@ -277,9 +277,12 @@ static const char cams[] =
         "}\n";
 
 /* Renders the 9x6 board (16 mm squares) at translate x, y, z, turned rotate_x (-90: standing,
- * facing +x; -135: tilted 45 deg up) at turntable angle tt, laser on or off, into dataset d;
- * the world z axis in the camera frame into axis (may be NULL). */
-static void store_view(struct ds *d, const double pose[4], double tt, bool laser, double axis[3])
+ * facing +x; -135: tilted 45 deg up) at turntable angle tt, the laser on or off, into dataset
+ * d as lit by the lasers of bit set `as` (the rendered laser's frame stored as another
+ * laser's: two lasers of one plane); the world z axis in the camera frame into axis (may be
+ * NULL). */
+static void store_view(struct ds *d, const double pose[4], double tt, bool laser, uint32_t as,
+                       double axis[3])
 {
         struct gn_pose st = {{tt, 0, 0}, 1, laser};
         struct ds_capture c = {.pose = st, .camera = "c0", .lamps = "l0", .exposure_us = 20000};
@@ -296,6 +299,7 @@ static void store_view(struct ds *d, const double pose[4], double tt, bool laser
                  pose[0], pose[1], pose[2], pose[3]);
         rt_open(&t, lamps, laser_yaml, cams, scene);
         rt_render(&t, &st, NULL, 1, &f, 0, NULL);
+        c.pose.lasers = laser ? as : 0;
         CHECK_INT(ds_store(d, &f, &c), 0);
         CHECK_INT(sim_camera_geom(t.s, &(struct gn_pose){{0, 0, 0}, 1, false}, 0, &g), 0);
         for (int i = 0; axis && i < 3; i++)
@@ -317,7 +321,8 @@ static int gonioctl(char *out, size_t len, const char *fmt, ...)
 }
 
 /* A dataset at dir/name made of views of the tilted board at 9 turntable angles 7.5 deg
- * apart (all at angle 0 when still), or of the standing board at 5 poses, laser off and on. */
+ * apart (all at angle 0 when still), or of the standing board at 5 poses, laser off, laser
+ * `line` on and laser `line2` on (the rig of the dataset has two lasers of one plane). */
 static void make_dataset(const char *dir, const char *name, char kind, double axis[3])
 {
         static const double standing[5][4] = {{20, -72, 120, -90},
@@ -327,21 +332,28 @@ static void make_dataset(const char *dir, const char *name, char kind, double ax
                                               {60, -72, 120, -80}};
         static const double tilted[4] = {10, -72, 110, -135};
         static const double tt[5] = {0, 15, -10, 0, 30};
-        char path[600];
+        char path[600], rig[2048];
         struct ds *d;
 
         snprintf(path, sizeof(path), "%s/%s", dir, name);
-        CHECK_INT(ds_create(path, name, "rig: test\nlaser: { name: line, channel: red }\n", &d), 0);
+        snprintf(rig, sizeof(rig),
+                 "rig: test\nbuses:\n  - { name: relays, type: modbus-rtu, port: /dev/null }\n"
+                 "  - { name: frames, type: sim, port: /tmp/f.sock }\n%slasers:\n"
+                 "  - { name: line, channel: red, modbus-coil: { bus: relays, coil: 7 } }\n"
+                 "  - { name: line2, channel: red, modbus-coil: { bus: relays, coil: 8 } }\n",
+                 cams);
+        CHECK_INT(ds_create(path, name, rig, &d), 0);
         for (int i = 0; kind != 'l' && i < 9; i++)
-                store_view(d, tilted, kind == 's' ? 0 : -30 + 7.5 * i, false, axis);
+                store_view(d, tilted, kind == 's' ? 0 : -30 + 7.5 * i, false, 0, axis);
         for (int i = 0; kind == 'l' && i < 5; i++)
-                for (int on = 0; on < 2; on++)
-                        store_view(d, standing[i], tt[i], on, NULL);
+                for (int on = 0; on < 3; on++)
+                        store_view(d, standing[i], tt[i], on > 0, on, NULL);
         ds_close(d);
 }
 
 /* The turntable, then the laser, solved by gonioctl from datasets and written into the
- * file; the errors of a missing camera section, a turntable that did not turn. */
+ * file (two lasers of one plane: both solved from their own rows and refined jointly); the
+ * errors of a missing camera section, a turntable that did not turn. */
 static void test_gonioctl(void)
 {
         _cleanup_free_ char *tmp = tu_tmpdir(), *before = NULL, *after = NULL;
@@ -393,10 +405,16 @@ static void test_gonioctl(void)
                   0);
         CHECK_STR_CONTAINS(out, "\"laser\":\"line\"");
         CHECK_STR_CONTAINS(out, "\"axis_dist_mm\":");
+        /* both lasers solved from their own rows, the joint refinement reported */
+        CHECK_STR_CONTAINS(out, "\"laser\":\"line2\"");
+        CHECK_STR_CONTAINS(out, "\"joint\":{\"refined\":true"); /* the clouds overlap */
         CHECK_INT(cal_file_read(file, f, err, sizeof(err)), 0);
         t = cal_file_turntable(f, "c0");
         l = cal_file_laser(f, "line");
         CHECK(t && l && cal_file_camera(f, "c0"));
+        CHECK(cal_file_laser(f, "line2"));
+        CHECK_NEAR(cal_file_laser(f, "line2")->plane.n[0], l->plane.n[0], 1e-6); /* one plane */
+        CHECK_NEAR(cal_file_laser(f, "line2")->plane.d, l->plane.d, 1e-6);
         fprintf(stderr, "axis %.4f deg from the truth; laser %.4f deg, %.4f mm from the axis\n",
                 acos(fmin(cal_dot(axis, t->tt.axis), 1)) * 180 / M_PI, l->axis_angle_deg,
                 l->axis_dist_mm);
