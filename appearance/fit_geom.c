@@ -1,7 +1,7 @@
 /* fit_geom.c - the geometry of the fit (fit_internal.h): each view's camera model in the
  * object frame and each light's lamp position, from the calibration file or the rig file's
- * nominal geometry; the scan mesh (the PLY of calib/ply.h) and the surface point of each
- * tile, where the light's direction and distance are taken. */
+ * nominal geometry; the scan mesh (read by the simulator's mesh reader) and the surface point of
+ * each tile, where the light's direction and distance are taken. */
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -9,19 +9,18 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "appearance/fit_internal.h"
 #include "common/cleanup.h"
-#include "common/fileio.h"
 #include "common/riggeom.h"
+#include "calib/scan.h"
+#include "sim/render/render.h"
 #ifdef AP_CALFILE
 #include "calib/calfile.h"
 #endif
 
 #define DEG          (M_PI / 180)
-#define PLY_MAX      ((size_t)1 << 31)
-#define PLY_V_BYTES  27 /* x y z nx ny nz float32, r g b uchar */
-#define PLY_F_BYTES  13 /* uchar 3, 3 int32 */
 #define UNDIST_ITERS 20
 
 /* out = Rz(deg) in (out may be in). */
@@ -247,96 +246,33 @@ void fit_mesh_free(struct fit_mesh *m)
         *m = (struct fit_mesh){0};
 }
 
-static float get_f32(const uint8_t *b)
-{
-        float f;
-
-        memcpy(&f, b, 4); /* little-endian hosts */
-        return f;
-}
-
-/* Parses the header of the PLY in buf (calib/ply.h's layout); *body the first data byte. */
-static int ply_header(const char *buf, size_t len, size_t *nv, size_t *nf, size_t *body)
-{
-        static const char *const lines[] = {"ply\n",
-                                            "format binary_little_endian 1.0\n",
-                                            "property float x\n",
-                                            "property float nz\n",
-                                            "property uchar blue\n",
-                                            "property list uchar int vertex_indices\n"};
-        const char *end = memmem(buf, len, "end_header\n", 11), *ev, *ef;
-
-        if (!end)
-                return -EBADMSG;
-        for (size_t i = 0; i < sizeof(lines) / sizeof(lines[0]); i++)
-                if (!memmem(buf, (size_t)(end - buf), lines[i], strlen(lines[i])))
-                        return -EBADMSG;
-        ev = memmem(buf, (size_t)(end - buf), "element vertex ", 15);
-        ef = memmem(buf, (size_t)(end - buf), "element face ", 13);
-        if (!ev || !ef || sscanf(ev, "element vertex %zu", nv) != 1 ||
-            sscanf(ef, "element face %zu", nf) != 1)
-                return -EBADMSG;
-        *body = (size_t)(end - buf) + 11;
-        if (*nv > PLY_MAX / PLY_V_BYTES || *nf > PLY_MAX / PLY_F_BYTES ||
-            *body + *nv * PLY_V_BYTES + *nf * PLY_F_BYTES != len)
-                return -EBADMSG;
-        return 0;
-}
-
-/* Copies the vertices and faces of a checked PLY body into m. */
-static int ply_body(const uint8_t *b, size_t nv, size_t nf, struct fit_mesh *m)
-{
-        m->v = malloc((nv + 1) * 3 * sizeof(float));
-        m->tri = malloc((nf + 1) * 3 * sizeof(uint32_t));
-        if (!m->v || !m->tri)
-                return -ENOMEM;
-        for (size_t i = 0; i < nv; i++, b += PLY_V_BYTES)
-                for (int k = 0; k < 3; k++)
-                        m->v[3 * i + k] = get_f32(b + 4 * k);
-        for (size_t i = 0; i < nf; i++, b += PLY_F_BYTES) {
-                if (b[0] != 3)
-                        return -EBADMSG;
-                memcpy(&m->tri[3 * i], b + 1, 12);
-                for (int k = 0; k < 3; k++)
-                        if (m->tri[3 * i + k] >= nv)
-                                return -EBADMSG;
-        }
-        m->n_v = nv;
-        m->n_tri = nf;
-        return 0;
-}
-
 int fit_mesh_read(struct fit_ctx *c)
 {
-        _cleanup_free_ char *buf = NULL;
-        char path[4200];
-        size_t len, nv, nf, body;
+        char path[4200], err[256];
+        struct sim_mesh m;
         int r;
 
-        snprintf(path, sizeof(path), "%s/mesh.ply", c->dir);
+        snprintf(path, sizeof(path), "%s/%s", c->dir, SCAN_FILE_MESH_PLY);
         if (c->o->mesh)
                 snprintf(path, sizeof(path), "%s", c->o->mesh);
-        r = gn_read_file_at(AT_FDCWD, path, PLY_MAX, (void **)&buf, &len);
-        if (r == -ENOENT && !c->o->mesh) {
+        if (!c->o->mesh && access(path, F_OK) != 0) {
                 fit_note(c, "surface: no mesh.ply: the light's direction and distance taken at "
                             "the nominal object point of each tile");
                 return 0;
         }
+        r = sim_mesh_read(path, &m, err, sizeof(err)); /* the project's one mesh reader */
+        if (r == 0 && m.nt == 0) {
+                free(m.pos);
+                free(m.idx);
+                snprintf(err, sizeof(err), "%s: a mesh without faces", path);
+                r = -EBADMSG;
+        }
         if (r < 0) {
-                snprintf(c->err, sizeof(c->err), "%s: %s", path, strerror(-r));
+                snprintf(c->err, sizeof(c->err), "%s", err);
                 return r;
         }
-        r = ply_header(buf, len, &nv, &nf, &body);
-        if (r == 0)
-                r = ply_body((const uint8_t *)buf + body, nv, nf, &c->mesh);
-        if (r == 0 && nf == 0)
-                r = -EBADMSG;
-        if (r < 0) {
-                fit_mesh_free(&c->mesh);
-                snprintf(c->err, sizeof(c->err),
-                         "%s: not a binary PLY mesh of calib/ply.h's layout with faces", path);
-        }
-        return r;
+        c->mesh = (struct fit_mesh){.v = m.pos, .tri = m.idx, .n_v = m.nv, .n_tri = m.nt};
+        return 0;
 }
 
 /* Projects object point x with camera g: pixel uv and depth z; false behind the camera. */

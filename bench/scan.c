@@ -6,7 +6,10 @@
  * laser frame per angle), both through gonioctl scan, against the camera bound (the frames
  * the scan needs, 800, divided by the frame rate). Rig time is wall time at time scale 1.
  * Stop-and-go takes minutes for 800 angles: it runs on the first PREFIX angles and is
- * extrapolated to 800 (said in the output), unless run with --full. points: the laser-line
+ * extrapolated to 800 (said in the output), unless run with --full. --two-lasers: the rig
+ * has a second laser (azimuth 60): continuous scans run one pass per laser, stop-and-go takes
+ * each laser alone at every angle, and the camera bound is twice the frames. points: the
+ * laser-line
  * points (calib/laserline, one frame: the room is dark) found in the continuous scan's
  * frames. Last line: {"bench":"scan","continuous_s":...,"stop_and_go_s":...,
  * "camera_bound_s":...,"points":...}. */
@@ -35,8 +38,10 @@ static const char *const bench_rig =
         "axes:\n"
         "  - { name: turntable, modbus: { bus: drives, unit: 1 }, continuous: true,\n"
         "      max_speed: 90, accel: 180, settle_ms: 50 }\n"
-        "laser: { name: laser, azimuth: 0, origin: [600, 0, 150], width: 1.0, power: 1.0e4,\n"
-        "         channel: red, modbus-coil: { bus: relays, unit: 10, coil: 7 } }\n"
+        "lasers:\n"
+        "  - { name: laser, azimuth: 0, origin: [600, 0, 150], width: 1.0, power: 1.0e4,\n"
+        "      channel: red, modbus-coil: { bus: relays, unit: 10, coil: 7 } }\n"
+        "%s"
         "cameras:\n"
         "  - { name: cam0, sim: { bus: frames }, elevation: 15, distance: 600, azimuth: 30,\n"
         "      target: [0, 0, 40], width: 320, height: 240, fx: 550, fy: 550,\n"
@@ -99,16 +104,28 @@ static double timed_scan(struct rigenv *e, const char *dataset, const char *mode
         return (bench_now_ms() - t0) / 1e3;
 }
 
+/* The second laser of --two-lasers, 60 deg round from the first. */
+static const char second_laser[] =
+        "  - { name: laser2, azimuth: 60, origin: [300, 520, 150], width: 1.0, power: 1.0e4,\n"
+        "      channel: red, modbus-coil: { bus: relays, unit: 10, coil: 8 } }\n";
+
 int main(int argc, char **argv)
 {
-        bool full = argc > 1 && strcmp(argv[1], "--full") == 0;
-        int stop_n = full ? POSITIONS : PREFIX;
-        char to[32];
+        bool full = false, two = false;
+        int stop_n;
+        char to[32], rig[4096];
         struct rigenv e;
-        double cont, stop, bound = POSITIONS / FPS;
+        double cont, stop, bound;
         long points;
 
-        bench_start_rig(&e, 1, bench_rig);
+        for (int i = 1; i < argc; i++) {
+                full = full || strcmp(argv[i], "--full") == 0;
+                two = two || strcmp(argv[i], "--two-lasers") == 0;
+        }
+        stop_n = full ? POSITIONS : PREFIX;
+        bound = POSITIONS * (two ? 2 : 1) / FPS;
+        snprintf(rig, sizeof(rig), bench_rig, two ? second_laser : "");
+        bench_start_rig(&e, 1, rig);
         json_decref(ctl_ok(&e, "home", NULL));
         cont = timed_scan(&e, "cont", "continuous", "360");
         points = dataset_points(&e, "cont");

@@ -66,7 +66,7 @@ int gn_name_list(uint32_t bits, const char *const *names, size_t n, char *buf, s
         if (len == 0)
                 return -ENOBUFS;
         buf[0] = 0;
-        for (size_t i = 0; i < n && i < 32; i++) {
+        for (size_t i = 0; i < n && i < sizeof(bits) * 8; i++) {
                 int w;
 
                 if (!(bits & (UINT32_C(1) << i)))

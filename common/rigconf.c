@@ -45,6 +45,8 @@ static int read_name(struct yconf *yc, struct fy_node *m, char *out, size_t len)
         return 0;
 }
 
+_Static_assert(RIG_MAX_LASERS <= GN_POSE_MAX_LASERS, "a pose holds every laser of a rig");
+
 int rigconf_laser(const struct rig_config *rc, const char *name)
 {
         for (size_t i = 0; i < rc->n_lasers; i++)

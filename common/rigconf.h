@@ -24,7 +24,7 @@
 #define RIG_MAX_AXES    8
 #define RIG_MAX_LAMPS   16
 #define RIG_MAX_CAMERAS 8
-#define RIG_MAX_LASERS  8
+#define RIG_MAX_LASERS  8 /* a pose's laser bit set holds GN_POSE_MAX_LASERS */
 
 /* Ranges of a camera's default exposure and gain in the rig file: those of the sim camera's
  * option table (drivers/camera/sim/api.c), so that a rig file that loads never asks a camera

@@ -710,13 +710,16 @@ static double min_pose_change(const struct builder *b)
 }
 
 /* The least warm-up of a change of light at one pose: the least warm-up of the lights the
- * image and laser shots use. */
+ * image and laser shots use; 0 when one of them is the unlit frame (a change into it only
+ * switches off). */
 static double min_light_change(const struct rig_config *rc, const struct plan_shot *s, size_t n)
 {
         uint32_t lamps = 0, lasers = 0;
 
         for (size_t i = 0; i < n; i++)
                 if (s[i].kind == PLAN_IMAGE || s[i].kind == PLAN_LASER) {
+                        if (!s[i].pose.lamps && !s[i].pose.lasers)
+                                return 0; /* an unlit frame: switching off costs nothing */
                         lamps |= s[i].pose.lamps;
                         lasers |= s[i].pose.lasers;
                 }

@@ -519,6 +519,19 @@ static int switch_laser(struct scan *s, bool on)
         return r;
 }
 
+/* Between passes: the next pass's first leg, its read-backs unwrapped anew about its start.
+ * The return to the start goes the shortest way round, which after a full turn is not back
+ * the way the table came, so the old unwrapping would put the new pass a turn off; the
+ * frames still waiting belong to the last run-out, outside every leg. */
+static void new_pass(struct scan *s)
+{
+        s->step = S_TO_START;
+        s->leg++;
+        s->n_samples = 0;
+        s->outside += s->n_pending;
+        drop_pending(s);
+}
+
 /* The next stage once the last one's operation has completed. */
 static int next_step(struct scan *s)
 {
@@ -537,12 +550,12 @@ static int next_step(struct scan *s)
                 }
                 s->step = S_BACK;
                 return move_to(s, s->legs[s->leg + 1].lo - s->run, 0);
-        case S_LASER_OFF:
         case S_BACK:
-                s->step = s->step == S_BACK ? S_LEG : S_TO_START;
+                s->step = S_LEG;
                 s->leg++;
-                if (s->step == S_LEG)
-                        return start_leg(s);
+                return start_leg(s);
+        case S_LASER_OFF:
+                new_pass(s);
                 return move_to(s, s->legs[s->leg].lo - s->run, 0);
         default:
                 return 0;

@@ -2,7 +2,8 @@
  * written in them, defaults are filled in, ranges expand as documented, and each mistake an
  * operator makes is refused with file, line and key (unknown camera or lamp, a sweep outside
  * an axis's soft limits or of a role the rig has no axis for, a missing dataset, a negative
- * exposure, bad brackets, unknown keys...).
+ * exposure, bad brackets, unknown keys...); the `laser` key on a two-laser rig (the Ciclop
+ * example beside SIM-RIG): false, true, all, each, a name, a list, and its mistakes.
  * Usage: test-sessconf SIM-RIG PAPER-RIG DEMO-SESSION PAPER-SESSION CASE; an unknown CASE
  * fails. */
 #include <errno.h>
@@ -263,11 +264,54 @@ static void case_metadata(void)
         sessconf_free(sc);
 }
 
+/* The laser shots of `laser: value` on rig rc, as a bit set per shot in want (n of them). */
+static void expect_shots(const struct rig_config *rc, const char *value, const uint32_t *want,
+                         size_t n)
+{
+        char text[256];
+        struct session_conf *sc;
+
+        snprintf(text, sizeof(text), "dataset: d\nlamps: []\nunlit: true\nlaser: %s\n", value);
+        sc = expect_ok(rc, text);
+        if (sc->n_laser_shots != n)
+                fprintf(stderr, "laser: %s: %zu shots, want %zu\n", value, sc->n_laser_shots, n);
+        CHECK_INT(sc->n_laser_shots, n);
+        for (size_t i = 0; i < n; i++)
+                CHECK_INT(sc->laser_shots[i], want[i]);
+        sessconf_free(sc);
+}
+
+static void case_lasers(void)
+{
+        char path[4096];
+        const char *slash = strrchr(sim_rig_path, '/');
+        struct rig_config *ciclop;
+
+        snprintf(path, sizeof(path), "%.*s/ciclop.yaml", (int)(slash ? slash - sim_rig_path : 1),
+                 slash ? sim_rig_path : ".");
+        ciclop = load_rig(path);
+        CHECK_INT(ciclop->n_lasers, 2);
+        expect_shots(ciclop, "false", NULL, 0);
+        expect_shots(ciclop, "true", (uint32_t[]){3}, 1);
+        expect_shots(ciclop, "all", (uint32_t[]){3}, 1);
+        expect_shots(ciclop, "each", (uint32_t[]){1, 2}, 2);
+        expect_shots(ciclop, "laser_right", (uint32_t[]){2}, 1);
+        expect_shots(ciclop, "[laser_right, laser_left]", (uint32_t[]){3}, 1);
+        expect_shots(ciclop, "[]", NULL, 0);
+        expect_shots(sim_rig, "each", (uint32_t[]){1}, 1); /* one laser: as true */
+        expect_at(ciclop, "dataset: d\nlaser: laser_middle\n", 2, "laser",
+                  "unknown laser 'laser_middle' (rig 'ciclop' has: laser_left, laser_right)");
+        expect_at(ciclop, "dataset: d\nlaser: [laser_left, laser_left]\n", 2, "laser",
+                  "laser 'laser_left' is listed twice");
+        expect_at(ciclop, "dataset: d\nlaser: { each: true }\n", 2, "laser", "expected a list");
+        rigconf_free(ciclop);
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
                 {"examples", case_examples}, {"defaults", case_defaults}, {"ranges", case_ranges},
-                {"mistakes", case_mistakes}, {"metadata", case_metadata},
+                {"mistakes", case_mistakes}, {"metadata", case_metadata}, {"lasers", case_lasers},
         };
         int r;
 

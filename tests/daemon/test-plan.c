@@ -2,7 +2,8 @@
  * calibration frames first, lamps and brackets innermost with the lit lamp kept lit across
  * poses, serpentine passes and the nesting order of least estimate, continuous axes the
  * shortest way round, occlusion and glare skips on a rig where they must happen, and the
- * estimate against sums of plan_move_time() and exposures, above the lower bound.
+ * estimate against sums of plan_move_time() and exposures, above the lower bound; `laser: each`
+ * on the two-laser Ciclop rig: one frame per laser alone at every pose, next to the unlit.
  * Usage: test-plan SIM-RIG DEMO-SESSION PAPER-RIG PAPER-SESSION CASE; an unknown CASE fails. */
 #include <errno.h>
 #include <math.h>
@@ -640,6 +641,44 @@ static void case_paper(void)
         rigconf_free(rc);
 }
 
+/* laser: each on the Ciclop rig (beside SIM-RIG): at each of 3 poses the unlit frame and one
+ * laser frame per laser with that laser alone on, the three consecutive; the warm-up of a
+ * laser switched on counts in the estimate. */
+static void case_lasers(void)
+{
+        const char *slash = strrchr(sim_rig_path, '/');
+        char path[4096];
+        struct rig_config *rc;
+        struct session_conf *sc;
+        struct plan *p;
+
+        snprintf(path, sizeof(path), "%.*s/ciclop.yaml", (int)(slash ? slash - sim_rig_path : 1),
+                 slash ? sim_rig_path : ".");
+        rc = rig_load(path);
+        sc = session(rc, "dataset: d\nsweep: { turntable: [0, 90, 180] }\nlamps: []\n"
+                         "laser: each\nunlit: true\n");
+        p = build(rc, sc, NULL);
+        check_invariants(rc, p, NULL);
+        CHECK_INT(p->n_shots, 3 * 3);
+        for (size_t i = 0; i < p->n_shots; i += 3) {
+                uint32_t seen = 0;
+
+                for (size_t k = i; k < i + 3; k++) {
+                        const struct plan_shot *x = &p->shots[k];
+
+                        CHECK(x->pose.deg[GN_ROLE_TURNTABLE] == p->shots[i].pose.deg[0]);
+                        CHECK_INT(x->kind, x->pose.lasers ? PLAN_LASER : PLAN_IMAGE);
+                        CHECK(x->pose.lasers == 0 || x->pose.lasers == 1 || x->pose.lasers == 2);
+                        CHECK(!(seen & (1u << x->pose.lasers)));
+                        seen |= 1u << x->pose.lasers;
+                }
+                CHECK_INT(seen, 0x7); /* unlit, left alone, right alone */
+        }
+        plan_free(p);
+        sessconf_free(sc);
+        rigconf_free(rc);
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
@@ -647,6 +686,7 @@ int main(int argc, char **argv)
                 {"serpentine", case_serpentine}, {"shortest", case_shortest},
                 {"occlusion", case_occlusion},   {"geometry", case_geometry},
                 {"estimate", case_estimate},     {"paper", case_paper},
+                {"lasers", case_lasers},
         };
 
         if (argc < 5) {
