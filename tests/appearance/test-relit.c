@@ -273,13 +273,51 @@ static void test_gonioctl_bad(void)
         fitted_free(&f);
 }
 
+/* The mesh of a dataset without a scan: the simulated rig's object (the 60 mm sphere on the
+ * turntable, tessellated), and no mesh at all for a folder with neither. */
+static void test_mesh(void)
+{
+        _cleanup_(rm_rfp) char *dir = tu_tmpdir();
+        struct ap_mesh m;
+        struct aps_opts o;
+        struct apscene s;
+        char path[512], src[600], err[512];
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+
+        aps_opts_default(&o, APS_DIFFUSE);
+        o.turntable_angles = o.arm_angles = o.n_lamps = 1, o.mesh = false;
+        aps_open(&s, &o);
+        snprintf(path, sizeof(path), "%s/ds", dir);
+        ds_close(aps_make_dataset(&s, path));
+        CHECK_INT(ap_mesh_for_dataset(path, registry_backends, &m, src, sizeof(src), err,
+                                      sizeof(err)),
+                  0);
+        CHECK_STR_CONTAINS(src, "simulator");
+        CHECK(m.nt > 1000);
+        CHECK(m.front != 0); /* closed */
+        for (size_t i = 0; i < m.nv; i++)
+                for (int j = 0; j < 3; j++) {
+                        lo[j] = fmin(lo[j], m.pos[3 * i + j]);
+                        hi[j] = fmax(hi[j], m.pos[3 * i + j]);
+                }
+        for (int j = 0; j < 3; j++) {
+                CHECK_NEAR(lo[j], j == 2 ? 0 : -APS_SIZE_MM / 2, 0.1);
+                CHECK_NEAR(hi[j], j == 2 ? APS_SIZE_MM : APS_SIZE_MM / 2, 0.1);
+        }
+        ap_mesh_free(&m);
+        CHECK_INT(
+                ap_mesh_for_dataset(dir, registry_backends, &m, src, sizeof(src), err, sizeof(err)),
+                -ENOENT);
+        CHECK_STR_CONTAINS(err, "no shape to render on");
+        aps_close(&s);
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
-                {"diffuse", test_diffuse},
-                {"glossy", test_glossy},
-                {"gonioctl", test_gonioctl},
-                {"gonioctl-bad", test_gonioctl_bad},
+                {"diffuse", test_diffuse},   {"glossy", test_glossy},
+                {"gonioctl", test_gonioctl}, {"gonioctl-bad", test_gonioctl_bad},
+                {"mesh", test_mesh},
         };
 
         /* the datasets' thousand fsyncs cost seconds on a disk: memory where there is one */
