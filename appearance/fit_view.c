@@ -15,6 +15,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 
 #include "appearance/fit_internal.h"
 #include "appearance/sh.h"
@@ -22,7 +23,8 @@
 #include "common/fileio.h"
 #include "dataset/ds_png.h"
 
-#define PNG_MAX ((size_t)1 << 30)
+#define PNG_MAX         ((size_t)1 << 30)
+#define HUGE_PAGE_BYTES ((size_t)2 << 20)
 
 /* A view's images in memory, columns by tile. */
 struct vdata {
@@ -46,6 +48,18 @@ static void vdata_free(struct vdata *d)
         free(d->wsum);
 }
 
+/* A view's L x N samples (hundreds of MB at seed scale) on transparent huge pages where the
+ * kernel has them: 512 times fewer page faults for each view's fresh buffer (bench/fit). */
+static float *alloc_samples(size_t n)
+{
+        void *p = NULL;
+
+        if (posix_memalign(&p, HUGE_PAGE_BYTES, n * sizeof(float)) != 0)
+                return NULL;
+        (void)madvise(p, n * sizeof(float), MADV_HUGEPAGE);
+        return p;
+}
+
 static int vdata_init(struct vdata *d, const struct fit_ctx *c, const struct fit_view *v)
 {
         size_t n = (size_t)v->geom.width * v->geom.height, base = 0;
@@ -57,7 +71,7 @@ static int vdata_init(struct vdata *d, const struct fit_ctx *c, const struct fit
                             .L = (int)v->n_lights};
         d->tw = (d->W + d->T - 1) / d->T;
         d->th = (d->H + d->T - 1) / d->T;
-        d->D = malloc((size_t)d->L * d->N * sizeof(float));
+        d->D = alloc_samples((size_t)d->L * d->N);
         d->col = malloc(n * sizeof(uint32_t));
         d->maxv = calloc(n, sizeof(float));
         d->sat = calloc(n, 1);
