@@ -1,9 +1,10 @@
 /* test-ciclop.c - the Ciclop rig of examples/rigs/ciclop.yaml end to end: gonio-sim emulates
  * its Horus G-code board (turntable + two lasers on one serial line) and renders its webcam;
  * goniod drives it through the gcode and gcode-laser backends; gonioctl homes, turns the
- * table, switches the lasers (both, or one by name: tool 2 is the right one) and captures; every stored row matches what gonio-sim
- * rendered (the render log), and the emulated table ends where goniod says it is; a board
- * that stops answering is a fault goniod clears once it answers again. */
+ * table, switches the lasers (both, or one by name: tool 2 is the right one) and captures; every
+ * stored row matches what gonio-sim rendered (the render log), and the emulated table ends where
+ * goniod says it is; a board that stops answering is a fault goniod clears once it answers again.
+ */
 #include <stdio.h>
 #include <stdlib.h>
 #include <unistd.h>
@@ -73,8 +74,8 @@ static uint32_t sim_lasers(struct rigenv *e)
         uint32_t bits = 0;
         size_t i;
 
-        json_array_foreach(json_object_get(json_object_get(sim, "state"), "lasers"), i, v)
-                bits |= (uint32_t)json_is_true(v) << i;
+        json_array_foreach(json_object_get(json_object_get(sim, "state"), "lasers"), i, v) bits |=
+                (uint32_t)json_is_true(v) << i;
         json_decref(sim);
         return bits;
 }
