@@ -1,0 +1,33 @@
+/* export.h - a dataset and its appearance model written in formats that other tools read
+ * (docs/exports.md): COLMAP's text model, nerfstudio's transforms.json, PLY, and RTI (.lp
+ * light files, the relight web format, PTM). Every export is written into a temporary folder
+ * beside the destination and renamed into place, so that nothing is ever half written. */
+#pragma once
+
+#include <stddef.h>
+
+struct ds;
+
+struct ap_export_opts {
+        const char *model;       /* models/<name> of the dataset to export from; NULL: "default" */
+        const char *calibration; /* calibration file, "nominal", or NULL: the dataset's own */
+};
+
+/* Writes the dataset at ds_dir as format ("colmap", "nerfstudio", "ply", "rti") into the
+ * folder out_dir, which must not exist or be empty: built in a temporary folder, then
+ * renamed. Returns 0, -EINVAL (unknown format, with the known ones in err), -EEXIST (out_dir
+ * not empty), -ENOENT (what the format needs is missing: a model, a scan) or -errno, with a
+ * sentence in err. */
+int ap_export(const char *ds_dir, const char *format, const char *out_dir,
+              const struct ap_export_opts *o, char *err, size_t errlen);
+
+/* The writers ap_export dispatches to: each fills the empty folder dir from the dataset d
+ * (ds_dir its directory), or returns -errno with a sentence in err. */
+int ap_export_colmap(struct ds *d, const char *ds_dir, const char *dir,
+                     const struct ap_export_opts *o, char *err, size_t errlen);
+int ap_export_nerfstudio(struct ds *d, const char *ds_dir, const char *dir,
+                         const struct ap_export_opts *o, char *err, size_t errlen);
+int ap_export_ply(struct ds *d, const char *ds_dir, const char *dir,
+                  const struct ap_export_opts *o, char *err, size_t errlen);
+int ap_export_rti(struct ds *d, const char *ds_dir, const char *dir,
+                  const struct ap_export_opts *o, char *err, size_t errlen);
