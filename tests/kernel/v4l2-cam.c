@@ -335,7 +335,7 @@ static void t_stream(void)
         CHECK(fd >= 0);
         j.op = J_CAPTURE;
         CHECK_INT(run1(&j), -EBUSY);
-        while (got < 8) {
+        while (got < 16) {
                 struct pollfd p = {.fd = cam_stream_fd(F.cam[1]), .events = POLLIN};
 
                 CHECK_INT(poll(&p, 1, 3000), 1);
@@ -354,8 +354,10 @@ static void t_stream(void)
                 got++;
                 gn_frame_free_data(&j.fr);
         }
-        /* 30 fps: frames 33.3 ms apart (those of vivid are stamped by its own clock) */
-        CHECK_NEAR((double)(last_ts - first_ts) / (double)(last_seq - first_seq), 1e9 / 30, 1e6);
+        /* 30 fps: frames 33.3 ms apart (vivid stamps them when its thread fills them, which a
+         * loaded host delays by milliseconds: 15 intervals absorb 20 ms of it, and 25 or 60 fps
+         * or a unit error still fail) */
+        CHECK_NEAR((double)(last_ts - first_ts) / (double)(last_seq - first_seq), 1e9 / 30, 1.5e6);
         j.op = J_STOP;
         run1(&j);
         CHECK_INT(cam_stream_fd(F.cam[1]), -ENOTCONN);
