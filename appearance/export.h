@@ -7,10 +7,12 @@
 #include <stddef.h>
 
 struct ds;
+struct rig_backend;
 
 struct ap_export_opts {
         const char *model;       /* models/<name> of the dataset to export from; NULL: "default" */
         const char *calibration; /* calibration file, "nominal", or NULL: the dataset's own */
+        const struct rig_backend *const *backends; /* to read the dataset's rig.yaml */
 };
 
 /* Writes the dataset at ds_dir as format ("colmap", "nerfstudio", "ply", "rti") into the

@@ -60,6 +60,13 @@ static void camera_centre(const struct ap_camera *g, double C[3], double c0[3])
                 c0[k] = C[k] + s * a[k];
 }
 
+void fit_camera_centre(const struct ap_camera *g, double c0[3])
+{
+        double C[3];
+
+        camera_centre(g, C, c0);
+}
+
 static void view_dir(const struct ap_camera *g, double dir[3])
 {
         double C[3], c0[3], n;

@@ -79,6 +79,10 @@ int fit_fail(struct fit_ctx *c, int r, const char *fmt, ...) __attribute__((form
  * distance and intensity. Returns 0 or -EBADMSG/-errno with c->err. */
 int fit_geometry(struct fit_ctx *c);
 
+/* The point of camera g's optical axis nearest the turntable axis (the object's centre), in
+ * the object frame. */
+void fit_camera_centre(const struct ap_camera *g, double c0[3]);
+
 /* Reads the mesh (o->mesh, else the dataset's mesh.ply when there is one) into c->mesh.
  * Returns 0, or -EBADMSG/-errno with c->err. */
 int fit_mesh_read(struct fit_ctx *c);
