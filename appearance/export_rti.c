@@ -4,9 +4,9 @@
  * its single-lamp images (images/NNN.png, copied as stored), an .lp light file (the format of
  * ds_write_lp: the number of images, then "path dx dy dz" per image), a PTM 1.2 file in
  * PTM_FORMAT_LRGB and a relight web-format folder (info.json, type "ptm", colorspace "rgb",
- * six PNG coefficient planes). Light directions are unit vectors in the RTI image frame of
- * the view: x right, y up in the image, z towards the camera. The PTM and relight
- * coefficients are one least-squares fit of the biquadratic PTM basis
+ * six PNG coefficient planes, as OpenLIME's LayerRTI and ShaderRTI read them). Light directions are
+ * unit vectors in the RTI image frame of the view: x right, y up in the image, z towards the
+ * camera. The PTM and relight coefficients are one least-squares fit of the biquadratic PTM basis
  * (lu^2, lv^2, lu lv, lu, lv, 1) per pixel over the view's images. */
 #include <errno.h>
 #include <fcntl.h>
@@ -277,11 +277,14 @@ static int write_ptm(struct rti_ctx *c, const struct rti_view *rv, const struct 
         return r < 0 ? fail(c, r, "%s: %s", path, strerror(-r)) : 0;
 }
 
-/* Plane k of the relight folder: coefficient k of R, G, B as (value - bias) x scale with
+/* Plane j of the relight folder: the coefficient of relight's PTM basis function j (1, lu,
+ * lv, lu^2, lu lv, lv^2: OpenLIME's ShaderRTI) for R, G, B as (value - bias) x scale with
  * value the byte / 255; scale and bias (3 each) appended to the arrays. */
-static int write_plane(struct rti_ctx *c, const struct rti_view *rv, const struct rti_fit *f, int k,
+static int write_plane(struct rti_ctx *c, const struct rti_view *rv, const struct rti_fit *f, int j,
                        json_t *scales, json_t *biases)
 {
+        static const int ptm_index[RTI_NB] = {5, 3, 4, 0, 2, 1};
+        int k = ptm_index[j];
         size_t N = (size_t)rv->W * rv->H, len;
         struct gn_frame fr = {.width = rv->W, .height = rv->H, .channels = 3, .bits = 8};
         _cleanup_free_ void *png = NULL;
@@ -300,7 +303,7 @@ static int write_plane(struct rti_ctx *c, const struct rti_view *rv, const struc
         if (r == 0)
                 r = ds_png_encode(&fr, 6, &png, &len);
         gn_frame_free_data(&fr);
-        snprintf(path, sizeof(path), "%s/%s/relight/plane_%d.png", c->dir, rv->name, k);
+        snprintf(path, sizeof(path), "%s/%s/relight/plane_%d.png", c->dir, rv->name, j);
         if (r == 0)
                 r = put(path, png, len);
         return r < 0 ? fail(c, r, "%s: %s", path, strerror(-r)) : 0;

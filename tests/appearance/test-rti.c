@@ -82,10 +82,20 @@ static void ptm_read(const char *path, struct ptm *p)
         fclose(f);
 }
 
+/* The PTM file's basis (PTM 1.2: L = a0 lu^2 + a1 lv^2 + a2 lu lv + a3 lu + a4 lv + a5). */
 static void basis(const double l[3], double b[NB])
 {
         double u = l[0], v = l[1];
         double x[NB] = {u * u, v * v, u * v, u, v, 1};
+
+        memcpy(b, x, sizeof(x));
+}
+
+/* relight's "ptm" basis, plane j weighting function j (OpenLIME ShaderRTI's PTM weights). */
+static void basis_relight(const double l[3], double b[NB])
+{
+        double u = l[0], v = l[1];
+        double x[NB] = {1, u, v, u * u, u * v, v * v};
 
         memcpy(b, x, sizeof(x));
 }
@@ -284,13 +294,14 @@ static void solve6(double M[NB][NB], double y[NB], double x[NB])
         }
 }
 
-/* The least-squares PTM coefficients of channel ch at (x, y) from the .lp and its images. */
+/* The least-squares coefficients of relight's basis for channel ch at (x, y) from the .lp
+ * and its images. */
 static void ls_coef(const struct lp *lp, struct gn_frame *img, int x, int y, int ch, double a[NB])
 {
         double M[NB][NB] = {{0}}, v[NB] = {0}, b[NB];
 
         for (size_t j = 0; j < lp->n; j++) {
-                basis(lp->l[j], b);
+                basis_relight(lp->l[j], b);
                 for (int r = 0; r < NB; r++) {
                         v[r] += b[r] * px(&img[j], x, y, ch);
                         for (int k = 0; k < NB; k++)
