@@ -151,33 +151,40 @@ struct fixture {
         struct sim_cam_geom g;
 };
 
-/* One camera at turntable 0, lamps at 10..85 degrees on 6 arm angles: 24 lights. */
-static void fixture_open(struct fixture *fx)
+/* Builds a dataset of one 64x48 camera at turntable 0, the first n_lamps of lamps at 10,
+ * 35, 60, 85, 22.5 degrees on arm_angles arm angles, and exports it. Returns the export's. */
+static int fixture_export(struct fixture *fx, int arm_angles, int n_lamps, char *err, size_t len)
 {
-        struct gn_pose pose = {{0, 0, NAN}, 0, false};
-        char path[600], err[512] = "";
+        char path[600];
         struct aps_opts o;
+        int r;
 
         aps_opts_default(&o, APS_DIFFUSE);
         o.width = 64;
         o.height = 48;
         o.turntable_angles = 1;
-        o.arm_angles = 6;
-        o.n_lamps = 4;
-        memcpy(o.lamp_elevation_deg, (double[]){10, 35, 60, 85}, 4 * sizeof(double));
+        o.arm_angles = arm_angles;
+        o.n_lamps = n_lamps;
+        memcpy(o.lamp_elevation_deg, (double[]){10, 35, 60, 85, 22.5}, 5 * sizeof(double));
         o.mesh = false;
         aps_open(&fx->s, &o);
         fx->dir = tu_tmpdir();
         snprintf(path, sizeof(path), "%s/ds", fx->dir);
         snprintf(fx->out, sizeof(fx->out), "%s/out", fx->dir);
         CHECK(mkdir(fx->out, 0755) == 0);
-        {
-                _cleanup_(ds_closep) struct ds *d = aps_make_dataset(&fx->s, path);
-                int r = ap_export_rti(d, path, fx->out, &eo, err, sizeof(err));
-                if (r < 0)
-                        fprintf(stderr, "%s\n", err);
-                CHECK_INT(r, 0);
-        }
+        _cleanup_(ds_closep) struct ds *d = aps_make_dataset(&fx->s, path);
+        r = ap_export_rti(d, path, fx->out, &eo, err, len);
+        fprintf(stderr, "export: %d %s\n", r, err);
+        return r;
+}
+
+/* fixture_export of 4 lamps on 6 arm angles (24 lights, some behind the object). */
+static void fixture_open(struct fixture *fx)
+{
+        struct gn_pose pose = {{0, 0, NAN}, 0, false};
+        char err[512] = "";
+
+        CHECK_INT(fixture_export(fx, 6, 4, err, sizeof(err)), 0);
         view_dir(fx->out, fx->view, sizeof(fx->view));
         CHECK_INT(sim_camera_geom(fx->s.t.s, &pose, 0, &fx->g), 0);
 }
@@ -371,30 +378,13 @@ static void test_relight(void)
 /* A view with fewer than 6 lights: refused, with the view and the count named. */
 static void test_few_lights(void)
 {
-        _cleanup_(rm_rfp) char *dir = tu_tmpdir();
-        struct aps_opts o;
-        struct apscene s;
-        char path[600], out[600], err[512] = "";
+        struct fixture fx;
+        char err[512] = "";
 
-        aps_opts_default(&o, APS_DIFFUSE);
-        o.width = 32;
-        o.height = 24;
-        o.turntable_angles = 1;
-        o.arm_angles = 1;
-        o.n_lamps = 5;
-        o.mesh = false;
-        aps_open(&s, &o);
-        snprintf(path, sizeof(path), "%s/ds", dir);
-        snprintf(out, sizeof(out), "%s/out", dir);
-        CHECK(mkdir(out, 0755) == 0);
-        {
-                _cleanup_(ds_closep) struct ds *d = aps_make_dataset(&s, path);
-                CHECK_INT(ap_export_rti(d, path, out, &eo, err, sizeof(err)), -ENODATA);
-        }
-        fprintf(stderr, "%s\n", err);
+        CHECK_INT(fixture_export(&fx, 1, 5, err, sizeof(err)), -ENODATA);
         CHECK_STR_CONTAINS(err, "has 5 lights on the camera's side");
         CHECK_STR_CONTAINS(err, "at least 6");
-        aps_close(&s);
+        fixture_close(&fx);
 }
 
 int main(int argc, char **argv)
