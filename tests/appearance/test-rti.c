@@ -221,6 +221,7 @@ static void test_lp(void)
                         snprintf(path, sizeof(path), "%s/%s/%s", fx.out, fx.view, lp.path[j++]);
                         CHECK(stat(path, &st) == 0);
                 }
+        fprintf(stderr, "%zu lights on the camera's side\n", lp.n);
         CHECK_INT(lp.n, j);
         CHECK(j >= 12);
         fixture_close(&fx);
