@@ -1,17 +1,18 @@
 /* export_rti.c - the RTI export (export.h, docs/exports.md "RTI"): per view of the dataset
  * (camera, turntable and camera-arm angle, placed as the fit places them: ap_geometry_read) a
- * folder <camera>[_tt<deg>][_ca<deg>] with
- * its single-lamp images (images/NNN.png, copied as stored), an .lp light file (the format of
- * ds_write_lp: the number of images, then "path dx dy dz" per image), a PTM 1.2 file in
- * PTM_FORMAT_LRGB and a relight web-format folder (info.json, type "ptm", colorspace "rgb",
- * six PNG coefficient planes, as OpenLIME's LayerRTI and ShaderRTI read them). Light directions are
- * unit vectors in the RTI image frame of the view: x right, y up in the image, z towards the
- * camera. The PTM and relight coefficients are one least-squares fit of the biquadratic PTM basis
- * (lu^2, lv^2, lu lv, lu, lv, 1) per pixel over the view's images. */
+ * folder <camera>[_tt<deg>][_ca<deg>] with its single-lamp images (images/NNN.png, copied as
+ * stored), an .lp light file (the format of ds_write_lp: the number of images, then
+ * "path dx dy dz" per image), a PTM 1.2 file in PTM_FORMAT_LRGB and a relight web-format
+ * folder (info.json, type "ptm", colorspace "rgb", six PNG coefficient planes, as OpenLIME's
+ * LayerRTI and ShaderRTI read them). Light directions are unit vectors in the RTI image frame
+ * of the view: x right, y up in the image, z towards the camera. The PTM and relight
+ * coefficients are one least-squares fit of the biquadratic PTM basis per pixel over the
+ * view's images. */
 #include <errno.h>
 #include <fcntl.h>
 #include <jansson.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -51,10 +52,17 @@ struct rti_view {
         double (*l)[3];
 };
 
-static int fail(struct rti_ctx *c, int r, const char *fmt, const char *a, const char *b)
+/* Puts the sentence fmt in c->err. Returns r. */
+__attribute__((format(printf, 3, 4))) static int fail(struct rti_ctx *c, int r, const char *fmt,
+                                                      ...)
 {
-        if (c->err)
-                snprintf(c->err, c->errlen, fmt, a, b);
+        va_list ap;
+
+        if (c->err) {
+                va_start(ap, fmt);
+                vsnprintf(c->err, c->errlen, fmt, ap);
+                va_end(ap);
+        }
         return r;
 }
 
@@ -204,7 +212,7 @@ static int fit_view_ptm(struct rti_ctx *c, const struct rti_view *rv, struct rti
         }
         r = ap_fit_pinv(A, (int)L, RTI_NB, AP_REG_TSVD, 1e-6, pinv, NULL);
         if (r < 0)
-                return fail(c, r, "%s: %s", rv->name, "the PTM fit failed");
+                return fail(c, r, "%s: the PTM fit failed", rv->name);
         for (size_t p = 0; p < N; p++) {
                 for (int ch = 0; ch < 3; ch++)
                         for (int k = 0; k < RTI_NB; k++) {
@@ -380,17 +388,14 @@ static int export_view(struct rti_ctx *c, const struct rti_src *v)
 {
         struct rti_view rv = {0};
         struct rti_fit f = {0};
-        char n[32];
         int r;
 
         view_name(c, v, rv.name, sizeof(rv.name));
-        if (v->n < RTI_NB) {
-                snprintf(n, sizeof(n), "%zu", v->n);
+        if (v->n < RTI_NB)
                 return fail(c, -ENODATA,
-                            "view %s has %s lights on the camera's side with one lamp lit: "
-                            "a PTM needs at least 6",
-                            rv.name, n);
-        }
+                            "view %s has %zu lights on the camera's side with one lamp lit: "
+                            "a PTM needs at least %d",
+                            rv.name, v->n, RTI_NB);
         r = read_view(c, v, &rv);
         if (r == 0)
                 r = write_lp(c, &rv);
