@@ -413,7 +413,8 @@ static int export_view(struct rti_ctx *c, const struct rti_src *v)
 
 /* Every view of c's geometry (its shots are grouped by view), with its bracket-0 images of
  * lamps on the camera's side of the object (z > 0 in the RTI frame): the PTM basis depends
- * on (x, y) only, which cannot tell a lamp behind the object from its mirror in front. */
+ * on (x, y) only, which cannot tell a lamp behind the object from its mirror in front. A view
+ * lit only from behind is left out. */
 static int export_views(struct rti_ctx *c)
 {
         const struct ap_geometry *g = c->g;
