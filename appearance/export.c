@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <libgen.h>
+#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -54,12 +55,12 @@ static int check_destination(const char *path)
 static int run_in_temporary(export_fn fn, struct ds *d, const char *ds_dir, const char *out_dir,
                             const struct ap_export_opts *o, char *err, size_t errlen)
 {
-        char tmp[4200], copy[4096];
+        char tmp[8400], dir[4096], base[4096];
         int r;
 
-        snprintf(copy, sizeof(copy), "%s", out_dir);
-        snprintf(tmp, sizeof(tmp), "%s/.%s.export-XXXXXX", dirname(copy),
-                 basename((char *)out_dir));
+        snprintf(dir, sizeof(dir), "%s", out_dir);
+        snprintf(base, sizeof(base), "%s", out_dir);
+        snprintf(tmp, sizeof(tmp), "%s/.%s.export-XXXXXX", dirname(dir), basename(base));
         if (!mkdtemp(tmp)) {
                 r = -errno;
                 snprintf(err, errlen, "cannot create a temporary folder beside %s: %s", out_dir,
@@ -124,25 +125,26 @@ int exp_link_images(const struct ap_geometry *g, const char *ds_dir, const char 
                     size_t errlen)
 {
         char images[4200];
+        int r = 0;
 
         snprintf(images, sizeof(images), "%s/images", dir);
-        if (mkdir(images, 0755) < 0 && errno != EEXIST)
-                goto fail;
-        for (size_t i = 0; i < g->n_shots; i++) {
+        if (mkdir(images, 0755) < 0 && errno != EEXIST) {
+                r = -errno;
+                snprintf(err, errlen, "cannot create %s: %s", images, strerror(-r));
+        }
+        for (size_t i = 0; r == 0 && i < g->n_shots; i++) {
                 char src[4400], dst[4400], abs[PATH_MAX];
                 snprintf(src, sizeof(src), "%s/%s", ds_dir, g->shots[i].row->file);
                 snprintf(dst, sizeof(dst), "%s/%s", images, exp_image_name(g->shots[i].row));
                 if (link(src, dst) == 0 || errno == EEXIST)
                         continue;
                 if (!realpath(src, abs) || symlink(abs, dst) < 0) {
-                        snprintf(err, errlen, "cannot link %s into %s: %m", src, images);
-                        return -errno;
+                        r = -errno;
+                        snprintf(err, errlen, "cannot link %s into %s: %s", src, images,
+                                 strerror(-r));
                 }
         }
-        return 0;
-fail:
-        snprintf(err, errlen, "cannot create %s: %m", images);
-        return -errno;
+        return r;
 }
 
 FILE *exp_open(const char *dir, const char *name, char *err, size_t errlen)
