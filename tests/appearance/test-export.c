@@ -12,10 +12,14 @@
 
 #include "appearance/export.h"
 #include "appearance/fit.h"
+#ifdef AP_CALFILE
+#include "calib/calfile.h"
+#endif
 #include "calib/ply.h"
 #include "calib/scan.h"
 #include "common/cleanup.h"
 #include "common/fileio.h"
+#include "common/riggeom.h"
 #include "drivers/registry.h"
 #include "tests/appearance/apscene.h"
 #include "tests/dataset/ds-util.h"
@@ -476,6 +480,50 @@ static void test_nerfstudio(void)
         check_splits(out, t);
 }
 
+#ifdef AP_CALFILE
+/* A calibration file's lamp position reaches the export (the dataset's calibration.yaml),
+ * and --calibration nominal ignores it: lamp l0 calibrated 100 mm higher than nominal. */
+static void test_calibration(void)
+{
+        _cleanup_(rm_rfp) char *dir = tu_tmpdir();
+        const char *path = make(dir, "ds", false);
+        _cleanup_(ap_geometry_freep) struct ap_geometry *g = geometry(path);
+        struct cal_lamp_pos lp = {.name = "l0", .rms_mm = 0.1, .n_obs = 10};
+        struct ap_export_opts o = {.backends = registry_backends, .calibration = "nominal"};
+        char cal[600], out[600], err[512];
+        json_auto_t *cal_t = NULL, *nom_t = NULL;
+        size_t n0 = 0;
+
+        riggeom_lamp_position(&g->rc->lamps[0], 0, lp.pos);
+        lp.pos[2] += 100;
+        snprintf(cal, sizeof(cal), "%s/calibration.yaml", path);
+        CHECK_INT(cal_lamp_write(cal, &lp, true, err, sizeof(err)), 0);
+        snprintf(out, sizeof(out), "%s/cal", dir);
+        CHECK_INT(export(path, "nerfstudio", out, err, sizeof(err)), 0);
+        cal_t = load_json(out, "transforms.json");
+        snprintf(out, sizeof(out), "%s/nominal", dir);
+        CHECK_INT(ap_export(path, "nerfstudio", out, &o, err, sizeof(err)), 0);
+        nom_t = load_json(out, "transforms.json");
+        for (size_t i = 0; i < g->n_shots; i++) {
+                const json_t *c = json_object_get(
+                                     json_array_get(json_object_get(cal_t, "frames"), i),
+                                     "light_position"),
+                             *n = json_object_get(
+                                     json_array_get(json_object_get(nom_t, "frames"), i),
+                                     "light_position");
+                bool l0 = g->shots[i].row->pose.lamps == 1;
+                n0 += l0;
+                for (int k = 0; k < 3; k++) {
+                        CHECK_NEAR(json_number_value(json_array_get(n, k)), g->shots[i].lamp[k],
+                                   1e-9);
+                        CHECK_NEAR(json_number_value(json_array_get(c, k)),
+                                   g->shots[i].lamp[k] + (l0 && k == 2) * 100, 1e-6);
+                }
+        }
+        CHECK_INT(n0, g->n_shots / 2);
+}
+#endif
+
 /* ---- PLY: Open3D (Debian's python3-open3d) reads the cloud and the mesh ---- */
 
 static const char open3d_script[] =
@@ -605,6 +653,9 @@ int main(int argc, char **argv)
                 {"ply", test_ply},
                 {"bad", test_bad},
                 {"gonioctl", test_gonioctl},
+#ifdef AP_CALFILE
+                {"calibration", test_calibration},
+#endif
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
