@@ -7,10 +7,12 @@
 #include <stddef.h>
 
 struct ds;
+struct rig_backend;
 
 struct ap_export_opts {
         const char *model;       /* models/<name> of the dataset to export from; NULL: "default" */
         const char *calibration; /* calibration file, "nominal", or NULL: the dataset's own */
+        const struct rig_backend *const *backends; /* to read the dataset's rig.yaml */
 };
 
 /* Writes the dataset at ds_dir as format ("colmap", "nerfstudio", "ply", "rti") into the
@@ -27,7 +29,7 @@ int ap_export_colmap(struct ds *d, const char *ds_dir, const char *dir,
                      const struct ap_export_opts *o, char *err, size_t errlen);
 int ap_export_nerfstudio(struct ds *d, const char *ds_dir, const char *dir,
                          const struct ap_export_opts *o, char *err, size_t errlen);
-int ap_export_ply(struct ds *d, const char *ds_dir, const char *dir,
-                  const struct ap_export_opts *o, char *err, size_t errlen);
-int ap_export_rti(struct ds *d, const char *ds_dir, const char *dir,
-                  const struct ap_export_opts *o, char *err, size_t errlen);
+int ap_export_ply(struct ds *d, const char *ds_dir, const char *dir, const struct ap_export_opts *o,
+                  char *err, size_t errlen);
+int ap_export_rti(struct ds *d, const char *ds_dir, const char *dir, const struct ap_export_opts *o,
+                  char *err, size_t errlen);

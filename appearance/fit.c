@@ -382,8 +382,8 @@ static void ctx_free(struct fit_ctx *c)
         pthread_mutex_destroy(&c->lock);
 }
 
-/* Everything but the passes: the rig, the rows, views, order, geometry, points, model. */
-static int prepare(struct fit_ctx *c, struct ds *d)
+/* The rig file, the index rows and the views they group into. */
+static int load_views(struct fit_ctx *c, struct ds *d)
 {
         char path[4200], msg[512];
         int r;
@@ -398,7 +398,14 @@ static int prepare(struct fit_ctx *c, struct ds *d)
         r = ds_rows_collect(d, NULL, NULL, &c->all, &c->n_all);
         if (r < 0)
                 return fit_fail(c, r, "reading the index: %s", ds_last_error(d));
-        r = group_views(c);
+        return group_views(c);
+}
+
+/* Everything but the passes: the rig, the rows, views, order, geometry, points, model. */
+static int prepare(struct fit_ctx *c, struct ds *d)
+{
+        int r = load_views(c, d);
+
         if (r == 0)
                 note_unlit_views(c);
         if (r == 0)
@@ -447,4 +454,79 @@ int ap_fit(struct ds *d, const struct ap_fit_opts *o, struct ap_model **ret, cha
         }
         ctx_free(&c);
         return r;
+}
+
+/* Moves c's rig, rows, cameras and lights into g. */
+static int take_geometry(struct fit_ctx *c, struct ap_geometry *g)
+{
+        size_t n = 0;
+
+        for (size_t i = 0; i < c->n_views; i++)
+                n += c->views[i].n_rows;
+        g->cameras = calloc(c->n_views, sizeof(*g->cameras));
+        g->shots = calloc(n, sizeof(*g->shots));
+        if (!g->cameras || !g->shots)
+                return -ENOMEM;
+        for (size_t i = 0; i < c->n_views; i++) {
+                const struct fit_view *v = &c->views[i];
+                g->cameras[i] = v->geom;
+                for (size_t k = 0; k < v->n_lights; k++)
+                        for (size_t j = 0; j < v->lights[k].n; j++) {
+                                const struct fit_light *l = &v->lights[k];
+                                struct ap_shot *s = &g->shots[g->n_shots++];
+                                *s = (struct ap_shot){.row = v->rows[l->first + j],
+                                                      .view = i,
+                                                      .cam = v->cam,
+                                                      .intensity = l->scale * c->i_ref};
+                                memcpy(s->lamp, l->pos, sizeof(s->lamp));
+                        }
+        }
+        g->n_views = c->n_views;
+        g->rc = TAKE_PTR(c->rc);
+        g->rows = TAKE_PTR(c->all);
+        g->n_rows = c->n_all;
+        snprintf(g->notes, sizeof(g->notes), "%s", c->notes);
+        return 0;
+}
+
+int ap_geometry_read(struct ds *d, const char *calibration,
+                     const struct rig_backend *const *backends, struct ap_geometry **ret, char *err,
+                     size_t errlen)
+{
+        struct ap_fit_opts o;
+        struct fit_ctx c = {.o = &o};
+        _cleanup_free_ struct ap_geometry *g = calloc(1, sizeof(*g));
+        int r;
+
+        if (!d || !ret)
+                return -EINVAL;
+        ap_fit_opts_default(&o);
+        o.calibration = calibration;
+        o.backends = backends;
+        c.dir = ds_path(d);
+        pthread_mutex_init(&c.lock, NULL);
+        r = g ? load_views(&c, d) : -ENOMEM;
+        if (r == 0)
+                r = fit_geometry(&c);
+        if (r == 0)
+                r = take_geometry(&c, g);
+        if (r == 0)
+                *ret = TAKE_PTR(g);
+        else if (err)
+                snprintf(err, errlen, "%s", c.err[0] ? c.err : strerror(-r));
+        ap_geometry_free(TAKE_PTR(g));
+        ctx_free(&c);
+        return r;
+}
+
+struct ap_geometry *ap_geometry_free(struct ap_geometry *g)
+{
+        if (g) {
+                rigconf_free(g->rc);
+                free(g->rows);
+                free(g->cameras);
+                free(g->shots);
+                free(g);
+        }
+        return NULL;
 }

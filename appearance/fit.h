@@ -68,3 +68,36 @@ int ap_fit_pinv(const double *A, int L, int M, enum ap_reg reg, double param, fl
 
 /* The default parameter of reg (docs/appearance.md, "Regularisation"). */
 double ap_fit_reg_default(enum ap_reg reg);
+
+/* One lamp-lit image of a dataset placed in the object frame (ap_geometry_read). */
+struct ap_shot {
+        const struct ds_capture *row; /* its index row (in the geometry's rows) */
+        size_t view;                  /* its view: cameras[view] */
+        int cam;                      /* the rig's camera index */
+        double lamp[3];               /* the lit lamp in the object frame, mm */
+        double intensity;             /* the lamp's intensity (rig units; 1 when unset) */
+};
+
+/* The geometry of a dataset's lamp-lit images, as the fit places them (docs/exports.md). */
+struct ap_geometry {
+        struct rig_config *rc;
+        struct ds_capture *rows; /* every index row */
+        size_t n_rows;
+        struct ap_camera *cameras; /* one per view (camera, turntable and camera-arm angle) */
+        size_t n_views;
+        struct ap_shot *shots; /* one per lamp-lit image row, grouped by view */
+        size_t n_shots;
+        char notes[1024]; /* the fallbacks taken (nominal geometry...), "" none */
+};
+
+/* The cameras (intrinsics, distortion, pose in the object frame) and lamp positions of every
+ * lamp-lit image of d, from calibration (a calibration file, "nominal", or NULL: the
+ * dataset's calibration.yaml when there is one) exactly as ap_fit places them; backends read
+ * the dataset's rig.yaml. Returns 0 or -ENOENT (no rig file), -ENODATA (no lamp-lit image),
+ * -EBADMSG (a malformed calibration file) or -errno, with a sentence in err. */
+int ap_geometry_read(struct ds *d, const char *calibration,
+                     const struct rig_backend *const *backends, struct ap_geometry **ret, char *err,
+                     size_t errlen);
+
+/* Frees g. NULL is a no-op. Returns NULL. */
+struct ap_geometry *ap_geometry_free(struct ap_geometry *g);
