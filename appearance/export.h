@@ -29,7 +29,7 @@ int ap_export_colmap(struct ds *d, const char *ds_dir, const char *dir,
                      const struct ap_export_opts *o, char *err, size_t errlen);
 int ap_export_nerfstudio(struct ds *d, const char *ds_dir, const char *dir,
                          const struct ap_export_opts *o, char *err, size_t errlen);
-int ap_export_ply(struct ds *d, const char *ds_dir, const char *dir,
-                  const struct ap_export_opts *o, char *err, size_t errlen);
-int ap_export_rti(struct ds *d, const char *ds_dir, const char *dir,
-                  const struct ap_export_opts *o, char *err, size_t errlen);
+int ap_export_ply(struct ds *d, const char *ds_dir, const char *dir, const struct ap_export_opts *o,
+                  char *err, size_t errlen);
+int ap_export_rti(struct ds *d, const char *ds_dir, const char *dir, const struct ap_export_opts *o,
+                  char *err, size_t errlen);

@@ -282,8 +282,7 @@ int fit_mesh_read(struct fit_ctx *c)
         return 0;
 }
 
-/* Projects object point x with camera g: pixel uv and depth z; false behind the camera. */
-static bool project(const struct ap_camera *g, const double x[3], double uv[2], double *z)
+bool ap_camera_project(const struct ap_camera *g, const double x[3], double uv[2], double *z)
 {
         double p[3], r2, radial, xd, yd, a, b;
 
@@ -298,7 +297,8 @@ static bool project(const struct ap_camera *g, const double x[3], double uv[2], 
         yd = b * radial + g->dist[2] * (r2 + 2 * b * b) + 2 * g->dist[3] * a * b;
         uv[0] = g->fx * xd + g->cx;
         uv[1] = g->fy * yd + g->cy;
-        *z = p[2];
+        if (z)
+                *z = p[2];
         return true;
 }
 
@@ -363,7 +363,7 @@ static int mesh_points(const struct fit_ctx *c, struct fit_view *v, size_t n_til
                 for (int i = 0; i < 3 && front; i++) {
                         const float *x = &c->mesh.v[3 * c->mesh.tri[3 * f + i]];
                         X[i][0] = x[0], X[i][1] = x[1], X[i][2] = x[2];
-                        front = project(&v->geom, X[i], p[i], &z[i]);
+                        front = ap_camera_project(&v->geom, X[i], p[i], &z[i]);
                 }
                 if (front)
                         raster_tri(c, v, p, z, (const double(*)[3])X, depth);

@@ -40,6 +40,10 @@ struct ap_camera {
         double R[9], t[3]; /* object frame to camera frame (OpenCV: x right, y down, z ahead) */
 };
 
+/* Projects object point x (mm) with camera g into pixel uv (the centre of the top-left pixel
+ * at 0, 0); *z (may be NULL) gets its depth. Returns false for a point behind the camera. */
+bool ap_camera_project(const struct ap_camera *g, const double x[3], double uv[2], double *z);
+
 /* One sampled view direction: its camera and its weight images. */
 struct ap_view {
         char camera[AP_NAME_MAX];             /* the rig's camera name */
@@ -90,6 +94,9 @@ struct ap_model *ap_model_free(struct ap_model *m);
 /* Writes m as models/<m->name>/ of the dataset directory ds_dir, atomically (a temporary
  * directory renamed into place). Returns 0 or -errno. */
 int ap_model_write(const struct ap_model *m, const char *ds_dir);
+
+/* Removes directory path and everything in it (errors ignored: a temporary folder). */
+void ap_remove_tree(const char *path);
 
 /* Reads the model in directory dir (models/<name>/ of a dataset). On a malformed file
  * returns -EBADMSG with a sentence naming the file and the problem in err. Returns 0,

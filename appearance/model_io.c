@@ -269,8 +269,7 @@ static int put_model(int dfd, const struct ap_model *m)
         return r;
 }
 
-/* Removes directory path and everything in it (a model's directory: two levels). */
-static void remove_tree(const char *path)
+void ap_remove_tree(const char *path)
 {
         DIR *d = opendir(path);
         struct dirent *e;
@@ -281,7 +280,7 @@ static void remove_tree(const char *path)
                         continue;
                 snprintf(sub, sizeof(sub), "%s/%s", path, e->d_name);
                 if (e->d_type == DT_DIR)
-                        remove_tree(sub);
+                        ap_remove_tree(sub);
                 else
                         unlink(sub);
         }
@@ -299,7 +298,7 @@ static int install_dir(const char *tmp, const char *final)
                 return -errno;
         if (renameat2(AT_FDCWD, tmp, AT_FDCWD, final, RENAME_EXCHANGE) < 0)
                 return -errno;
-        remove_tree(tmp);
+        ap_remove_tree(tmp);
         return gn_fsync_parent(final);
 }
 
@@ -316,7 +315,7 @@ int ap_model_write(const struct ap_model *m, const char *ds_dir)
                 return -errno;
         snprintf(final, sizeof(final), "%s/%s", models, m->name);
         snprintf(tmp, sizeof(tmp), "%s/.%s.tmp", models, m->name);
-        remove_tree(tmp); /* left by an interrupted write */
+        ap_remove_tree(tmp); /* left by an interrupted write */
         if (mkdir(tmp, 0755) < 0)
                 return -errno;
         dfd = open(tmp, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
@@ -324,7 +323,7 @@ int ap_model_write(const struct ap_model *m, const char *ds_dir)
         if (r == 0)
                 r = install_dir(tmp, final);
         if (r < 0)
-                remove_tree(tmp);
+                ap_remove_tree(tmp);
         return r;
 }
 

@@ -253,8 +253,11 @@ int args_parse(int argc, char **argv, struct args *a)
 
                 if (options_done || !is_option(s)) {
                         a->words[a->nwords++] = argv[i];
-                        /* `model` subcommands parse their own options (client/model.h) */
-                        options_done |= a->nwords == 1 && strcmp(s, "model") == 0;
+                        /* `model` subcommands and `dataset export` parse their own
+                         * options (client/model.h, client/export.h) */
+                        options_done |= (a->nwords == 1 && strcmp(s, "model") == 0) ||
+                                        (a->nwords == 2 && strcmp(s, "export") == 0 &&
+                                         strcmp(a->words[0], "dataset") == 0);
                         continue;
                 }
                 if (strcmp(s, "--") == 0) {

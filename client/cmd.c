@@ -17,6 +17,7 @@
 #include "client/model.h"
 #include "client/output.h"
 #include "client/scan.h"
+#include "client/export.h"
 #include "client/session.h"
 #include "common/cleanup.h"
 #include "protocol/proto.h"
@@ -234,6 +235,12 @@ static const struct cmd commands[] = {
          TIMEOUT_S, p_dataset, out_print_dataset},
         {"dataset", "check", "NAME", "verify rows, files, checksums and session plans",
          "dataset.check", 1, 1, 0, TIMEOUT_LONG_S, p_dataset, NULL, "dataset is consistent"},
+        {"dataset", "export",
+         "DATASET --format colmap|nerfstudio|ply|rti -o DIR [--model NAME] "
+         "[--calibration FILE|nominal]",
+         "write DATASET in a format other tools read into the new folder DIR (docs/exports.md; "
+         "no goniod)",
+         NULL, 1, INT_MAX, 0, TIMEOUT_S, NULL, export_print, .local = export_command},
         {"dataset", "close", "", "close the open dataset", "dataset.close", 0, 0, 0, TIMEOUT_S,
          NULL, NULL, "dataset closed"},
         {"fault", "clear", "", "clear a latched fault", "fault.clear", 0, 0, 0, TIMEOUT_S, NULL,

@@ -238,8 +238,10 @@ int rig_submit_new(struct rig *rig, enum job_kind kind, int idx, double arg, boo
         if (!j)
                 return -ENOMEM;
         *j = (struct job){.rig = rig, .kind = kind, .idx = idx, .arg = arg, .on = on};
-        if (is_axis_job(kind))
+        if (is_axis_job(kind)) {
                 j->gen = atomic_load(&rig->axes[idx].gen);
+                j->motions = rig->axes[idx].motions;
+        }
         return rig_submit(j, urgent);
 }
 
@@ -396,6 +398,7 @@ static int submit_motion(struct rig_axis *a, enum job_kind kind, double leg, dou
                           .arg = leg,
                           .speed = speed,
                           .gen = atomic_load(&a->gen)};
+        a->motions++;
         return rig_submit(j, false);
 }
 
@@ -544,8 +547,8 @@ static void axis_job_done(struct job *j, int result)
                 return axis_job_failed(j, a, result);
         if (j->kind == J_HOME || j->kind == J_MOVE || j->kind == J_STOP)
                 arm(a, POLL_USEC);
-        else if (j->kind == J_POLL && a->op != AX_IDLE)
-                axis_progress(a);
+        else if (j->kind == J_POLL && a->op != AX_IDLE && j->motions == a->motions)
+                axis_progress(a); /* an older poll saw the drive before its command */
         else if (a->op == AX_IDLE)
                 idle_poll_done(a); /* also after open and reset */
 }

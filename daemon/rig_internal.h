@@ -31,6 +31,8 @@ struct rig_axis {
         uint64_t started, deadline, last_notify;
         bool settling;
         bool polling;     /* an idle poll is queued */
+        unsigned motions; /* moves and homings queued so far: a poll queued before the latest
+                           * one reads the drive before it and says nothing of its progress */
         double speed;     /* of the running move, deg/s; 0: max_speed */
         double speed_set; /* the speed last written to the drive (bus worker only); 0: max */
 };
@@ -107,9 +109,10 @@ struct job {
         int idx; /* device index; < 0: laser RIG_SW_LASER_OF(idx) for switch jobs */
         unsigned gen;
         double arg;
-        double speed;    /* J_MOVE: deg/s, 0: max_speed */
-        uint64_t t_ns;   /* J_POLL: CLOCK_REALTIME mid-way through the drive's answer */
-        uint64_t rtt_ns; /* J_POLL: the answer's round trip */
+        double speed;     /* J_MOVE: deg/s, 0: max_speed */
+        uint64_t t_ns;    /* J_POLL: CLOCK_REALTIME mid-way through the drive's answer */
+        uint64_t rtt_ns;  /* J_POLL: the answer's round trip */
+        unsigned motions; /* J_POLL: the axis's motions when queued */
         bool on;
         struct axis_state st;
         struct cam_request creq;
