@@ -388,6 +388,37 @@ static void test_few_lights(void)
         fixture_close(&fx);
 }
 
+/* The same bytes of one file at paths a and b. */
+static bool same_file(const char *a, const char *b)
+{
+        _cleanup_free_ void *x = NULL, *y = NULL;
+        size_t nx, ny;
+
+        CHECK_INT(gn_read_file_at(AT_FDCWD, a, 1 << 26, &x, &nx), 0);
+        CHECK_INT(gn_read_file_at(AT_FDCWD, b, 1 << 26, &y, &ny), 0);
+        return nx == ny && memcmp(x, y, nx) == 0;
+}
+
+/* gonioctl dataset export --format rti: the same PTM as the writer's; into a non-empty
+ * folder refused. */
+static void test_gonioctl(void)
+{
+        struct fixture fx;
+        char args[1400], out[8192], a[1400], b[1400];
+
+        if (!getenv("GONIOCTL"))
+                exit(TEST_SKIP);
+        fixture_open(&fx);
+        snprintf(args, sizeof(args), "dataset export %s/ds --format rti -o %s/cli", fx.dir, fx.dir);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
+        snprintf(a, sizeof(a), "%s/%s/%s.ptm", fx.out, fx.view, fx.view);
+        snprintf(b, sizeof(b), "%s/cli/%s/%s.ptm", fx.dir, fx.view, fx.view);
+        CHECK(same_file(a, b));
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
+        CHECK_STR_CONTAINS(out, "not an empty folder");
+        fixture_close(&fx);
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
@@ -395,6 +426,7 @@ int main(int argc, char **argv)
                 {"ptm", test_ptm},
                 {"relight", test_relight},
                 {"few-lights", test_few_lights},
+                {"gonioctl", test_gonioctl},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
