@@ -94,8 +94,7 @@ static pid_t server_pid; /* killed if a check fails */
 
 static void kill_server(void)
 {
-        if (server_pid > 0)
-                kill(server_pid, SIGKILL);
+        kill_own_child(server_pid);
 }
 
 /* Leaves the calling process exactly n free descriptors (holes filled, limit lowered). */

@@ -14,6 +14,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "common/cleanup.h"
 #include "common/clock.h"
 #include "common/pose.h"
 #include "dataset/ds.h"
@@ -74,6 +75,26 @@ double now_s(void)
 
 /* Starts argv with stdout on a pipe (the read end in *out_fd) and stderr appended to
  * err_path (NULL: inherited). */
+/* Every child spawn() started, for the exit handler. Kept here, not in the caller's
+ * rigenv: a handler that read a struct on main's stack after main returned read garbage and
+ * SIGKILLed whatever process had that number. */
+static pid_t spawned[64];
+static unsigned n_spawned;
+
+/* A failed check exits the test: take the daemon and the simulator down with it. */
+static void kill_children(void)
+{
+        for (unsigned i = 0; i < n_spawned && i < ELEMENTSOF(spawned); i++)
+                kill_own_child(spawned[i]);
+}
+
+static void remember_child(pid_t pid)
+{
+        if (n_spawned == 0)
+                atexit(kill_children);
+        spawned[n_spawned++ % ELEMENTSOF(spawned)] = pid;
+}
+
 static pid_t spawn(char *const argv[], int *out_fd, const char *err_path)
 {
         int p[2];
@@ -93,6 +114,7 @@ static pid_t spawn(char *const argv[], int *out_fd, const char *err_path)
                 _exit(127);
         }
         close(p[1]);
+        remember_child(pid);
         *out_fd = p[0];
         return pid;
 }
@@ -195,19 +217,6 @@ static void wait_socket(struct rigenv *e, double timeout)
         }
 }
 
-static struct rigenv *running; /* for the exit handler only */
-
-/* A failed check exits the test: take the daemon and the simulator down with it. */
-static void kill_children(void)
-{
-        if (!running)
-                return;
-        if (running->daemon > 0)
-                kill(running->daemon, SIGKILL);
-        if (running->sim > 0)
-                kill(running->sim, SIGKILL);
-}
-
 static void start_daemon(struct rigenv *e)
 {
         char *argv[] = {(char *)e->goniod, "--rig",  e->rig,  "--socket",
@@ -237,8 +246,6 @@ static void start_sim(struct rigenv *e)
 static void init(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
 {
         memset(e, 0, sizeof(*e));
-        running = e;
-        atexit(kill_children);
         e->goniod = argv[1];
         e->gonioctl = argv[2];
         e->gonio_sim = argv[3];
@@ -311,22 +318,16 @@ static void stop_pid(pid_t pid, const char *what)
 
 void rigenv_term_daemon(struct rigenv *e)
 {
-        pid_t daemon = e->daemon;
-
-        e->daemon = 0; /* reaped by stop_pid: the exit handler must not signal it */
-        stop_pid(daemon, "goniod");
+        stop_pid(e->daemon, "goniod");
         start_daemon(e);
 }
 
 void rigenv_stop(struct rigenv *e)
 {
-        pid_t daemon = e->daemon, sim = e->sim;
         char cmd[400];
 
-        e->daemon = 0; /* reaped below: the exit handler must not signal it again */
-        stop_pid(daemon, "goniod");
-        e->sim = 0;
-        stop_pid(sim, "gonio-sim");
+        stop_pid(e->daemon, "goniod");
+        stop_pid(e->sim, "gonio-sim");
         snprintf(cmd, sizeof(cmd), "rm -rf '%s'", e->dir);
         CHECK(system(cmd) == 0);
 }
