@@ -438,6 +438,33 @@ size_t ap_views_n_faces(const struct ap_views *v)
         return v ? v->n_valid : 0;
 }
 
+void ap_views_face(const struct ap_views *v, size_t i, int idx[3], float e[3][3])
+{
+        for (size_t f = 0; f < v->nf; f++) {
+                if (v->f[f].hole || i-- > 0)
+                        continue;
+                memcpy(idx, v->f[f].v, sizeof(v->f[f].v));
+                memcpy(e, v->f[f].e, sizeof(v->f[f].e));
+                return;
+        }
+}
+
+size_t ap_views_n_boundary(const struct ap_views *v)
+{
+        return v->nb;
+}
+
+void ap_views_boundary(const struct ap_views *v, size_t i, int ab[2], double n[3])
+{
+        ab[0] = v->bnd[i].a, ab[1] = v->bnd[i].b;
+        memcpy(n, v->bnd[i].n, sizeof(v->bnd[i].n));
+}
+
+bool ap_views_is_dup(const struct ap_views *v, size_t i)
+{
+        return v->dup[i];
+}
+
 static int finish(const struct face *f, const float raw[3], int idx[3], float w[3])
 {
         float s = raw[0] + raw[1] + raw[2];

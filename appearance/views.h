@@ -12,6 +12,7 @@
  * docs/appearance.md, "Rendering". */
 #pragma once
 
+#include <stdbool.h>
 #include <stddef.h>
 
 #define AP_VIEWS_HOLE_RATIO 2.0 /* a face this many times the median circumradius is a hole */
@@ -37,3 +38,18 @@ double ap_views_outside_angle(const struct ap_views *v, const double d[3]);
 
 /* Number of faces that are not holes (0 when the views are coplanar or fewer than 3). */
 size_t ap_views_n_faces(const struct ap_views *v);
+
+/* The triangulation as data, for a renderer elsewhere (the web viewer, webexport.h). Face i
+ * (i < ap_views_n_faces, holes left out): its views in idx and its edge vectors e, d . e[j]
+ * being the unnormalised weight of idx[j] at direction d (weights sum > 0, each >= -1e-6:
+ * d is in the face). */
+void ap_views_face(const struct ap_views *v, size_t i, int idx[3], float e[3][3]);
+
+/* Number of boundary edges (views.h's top comment: where directions outside are taken). */
+size_t ap_views_n_boundary(const struct ap_views *v);
+
+/* Boundary edge i (i < ap_views_n_boundary): its two views and the unit a x b. */
+void ap_views_boundary(const struct ap_views *v, size_t i, int ab[2], double n[3]);
+
+/* Whether view i repeats an earlier view's direction (then it is never chosen). */
+bool ap_views_is_dup(const struct ap_views *v, size_t i);
