@@ -43,12 +43,17 @@ const gonio = (() => {
     await loadScript('data/' + entry.chunk + '.js');
     const b64 = chunks[entry.chunk];
     delete chunks[entry.chunk];
-    if (typeof b64 !== 'string') throw new Error(entry.chunk + '.js holds no data');
-    const bin = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
-    const stream = new Blob([bin]).stream().pipeThrough(new DecompressionStream('gzip'));
-    const buf = await new Response(stream).arrayBuffer();
-    if (buf.byteLength !== entry.raw_bytes)
-      throw new Error(entry.chunk + ': ' + buf.byteLength + ' bytes, expected ' + entry.raw_bytes);
+    let buf;
+    try {
+      if (typeof b64 !== 'string') throw new Error('no data');
+      const bin = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
+      const stream = new Blob([bin]).stream().pipeThrough(new DecompressionStream('gzip'));
+      buf = await new Response(stream).arrayBuffer();
+      if (buf.byteLength !== entry.raw_bytes)
+        throw new Error(buf.byteLength + ' bytes, expected ' + entry.raw_bytes);
+    } catch (e) {
+      throw new Error('data/' + entry.chunk + '.js is damaged (' + e.message + '): export the model again');
+    }
     g.loaded += entry.bytes;
     progress();
     return buf;
@@ -540,14 +545,15 @@ void main() {
 
   // ---- a frame ----
   // The viewer's camera as model_render.c make_camera builds it: the intrinsics of the
-  // sampled view nearest the direction, scaled to the canvas, at that view's distance (or
+  // sampled view nearest the direction, scaled to fit the canvas (make_camera scales to the
+  // width: the same when the aspect ratios agree), at that view's distance (or
   // the zoomed one) from the mesh centre, looking at it with +z up (render.c look_at).
   function frameCamera() {
     const d = azel(params.az, params.el), c = man.centre, W = canvas.width, H = canvas.height;
     let near = views[0], best = -2;
     for (const v of views) if (dot(v.dir, d) > best) { best = dot(v.dir, d); near = v; }
     const dist = params.distance > 0 ? params.distance : Math.hypot(...sub(camCentre(near), c));
-    const s = W / near.width, eye = [0, 1, 2].map((i) => c[i] + dist * d[i]);
+    const s = Math.min(W / near.width, H / near.height), eye = [0, 1, 2].map((i) => c[i] + dist * d[i]);
     const f = norm(sub(c, eye));
     const up = Math.abs(f[2]) > 1 - 1e-12 ? [0, 1, 0] : [0, 0, 1];
     const rt = norm(cross(f, up)), dn = cross(f, rt);
@@ -558,7 +564,7 @@ void main() {
   // render.c frame_light: the scale and, for a directional or environment light, L itself.
   function frameLight(u) {
     const i0 = man.light.intensity > 0 ? man.light.intensity : 1;
-    const s = (params.intensity > 0 ? params.intensity : i0) / i0, K = man.components;
+    const s = (params.intensity > 0 ? params.intensity : i0) / i0;
     const L = new Float32Array(100);
     if (params.light === 'point') {
       let d0 = man.light.distance_mm;
@@ -578,8 +584,7 @@ void main() {
       lightTerm(man.envs[params.env].coef, 3, L);
       gl.uniform1f(u.lscale, 1);
     }
-    gl.uniform1fv(u.lconst, L.subarray(0, 100));
-    void K;
+    gl.uniform1fv(u.lconst, L);
   }
 
   function bindTextures(u) {
@@ -647,11 +652,25 @@ void main() {
     }
     if (q.get('mode') === 'object') params.mode = 'object';
     const size = (q.get('size') || '').match(/^(\d+)x(\d+)$/);
-    if (size) { canvas.width = +size[1]; canvas.height = +size[2]; }
+    if (size) {
+      canvas.width = +size[1];
+      canvas.height = +size[2];
+    } else {
+      fitWindow();
+      window.addEventListener('resize', () => { fitWindow(); dirty = true; });
+    }
     const gain = Number(q.get('gain')), dist = Number(q.get('distance')), inten = Number(q.get('intensity'));
     if (gain > 0) params.gain = gain;
     if (dist > 0) params.distance = dist;
     if (inten > 0) params.intensity = inten;
+  }
+
+  // The canvas fills the window below the bar.
+  function fitWindow() {
+    const bar = document.getElementById('bar').offsetHeight;
+    canvas.width = Math.max(64, window.innerWidth);
+    canvas.height = Math.max(64, window.innerHeight - bar);
+    canvas.style.marginTop = bar + 'px';
   }
 
   function placeLight() {
@@ -742,6 +761,7 @@ void main() {
         status('views: ' + ++n + ' of ' + views.length);
         if (n === Math.min(FIRST_VIEWS, views.length)) {
           draw();
+          g.firstFrameBytes = g.loaded;
           g.state = 'first';
           requestAnimationFrame(loop);
         }
