@@ -257,18 +257,23 @@ static int write_view(struct web *w, size_t i, json_t *views)
 static json_t *triangulation_json(const struct ap_views *v, size_t n_views)
 {
         json_t *faces = json_array(), *bnd = json_array(), *dup = json_array();
+        json_t *start = json_array();
 
         for (size_t i = 0; i < ap_views_n_faces(v); i++) {
-                int idx[3];
+                int idx[3], nb[3];
                 float e[3][3];
                 json_t *f = json_array();
-                ap_views_face(v, i, idx, e);
+                ap_views_face(v, i, idx, e, nb);
                 for (int j = 0; j < 3; j++)
                         json_array_append_new(f, json_integer(idx[j]));
                 for (int j = 0; j < 9; j++)
                         json_array_append_new(f, json_real(e[j / 3][j % 3]));
+                for (int j = 0; j < 3; j++)
+                        json_array_append_new(f, json_integer(nb[j]));
                 json_array_append_new(faces, f);
         }
+        for (size_t i = 0; i < 6 * AP_VIEWS_CUBE * AP_VIEWS_CUBE; i++)
+                json_array_append_new(start, json_integer(ap_views_start(v, i)));
         for (size_t i = 0; i < ap_views_n_boundary(v); i++) {
                 int ab[2];
                 double n[3];
@@ -277,7 +282,8 @@ static json_t *triangulation_json(const struct ap_views *v, size_t n_views)
         }
         for (size_t i = 0; i < n_views; i++)
                 json_array_append_new(dup, json_boolean(ap_views_is_dup(v, i)));
-        return json_pack("{s:o,s:o,s:o}", "faces", faces, "boundary", bnd, "dup", dup);
+        return json_pack("{s:o,s:o,s:o,s:o,s:i}", "faces", faces, "boundary", bnd, "dup", dup,
+                         "start", start, "cube", AP_VIEWS_CUBE);
 }
 
 /* A sky for the environment mode when none is given: a bright sun high on one side, a blue

@@ -129,7 +129,7 @@ static int serve(const struct web_cli *w, const char *root)
                 fprintf(stderr, "gonioctl: model view: cannot listen on %s port %d: %s\n", w->bind,
                         w->port, strerror(-r));
         if (r < 0)
-                return cmd_exit_for_errno(r);
+                return r == -EADDRINUSE ? EXIT_BUSY : cmd_exit_for_errno(r);
         printf("serving the viewer of %s at http://%s%s%s:%u/ (Ctrl-C stops)\n", w->model,
                strchr(w->bind, ':') ? "[" : "", w->bind, strchr(w->bind, ':') ? "]" : "",
                httpd_port(h));

@@ -23,7 +23,7 @@ const gonio = (() => {
   let progs = {}, tex = {}, meshBuf = {}, views = [], lightRows = 0, groups = 0;
   let params = {az: 0, el: 20, distance: 0, mode: 'pixel', light: 'point',
                 lpos: [0, 0, 0], ldir: [0, 0, 1], env: 0, gain: 1, intensity: 0};
-  let basis = null, dirty = true;
+  let basis = null, dirty = true, lastDraw = 0;
 
   // ---- data ----
   g.manifest = (m) => { man = m; };
@@ -57,6 +57,12 @@ const gonio = (() => {
     g.loaded += entry.bytes;
     progress();
     return buf;
+  }
+
+  // Bytes downloaded so far (Resource Timing: the page, its script, its data; 0 from file://).
+  function downloaded() {
+    return performance.getEntriesByType('navigation').concat(performance.getEntriesByType('resource'))
+      .reduce((a, e) => a + (e.encodedBodySize || 0), 0);
   }
 
   function progress() {
@@ -160,9 +166,9 @@ void main() { o = vec4(vZ, 0.0, 0.0, 1.0); }`;
 precision highp float;
 precision highp int;
 precision highp sampler2DArray;
-uniform highp sampler2D viewTex, faceTex, bndTex, dirTex, lightTex;
+uniform highp sampler2D viewTex, faceTex, bndTex, dirTex, lightTex, startTex;
 uniform highp sampler2DArray maskArr, weightArr, depthArr;
-uniform int K, G, nFaces, nBnd, nViews, pixelMode, pointLight, lightTexels;
+uniform int K, G, nFaces, nBnd, nViews, pixelMode, pointLight, lightTexels, startSide;
 uniform vec3 camC, objDir, lpos;
 uniform float lscale, gain;
 uniform float lconst[100];
@@ -173,18 +179,53 @@ float acc[32];
 
 vec4 vt(int v, int i) { return texelFetch(viewTex, ivec2(i, v), 0); }
 
+int cubeFace(vec3 d, out float s, out float t) {
+  vec3 a = abs(d);
+  if (a.x >= a.y && a.x >= a.z) { s = d.y / a.x; t = d.z / a.x; return d.x > 0.0 ? 0 : 1; }
+  if (a.y >= a.z) { s = d.x / a.y; t = d.z / a.y; return d.y > 0.0 ? 2 : 3; }
+  s = d.x / a.z; t = d.y / a.z; return d.z > 0.0 ? 4 : 5;
+}
+
+// The unnormalised weights of face f's views at d (views.c face_weights).
+vec3 faceRaw(int f, vec3 d) {
+  return vec3(dot(d, texelFetch(faceTex, ivec2(1, f), 0).xyz),
+              dot(d, texelFetch(faceTex, ivec2(2, f), 0).xyz),
+              dot(d, texelFetch(faceTex, ivec2(3, f), 0).xyz));
+}
+
+// views.c walk: from the cube map's start face across the edges to the face around d; -1
+// when the walk leaves the faces (then every face is tried), -2 outside the covered region.
+int walk(vec3 d) {
+  float s, t;
+  int n = startSide, face = cubeFace(d, s, t);
+  int is = clamp(int((s + 1.0) * 0.5 * float(n)), 0, n - 1);
+  int it = clamp(int((t + 1.0) * 0.5 * float(n)), 0, n - 1);
+  int f = int(texelFetch(startTex, ivec2(is, face * n + it), 0).x);
+  for (int step = 0; step < nFaces && f >= 0; step++) {
+    vec3 r = faceRaw(f, d);
+    float sum = r.x + r.y + r.z;
+    if (!(sum > 0.0)) return -1;
+    int m = r.y < r.x ? 1 : 0;
+    if (r.z < r[m]) m = 2;
+    if (r[m] >= -1e-6 * sum) return f;
+    f = int(texelFetch(faceTex, ivec2(4, f), 0)[m]);
+  }
+  return f == -2 ? -2 : -1;
+}
+
 // views.c ap_views_weights: the face whose cone holds d, else the nearest boundary edge or view
 void viewWeights(vec3 d, out ivec3 idx, out vec3 w) {
-  for (int f = 0; f < nFaces; f++) {
-    vec3 r = vec3(dot(d, texelFetch(faceTex, ivec2(1, f), 0).xyz),
-                  dot(d, texelFetch(faceTex, ivec2(2, f), 0).xyz),
-                  dot(d, texelFetch(faceTex, ivec2(3, f), 0).xyz));
+  int f = walk(d);
+  for (int g = 0; g < nFaces && f == -1; g++) {
+    vec3 r = faceRaw(g, d);
+    if (r.x + r.y + r.z > 0.0 && r.x >= -1e-6 && r.y >= -1e-6 && r.z >= -1e-6) f = g;
+  }
+  if (f >= 0) {
+    vec3 r = faceRaw(f, d);
     float s = r.x + r.y + r.z;
-    if (s > 0.0 && r.x >= -1e-6 && r.y >= -1e-6 && r.z >= -1e-6) {
-      idx = ivec3(texelFetch(faceTex, ivec2(0, f), 0).xyz);
-      w = vec3(r.x > 0.0 ? r.x / s : 0.0, r.y > 0.0 ? r.y / s : 0.0, r.z > 0.0 ? r.z / s : 0.0);
-      return;
-    }
+    idx = ivec3(texelFetch(faceTex, ivec2(0, f), 0).xyz);
+    w = vec3(r.x > 0.0 ? r.x / s : 0.0, r.y > 0.0 ? r.y / s : 0.0, r.z > 0.0 ? r.z / s : 0.0);
+    return;
   }
   float best = -2.0, len = length(d);
   idx = ivec3(0);
@@ -270,12 +311,6 @@ bool sampleView(int vi, vec3 p, float wgt) {
   return true;
 }
 
-int cubeFace(vec3 d, out float s, out float t) {
-  vec3 a = abs(d);
-  if (a.x >= a.y && a.x >= a.z) { s = d.y / a.x; t = d.z / a.x; return d.x > 0.0 ? 0 : 1; }
-  if (a.y >= a.z) { s = d.x / a.y; t = d.z / a.y; return d.y > 0.0 ? 2 : 3; }
-  s = d.x / a.z; t = d.y / a.z; return d.z > 0.0 ? 4 : 5;
-}
 
 // render_px.c cube_sample + light_sum: the light term of unit l applied to acc.
 vec3 pointTerm(vec3 l) {
@@ -436,16 +471,20 @@ void main() {
 
   function uploadTriangulation() {
     const t = man.triangulation, nv = man.views.length;
-    const faces = new Float32Array(Math.max(1, t.faces.length) * 16);
+    const faces = new Float32Array(Math.max(1, t.faces.length) * 20);
     t.faces.forEach((f, i) => {
-      faces.set([f[0], f[1], f[2], 0], 16 * i);
-      for (let j = 0; j < 3; j++) faces.set([f[3 + 3 * j], f[4 + 3 * j], f[5 + 3 * j], 0], 16 * i + 4 + 4 * j);
+      faces.set([f[0], f[1], f[2], 0], 20 * i);
+      for (let j = 0; j < 3; j++) faces.set([f[3 + 3 * j], f[4 + 3 * j], f[5 + 3 * j], 0], 20 * i + 4 + 4 * j);
+      faces.set([f[12], f[13], f[14], 0], 20 * i + 16);
     });
+    const start = new Float32Array(t.start.length * 4);
+    t.start.forEach((f, i) => { start[4 * i] = f; });
+    tex.start = floatTexture(t.cube, 6 * t.cube, start);
     const bnd = new Float32Array(Math.max(1, t.boundary.length) * 8);
     t.boundary.forEach((b, i) => bnd.set([b[0], b[1], 0, 0, b[2], b[3], b[4], 0], 8 * i));
     const dirs = new Float32Array(nv * 4);
     man.views.forEach((v, i) => dirs.set([v.dir[0], v.dir[1], v.dir[2], t.dup[i] ? 1 : 0], 4 * i));
-    tex.faces = floatTexture(4, Math.max(1, t.faces.length), faces);
+    tex.faces = floatTexture(5, Math.max(1, t.faces.length), faces);
     tex.bnd = floatTexture(2, Math.max(1, t.boundary.length), bnd);
     tex.dirs = floatTexture(1, nv, dirs);
   }
@@ -534,9 +573,9 @@ void main() {
     gl.uniform3f(u.tv, t[0], t[1], t[2]);
   }
 
-  function drawMesh() {
+  function drawMesh(depthFunc = gl.LESS) {
     gl.enable(gl.DEPTH_TEST);
-    gl.depthFunc(gl.LESS);
+    gl.depthFunc(depthFunc);
     gl.disable(gl.CULL_FACE);
     gl.bindVertexArray(meshBuf.vao);
     gl.drawElements(gl.TRIANGLES, meshBuf.count, gl.UNSIGNED_INT, 0);
@@ -591,7 +630,8 @@ void main() {
     const units = [['viewTex', gl.TEXTURE_2D, tex.view], ['faceTex', gl.TEXTURE_2D, tex.faces],
                    ['bndTex', gl.TEXTURE_2D, tex.bnd], ['dirTex', gl.TEXTURE_2D, tex.dirs],
                    ['lightTex', gl.TEXTURE_2D, tex.light], ['maskArr', gl.TEXTURE_2D_ARRAY, tex.mask],
-                   ['weightArr', gl.TEXTURE_2D_ARRAY, tex.weights], ['depthArr', gl.TEXTURE_2D_ARRAY, tex.depth]];
+                   ['weightArr', gl.TEXTURE_2D_ARRAY, tex.weights], ['depthArr', gl.TEXTURE_2D_ARRAY, tex.depth],
+                   ['startTex', gl.TEXTURE_2D, tex.start]];
     units.forEach(([name, target, t], i) => {
       gl.activeTexture(gl.TEXTURE0 + i);
       gl.bindTexture(target, t);
@@ -619,13 +659,30 @@ void main() {
     gl.uniform1i(u.nViews, views.length);
     gl.uniform1i(u.pixelMode, params.mode === 'pixel' ? 1 : 0);
     gl.uniform1i(u.lightTexels, lightRows);
+    gl.uniform1i(u.startSide, t.cube);
     gl.uniform3f(u.camC, ...cam.eye);
     gl.uniform3f(u.objDir, ...norm(sub(cam.eye, c)));
     gl.uniform1f(u.gain, params.gain);
     frameLight(u);
-    drawMesh();
+    depthPrepass(cam);
+    gl.useProgram(pr.p);
+    gl.depthMask(false);
+    drawMesh(gl.EQUAL); // each visible pixel shaded once (the shader may discard)
+    gl.depthMask(true);
     g.frames++;
     dirty = false;
+  }
+
+  // The frame's depth alone, so that the main pass shades only what is seen.
+  function depthPrepass(cam) {
+    const pr = progs.depth;
+    gl.useProgram(pr.p);
+    cameraUniforms(pr.u, cam.R, cam.t);
+    pinholeUniforms(pr.u, cam.fx, cam.fy, cam.cx, cam.cy, cam.W, cam.H,
+                    Math.max(1e-3, cam.dist - 2 * meshBuf.radius), cam.dist + 2 * meshBuf.radius, true);
+    gl.colorMask(false, false, false, false);
+    drawMesh();
+    gl.colorMask(true, true, true, true);
   }
 
   // ---- the page ----
@@ -729,8 +786,13 @@ void main() {
     if (s) s.textContent = text;
   }
 
-  function loop() {
-    if (dirty && g.state !== 'error' && g.state !== 'loading') draw();
+  // Draws when something changed; while views still arrive, at most once a second so that
+  // a slow GL does not hold the loading up.
+  function loop(now) {
+    if (dirty && (g.state === 'complete' || (g.state === 'first' && now - lastDraw > 1000))) {
+      draw();
+      lastDraw = now;
+    }
     requestAnimationFrame(loop);
   }
 
@@ -761,7 +823,7 @@ void main() {
         status('views: ' + ++n + ' of ' + views.length);
         if (n === Math.min(FIRST_VIEWS, views.length)) {
           draw();
-          g.firstFrameBytes = g.loaded;
+          g.firstFrameBytes = downloaded();
           g.state = 'first';
           requestAnimationFrame(loop);
         }
