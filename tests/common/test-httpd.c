@@ -11,6 +11,7 @@
  *                 the idle timeout (1 s here) closes them
  *   bad           an over-long request line and header, a request cut short, POST,
  *                 garbage: 4xx (505 for HTTP/2.0), the server keeps serving
+ *   bind          bad arguments and addresses, a port in use, IPv6 on ::1
  *
  * Usage: test-httpd CASE (one meson test per case; $CURL names curl, 77 without it). */
 #include <arpa/inet.h>
@@ -40,7 +41,8 @@ static const char nested_js[] = "export const nested = 'NESTED-JS';\n";
 static const char secret[] = "SECRET-OUTSIDE-THE-ROOT\n";
 
 static struct {
-        char tmp[64]; /* holds root/ and secret.txt */
+        const char *addr, *host; /* what the server binds, what curl's URL names */
+        char tmp[64];            /* holds root/ and secret.txt */
         char root[96];
         pid_t pid;
         uint16_t port;
@@ -176,7 +178,7 @@ static _Noreturn void serve(int fd, bool walk, uint64_t idle_usec)
         root_fd = open(T.root, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
         CHECK(root_fd >= 0);
         CHECK_INT(sd_event_new(&event), 0);
-        CHECK_INT(httpd_new(event, root_fd, "127.0.0.1", 0, &h), 0);
+        CHECK_INT(httpd_new(event, root_fd, T.addr, 0, &h), 0);
         httpd_set_idle(h, idle_usec);
         port = httpd_port(h);
         CHECK(port > 0);
@@ -196,6 +198,10 @@ static void start(bool walk, uint64_t idle_usec)
                 exit(TEST_SKIP);
         }
         atexit(cleanup);
+        if (!T.addr) {
+                T.addr = "127.0.0.1";
+                T.host = T.addr;
+        }
         make_tree();
         CHECK_INT(pipe(p), 0);
         T.pid = fork();
@@ -213,7 +219,7 @@ static void check_alive(void)
         CHECK_INT(waitpid(T.pid, NULL, WNOHANG), 0);
 }
 
-/* Runs curl -sS on http://127.0.0.1:PORT<path> with extra options before the URL, its
+/* Runs curl -sS on http://HOST:PORT<path> with extra options before the URL, its
  * stdout into out (NUL-terminated). Returns curl's exit code. */
 static int curl(const char *extra, const char *path, char *out, size_t len)
 {
@@ -221,9 +227,8 @@ static int curl(const char *extra, const char *path, char *out, size_t len)
         size_t n;
         FILE *p;
 
-        snprintf(cmd, sizeof(cmd),
-                 "'%s' -sS -g --path-as-is --max-time 5 %s 'http://127.0.0.1:%u%s'", getenv("CURL"),
-                 extra, T.port, path);
+        snprintf(cmd, sizeof(cmd), "'%s' -sS -g --path-as-is --max-time 5 %s 'http://%s:%u%s'",
+                 getenv("CURL"), extra, T.host, T.port, path);
         p = popen(cmd, "r");
         CHECK(p);
         n = fread(out, 1, len - 1, p);
@@ -587,11 +592,41 @@ static void test_bad(void)
         check_alive();
 }
 
+/* Arguments and addresses: -EINVAL, -EADDRINUSE; IPv6 served when the host has ::1. */
+static void test_bind(void)
+{
+        struct httpd *h = NULL, *h2 = NULL;
+        sd_event *event = NULL;
+        int r;
+
+        CHECK_INT(sd_event_new(&event), 0);
+        CHECK_INT(httpd_new(event, AT_FDCWD, "127.0.0.1", 0, &h), -EINVAL);
+        CHECK_INT(httpd_new(NULL, 0, "127.0.0.1", 0, &h), -EINVAL);
+        CHECK_INT(httpd_new(event, 0, "localhost", 0, &h), -EINVAL);
+        CHECK_INT(httpd_new(event, 0, "127.0.0.1:80", 0, &h), -EINVAL);
+        CHECK_INT(httpd_new(event, 0, "127.0.0.1", 0, &h), 0);
+        CHECK_INT(httpd_new(event, 0, "127.0.0.1", httpd_port(h), &h2), -EADDRINUSE);
+        CHECK(!httpd_free(h) && !httpd_free(NULL));
+        r = httpd_new(event, 0, "::1", 0, &h);
+        httpd_free(h);
+        sd_event_unref(event);
+        if (r == -EADDRNOTAVAIL || r == -EAFNOSUPPORT) {
+                fprintf(stderr, "no ::1 here (%s), IPv6 not tried\n", strerror(-r));
+                return;
+        }
+        CHECK_INT(r, 0);
+        T.addr = "::1";
+        T.host = "[::1]";
+        start(false, 0);
+        check_body("/", index_html);
+        check_status("/sub/nested.js", "200 text/javascript");
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
                 {"get", test_get},   {"confine", test_confine}, {"confine-walk", test_confine_walk},
-                {"rude", test_rude}, {"bad", test_bad},
+                {"rude", test_rude}, {"bad", test_bad},         {"bind", test_bind},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
