@@ -493,7 +493,7 @@ static void test_rude(void)
         static const char big[] = "GET /big.bin HTTP/1.1\r\n\r\n";
         int idle[N_IDLE], fresh[HTTPD_MAX_CLIENTS], slowfd, stuck;
         int evicted = N_IDLE - HTTPD_MAX_CLIENTS;
-        uint64_t t0, took;
+        uint64_t t0, took, t_stuck;
         char resp[8192];
 
         start(false, 1000000);
@@ -506,6 +506,7 @@ static void test_rude(void)
         send_all(slowfd, slow, 5);
         stuck = raw_connect(4096);
         send_all(stuck, big, strlen(big));
+        t_stuck = now_usec();
         reset_mid_file();
         send_all(slowfd, slow + 5, 5);
         t0 = now_usec();
@@ -520,7 +521,8 @@ static void test_rude(void)
         CHECK_STR_CONTAINS(resp, "HTTP/1.1 408 Request Timeout\r\n");
         /* and the client that stopped reading mid-file (the server's table tells: a
          * connection sending a file is never evicted, so 64 new ones fit only without it) */
-        usleep(300000);
+        while (now_usec() < t_stuck + 1500000) /* its idle time, the timer's slack (0.25 s) */
+                usleep(20000);
         for (int i = 0; i < HTTPD_MAX_CLIENTS; i++)
                 fresh[i] = raw_connect(0);
         CHECK_INT(count_closed(fresh, HTTPD_MAX_CLIENTS, 1, 300), 0);
