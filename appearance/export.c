@@ -51,13 +51,16 @@ static int check_destination(const char *path)
         return r;
 }
 
-/* Runs fn into a temporary folder beside out_dir, renamed to out_dir when it succeeds. */
-static int run_in_temporary(export_fn fn, struct ds *d, const char *ds_dir, const char *out_dir,
-                            const struct ap_export_opts *o, char *err, size_t errlen)
+int ap_write_folder(const char *out_dir, ap_fill_fn fill, void *ctx, char *err, size_t errlen)
 {
         char tmp[8400], dir[4096], base[4096];
-        int r;
+        int r = check_destination(out_dir);
 
+        if (r < 0) {
+                snprintf(err, errlen, "%s: %s", out_dir,
+                         r == -EEXIST ? "exists and is not an empty folder" : strerror(-r));
+                return r;
+        }
         snprintf(dir, sizeof(dir), "%s", out_dir);
         snprintf(base, sizeof(base), "%s", out_dir);
         snprintf(tmp, sizeof(tmp), "%s/.%s.export-XXXXXX", dirname(dir), basename(base));
@@ -68,7 +71,7 @@ static int run_in_temporary(export_fn fn, struct ds *d, const char *ds_dir, cons
                 return r;
         }
         chmod(tmp, 0755);
-        r = fn(d, ds_dir, tmp, o, err, errlen);
+        r = fill(ctx, tmp, err, errlen);
         if (r == 0 && rename(tmp, out_dir) < 0) {
                 r = errno == ENOTEMPTY ? -EEXIST : -errno;
                 snprintf(err, errlen, "%s: %s", out_dir,
@@ -77,6 +80,20 @@ static int run_in_temporary(export_fn fn, struct ds *d, const char *ds_dir, cons
         if (r < 0)
                 ap_remove_tree(tmp);
         return r < 0 ? r : gn_fsync_parent(out_dir);
+}
+
+struct dataset_export {
+        export_fn fn;
+        struct ds *d;
+        const char *ds_dir;
+        const struct ap_export_opts *o;
+};
+
+static int fill_dataset_export(void *ctx, const char *dir, char *err, size_t errlen)
+{
+        const struct dataset_export *x = ctx;
+
+        return x->fn(x->d, x->ds_dir, dir, x->o, err, errlen);
 }
 
 int ap_export(const char *ds_dir, const char *format, const char *out_dir,
@@ -89,18 +106,15 @@ int ap_export(const char *ds_dir, const char *format, const char *out_dir,
         if (!ds_dir || !format || !out_dir || !*out_dir)
                 return -EINVAL;
         for (size_t i = 0; i < sizeof(formats) / sizeof(formats[0]); i++) {
+                struct dataset_export x = {formats[i].fn, NULL, ds_dir, &opts};
                 if (strcmp(formats[i].name, format) != 0)
                         continue;
-                if ((r = check_destination(out_dir)) < 0) {
-                        snprintf(err, errlen, "%s: %s", out_dir,
-                                 r == -EEXIST ? "exists and is not an empty folder" : strerror(-r));
-                        return r;
-                }
                 if ((r = ds_open(ds_dir, &d)) < 0) {
                         snprintf(err, errlen, "cannot open dataset %s: %s", ds_dir, strerror(-r));
                         return r;
                 }
-                return run_in_temporary(formats[i].fn, d, ds_dir, out_dir, &opts, err, errlen);
+                x.d = d;
+                return ap_write_folder(out_dir, fill_dataset_export, &x, err, errlen);
         }
         snprintf(err, errlen, "unknown format '%s' (colmap, nerfstudio, ply, rti)", format);
         return -EINVAL;
