@@ -130,6 +130,11 @@ static int serve(const struct web_cli *w, const char *root)
                         w->port, strerror(-r));
         if (r < 0)
                 return r == -EADDRINUSE ? EXIT_BUSY : cmd_exit_for_errno(r);
+        if (strncmp(w->bind, "127.", 4) != 0 && strcmp(w->bind, "::1") != 0)
+                fprintf(stderr,
+                        "gonioctl: model view: listening beyond loopback on %s: anyone "
+                        "who reaches this machine can see the model\n",
+                        w->bind);
         printf("serving the viewer of %s at http://%s%s%s:%u/ (Ctrl-C stops)\n", w->model,
                strchr(w->bind, ':') ? "[" : "", w->bind, strchr(w->bind, ':') ? "]" : "",
                httpd_port(h));
