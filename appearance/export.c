@@ -1,6 +1,11 @@
 /* export.c - ap_export (export.h): the format table, the destination checked (absent or an
  * empty folder), the writer run in a temporary folder beside it, renamed into place; and
- * what the writers share (export_internal.h): the geometry, the images, the scan's cloud. */
+ * what the writers share (export_internal.h): the geometry, the images, the scan's cloud.
+ *
+ * DESIGN: the temporary folder (.NAME.export-XXXXXX beside NAME) is locked (flock on its
+ * descriptor) from just after its creation until it is renamed or removed, so that a killed
+ * export's folder, whose lock died with it, is told from one being written by a live export:
+ * the next export to the same NAME removes the unlocked ones and says so. */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -9,6 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -51,23 +57,88 @@ static int check_destination(const char *path)
         return r;
 }
 
-/* Runs fn into a temporary folder beside out_dir, renamed to out_dir when it succeeds. */
-static int run_in_temporary(export_fn fn, struct ds *d, const char *ds_dir, const char *out_dir,
-                            const struct ap_export_opts *o, char *err, size_t errlen)
+/* The folder holding out_dir into parent, and ".BASE.export-", the prefix of its temporary
+ * folders, into prefix. */
+static void temporary_prefix(const char *out_dir, char *parent, size_t plen, char *prefix,
+                             size_t xlen)
 {
-        char tmp[8400], dir[4096], base[4096];
-        int r;
+        char dir[4096], base[4096];
 
         snprintf(dir, sizeof(dir), "%s", out_dir);
         snprintf(base, sizeof(base), "%s", out_dir);
-        snprintf(tmp, sizeof(tmp), "%s/.%s.export-XXXXXX", dirname(dir), basename(base));
+        snprintf(parent, plen, "%s", dirname(dir));
+        snprintf(prefix, xlen, ".%s.export-", basename(base));
+}
+
+/* Removes the temporary folders of out_dir that no live export holds (left by a killed
+ * one); their count in the notes of o. */
+static void remove_stale(const char *out_dir, const struct ap_export_opts *o)
+{
+        char parent[4096], prefix[4200], path[8400];
+        struct dirent *e;
+        unsigned n = 0;
+        DIR *d;
+
+        temporary_prefix(out_dir, parent, sizeof(parent), prefix, sizeof(prefix));
+        if (!(d = opendir(parent)))
+                return;
+        while ((e = readdir(d))) {
+                if (strncmp(e->d_name, prefix, strlen(prefix)) != 0 ||
+                    strlen(e->d_name) != strlen(prefix) + 6)
+                        continue;
+                snprintf(path, sizeof(path), "%s/%s", parent, e->d_name);
+                int fd = open(path, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+                if (fd >= 0 && flock(fd, LOCK_EX | LOCK_NB) == 0) {
+                        ap_remove_tree(path);
+                        n++;
+                }
+                if (fd >= 0)
+                        close(fd);
+        }
+        closedir(d);
+        if (n > 0 && o->notes)
+                snprintf(o->notes, o->notes_len,
+                         "removed %u temporary folder%s of an interrupted export (%s/%sXXXXXX)", n,
+                         n > 1 ? "s" : "", parent, prefix);
+}
+
+/* Creates and locks the temporary folder of out_dir into tmp. Returns its fd or -errno. */
+static int make_temporary(const char *out_dir, char *tmp, size_t len, char *err, size_t errlen)
+{
+        char parent[4096], prefix[4200];
+        int fd, r;
+
+        temporary_prefix(out_dir, parent, sizeof(parent), prefix, sizeof(prefix));
+        snprintf(tmp, len, "%s/%sXXXXXX", parent, prefix);
         if (!mkdtemp(tmp)) {
                 r = -errno;
                 snprintf(err, errlen, "cannot create a temporary folder beside %s: %s", out_dir,
                          strerror(-r));
                 return r;
         }
-        chmod(tmp, 0755);
+        fd = open(tmp, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+        if (fd < 0 || flock(fd, LOCK_EX) < 0) {
+                r = -errno;
+                snprintf(err, errlen, "cannot lock %s: %s", tmp, strerror(-r));
+                if (fd >= 0)
+                        close(fd);
+                ap_remove_tree(tmp);
+                return r;
+        }
+        fchmod(fd, 0755);
+        return fd;
+}
+
+/* Runs fn into a temporary folder beside out_dir, renamed to out_dir when it succeeds. */
+static int run_in_temporary(export_fn fn, struct ds *d, const char *ds_dir, const char *out_dir,
+                            const struct ap_export_opts *o, char *err, size_t errlen)
+{
+        char tmp[8400];
+        int fd, r;
+
+        remove_stale(out_dir, o);
+        if ((fd = make_temporary(out_dir, tmp, sizeof(tmp), err, errlen)) < 0)
+                return fd;
         r = fn(d, ds_dir, tmp, o, err, errlen);
         if (r == 0 && rename(tmp, out_dir) < 0) {
                 r = errno == ENOTEMPTY ? -EEXIST : -errno;
@@ -76,6 +147,7 @@ static int run_in_temporary(export_fn fn, struct ds *d, const char *ds_dir, cons
         }
         if (r < 0)
                 ap_remove_tree(tmp);
+        close(fd); /* the lock: after the rename or the removal */
         return r < 0 ? r : gn_fsync_parent(out_dir);
 }
 
@@ -88,6 +160,8 @@ int ap_export(const char *ds_dir, const char *format, const char *out_dir,
 
         if (!ds_dir || !format || !out_dir || !*out_dir)
                 return -EINVAL;
+        if (opts.notes && opts.notes_len > 0)
+                opts.notes[0] = 0;
         for (size_t i = 0; i < sizeof(formats) / sizeof(formats[0]); i++) {
                 if (strcmp(formats[i].name, format) != 0)
                         continue;

@@ -13,11 +13,14 @@ struct ap_export_opts {
         const char *model;       /* models/<name> of the dataset to export from; NULL: "default" */
         const char *calibration; /* calibration file, "nominal", or NULL: the dataset's own */
         const struct rig_backend *const *backends; /* to read the dataset's rig.yaml */
+        char *notes;      /* NULL, or notes_len bytes for what the export did besides writing: */
+        size_t notes_len; /* temporary folders of killed exports removed ("" for nothing) */
 };
 
 /* Writes the dataset at ds_dir as format ("colmap", "nerfstudio", "ply", "rti") into the
- * folder out_dir, which must not exist or be empty: built in a temporary folder, then
- * renamed. Returns 0, -EINVAL (unknown format, with the known ones in err), -EEXIST (out_dir
+ * folder out_dir, which must not exist or be empty: built in a temporary folder, locked while
+ * it is written, then renamed; out_dir's temporary folders that no live export holds (left by
+ * a killed one) are removed first and counted in o->notes. Returns 0, -EINVAL (unknown format, with the known ones in err), -EEXIST (out_dir
  * not empty), -ENOENT (what the format needs is missing: a model, a scan) or -errno, with a
  * sentence in err. */
 int ap_export(const char *ds_dir, const char *format, const char *out_dir,
