@@ -5,7 +5,9 @@
  * DESIGN: the temporary folder (.NAME.export-XXXXXX beside NAME) is locked (flock on its
  * descriptor) from just after its creation until it is renamed or removed, so that a killed
  * export's folder, whose lock died with it, is told from one being written by a live export:
- * the next export to the same NAME removes the unlocked ones and says so. */
+ * the next export to the same NAME removes the unlocked ones and says so. A folder caught in
+ * the instant between its creation and its lock is taken for a killed one's too: the export
+ * writing it then fails (ENOENT), which leaves no partial NAME either. */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
