@@ -73,8 +73,8 @@ static void temporary_prefix(const char *out_dir, char *parent, size_t plen, cha
 }
 
 /* Removes the temporary folders of out_dir that no live export holds (left by a killed
- * one); their count in the notes of o. */
-static void remove_stale(const char *out_dir, const struct ap_export_opts *o)
+ * one); says how many in notes (notes_len bytes) when notes is not NULL. */
+static void remove_stale(const char *out_dir, char *notes, size_t notes_len)
 {
         char parent[4096], prefix[4200], path[8400];
         struct dirent *e;
@@ -98,8 +98,8 @@ static void remove_stale(const char *out_dir, const struct ap_export_opts *o)
                         close(fd);
         }
         closedir(d);
-        if (n > 0 && o->notes)
-                snprintf(o->notes, o->notes_len,
+        if (n > 0 && notes)
+                snprintf(notes, notes_len,
                          "removed %u temporary folder%s of an interrupted export (%s/%sXXXXXX)", n,
                          n > 1 ? "s" : "", parent, prefix);
 }
@@ -131,17 +131,22 @@ static int make_temporary(const char *out_dir, char *tmp, size_t len, char *err,
         return fd;
 }
 
-/* Runs fn into a temporary folder beside out_dir, renamed to out_dir when it succeeds. */
-static int run_in_temporary(export_fn fn, struct ds *d, const char *ds_dir, const char *out_dir,
-                            const struct ap_export_opts *o, char *err, size_t errlen)
+/* ap_write_folder, the stale temporary folders it removed said in notes (or NULL). */
+static int write_folder(const char *out_dir, ap_fill_fn fill, void *ctx, char *notes,
+                        size_t notes_len, char *err, size_t errlen)
 {
         char tmp[8400];
-        int fd, r;
+        int fd, r = check_destination(out_dir);
 
-        remove_stale(out_dir, o);
+        if (r < 0) {
+                snprintf(err, errlen, "%s: %s", out_dir,
+                         r == -EEXIST ? "exists and is not an empty folder" : strerror(-r));
+                return r;
+        }
+        remove_stale(out_dir, notes, notes_len);
         if ((fd = make_temporary(out_dir, tmp, sizeof(tmp), err, errlen)) < 0)
                 return fd;
-        r = fn(d, ds_dir, tmp, o, err, errlen);
+        r = fill(ctx, tmp, err, errlen);
         if (r == 0 && rename(tmp, out_dir) < 0) {
                 r = errno == ENOTEMPTY ? -EEXIST : -errno;
                 snprintf(err, errlen, "%s: %s", out_dir,
@@ -151,6 +156,25 @@ static int run_in_temporary(export_fn fn, struct ds *d, const char *ds_dir, cons
                 ap_remove_tree(tmp);
         close(fd); /* the lock: after the rename or the removal */
         return r < 0 ? r : gn_fsync_parent(out_dir);
+}
+
+int ap_write_folder(const char *out_dir, ap_fill_fn fill, void *ctx, char *err, size_t errlen)
+{
+        return write_folder(out_dir, fill, ctx, NULL, 0, err, errlen);
+}
+
+struct dataset_export {
+        export_fn fn;
+        struct ds *d;
+        const char *ds_dir;
+        const struct ap_export_opts *o;
+};
+
+static int fill_dataset_export(void *ctx, const char *dir, char *err, size_t errlen)
+{
+        const struct dataset_export *x = ctx;
+
+        return x->fn(x->d, x->ds_dir, dir, x->o, err, errlen);
 }
 
 int ap_export(const char *ds_dir, const char *format, const char *out_dir,
@@ -165,18 +189,16 @@ int ap_export(const char *ds_dir, const char *format, const char *out_dir,
         if (opts.notes && opts.notes_len > 0)
                 opts.notes[0] = 0;
         for (size_t i = 0; i < sizeof(formats) / sizeof(formats[0]); i++) {
+                struct dataset_export x = {formats[i].fn, NULL, ds_dir, &opts};
                 if (strcmp(formats[i].name, format) != 0)
                         continue;
-                if ((r = check_destination(out_dir)) < 0) {
-                        snprintf(err, errlen, "%s: %s", out_dir,
-                                 r == -EEXIST ? "exists and is not an empty folder" : strerror(-r));
-                        return r;
-                }
                 if ((r = ds_open(ds_dir, &d)) < 0) {
                         snprintf(err, errlen, "cannot open dataset %s: %s", ds_dir, strerror(-r));
                         return r;
                 }
-                return run_in_temporary(formats[i].fn, d, ds_dir, out_dir, &opts, err, errlen);
+                x.d = d;
+                return write_folder(out_dir, fill_dataset_export, &x, opts.notes, opts.notes_len,
+                                    err, errlen);
         }
         snprintf(err, errlen, "unknown format '%s' (colmap, nerfstudio, ply, rti)", format);
         return -EINVAL;

@@ -20,11 +20,21 @@ struct ap_export_opts {
 /* Writes the dataset at ds_dir as format ("colmap", "nerfstudio", "ply", "rti") into the
  * folder out_dir, which must not exist or be empty: built in a temporary folder, locked while
  * it is written, then renamed; out_dir's temporary folders that no live export holds (left by
- * a killed one) are removed first and counted in o->notes. Returns 0, -EINVAL (unknown format, with the known ones in err), -EEXIST (out_dir
- * not empty), -ENOENT (what the format needs is missing: a model, a scan) or -errno, with a
- * sentence in err. */
+ * a killed one) are removed first and counted in o->notes. Returns 0, -EINVAL (unknown
+ * format, with the known ones in err), -EEXIST (out_dir not empty), -ENOENT (what the format
+ * needs is missing: a model, a scan) or -errno, with a sentence in err. */
 int ap_export(const char *ds_dir, const char *format, const char *out_dir,
               const struct ap_export_opts *o, char *err, size_t errlen);
+
+/* Fills a folder: writes into the empty folder dir, or returns -errno with a sentence in err. */
+typedef int (*ap_fill_fn)(void *ctx, const char *dir, char *err, size_t errlen);
+
+/* Creates the folder out_dir (which must not exist or be empty) by fill(ctx, ...) on a
+ * temporary folder beside it, locked while filled, renamed into place when fill succeeds and
+ * removed when not; out_dir's temporary folders no live writer holds are removed first.
+ * Returns 0, -EEXIST (out_dir not empty), or fill's or the file system's -errno, with a
+ * sentence in err. */
+int ap_write_folder(const char *out_dir, ap_fill_fn fill, void *ctx, char *err, size_t errlen);
 
 /* The writers ap_export dispatches to: each fills the empty folder dir from the dataset d
  * (ds_dir its directory), or returns -errno with a sentence in err. */

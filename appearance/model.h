@@ -95,6 +95,10 @@ struct ap_model *ap_model_free(struct ap_model *m);
  * directory renamed into place). Returns 0 or -errno. */
 int ap_model_write(const struct ap_model *m, const char *ds_dir);
 
+/* The dataset directory of model directory dir (DATASET/models/NAME: two levels up, made
+ * absolute where it exists) into out. */
+void ap_model_dataset(const char *dir, char *out, size_t len);
+
 /* Removes directory path and everything in it (errors ignored: a temporary folder). */
 void ap_remove_tree(const char *path);
 

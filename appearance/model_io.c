@@ -4,6 +4,8 @@
  * by file. docs/appearance.md, "Files". */
 #include <dirent.h>
 #include <errno.h>
+#include <libgen.h>
+#include <limits.h>
 #include <fcntl.h>
 #include <jansson.h>
 #include <math.h>
@@ -268,6 +270,15 @@ static int put_model(int dfd, const struct ap_model *m)
         if (r == 0 && fsync(dfd) < 0)
                 r = -errno;
         return r;
+}
+
+void ap_model_dataset(const char *dir, char *out, size_t len)
+{
+        char buf[PATH_MAX];
+
+        if (!realpath(dir, buf))
+                snprintf(buf, sizeof(buf), "%s", dir);
+        snprintf(out, len, "%s", dirname(dirname(buf)));
 }
 
 void ap_remove_tree(const char *path)

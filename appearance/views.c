@@ -18,7 +18,7 @@
 #define PLANE_EPS      1e-9 /* a point this close to a plane is on it */
 #define DUP_COS        (1.0 - 5e-13)
 #define BARY_EPS       -1e-6f
-#define CUBE_OUTSIDE   -2
+#define CUBE_OUTSIDE   AP_VIEWS_OUTSIDE
 #define CUBE_TEXEL_RAD (1.5 * M_PI / 2 / AP_VIEWS_CUBE) /* beyond a texel's half diagonal */
 
 struct face {
@@ -436,6 +436,54 @@ struct ap_views *ap_views_free(struct ap_views *v)
 size_t ap_views_n_faces(const struct ap_views *v)
 {
         return v ? v->n_valid : 0;
+}
+
+/* Face f's index among the faces that are not holes; -1 for a hole or none. */
+static int valid_index(const struct ap_views *v, int f)
+{
+        int n = 0;
+
+        if (f < 0 || v->f[f].hole)
+                return -1;
+        for (int g = 0; g < f; g++)
+                n += !v->f[g].hole;
+        return n;
+}
+
+void ap_views_face(const struct ap_views *v, size_t i, int idx[3], float e[3][3], int nb[3])
+{
+        for (size_t f = 0; f < v->nf; f++) {
+                if (v->f[f].hole || i-- > 0)
+                        continue;
+                memcpy(idx, v->f[f].v, sizeof(v->f[f].v));
+                memcpy(e, v->f[f].e, sizeof(v->f[f].e));
+                for (int j = 0; j < 3; j++)
+                        nb[j] = valid_index(v, v->f[f].nb[j]);
+                return;
+        }
+}
+
+int ap_views_start(const struct ap_views *v, size_t texel)
+{
+        int f = v->n_valid ? v->cube[texel] : CUBE_OUTSIDE;
+
+        return f == CUBE_OUTSIDE ? AP_VIEWS_OUTSIDE : valid_index(v, f);
+}
+
+size_t ap_views_n_boundary(const struct ap_views *v)
+{
+        return v->nb;
+}
+
+void ap_views_boundary(const struct ap_views *v, size_t i, int ab[2], double n[3])
+{
+        ab[0] = v->bnd[i].a, ab[1] = v->bnd[i].b;
+        memcpy(n, v->bnd[i].n, sizeof(v->bnd[i].n));
+}
+
+bool ap_views_is_dup(const struct ap_views *v, size_t i)
+{
+        return v->dup[i];
 }
 
 static int finish(const struct face *f, const float raw[3], int idx[3], float w[3])

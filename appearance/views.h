@@ -12,10 +12,12 @@
  * docs/appearance.md, "Rendering". */
 #pragma once
 
+#include <stdbool.h>
 #include <stddef.h>
 
 #define AP_VIEWS_HOLE_RATIO 2.0 /* a face this many times the median circumradius is a hole */
 #define AP_VIEWS_CUBE       16  /* texels per cube-map face side of the start-face table */
+#define AP_VIEWS_OUTSIDE    -2  /* ap_views_start: the texel lies outside the covered region */
 
 struct ap_views;
 
@@ -37,3 +39,24 @@ double ap_views_outside_angle(const struct ap_views *v, const double d[3]);
 
 /* Number of faces that are not holes (0 when the views are coplanar or fewer than 3). */
 size_t ap_views_n_faces(const struct ap_views *v);
+
+/* The triangulation as data, for a renderer elsewhere (the web viewer, webexport.h). Face i
+ * (i < ap_views_n_faces, holes left out): its views in idx, its edge vectors e (d . e[j] is
+ * the unnormalised weight of idx[j] at direction d: d is in the face when they sum > 0 and
+ * each is >= -1e-6 of the sum), and in nb[j] the face across the edge opposite idx[j] (-1:
+ * none, or a hole). */
+void ap_views_face(const struct ap_views *v, size_t i, int idx[3], float e[3][3], int nb[3]);
+
+/* The start face of a walk to the face around a direction (cube.h addressing, texel
+ * (face * AP_VIEWS_CUBE + t) * AP_VIEWS_CUBE + s of 6 AP_VIEWS_CUBE^2): a face index as
+ * ap_views_face's, -1 (search every face) or AP_VIEWS_OUTSIDE. */
+int ap_views_start(const struct ap_views *v, size_t texel);
+
+/* Number of boundary edges (views.h's top comment: where directions outside are taken). */
+size_t ap_views_n_boundary(const struct ap_views *v);
+
+/* Boundary edge i (i < ap_views_n_boundary): its two views and the unit a x b. */
+void ap_views_boundary(const struct ap_views *v, size_t i, int ab[2], double n[3]);
+
+/* Whether view i repeats an earlier view's direction (then it is never chosen). */
+bool ap_views_is_dup(const struct ap_views *v, size_t i);

@@ -295,9 +295,10 @@ static const struct cmd commands[] = {
          "[--reg-param X] [--tile N] [--threads N] [--calibration FILE|nominal] [--mesh FILE] "
          "[--force] | render DATASET/models/N (--light X,Y,Z|--dir X,Y,Z|--envmap FILE) "
          "--view AZ,EL [--distance MM] [--mode pixel|object] [--size WxH] [--intensity I] "
-         "[--gain G] -o OUT.png",
-         "fit the appearance model of DATASET into DATASET/models/N, or render it (docs/"
-         "appearance.md; no goniod)",
+         "[--gain G] -o OUT.png | view DATASET/models/N [--bind ADDR] [--port N] "
+         "[--envmap FILE]... | export --web DIR DATASET/models/N [--envmap FILE]...",
+         "fit the appearance model of DATASET into DATASET/models/N, render it (docs/"
+         "appearance.md), or show it in the browser (docs/viewer.md); no goniod",
          NULL, 1, INT_MAX, 0, TIMEOUT_S, NULL, model_print, .local = model_command},
         {NULL, "call", "METHOD [JSON-PARAMS]", "send any request, print its result", NULL, 1, 2, 0,
          TIMEOUT_S, p_call, out_print_pretty},

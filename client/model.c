@@ -159,10 +159,12 @@ int model_command(const struct args *a, struct out *o, json_t **ret)
 
         if (n >= 1 && strcmp(words[0], "render") == 0) /* prints its own result */
                 return model_render_command(n, words);
+        if (n >= 1 && (strcmp(words[0], "view") == 0 || strcmp(words[0], "export") == 0))
+                return model_web_command(n, words);
         if (n < 1 || strcmp(words[0], "fit") != 0) {
                 args_usage_error("model",
-                                 n < 1 ? "missing subcommand (fit)"
-                                       : "unknown subcommand '%s' (fit)",
+                                 n < 1 ? "missing subcommand (fit, render, view, export)"
+                                       : "unknown subcommand '%s' (fit, render, view, export)",
                                  n < 1 ? "" : words[0]);
                 return EXIT_USAGE;
         }

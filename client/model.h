@@ -25,3 +25,10 @@ void model_print(json_t *result);
  * a view farther than 30 degrees from the views the model covers, EXIT_STORAGE when the
  * image cannot be written; the cause is printed to stderr. */
 int model_render_command(int argc, char **argv);
+
+/* gonioctl model export --web DIR MODEL [--envmap FILE]... and gonioctl model view MODEL
+ * [--bind ADDR] [--port N] [--envmap FILE]...: argv[0] is "export" or "view". Writes the
+ * relighting viewer of MODEL (appearance/webexport.h) into DIR, or into a temporary folder
+ * served over HTTP on ADDR (default 127.0.0.1) and port N (default 0: a free one, printed)
+ * until SIGINT or SIGTERM (client/model_web.c). Returns an enum gonioctl_exit value. */
+int model_web_command(int argc, char **argv);

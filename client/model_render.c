@@ -5,7 +5,6 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <getopt.h>
-#include <libgen.h>
 #include <limits.h>
 #include <math.h>
 #include <stdio.h>
@@ -152,16 +151,6 @@ static int parse_args(int argc, char **argv, struct render_opts *o)
         return 0;
 }
 
-/* The dataset of model directory dir: two levels up (DATASET/models/NAME). */
-static void dataset_of(const char *dir, char *out, size_t len)
-{
-        char buf[PATH_MAX];
-
-        if (!realpath(dir, buf))
-                snprintf(buf, sizeof(buf), "%s", dir);
-        snprintf(out, len, "%s", dirname(dirname(buf)));
-}
-
 /* The output camera: the intrinsics of the sampled view nearest the direction (scaled to
  * --size), at --distance (else that view's) from the mesh centre, looking at it. */
 static int make_camera(const struct render_opts *o, const struct ap_model *m,
@@ -261,7 +250,7 @@ static int load(const struct render_opts *o, struct ap_model **m, struct ap_mesh
                                        : strerror(-r));
                 return cmd_exit_for_errno(r == -ENOENT ? -EINVAL : r);
         }
-        dataset_of(o->model, ds, sizeof(ds));
+        ap_model_dataset(o->model, ds, sizeof(ds));
         if ((r = ap_mesh_for_dataset(ds, registry_backends, mesh, src, srclen, err, sizeof(err))) <
             0) {
                 fprintf(stderr, "gonioctl: model render: %s\n", err);

@@ -9,9 +9,13 @@
 #include <stdint.h>
 #include <systemd/sd-event.h>
 
-#define HTTPD_MAX_CLIENTS  64      /* connections at once; more are closed at accept */
-#define HTTPD_MAX_REQUEST  8192    /* bytes of request line and headers */
-#define HTTPD_IDLE_USEC    10000000 /* a connection idle this long (reading or writing) closes */
+/* Connections at once. Beyond, a new connection closes one whose response is out, else the
+ * oldest one still sending its request; when all are being sent files it is closed itself. */
+#define HTTPD_MAX_CLIENTS 64
+#define HTTPD_MAX_REQUEST 8192 /* bytes of request line and headers */
+/* The idle limit: a request must arrive whole within it of the accept (else 408), a file
+ * transfer that makes no progress for it is closed. */
+#define HTTPD_IDLE_USEC 10000000
 
 struct httpd;
 
@@ -22,6 +26,11 @@ int httpd_new(sd_event *event, int root_fd, const char *addr, uint16_t port, str
 
 /* The port h listens on. */
 uint16_t httpd_port(const struct httpd *h);
+
+/* Sets the idle limit of h's connections (0: HTTPD_IDLE_USEC), from each connection's next
+ * timer start: the time a request may take to arrive whole, the longest stall while a file
+ * is sent. For tests and callers that want a shorter bound. */
+void httpd_set_idle(struct httpd *h, uint64_t usec);
 
 /* Closes the listener and every connection and frees h; NULL is a no-op. Returns NULL. */
 struct httpd *httpd_free(struct httpd *h);

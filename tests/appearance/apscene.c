@@ -3,9 +3,11 @@
 #include <math.h>
 #include <stdio.h>
 
+#include "appearance/fit.h"
 #include "calib/ply.h"
 #include "common/cleanup.h"
 #include "common/fileio.h"
+#include "drivers/registry.h"
 #include "tests/appearance/apscene.h"
 
 #define DEG        (M_PI / 180)
@@ -217,4 +219,18 @@ struct ds *aps_make_dataset(struct apscene *s, const char *path)
         if (o->mesh)
                 aps_write_mesh(s, path);
         return d;
+}
+
+void aps_fit_dataset(struct apscene *s, const char *path, int tile, struct ap_model **m)
+{
+        struct ds *d = aps_make_dataset(s, path);
+        struct ap_fit_opts o;
+        char err[512];
+
+        ap_fit_opts_default(&o);
+        o.backends = registry_backends;
+        o.tile = tile;
+        CHECK_INT(ap_fit(d, &o, m, err, sizeof(err)), 0);
+        CHECK_INT(ap_model_write(*m, path), 0);
+        ds_close(d);
 }

@@ -86,3 +86,9 @@ void aps_write_mesh(const struct apscene *s, const char *dir);
  * angle) under every light (lamp, arm angle), 16-bit, noise off; with o.mesh the true surface
  * as mesh.ply. Returns the open dataset (ds_close it). */
 struct ds *aps_make_dataset(struct apscene *s, const char *path);
+
+struct ap_model;
+
+/* aps_make_dataset at path, then the model fitted (P 6, K 12, tiles of tile pixels) and written
+ * into it as models/default; the model in *m. Exits the test on failure. */
+void aps_fit_dataset(struct apscene *s, const char *path, int tile, struct ap_model **m);

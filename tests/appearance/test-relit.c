@@ -44,7 +44,6 @@ struct fitted {
 
 static void fit_scene(struct fitted *f, enum aps_material mat, int tt_angles)
 {
-        struct ap_fit_opts o;
         struct aps_opts ao;
         char err[512], src[512];
 
@@ -53,12 +52,7 @@ static void fit_scene(struct fitted *f, enum aps_material mat, int tt_angles)
         aps_open(&f->s, &ao);
         f->dir = tu_tmpdir();
         snprintf(f->ds, sizeof(f->ds), "%s/ds", f->dir);
-        _cleanup_(ds_closep) struct ds *d = aps_make_dataset(&f->s, f->ds);
-        ap_fit_opts_default(&o);
-        o.backends = registry_backends;
-        o.tile = 4;
-        CHECK_INT(ap_fit(d, &o, &f->m, err, sizeof(err)), 0);
-        CHECK_INT(ap_model_write(f->m, f->ds), 0);
+        aps_fit_dataset(&f->s, f->ds, 4, &f->m);
         CHECK_INT(ap_mesh_for_dataset(f->ds, registry_backends, &f->mesh, src, sizeof(src), err,
                                       sizeof(err)),
                   0);

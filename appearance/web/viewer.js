@@ -1,0 +1,874 @@
+// viewer.js - gonio's relighting viewer (docs/viewer.md), WebGL2. It computes what
+// appearance/render.c and render_px.c compute (render.h): the mesh rasterised from the
+// viewer's camera; per pixel the up-to-3 sampled views around the view direction (the
+// views' triangulation, views.h), the point projected into each with its distortion, dropped
+// where a view's depth map or mask says the view does not see it, the views' weights sampled
+// bilinearly and blended; then the light term from a cube map of L(l, k, c).
+// The data comes from data/*.js (base64 of gzip), loaded progressively: manifest, mesh,
+// basis, then the views nearest the first view direction first.
+'use strict';
+
+const gonio = (() => {
+  const CUBE = 32;          // AP_RENDER_CUBE
+  const BIAS = 0.005;       // AP_RENDER_BIAS
+  const SLOPE = 2.5;        // AP_RENDER_SLOPE
+  const MARGIN = 8;         // AP_RENDER_MARGIN
+  const MAX_OUTSIDE_DEG = 30;
+  const FIRST_VIEWS = 3;    // views loaded before the first frame
+  const VIEW_TEXELS = 9;    // RGBA32F texels of a view's parameters before its scales
+
+  const g = {state: 'loading', error: null, loaded: 0, total: 0, frames: 0};
+  const chunks = {};
+  let man = null, gl = null, canvas = null;
+  let progs = {}, tex = {}, meshBuf = {}, views = [], lightRows = 0, groups = 0;
+  let params = {az: 0, el: 20, distance: 0, mode: 'pixel', light: 'point',
+                lpos: [0, 0, 0], ldir: [0, 0, 1], env: 0, gain: 1, intensity: 0};
+  let basis = null, dirty = true, lastDraw = 0;
+
+  // ---- data ----
+  g.manifest = (m) => { man = m; };
+  g.chunk = (name, b64) => { chunks[name] = b64; };
+
+  function loadScript(src) {
+    return new Promise((resolve, reject) => {
+      const s = document.createElement('script');
+      s.src = src;
+      s.onload = () => { s.remove(); resolve(); };
+      s.onerror = () => reject(new Error('cannot load ' + src));
+      document.head.appendChild(s);
+    });
+  }
+
+  async function loadChunk(entry) {
+    await loadScript('data/' + entry.chunk + '.js');
+    const b64 = chunks[entry.chunk];
+    delete chunks[entry.chunk];
+    let buf;
+    try {
+      if (typeof b64 !== 'string') throw new Error('no data');
+      const bin = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
+      const stream = new Blob([bin]).stream().pipeThrough(new DecompressionStream('gzip'));
+      buf = await new Response(stream).arrayBuffer();
+      if (buf.byteLength !== entry.raw_bytes)
+        throw new Error(buf.byteLength + ' bytes, expected ' + entry.raw_bytes);
+    } catch (e) {
+      throw new Error('data/' + entry.chunk + '.js is damaged (' + e.message + '): export the model again');
+    }
+    g.loaded += entry.bytes;
+    progress();
+    return buf;
+  }
+
+  // Bytes downloaded so far (Resource Timing: the page, its script, its data; 0 from file://).
+  function downloaded() {
+    return performance.getEntriesByType('navigation').concat(performance.getEntriesByType('resource'))
+      .reduce((a, e) => a + (e.encodedBodySize || 0), 0);
+  }
+
+  function progress() {
+    const bar = document.querySelector('#progress div');
+    if (bar) bar.style.width = (g.total ? 100 * g.loaded / g.total : 0).toFixed(1) + '%';
+  }
+
+  function fail(msg) {
+    g.state = 'error';
+    g.error = msg;
+    const m = document.getElementById('message');
+    if (m) m.textContent = msg;
+  }
+
+  // ---- maths ----
+  const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+  const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                           a[0] * b[1] - a[1] * b[0]];
+  const norm = (a) => { const l = Math.hypot(a[0], a[1], a[2]); return [a[0] / l, a[1] / l, a[2] / l]; };
+  const azel = (az, el) => {
+    const a = az * Math.PI / 180, e = el * Math.PI / 180;
+    return [Math.cos(e) * Math.cos(a), Math.cos(e) * Math.sin(a), Math.sin(e)];
+  };
+  const camCentre = (v) => [0, 1, 2].map((i) => -(v.R[i] * v.t[0] + v.R[3 + i] * v.t[1] + v.R[6 + i] * v.t[2]));
+
+  // Real SH of order P at unit d (appearance/sh.c: no Condon-Shortley phase).
+  function shNorm(P) {
+    const n = new Float64Array(P * P);
+    for (let l = 0; l < P; l++) {
+      let dfact = 1;
+      for (let m = 0; m <= l; m++) {
+        let ratio = 1;
+        if (m > 0) dfact *= 2 * m - 1;
+        for (let k = l - m + 1; k <= l + m; k++) ratio *= k;
+        n[l * l + l + m] = Math.sqrt((2 * l + 1) / (4 * Math.PI) / ratio) * dfact * (m ? Math.SQRT2 : 1);
+      }
+    }
+    return n;
+  }
+  function shEval(P, nrm, d, y) {
+    const x = d[0], yy = d[1], z = d[2];
+    let c = 1, s = 0;
+    for (let m = 0; m < P; m++) {
+      let q0 = 1, q1 = 0;
+      if (m > 0) { const cn = c * x - s * yy; s = c * yy + s * x; c = cn; }
+      for (let l = m; l < P; l++) {
+        let q = l === m ? 1 : l === m + 1 ? (2 * m + 1) * z : 0;
+        if (l > m + 1) q = ((2 * l - 1) * z * q0 - (l + m - 1) * q1) / (l - m);
+        q1 = q0; q0 = q;
+        y[l * l + l + m] = nrm[l * l + l + m] * q * c;
+        if (m > 0) y[l * l + l - m] = nrm[l * l + l + m] * q * s;
+      }
+    }
+  }
+  // L(l, k, c) into out[(K + 1) * 3] from SH values y (stride 1) or coefficients (stride 3).
+  function lightTerm(y, stride, out) {
+    const M = man.n_coef, K = man.components;
+    for (let k = 0; k <= K; k++)
+      for (let c = 0; c < 3; c++) {
+        let s = 0;
+        for (let i = 0; i < M; i++) s += basis[k * 3 * M + i * 3 + c] * y[i * stride + (stride === 3 ? c : 0)];
+        out[k * 3 + c] = Math.fround(s);
+      }
+  }
+  function cubeDir(face, s, t) {
+    const d = [0, 0, 0], ax = face >> 1;
+    d[ax] = face % 2 ? -1 : 1;
+    d[ax === 0 ? 1 : 0] = s;
+    d[ax === 2 ? 1 : 2] = t;
+    return d;
+  }
+
+
+  // ---- shaders ----
+  const VS = `#version 300 es
+layout(location = 0) in vec3 pos;
+uniform mat3 Rm;
+uniform vec3 tv;
+uniform vec4 proj;
+uniform vec2 depthRange;
+out vec3 vPos;
+out float vZ;
+void main() {
+  vec3 xc = Rm * pos + tv;
+  float n = depthRange.x, f = depthRange.y;
+  vPos = pos;
+  vZ = xc.z;
+  gl_Position = vec4(proj.x * xc.x + proj.z * xc.z, proj.y * xc.y + proj.w * xc.z,
+                     (xc.z * (f + n) - 2.0 * f * n) / (f - n), xc.z);
+}`;
+
+  const DEPTH_FS = `#version 300 es
+precision highp float;
+in vec3 vPos;
+in float vZ;
+out vec4 o;
+void main() { o = vec4(vZ, 0.0, 0.0, 1.0); }`;
+
+  const MAIN_FS = `#version 300 es
+precision highp float;
+precision highp int;
+precision highp sampler2DArray;
+uniform highp sampler2D viewTex, faceTex, bndTex, dirTex, lightTex, startTex;
+uniform highp sampler2DArray maskArr, weightArr, depthArr;
+uniform int K, G, nFaces, nBnd, nViews, pixelMode, pointLight, lightTexels, startSide;
+uniform vec3 camC, objDir, lpos;
+uniform float lscale, gain;
+uniform float lconst[100];
+in vec3 vPos;
+in float vZ;
+out vec4 outColor;
+float acc[32];
+
+vec4 vt(int v, int i) { return texelFetch(viewTex, ivec2(i, v), 0); }
+
+int cubeFace(vec3 d, out float s, out float t) {
+  vec3 a = abs(d);
+  if (a.x >= a.y && a.x >= a.z) { s = d.y / a.x; t = d.z / a.x; return d.x > 0.0 ? 0 : 1; }
+  if (a.y >= a.z) { s = d.x / a.y; t = d.z / a.y; return d.y > 0.0 ? 2 : 3; }
+  s = d.x / a.z; t = d.y / a.z; return d.z > 0.0 ? 4 : 5;
+}
+
+// The unnormalised weights of face f's views at d (views.c face_weights).
+vec3 faceRaw(int f, vec3 d) {
+  return vec3(dot(d, texelFetch(faceTex, ivec2(1, f), 0).xyz),
+              dot(d, texelFetch(faceTex, ivec2(2, f), 0).xyz),
+              dot(d, texelFetch(faceTex, ivec2(3, f), 0).xyz));
+}
+
+// views.c walk: from the cube map's start face across the edges to the face around d; -1
+// when the walk leaves the faces (then every face is tried), -2 outside the covered region.
+int walk(vec3 d) {
+  float s, t;
+  int n = startSide, face = cubeFace(d, s, t);
+  int is = clamp(int((s + 1.0) * 0.5 * float(n)), 0, n - 1);
+  int it = clamp(int((t + 1.0) * 0.5 * float(n)), 0, n - 1);
+  int f = int(texelFetch(startTex, ivec2(is, face * n + it), 0).x);
+  for (int step = 0; step < nFaces && f >= 0; step++) {
+    vec3 r = faceRaw(f, d);
+    float sum = r.x + r.y + r.z;
+    if (!(sum > 0.0)) return -1;
+    int m = r.y < r.x ? 1 : 0;
+    if (r.z < r[m]) m = 2;
+    if (r[m] >= -1e-6 * sum) return f;
+    f = int(texelFetch(faceTex, ivec2(4, f), 0)[m]);
+  }
+  return f == -2 ? -2 : -1;
+}
+
+// views.c ap_views_weights: the face whose cone holds d, else the nearest boundary edge or view
+void viewWeights(vec3 d, out ivec3 idx, out vec3 w) {
+  int f = walk(d);
+  for (int g = 0; g < nFaces && f == -1; g++) {
+    vec3 r = faceRaw(g, d);
+    if (r.x + r.y + r.z > 0.0 && r.x >= -1e-6 && r.y >= -1e-6 && r.z >= -1e-6) f = g;
+  }
+  if (f >= 0) {
+    vec3 r = faceRaw(f, d);
+    float s = r.x + r.y + r.z;
+    idx = ivec3(texelFetch(faceTex, ivec2(0, f), 0).xyz);
+    w = vec3(r.x > 0.0 ? r.x / s : 0.0, r.y > 0.0 ? r.y / s : 0.0, r.z > 0.0 ? r.z / s : 0.0);
+    return;
+  }
+  float best = -2.0, len = length(d);
+  idx = ivec3(0);
+  w = vec3(1.0, 0.0, 0.0);
+  for (int l = 0; l < nViews; l++) {
+    vec4 dv = texelFetch(dirTex, ivec2(0, l), 0);
+    if (dv.w == 0.0 && dot(d, dv.xyz) / len > best) {
+      best = dot(d, dv.xyz) / len;
+      idx = ivec3(l);
+    }
+  }
+  for (int i = 0; i < nBnd; i++) {
+    vec4 ab = texelFetch(bndTex, ivec2(0, i), 0);
+    vec3 n = texelFetch(bndTex, ivec2(1, i), 0).xyz;
+    vec3 p = d - dot(d, n) * n;
+    float cs = length(p) / len;
+    if (cs <= best) continue;
+    int a = int(ab.x), b = int(ab.y);
+    float wa = dot(cross(p, texelFetch(dirTex, ivec2(0, b), 0).xyz), n);
+    float wb = dot(cross(texelFetch(dirTex, ivec2(0, a), 0).xyz, p), n);
+    if (wa < 0.0 || wb < 0.0 || wa + wb <= 0.0) continue;
+    best = cs;
+    idx = ivec3(a, b, a);
+    w = vec3(wa / (wa + wb), wb / (wa + wb), 0.0);
+  }
+}
+
+// One bilinear tap of view vi: its mask at m (crop coordinates) and its depth at dd (depth
+// layer coordinates) within tol of z.
+float tap(int vi, ivec2 m, ivec2 dd, float z, float tol, ivec2 csz, ivec2 dsz) {
+  if (any(lessThan(m, ivec2(0))) || any(greaterThanEqual(m, csz)) ||
+      any(lessThan(dd, ivec2(0))) || any(greaterThanEqual(dd, dsz)))
+    return 0.0;
+  if (texelFetch(maskArr, ivec3(m, vi), 0).r == 0.0) return 0.0;
+  return abs(texelFetch(depthArr, ivec3(dd, vi), 0).r - z) <= tol ? 1.0 : 0.0;
+}
+
+// render_px.c sample_view: adds wgt times view vi's weights at p to acc.
+bool sampleView(int vi, vec3 p, float wgt) {
+  vec4 r0 = vt(vi, 0), r1 = vt(vi, 1), r2 = vt(vi, 2), in4 = vt(vi, 3), k4 = vt(vi, 4);
+  vec4 m5 = vt(vi, 5), m6 = vt(vi, 6), cr = vt(vi, 7), m8 = vt(vi, 8);
+  if (m5.w == 0.0) return false; // not loaded yet
+  vec3 x = vec3(r0.x * p.x + r0.y * p.y + r0.z * p.z + r0.w,
+                r1.x * p.x + r1.y * p.y + r1.z * p.z + r1.w,
+                r2.x * p.x + r2.y * p.y + r2.z * p.z + r2.w);
+  if (x.z <= 0.0) return false;
+  float iz = 1.0 / x.z, xd = x.x * iz, yd = x.y * iz;
+  float pu = in4.x * xd + in4.z, pv = in4.y * yd + in4.w;
+  if (m8.w != 0.0) {
+    float q2 = xd * xd + yd * yd, rad = 1.0 + q2 * (k4.x + q2 * (k4.y + q2 * m5.x));
+    float xn = xd * rad + 2.0 * k4.z * xd * yd + k4.w * (q2 + 2.0 * xd * xd);
+    yd = yd * rad + k4.z * (q2 + 2.0 * yd * yd) + 2.0 * k4.w * xd * yd;
+    xd = xn;
+  }
+  float u = in4.x * xd + in4.z, v = in4.y * yd + in4.w;
+  int x0 = int(floor(u)), y0 = int(floor(v));
+  float a = u - float(x0), b = v - float(y0);
+  float du = pu - a + m6.x + 0.5, dv = pv - b + m6.y + 0.5;
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= int(m5.y) || y0 + 1 >= int(m5.z) || du < 0.0 || dv < 0.0 ||
+      int(du) + 1 >= int(m6.z) || int(dv) + 1 >= int(m6.w))
+    return false;
+  ivec2 m = ivec2(x0, y0) - ivec2(cr.xy), csz = ivec2(cr.zw);
+  ivec2 dd = ivec2(int(du), int(dv)) - ivec2(m8.xy), dsz = csz + 2 * ivec2(m6.xy);
+  float tol = x.z * m8.z;
+  vec4 bw = vec4(tap(vi, m, dd, x.z, tol, csz, dsz) * (1.0 - a) * (1.0 - b),
+                 tap(vi, m + ivec2(1, 0), dd + ivec2(1, 0), x.z, tol, csz, dsz) * a * (1.0 - b),
+                 tap(vi, m + ivec2(0, 1), dd + ivec2(0, 1), x.z, tol, csz, dsz) * (1.0 - a) * b,
+                 tap(vi, m + ivec2(1, 1), dd + ivec2(1, 1), x.z, tol, csz, dsz) * a * b);
+  float tw = bw.x + bw.y + bw.z + bw.w;
+  if (!(tw > 1e-3)) return false;
+  bw /= tw;
+  for (int gi = 0; gi < 8; gi++) {
+    if (gi >= G) break;
+    int layer = vi * G + gi;
+    vec4 s = 255.0 * (bw.x * texelFetch(weightArr, ivec3(m, layer), 0) +
+                      bw.y * texelFetch(weightArr, ivec3(m + ivec2(1, 0), layer), 0) +
+                      bw.z * texelFetch(weightArr, ivec3(m + ivec2(0, 1), layer), 0) +
+                      bw.w * texelFetch(weightArr, ivec3(m + ivec2(1, 1), layer), 0));
+    vec4 sc = vt(vi, ${VIEW_TEXELS} + gi), off = vt(vi, ${VIEW_TEXELS} + G + gi);
+    for (int c = 0; c < 4; c++)
+      if (4 * gi + c < K) acc[4 * gi + c] += wgt * (off[c] + sc[c] * s[c]);
+  }
+  return true;
+}
+
+
+// render_px.c cube_sample + light_sum: the light term of unit l applied to acc.
+vec3 pointTerm(vec3 l) {
+  const int n = ${CUBE};
+  float s, t;
+  int face = cubeFace(l, s, t);
+  float fs = clamp((s + 1.0) * 0.5 * float(n) - 0.5, 0.0, float(n - 1));
+  float ft = clamp((t + 1.0) * 0.5 * float(n) - 0.5, 0.0, float(n - 1));
+  int i0 = int(fs), j0 = int(ft), i1 = min(i0 + 1, n - 1), j1 = min(j0 + 1, n - 1);
+  float a = fs - float(i0), b = ft - float(j0);
+  vec3 q = vec3(0.0);
+  for (int r = 0; r < 25; r++) {
+    if (r >= lightTexels) break;
+    vec4 v = (1.0 - b) * ((1.0 - a) * texelFetch(lightTex, ivec2(i0 * lightTexels + r, face * n + j0), 0) +
+                          a * texelFetch(lightTex, ivec2(i1 * lightTexels + r, face * n + j0), 0)) +
+             b * ((1.0 - a) * texelFetch(lightTex, ivec2(i0 * lightTexels + r, face * n + j1), 0) +
+                  a * texelFetch(lightTex, ivec2(i1 * lightTexels + r, face * n + j1), 0));
+    for (int c = 0; c < 4; c++) {
+      int f = 4 * r + c, k = f / 3;
+      if (k > K) break;
+      q[f % 3] += (k == 0 ? 1.0 : acc[k - 1]) * v[c];
+    }
+  }
+  return q;
+}
+
+vec3 constTerm() {
+  vec3 q = vec3(lconst[0], lconst[1], lconst[2]);
+  for (int k = 0; k < 32; k++) {
+    if (k >= K) break;
+    q += acc[k] * vec3(lconst[3 * k + 3], lconst[3 * k + 4], lconst[3 * k + 5]);
+  }
+  return q;
+}
+
+void main() {
+  vec3 p = vPos, d = objDir;
+  ivec3 idx;
+  vec3 w;
+  float ws = 0.0;
+  for (int k = 0; k < 32; k++) acc[k] = 0.0;
+  if (pixelMode != 0) d = normalize(camC - p);
+  viewWeights(d, idx, w);
+  for (int j = 0; j < 3; j++)
+    if (w[j] > 0.0 && sampleView(idx[j], p, w[j])) ws += w[j];
+  if (!(ws > 0.0)) discard;
+  for (int k = 0; k < 32; k++) acc[k] /= ws;
+  vec3 rgb;
+  if (pointLight != 0) {
+    vec3 l = lpos - p;
+    float r2 = dot(l, l);
+    rgb = lscale / r2 * pointTerm(l * inversesqrt(r2));
+  } else {
+    rgb = lscale * constTerm();
+  }
+  outColor = vec4(clamp(rgb * gain, 0.0, 1.0), 1.0);
+}`;
+
+  // ---- GL ----
+  function compile(vs, fs) {
+    const p = gl.createProgram();
+    for (const [type, src] of [[gl.VERTEX_SHADER, vs], [gl.FRAGMENT_SHADER, fs]]) {
+      const s = gl.createShader(type);
+      gl.shaderSource(s, src);
+      gl.compileShader(s);
+      if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error('shader: ' + gl.getShaderInfoLog(s));
+      gl.attachShader(p, s);
+    }
+    gl.linkProgram(p);
+    if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error('program: ' + gl.getProgramInfoLog(p));
+    const u = {};
+    for (let i = 0; i < gl.getProgramParameter(p, gl.ACTIVE_UNIFORMS); i++) {
+      const a = gl.getActiveUniform(p, i), name = a.name.replace(/\[0\]$/, '');
+      u[name] = gl.getUniformLocation(p, a.name);
+    }
+    return {p, u};
+  }
+
+  function floatTexture(w, h, data) {
+    const t = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, t);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA32F, w, h, 0, gl.RGBA, gl.FLOAT, data);
+    setNearest(gl.TEXTURE_2D);
+    return t;
+  }
+  function setNearest(target) {
+    gl.texParameteri(target, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+    gl.texParameteri(target, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    gl.texParameteri(target, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+    gl.texParameteri(target, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+  }
+  function arrayTexture(internal, w, h, layers) {
+    const t = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, t);
+    gl.texStorage3D(gl.TEXTURE_2D_ARRAY, 1, internal, w, h, layers);
+    setNearest(gl.TEXTURE_2D_ARRAY);
+    return t;
+  }
+
+  // A pinhole projection to clip space, pixel centres at integers (OpenCV), flipY for the
+  // canvas (row 0 on top); z from the depth range [near, far].
+  function pinholeUniforms(u, fx, fy, cx, cy, w, h, near, far, flipY) {
+    gl.uniform4f(u.proj, 2 * fx / w, (flipY ? -2 : 2) * fy / h,
+                 2 * (cx + 0.5) / w - 1, flipY ? 1 - 2 * (cy + 0.5) / h : 2 * (cy + 0.5) / h - 1);
+    gl.uniform2f(u.depthRange, near, far);
+  }
+
+  // ---- setup ----
+  function setupGL() {
+    canvas = document.getElementById('view');
+    gl = canvas.getContext('webgl2', {preserveDrawingBuffer: true, antialias: false,
+                                      alpha: true, premultipliedAlpha: false});
+    if (!gl) throw new Error('This viewer needs WebGL2, which this browser does not offer ' +
+                             '(enable hardware acceleration or use a current Chrome, Firefox or Safari).');
+    if (!gl.getExtension('EXT_color_buffer_float'))
+      throw new Error('This viewer needs float render targets (EXT_color_buffer_float), which this browser lacks.');
+    progs.depth = compile(VS, DEPTH_FS);
+    progs.main = compile(VS, MAIN_FS);
+  }
+
+  function uploadMesh(buf) {
+    const nv = man.mesh.vertices, nt = man.mesh.triangles;
+    const pos = new Float32Array(buf, 0, nv * 3), idx = new Uint32Array(buf, nv * 12, nt * 3);
+    meshBuf.vao = gl.createVertexArray();
+    gl.bindVertexArray(meshBuf.vao);
+    const vb = gl.createBuffer();
+    gl.bindBuffer(gl.ARRAY_BUFFER, vb);
+    gl.bufferData(gl.ARRAY_BUFFER, pos, gl.STATIC_DRAW);
+    gl.enableVertexAttribArray(0);
+    gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
+    const ib = gl.createBuffer();
+    gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ib);
+    gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, idx, gl.STATIC_DRAW);
+    gl.bindVertexArray(null);
+    meshBuf.count = nt * 3;
+    let r = 0;
+    for (let i = 0; i < nv; i++)
+      r = Math.max(r, Math.hypot(pos[3 * i] - man.centre[0], pos[3 * i + 1] - man.centre[1], pos[3 * i + 2] - man.centre[2]));
+    meshBuf.radius = r;
+  }
+
+  // The cube map of L(l, k, c) (render.c build_light_cube), lightRows texels of 4 a direction.
+  function uploadLight() {
+    const K = man.components, row = (K + 1) * 3, P = man.order, nrm = shNorm(P);
+    const y = new Float64Array(P * P), out = new Float32Array(row);
+    lightRows = Math.ceil(row / 4);
+    const data = new Float32Array(6 * CUBE * CUBE * lightRows * 4);
+    for (let face = 0; face < 6; face++)
+      for (let it = 0; it < CUBE; it++)
+        for (let is = 0; is < CUBE; is++) {
+          const d = cubeDir(face, Math.fround(2 * (is + 0.5) / CUBE - 1), Math.fround(2 * (it + 0.5) / CUBE - 1));
+          shEval(P, nrm, norm(d), y);
+          lightTerm(y, 1, out);
+          data.set(out, ((face * CUBE + it) * CUBE + is) * lightRows * 4);
+        }
+    tex.light = floatTexture(CUBE * lightRows, 6 * CUBE, data);
+  }
+
+  function uploadTriangulation() {
+    const t = man.triangulation, nv = man.views.length;
+    const faces = new Float32Array(Math.max(1, t.faces.length) * 20);
+    t.faces.forEach((f, i) => {
+      faces.set([f[0], f[1], f[2], 0], 20 * i);
+      for (let j = 0; j < 3; j++) faces.set([f[3 + 3 * j], f[4 + 3 * j], f[5 + 3 * j], 0], 20 * i + 4 + 4 * j);
+      faces.set([f[12], f[13], f[14], 0], 20 * i + 16);
+    });
+    const start = new Float32Array(t.start.length * 4);
+    t.start.forEach((f, i) => { start[4 * i] = f; });
+    tex.start = floatTexture(t.cube, 6 * t.cube, start);
+    const bnd = new Float32Array(Math.max(1, t.boundary.length) * 8);
+    t.boundary.forEach((b, i) => bnd.set([b[0], b[1], 0, 0, b[2], b[3], b[4], 0], 8 * i));
+    const dirs = new Float32Array(nv * 4);
+    man.views.forEach((v, i) => dirs.set([v.dir[0], v.dir[1], v.dir[2], t.dup[i] ? 1 : 0], 4 * i));
+    tex.faces = floatTexture(5, Math.max(1, t.faces.length), faces);
+    tex.bnd = floatTexture(2, Math.max(1, t.boundary.length), bnd);
+    tex.dirs = floatTexture(1, nv, dirs);
+  }
+
+  // Every view's parameters (sampleView's rows) and the arrays its data goes into.
+  function setupViews() {
+    const K = man.components;
+    groups = Math.ceil(K / 4);
+    let cw = 1, ch = 1, dw = 1, dh = 1;
+    views = man.views.map((v) => {
+      const mx = Math.floor(v.width / MARGIN), my = Math.floor(v.height / MARGIN);
+      cw = Math.max(cw, v.crop[2]); ch = Math.max(ch, v.crop[3]);
+      dw = Math.max(dw, v.crop[2] + 2 * mx); dh = Math.max(dh, v.crop[3] + 2 * my);
+      return Object.assign({mx, my, loaded: false}, v);
+    });
+    tex.viewData = new Float32Array(views.length * (VIEW_TEXELS + 2 * groups) * 4);
+    tex.mask = arrayTexture(gl.R8, cw, ch, views.length);
+    tex.weights = arrayTexture(gl.RGBA8, cw, ch, views.length * groups);
+    tex.depth = arrayTexture(gl.R32F, dw, dh, views.length);
+    tex.depthRb = gl.createRenderbuffer();
+    gl.bindRenderbuffer(gl.RENDERBUFFER, tex.depthRb);
+    gl.renderbufferStorage(gl.RENDERBUFFER, gl.DEPTH_COMPONENT24, dw, dh);
+    tex.fb = gl.createFramebuffer();
+    views.forEach((v, i) => writeViewData(v, i));
+    uploadViewData();
+  }
+
+  function writeViewData(v, i) {
+    const n = VIEW_TEXELS + 2 * groups, o = i * n * 4, d = tex.viewData, k = v.dist;
+    const distorted = k.some((x) => x !== 0) ? 1 : 0;
+    d.set([v.R[0], v.R[1], v.R[2], v.t[0], v.R[3], v.R[4], v.R[5], v.t[1],
+           v.R[6], v.R[7], v.R[8], v.t[2], v.fx, v.fy, v.cx, v.cy, k[0], k[1], k[2], k[3],
+           k[4], v.width, v.height, v.loaded ? 1 : 0,
+           v.mx, v.my, v.width + 2 * v.mx, v.height + 2 * v.my,
+           v.crop[0], v.crop[1], v.crop[2], v.crop[3],
+           v.crop[0], v.crop[1], Math.fround(Math.max(BIAS, SLOPE / v.fx)), distorted], o);
+    for (let j = 0; j < man.components; j++) {
+      d[o + (VIEW_TEXELS + (j >> 2)) * 4 + (j & 3)] = v.scale[j];
+      d[o + (VIEW_TEXELS + groups + (j >> 2)) * 4 + (j & 3)] = v.offset[j];
+    }
+  }
+
+  function uploadViewData() {
+    if (tex.view) gl.deleteTexture(tex.view);
+    tex.view = floatTexture(VIEW_TEXELS + 2 * groups, views.length, tex.viewData);
+  }
+
+  // View i's mask and weights into the arrays, its depth map rendered (render.c build_view:
+  // the pinhole camera with margins, here cropped to the mask's box grown by the margins).
+  function uploadView(i, buf) {
+    const v = views[i], w = v.crop[2], h = v.crop[3], n = w * h, bytes = new Uint8Array(buf);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 1);
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex.mask);
+    gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, i, w, h, 1, gl.RED, gl.UNSIGNED_BYTE, bytes.subarray(0, n));
+    gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex.weights);
+    for (let gi = 0; gi < groups; gi++)
+      gl.texSubImage3D(gl.TEXTURE_2D_ARRAY, 0, 0, 0, i * groups + gi, w, h, 1, gl.RGBA, gl.UNSIGNED_BYTE,
+                       bytes.subarray(n + gi * n * 4, n + (gi + 1) * n * 4));
+    renderDepth(v, i);
+    v.loaded = true;
+    writeViewData(v, i);
+    uploadViewData();
+    dirty = true;
+  }
+
+  function renderDepth(v, i) {
+    const w = v.crop[2] + 2 * v.mx, h = v.crop[3] + 2 * v.my, pr = progs.depth;
+    gl.bindFramebuffer(gl.FRAMEBUFFER, tex.fb);
+    gl.framebufferTextureLayer(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, tex.depth, 0, i);
+    gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.DEPTH_ATTACHMENT, gl.RENDERBUFFER, tex.depthRb);
+    gl.viewport(0, 0, w, h);
+    gl.clearBufferfv(gl.COLOR, 0, [-1, 0, 0, 0]);
+    gl.clear(gl.DEPTH_BUFFER_BIT);
+    gl.useProgram(pr.p);
+    cameraUniforms(pr.u, v.R, v.t);
+    const dist = Math.hypot(...sub(camCentre(v), man.centre));
+    pinholeUniforms(pr.u, v.fx, v.fy, v.cx + v.mx - v.crop[0], v.cy + v.my - v.crop[1], w, h,
+                    Math.max(1e-3, dist - 2 * meshBuf.radius), dist + 2 * meshBuf.radius, false);
+    drawMesh();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+  }
+
+  function cameraUniforms(u, R, t) {
+    // column-major: the columns of R are its rows' transposes
+    gl.uniformMatrix3fv(u.Rm, false, [R[0], R[3], R[6], R[1], R[4], R[7], R[2], R[5], R[8]]);
+    gl.uniform3f(u.tv, t[0], t[1], t[2]);
+  }
+
+  function drawMesh(depthFunc = gl.LESS) {
+    gl.enable(gl.DEPTH_TEST);
+    gl.depthFunc(depthFunc);
+    gl.disable(gl.CULL_FACE);
+    gl.bindVertexArray(meshBuf.vao);
+    gl.drawElements(gl.TRIANGLES, meshBuf.count, gl.UNSIGNED_INT, 0);
+    gl.bindVertexArray(null);
+  }
+
+  // ---- a frame ----
+  // The viewer's camera as model_render.c make_camera builds it: the intrinsics of the
+  // sampled view nearest the direction, scaled to fit the canvas (make_camera scales to the
+  // width: the same when the aspect ratios agree), at that view's distance (or
+  // the zoomed one) from the mesh centre, looking at it with +z up (render.c look_at).
+  function frameCamera() {
+    const d = azel(params.az, params.el), c = man.centre, W = canvas.width, H = canvas.height;
+    let near = views[0], best = -2;
+    for (const v of views) if (dot(v.dir, d) > best) { best = dot(v.dir, d); near = v; }
+    const dist = params.distance > 0 ? params.distance : Math.hypot(...sub(camCentre(near), c));
+    const s = Math.min(W / near.width, H / near.height), eye = [0, 1, 2].map((i) => c[i] + dist * d[i]);
+    const f = norm(sub(c, eye));
+    const up = Math.abs(f[2]) > 1 - 1e-12 ? [0, 1, 0] : [0, 0, 1];
+    const rt = norm(cross(f, up)), dn = cross(f, rt);
+    const R = [...rt, ...dn, ...f], t = [0, 1, 2].map((i) => -dot(R.slice(3 * i, 3 * i + 3), eye));
+    return {R, t, eye, dist, fx: near.fx * s, fy: near.fy * s, cx: W / 2 - 0.5, cy: H / 2 - 0.5, W, H};
+  }
+
+  // render.c frame_light: the scale and, for a directional or environment light, L itself.
+  function frameLight(u) {
+    const i0 = man.light.intensity > 0 ? man.light.intensity : 1;
+    const s = (params.intensity > 0 ? params.intensity : i0) / i0;
+    const L = new Float32Array(100);
+    if (params.light === 'point') {
+      let d0 = man.light.distance_mm;
+      if (!(d0 > 0)) d0 = Math.hypot(...sub(params.lpos, man.centre));
+      gl.uniform1i(u.pointLight, 1);
+      gl.uniform3f(u.lpos, ...params.lpos);
+      gl.uniform1f(u.lscale, Math.fround(s * d0 * d0));
+      return;
+    }
+    gl.uniform1i(u.pointLight, 0);
+    if (params.light === 'dir') {
+      const y = new Float64Array(man.n_coef);
+      shEval(man.order, shNorm(man.order), norm(params.ldir), y);
+      lightTerm(y, 1, L);
+      gl.uniform1f(u.lscale, s);
+    } else {
+      lightTerm(man.envs[params.env].coef, 3, L);
+      gl.uniform1f(u.lscale, 1);
+    }
+    gl.uniform1fv(u.lconst, L);
+  }
+
+  function bindTextures(u) {
+    const units = [['viewTex', gl.TEXTURE_2D, tex.view], ['faceTex', gl.TEXTURE_2D, tex.faces],
+                   ['bndTex', gl.TEXTURE_2D, tex.bnd], ['dirTex', gl.TEXTURE_2D, tex.dirs],
+                   ['lightTex', gl.TEXTURE_2D, tex.light], ['maskArr', gl.TEXTURE_2D_ARRAY, tex.mask],
+                   ['weightArr', gl.TEXTURE_2D_ARRAY, tex.weights], ['depthArr', gl.TEXTURE_2D_ARRAY, tex.depth],
+                   ['startTex', gl.TEXTURE_2D, tex.start]];
+    units.forEach(([name, target, t], i) => {
+      gl.activeTexture(gl.TEXTURE0 + i);
+      gl.bindTexture(target, t);
+      gl.uniform1i(u[name], i);
+    });
+    gl.activeTexture(gl.TEXTURE0);
+  }
+
+  function draw() {
+    const cam = frameCamera(), pr = progs.main, u = pr.u, c = man.centre;
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    gl.viewport(0, 0, cam.W, cam.H);
+    gl.clearColor(0, 0, 0, 0);
+    gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+    gl.useProgram(pr.p);
+    cameraUniforms(u, cam.R, cam.t);
+    pinholeUniforms(u, cam.fx, cam.fy, cam.cx, cam.cy, cam.W, cam.H,
+                    Math.max(1e-3, cam.dist - 2 * meshBuf.radius), cam.dist + 2 * meshBuf.radius, true);
+    bindTextures(u);
+    const t = man.triangulation;
+    gl.uniform1i(u.K, man.components);
+    gl.uniform1i(u.G, groups);
+    gl.uniform1i(u.nFaces, t.faces.length);
+    gl.uniform1i(u.nBnd, t.boundary.length);
+    gl.uniform1i(u.nViews, views.length);
+    gl.uniform1i(u.pixelMode, params.mode === 'pixel' ? 1 : 0);
+    gl.uniform1i(u.lightTexels, lightRows);
+    gl.uniform1i(u.startSide, t.cube);
+    gl.uniform3f(u.camC, ...cam.eye);
+    gl.uniform3f(u.objDir, ...norm(sub(cam.eye, c)));
+    gl.uniform1f(u.gain, params.gain);
+    frameLight(u);
+    depthPrepass(cam);
+    gl.useProgram(pr.p);
+    gl.depthMask(false);
+    drawMesh(gl.EQUAL); // each visible pixel shaded once (the shader may discard)
+    gl.depthMask(true);
+    g.frames++;
+    dirty = false;
+  }
+
+  // The frame's depth alone, so that the main pass shades only what is seen.
+  function depthPrepass(cam) {
+    const pr = progs.depth;
+    gl.useProgram(pr.p);
+    cameraUniforms(pr.u, cam.R, cam.t);
+    pinholeUniforms(pr.u, cam.fx, cam.fy, cam.cx, cam.cy, cam.W, cam.H,
+                    Math.max(1e-3, cam.dist - 2 * meshBuf.radius), cam.dist + 2 * meshBuf.radius, true);
+    gl.colorMask(false, false, false, false);
+    drawMesh();
+    gl.colorMask(true, true, true, true);
+  }
+
+  // ---- the page ----
+  function readParams() {
+    const q = new URLSearchParams(location.search), nums = (s, n) => {
+      const v = (s || '').split(',').map(Number);
+      return v.length === n && v.every(Number.isFinite) ? v : null;
+    };
+    const v0 = views.length ? views[0].dir : man.views[0].dir;
+    params.az = Math.atan2(v0[1], v0[0]) * 180 / Math.PI;
+    params.el = Math.asin(Math.max(-1, Math.min(1, v0[2]))) * 180 / Math.PI;
+    const view = nums(q.get('view'), 2);
+    if (view) [params.az, params.el] = view;
+    params.laz = params.az + 40;
+    params.lel = 45;
+    placeLight();
+    const light = nums(q.get('light'), 3), dir = nums(q.get('dir'), 3);
+    if (light) { params.light = 'point'; params.lpos = light; }
+    if (dir) { params.light = 'dir'; params.ldir = dir; }
+    if (q.has('env')) {
+      const e = man.envs.findIndex((x, i) => x.name === q.get('env') || String(i) === q.get('env'));
+      params.light = 'env';
+      params.env = Math.max(0, e);
+    }
+    if (q.get('mode') === 'object') params.mode = 'object';
+    const size = (q.get('size') || '').match(/^(\d+)x(\d+)$/);
+    if (size) {
+      canvas.width = +size[1];
+      canvas.height = +size[2];
+    } else {
+      fitWindow();
+      window.addEventListener('resize', () => { fitWindow(); dirty = true; });
+    }
+    const gain = Number(q.get('gain')), dist = Number(q.get('distance')), inten = Number(q.get('intensity'));
+    if (gain > 0) params.gain = gain;
+    if (dist > 0) params.distance = dist;
+    if (inten > 0) params.intensity = inten;
+  }
+
+  // The canvas fills the window below the bar.
+  function fitWindow() {
+    const bar = document.getElementById('bar').offsetHeight;
+    canvas.width = Math.max(64, window.innerWidth);
+    canvas.height = Math.max(64, window.innerHeight - bar);
+    canvas.style.marginTop = bar + 'px';
+  }
+
+  function placeLight() {
+    const d = azel(params.laz, params.lel);
+    params.lpos = [0, 1, 2].map((i) => man.centre[i] + man.light.distance_mm * d[i]);
+    params.ldir = d;
+  }
+
+  function setupUI() {
+    const mode = document.getElementById('mode'), light = document.getElementById('light');
+    const gain = document.getElementById('gain');
+    document.getElementById('title').textContent = 'gonio: ' + man.name;
+    man.envs.forEach((e, i) => light.add(new Option('environment: ' + e.name, 'env' + i)));
+    mode.value = params.mode;
+    light.value = params.light === 'env' ? 'env' + params.env : params.light;
+    gain.value = Math.log2(params.gain);
+    mode.onchange = () => { params.mode = mode.value; dirty = true; };
+    light.onchange = () => {
+      params.light = light.value.startsWith('env') ? 'env' : light.value;
+      params.env = params.light === 'env' ? +light.value.slice(3) : params.env;
+      dirty = true;
+    };
+    gain.oninput = () => { params.gain = Math.pow(2, +gain.value); dirty = true; };
+    let drag = null;
+    canvas.oncontextmenu = (e) => e.preventDefault();
+    canvas.onpointerdown = (e) => {
+      drag = {x: e.clientX, y: e.clientY, light: e.shiftKey || e.button === 2};
+      canvas.setPointerCapture(e.pointerId);
+    };
+    canvas.onpointermove = (e) => {
+      if (!drag) return;
+      const dx = e.clientX - drag.x, dy = e.clientY - drag.y;
+      drag.x = e.clientX; drag.y = e.clientY;
+      if (drag.light) {
+        params.laz -= dx * 0.5;
+        params.lel = Math.max(-89, Math.min(89, params.lel + dy * 0.5));
+        placeLight();
+        if (params.light === 'env') params.light = 'point', light.value = 'point';
+      } else {
+        params.az -= dx * 0.5;
+        params.el = Math.max(-89, Math.min(89, params.el + dy * 0.5));
+      }
+      dirty = true;
+    };
+    canvas.onpointerup = () => { drag = null; };
+    canvas.onwheel = (e) => {
+      e.preventDefault();
+      const cur = params.distance > 0 ? params.distance : frameCamera().dist;
+      params.distance = cur * Math.pow(1.1, Math.sign(e.deltaY));
+      dirty = true;
+    };
+  }
+
+  function status(text) {
+    const s = document.getElementById('status');
+    if (s) s.textContent = text;
+  }
+
+  // Draws when something changed; while views still arrive, at most once a second so that
+  // a slow GL does not hold the loading up.
+  function loop(now) {
+    if (dirty && (g.state === 'complete' || (g.state === 'first' && now - lastDraw > 1000))) {
+      draw();
+      lastDraw = now;
+    }
+    requestAnimationFrame(loop);
+  }
+
+  async function start() {
+    try {
+      canvas = document.getElementById('view');
+      await loadScript('data/model.js');
+      if (!man) throw new Error('data/model.js holds no model');
+      if (man.format !== 'gonio-web 1')
+        throw new Error('this folder holds "' + man.format + '", which this viewer does not read ' +
+                        '(it reads gonio-web 1): export the model again with this gonioctl');
+      setupGL();
+      g.total = man.mesh.bytes + man.basis.bytes + man.views.reduce((a, v) => a + v.bytes, 0);
+      readParams();
+      setupUI();
+      status('loading the mesh and the basis');
+      const [meshB, basisB] = await Promise.all([loadChunk(man.mesh), loadChunk(man.basis)]);
+      uploadMesh(meshB);
+      basis = new Float32Array(basisB);
+      uploadLight();
+      uploadTriangulation();
+      setupViews();
+      const d = azel(params.az, params.el);
+      const order = views.map((v, i) => i).sort((a, b) => dot(views[b].dir, d) - dot(views[a].dir, d));
+      let n = 0;
+      for (const i of order) {
+        uploadView(i, await loadChunk(views[i]));
+        status('views: ' + ++n + ' of ' + views.length);
+        if (n === Math.min(FIRST_VIEWS, views.length)) {
+          draw();
+          g.firstFrameBytes = downloaded();
+          g.state = 'first';
+          requestAnimationFrame(loop);
+        }
+      }
+      draw();
+      g.state = 'complete';
+      status(views.length + ' views, ' + man.mesh.triangles + ' triangles');
+    } catch (e) {
+      fail(e.message);
+    }
+  }
+
+  // ---- for scripts and tests ----
+  // Changes the view (az, el), light ({light: [x,y,z]} | {dir: [...]} | {env: i}), mode or gain.
+  g.set = (p) => {
+    if (p.view) [params.az, params.el] = p.view;
+    if (p.light) { params.light = 'point'; params.lpos = p.light; }
+    if (p.dir) { params.light = 'dir'; params.ldir = p.dir; }
+    if (p.env !== undefined) { params.light = 'env'; params.env = p.env; }
+    if (p.mode) params.mode = p.mode;
+    if (p.gain) params.gain = p.gain;
+    draw();
+  };
+  // The canvas as base64 RGBA, rows top first.
+  g.pixels = () => {
+    const w = canvas.width, h = canvas.height, px = new Uint8Array(w * h * 4), out = new Uint8Array(w * h * 4);
+    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    for (let y = 0; y < h; y++) out.set(px.subarray((h - 1 - y) * w * 4, (h - y) * w * 4), y * w * 4);
+    let s = '';
+    for (let i = 0; i < out.length; i += 0x8000) s += String.fromCharCode.apply(null, out.subarray(i, i + 0x8000));
+    return btoa(s);
+  };
+  // Frames per second over n frames drawn back to back, each waited for.
+  g.fps = (n) => {
+    const px = new Uint8Array(4), t0 = performance.now();
+    for (let i = 0; i < n; i++) {
+      params.laz += 1;
+      placeLight();
+      draw();
+      gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    }
+    return n * 1000 / (performance.now() - t0);
+  };
+
+  window.addEventListener('load', start);
+
+  return g;
+})();
