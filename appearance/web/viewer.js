@@ -13,7 +13,6 @@ const gonio = (() => {
   const BIAS = 0.005;       // AP_RENDER_BIAS
   const SLOPE = 2.5;        // AP_RENDER_SLOPE
   const MARGIN = 8;         // AP_RENDER_MARGIN
-  const MAX_OUTSIDE_DEG = 30;
   const FIRST_VIEWS = 3;    // views loaded before the first frame
   const VIEW_TEXELS = 9;    // RGBA32F texels of a view's parameters before its scales
 
