@@ -11,7 +11,7 @@
 #include "appearance/spheres.h"
 #include "common/cleanup.h"
 
-#define SURFACE_SAMPLES 3000
+#define SURFACE_SAMPLES 6000
 
 /* Interior cell centres and their distance to the surface. */
 struct cloud {
@@ -103,40 +103,42 @@ static float dist2(const float *a, const float *b)
         return dx * dx + dy * dy + dz * dz;
 }
 
-/* Points spread over m's surface by area (a triangle's own corners included). */
+static float tri_area(const struct ap_mesh *m, size_t t)
+{
+        const float *a = m->pos + 3 * m->idx[3 * t], *b = m->pos + 3 * m->idx[3 * t + 1];
+        const float *c = m->pos + 3 * m->idx[3 * t + 2];
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        float e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        float cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2];
+        float cz = e1[0] * e2[1] - e1[1] * e2[0];
+
+        return 0.5f * sqrtf(cx * cx + cy * cy + cz * cz);
+}
+
+/* About SURFACE_SAMPLES points spread over m's surface by area (error diffusion of the
+ * triangles' shares), each triangle's at golden-ratio barycentric positions. */
 static int surface(const struct ap_mesh *m, float **ret, size_t *n_ret)
 {
-        double area = 0;
-        size_t cap = SURFACE_SAMPLES + 4 * m->nt, n = 0;
+        double area = 0, carry = 0;
+        size_t cap = SURFACE_SAMPLES + m->nt + 1, n = 0;
         float *s = malloc(3 * cap * sizeof(float));
 
         if (!s)
                 return -ENOMEM;
-        for (size_t t = 0; t < m->nt; t++) {
-                const float *a = m->pos + 3 * m->idx[3 * t], *b = m->pos + 3 * m->idx[3 * t + 1];
-                const float *c = m->pos + 3 * m->idx[3 * t + 2];
-                float e1[3], e2[3];
-                for (int k = 0; k < 3; k++) {
-                        e1[k] = b[k] - a[k];
-                        e2[k] = c[k] - a[k];
-                }
-                float cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2];
-                float cz = e1[0] * e2[1] - e1[1] * e2[0];
-                area += 0.5 * sqrt(cx * cx + cy * cy + cz * cz);
-        }
+        for (size_t t = 0; t < m->nt; t++)
+                area += tri_area(m, t);
         for (size_t t = 0; t < m->nt && area > 0; t++) {
                 const float *c[3];
-                for (int k = 0; k < 3; k++)
-                        c[k] = m->pos + 3 * m->idx[3 * t + k];
-                float e = sqrtf(dist2(c[0], c[1]) * dist2(c[0], c[2]));
-                int k = (int)fminf(ceilf(0.5f * e / (float)area * SURFACE_SAMPLES), 64.f);
-                for (int i = 0; i <= k && n < cap; i++) { /* k + 1 points; a corner first */
-                        float r1 = i ? sqrtf((i * 0.618034f) - floorf(i * 0.618034f)) : 0;
-                        float r2 = (i + 0.5f) / (k + 1);
+                carry += tri_area(m, t) / area * SURFACE_SAMPLES;
+                int k = (int)carry;
+                carry -= k;
+                for (int q = 0; q < 3; q++)
+                        c[q] = m->pos + 3 * m->idx[3 * t + q];
+                for (int i = 0; i < k && n < cap; i++, n++) {
+                        float r1 = sqrtf((i + 0.5f) / k), r2 = fmodf(i * 0.618034f + 0.3f, 1.f);
                         for (int q = 0; q < 3; q++)
                                 s[3 * n + q] = (1 - r1) * c[0][q] + r1 * (1 - r2) * c[1][q] +
                                                r1 * r2 * c[2][q];
-                        n++;
                 }
         }
         *ret = s;
