@@ -226,6 +226,7 @@ int ap_prefilter_build(const struct ap_envmap *env, const struct ap_prefilter_pa
         out->height = p->width / 2;
         /* (cos(s / 2))^a = 1/2 at half the spacing s of the normals */
         out->a = (float)(log(0.5) / log(cos(0.5 * sqrt(2 * M_PI / p->pairs))));
+        out->cmin = expf(logf(1e-3f) / out->a);
         out->normals = malloc(3 * sizeof(float) * p->pairs);
         out->maps = malloc(4 * sizeof(float) * p->pairs * out->width * out->height);
         r = out->normals && out->maps ? downsample(env, 2 * out->width, out->width, &s) : -ENOMEM;
@@ -275,11 +276,9 @@ void ap_prefilter_specular(const struct ap_prefilter *f, const float n[3], const
         for (int k = 0; k < f->p.pairs; k++) {
                 const float *nk = f->normals + 3 * k;
                 float c = fabsf(n[0] * nk[0] + n[1] * nk[1] + n[2] * nk[2]), w, px[4];
-                if (c < 0.5f)
+                if (c < f->cmin)
                         continue;
                 w = expf(f->a * logf(c));
-                if (w < 1e-4f)
-                        continue;
                 lookup(f, k, x, y, px);
                 for (int q = 0; q < 3; q++)
                         out[q] += w * px[q] * px[3];

@@ -40,6 +40,7 @@ struct ap_prefilter {
         float *maps;    /* per pair width * height texels of L' (RGB) and A */
         int width, height;
         float a;         /* eq. 7's exponent, from the normals' spacing */
+        float cmin;      /* n . n_k below which the weight is under 1e-3 (left out) */
         float sh[9 * 3]; /* irradiance coefficients: A_l L_lm, [m * 3 + c] */
         float sg_dir[3 * AP_PREFILTER_SGS], sg_eta, sg_mu[AP_PREFILTER_SGS];
 };

@@ -274,7 +274,7 @@ float ap_sg_visible(const struct ap_spheres *s, float theta_d, float eta)
 
 float ap_ssdf(const struct ap_spheres *s, const float v[3], const float n[3], const float zeta[3])
 {
-        float best = (float)M_PI_2;
+        float best = (float)M_PI_2, cb = 0, sb = 1; /* cos and sin of best */
 
         for (int j = 0; j < s->n; j++) {
                 const float *c = s->s + 4 * j;
@@ -285,9 +285,19 @@ float ap_ssdf(const struct ap_spheres *s, const float v[3], const float n[3], co
                         continue;
                 if (dn < 0 && L - r < s->cell) /* the sphere under v itself */
                         continue;
+                /* eq. 9 is below best iff the angle to the centre is below best + beta
+                 * (beta = asin(r / L), both angles at most pi/2): tested on cosines, the
+                 * trigonometry left for the few that pass */
                 float cz = (d[0] * zeta[0] + d[1] * zeta[1] + d[2] * zeta[2]) / L;
-                float val = acosf(CLAMP(cz, -1.f, 1.f)) - asinf(r / L);
-                best = fminf(best, val);
+                float sbeta = r / L, cbeta = sqrtf(1 - sbeta * sbeta);
+                if ((sb < 0 && sbeta <= -sb) || cz <= cbeta * cb - sbeta * sb)
+                        continue;
+                float val = acosf(CLAMP(cz, -1.f, 1.f)) - asinf(sbeta);
+                if (val < best) {
+                        best = val;
+                        cb = cosf(best);
+                        sb = sinf(best);
+                }
         }
         return best;
 }

@@ -413,6 +413,11 @@ static int parse_dome(struct sim_scene *s, struct yconf *y, struct fy_node *root
         d->max_elements = (int)maxel;
         if (map && (r = load_map(s, y, map, "envmap", MAP_ENV, &d->env)) < 0)
                 return r;
+        if (d->env && d->env->w != 2 * d->env->h)
+                return yconf_error(y, yconf_get(map, "envmap"), "envmap",
+                                   "not a latitude-longitude map: %dx%d (the width must be twice "
+                                   "the height)",
+                                   d->env->w, d->env->h);
         if (d->env && !yconf_get(map, "radiance"))
                 d->radiance = 1;
         return d->radiance > 0 ? dome_build(d, &s->dome_els, &s->n_dome) : 0;

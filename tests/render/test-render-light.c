@@ -7,6 +7,7 @@
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <unistd.h>
 
 #include "rtest.h"
@@ -296,6 +297,14 @@ static void test_envmap_constant(void)
         CHECK(n > 1000);
         sim_truth_free(&tr);
         gn_frame_free_data(&f);
+        rt_close(&t);
+        /* a square map is no lat-long map: refused with a sentence */
+        char scene[512], err[512];
+        write_env(env, 32, 32, L, 0);
+        snprintf(scene, sizeof(scene), "scene:\n  dome: { envmap: %s }\n", env);
+        CHECK(rt_try_open(&t, "", "", "", scene, err, sizeof(err)) < 0);
+        fprintf(stderr, "square map: %s\n", err);
+        CHECK(strstr(err, "latitude-longitude") != NULL);
         rt_close(&t);
         unlink(env);
 }
