@@ -38,108 +38,51 @@ static void write_env(const char *path, int w, int h)
         fclose(f);
 }
 
-/* Per-triangle atlas: two triangles to a square cell of `cell` texels a side. */
-static void atlas_fixture(struct ap_atlas *a, int cell)
-{
-        size_t nt = a->mesh.nt, cells = (nt + 1) / 2;
-        int cols = (int)ceil(sqrt((double)cells)), rows = (int)((cells + cols - 1) / cols);
-
-        a->cell = cell;
-        a->width = cols * cell;
-        a->height = rows * cell;
-        a->uv = malloc(6 * sizeof(float) * nt);
-        a->tri = malloc(sizeof(int32_t) * a->width * a->height);
-        a->bary = malloc(3 * sizeof(float) * a->width * a->height);
-        CHECK(a->uv && a->tri && a->bary);
-        for (size_t t = 0; t < nt; t++) {
-                float cx = (float)((t / 2) % cols * cell), cy = (float)((t / 2) / cols * cell),
-                      c = cell;
-                float q[6] = {cx, cy, cx + c, cy, cx, cy + c};
-                float o[6] = {cx + c, cy + c, cx, cy + c, cx + c, cy};
-                for (int k = 0; k < 6; k++)
-                        a->uv[6 * t + k] = (t & 1 ? o[k] : q[k]) / (k & 1 ? a->height : a->width);
-        }
-        for (int y = 0; y < a->height; y++)
-                for (int x = 0; x < a->width; x++) {
-                        size_t i = (size_t)y * a->width + x,
-                               ci = (size_t)(y / cell) * cols + x / cell;
-                        float lx = x % cell + 0.5f, ly = y % cell + 0.5f, *w = a->bary + 3 * i;
-                        bool up = lx + ly < cell;
-                        size_t t = 2 * ci + !up;
-                        w[1] = (up ? lx : cell - lx) / cell;
-                        w[2] = (up ? ly : cell - ly) / cell;
-                        w[0] = 1 - w[1] - w[2];
-                        a->tri[i] = t < nt ? (int32_t)t : -1;
-                }
-}
-
-/* Every texel: the true material, the normal interpolated from area-weighted vertex normals. */
+/* Every texel: the true material at the atlas's interpolated normal, the tangent the
+ * simulator's (its z axis projected on the tangent plane). */
 static void texels_fixture(struct ap_brdf_model *m, const struct envscene_opts *o)
 {
         const struct ap_atlas *a = &m->atlas;
-        const struct ap_mesh *ms = &a->mesh;
-        float *vn = calloc(3 * ms->nv, sizeof(float)), alb[3] = ENVSCENE_ALBEDO;
+        const float alb[3] = ENVSCENE_ALBEDO;
 
         m->texels = calloc((size_t)a->width * a->height, sizeof(*m->texels));
-        CHECK(vn && m->texels);
-        for (size_t t = 0; t < ms->nt; t++) {
-                const uint32_t *ix = ms->idx + 3 * t;
-                const float *p0 = ms->pos + 3 * ix[0], *p1 = ms->pos + 3 * ix[1],
-                            *p2 = ms->pos + 3 * ix[2];
-                float e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
-                float e2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
-                float fn[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
-                               e1[0] * e2[1] - e1[1] * e2[0]};
-                for (int k = 0; k < 3; k++)
-                        for (int q = 0; q < 3; q++)
-                                vn[3 * ix[k] + q] += fn[q] * (ms->front < 0 ? -1.f : 1.f);
-        }
+        CHECK(m->texels != NULL);
         for (size_t i = 0; i < (size_t)a->width * a->height; i++) {
                 struct ap_brdf_texel *x = &m->texels[i];
-                const float *w = a->bary + 3 * i;
-                float n[3] = {0}, l, tz;
-                if (a->tri[i] < 0)
+                float p[3], n[3], t[3], l;
+                if (!ap_atlas_point(a, i, p, n))
                         continue;
-                for (int k = 0; k < 3; k++)
-                        for (int q = 0; q < 3; q++)
-                                n[q] += w[k] * vn[3 * ms->idx[3 * a->tri[i] + k] + q];
-                l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-                for (int q = 0; q < 3; q++) {
-                        x->normal[q] = n[q] / l;
-                        x->albedo[q] = alb[q];
-                }
-                tz = x->normal[2]; /* the tangent: z projected on the plane (the simulator's) */
-                x->tangent[0] = -tz * x->normal[0];
-                x->tangent[1] = -tz * x->normal[1];
-                x->tangent[2] = 1 - tz * x->normal[2];
-                l = sqrtf(x->tangent[0] * x->tangent[0] + x->tangent[1] * x->tangent[1] +
-                          x->tangent[2] * x->tangent[2]);
-                for (int q = 0; q < 3 && l > 0; q++)
-                        x->tangent[q] /= l;
-                *x = (struct ap_brdf_texel){{x->albedo[0], x->albedo[1], x->albedo[2]},
+                /* atlas.c's normals follow the winding: outwards only for front 1 */
+                l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) * (a->mesh.front < 0 ? -1 : 1);
+                for (int q = 0; q < 3; q++)
+                        n[q] /= l;
+                for (int q = 0; q < 3; q++)
+                        t[q] = (q == 2) - n[2] * n[q];
+                l = sqrtf(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+                *x = (struct ap_brdf_texel){{alb[0], alb[1], alb[2]},
                                             (float)o->ks,
                                             (float)o->ax,
                                             (float)o->ay,
                                             ENVSCENE_F0,
-                                            {x->normal[0], x->normal[1], x->normal[2]},
-                                            {x->tangent[0], x->tangent[1], x->tangent[2]},
+                                            {n[0], n[1], n[2]},
+                                            {t[0] / l, t[1] / l, t[2] / l},
                                             0,
                                             1,
                                             AP_BRDF_FITTED};
         }
-        free(vn);
 }
 
 static void build_model(struct envscene *es)
 {
         struct sim_mesh sm;
+        struct ap_mesh mesh;
         struct ap_brdf_model *m = calloc(1, sizeof(*m));
 
         CHECK(m != NULL);
         CHECK_INT(sim_object_mesh(es->t.s, 96, &sm), 0);
-        m->atlas.mesh = (struct ap_mesh){sm.nv, sm.nt, sm.pos, sm.idx, 0};
-        CHECK_INT(ap_mesh_orient(&m->atlas.mesh), 0);
-        atlas_fixture(&m->atlas, 4);
+        mesh = (struct ap_mesh){sm.nv, sm.nt, sm.pos, sm.idx, 0};
+        CHECK_INT(ap_mesh_orient(&mesh), 0);
+        CHECK_INT(ap_atlas_build(&mesh, AP_ATLAS_MIN_CELL, &m->atlas), 0);
         texels_fixture(m, &es->o);
         m->response = 1;
         snprintf(m->name, sizeof(m->name), "envscene");
@@ -192,10 +135,7 @@ void envscene_open(struct envscene *es, const struct envscene_opts *o)
 void envscene_close(struct envscene *es)
 {
         if (es->model) {
-                ap_mesh_free(&es->model->atlas.mesh);
-                free(es->model->atlas.uv);
-                free(es->model->atlas.tri);
-                free(es->model->atlas.bary);
+                ap_atlas_free(&es->model->atlas);
                 free(es->model->texels);
                 free(es->model);
         }

@@ -1,7 +1,7 @@
 /* envscene.h - environment relighting against gonio-sim (tests and bench/envlight): a glossy
  * sphere on the turntable disc under a lat-long map (a sky and a small bright sun) as the
  * simulator's dome, its converged reference rendered by gonio-sim, and the BRDF model of the
- * object built in memory from the simulator's true material (a per-triangle atlas, every
+ * object built in memory from the simulator's true material (atlas.h's atlas, every
  * texel the material with the mesh's interpolated normal), as the fit would give it. */
 #pragma once
 
