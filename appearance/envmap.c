@@ -133,3 +133,19 @@ void ap_envmap_project(const struct ap_envmap *e, int order, double *coef)
                 }
         }
 }
+
+void ap_envmap_bilinear(const float *px, int width, int height, int channels, float x, float y,
+                        float *out)
+{
+        float fx = floorf(x), fy = floorf(y), tx = x - fx, ty = y - fy;
+        int x0 = ((int)fx % width + width) % width, x1 = (x0 + 1) % width;
+        int y0 = CLAMP((int)fy, 0, height - 1), y1 = CLAMP((int)fy + 1, 0, height - 1);
+        const float *a = px + (size_t)channels * ((size_t)y0 * width + x0);
+        const float *b = px + (size_t)channels * ((size_t)y0 * width + x1);
+        const float *c = px + (size_t)channels * ((size_t)y1 * width + x0);
+        const float *d = px + (size_t)channels * ((size_t)y1 * width + x1);
+
+        for (int q = 0; q < channels; q++)
+                out[q] = (1 - ty) * ((1 - tx) * a[q] + tx * b[q]) +
+                         ty * ((1 - tx) * c[q] + tx * d[q]);
+}

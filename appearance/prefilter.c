@@ -249,21 +249,6 @@ void ap_prefilter_free(struct ap_prefilter *f)
         memset(f, 0, sizeof(*f));
 }
 
-/* Bilinear lookup of map k at lat-long position (x, y) in texels. */
-static void lookup(const struct ap_prefilter *f, int k, float x, float y, float out[4])
-{
-        const float *map = f->maps + (size_t)k * f->width * f->height * 4;
-        float fx = floorf(x), fy = floorf(y), tx = x - fx, ty = y - fy;
-        int x0 = ((int)fx % f->width + f->width) % f->width, x1 = (x0 + 1) % f->width;
-        int y0 = CLAMP((int)fy, 0, f->height - 1), y1 = CLAMP((int)fy + 1, 0, f->height - 1);
-        const float *a = map + 4 * (y0 * f->width + x0), *b = map + 4 * (y0 * f->width + x1);
-        const float *c = map + 4 * (y1 * f->width + x0), *d = map + 4 * (y1 * f->width + x1);
-
-        for (int q = 0; q < 4; q++)
-                out[q] = (1 - ty) * ((1 - tx) * a[q] + tx * b[q]) +
-                         ty * ((1 - tx) * c[q] + tx * d[q]);
-}
-
 void ap_prefilter_specular(const struct ap_prefilter *f, const float n[3], const float r[3],
                            float out[3])
 {
@@ -272,14 +257,14 @@ void ap_prefilter_specular(const struct ap_prefilter *f, const float n[3], const
               y = th * (float)M_1_PI * f->height - 0.5f;
 
         out[0] = out[1] = out[2] = 0;
-        x += x < -0.5f ? f->width : 0;
         for (int k = 0; k < f->p.pairs; k++) {
                 const float *nk = f->normals + 3 * k;
                 float c = fabsf(n[0] * nk[0] + n[1] * nk[1] + n[2] * nk[2]), w, px[4];
                 if (c < f->cmin)
                         continue;
                 w = expf(f->a * logf(c));
-                lookup(f, k, x, y, px);
+                ap_envmap_bilinear(f->maps + (size_t)k * f->width * f->height * 4, f->width,
+                                   f->height, 4, x, y, px);
                 for (int q = 0; q < 3; q++)
                         out[q] += w * px[q] * px[3];
                 wsum += w;

@@ -164,17 +164,8 @@ static void env_lookup(const struct ap_envmap *e, const float d[3], float out[3]
 {
         float x = atan2f(d[1], d[0]) * (float)(0.5 * M_1_PI) * e->width - 0.5f;
         float y = acosf(CLAMP(d[2], -1.f, 1.f)) * (float)M_1_PI * e->height - 0.5f;
-        float fx = floorf(x), fy = floorf(y), tx = x - fx, ty = y - fy;
-        int x0 = (((int)fx % e->width) + e->width) % e->width, x1 = (x0 + 1) % e->width;
-        int y0 = CLAMP((int)fy, 0, e->height - 1), y1 = CLAMP((int)fy + 1, 0, e->height - 1);
-        const float *a = e->rgb + 3 * ((size_t)y0 * e->width + x0);
-        const float *b = e->rgb + 3 * ((size_t)y0 * e->width + x1);
-        const float *c = e->rgb + 3 * ((size_t)y1 * e->width + x0);
-        const float *dd = e->rgb + 3 * ((size_t)y1 * e->width + x1);
 
-        for (int q = 0; q < 3; q++)
-                out[q] = (1 - ty) * ((1 - tx) * a[q] + tx * b[q]) +
-                         ty * ((1 - tx) * c[q] + tx * dd[q]);
+        ap_envmap_bilinear(e->rgb, e->width, e->height, 3, x, y, out);
 }
 
 /* Barycentric coordinates of p in triangle t of m. */
