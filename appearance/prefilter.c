@@ -197,18 +197,19 @@ static void light_lobes(struct ap_prefilter *f, const struct src *s)
         }
 }
 
+/* The clamped cosine's SH coefficients per band (Ramamoorthi and Hanrahan 2001): odd bands
+ * above 1 vanish; band 4 keeps the ringing of a small bright source down. */
 static void irradiance_sh(struct ap_prefilter *f, const struct ap_envmap *env)
 {
-        static const double band[3] = {M_PI, 2 * M_PI / 3, M_PI / 4};
-        double coef[9 * 3];
+        static const double band[AP_PREFILTER_SH_ORDER] = {M_PI, 2 * M_PI / 3, M_PI / 4, 0,
+                                                           -M_PI / 24};
+        double coef[AP_PREFILTER_SH * 3];
 
-        ap_envmap_project(env, 3, coef);
-        for (int m = 0; m < 9; m++)
-                for (int c = 0; c < 3; c++)
-                        f->sh[m * 3 + c] = (float)(band[m < 1   ? 0
-                                                        : m < 4 ? 1
-                                                                : 2] *
-                                                   coef[m * 3 + c]);
+        ap_envmap_project(env, AP_PREFILTER_SH_ORDER, coef);
+        for (int l = 0; l < AP_PREFILTER_SH_ORDER; l++)
+                for (int m = l * l; m < (l + 1) * (l + 1); m++)
+                        for (int c = 0; c < 3; c++)
+                                f->sh[m * 3 + c] = (float)(band[l] * coef[m * 3 + c]);
 }
 
 int ap_prefilter_build(const struct ap_envmap *env, const struct ap_prefilter_params *p,
@@ -275,12 +276,12 @@ void ap_prefilter_specular(const struct ap_prefilter *f, const float n[3], const
 
 void ap_prefilter_irradiance(const struct ap_prefilter *f, const float n[3], float out[3])
 {
-        float y[9];
+        float y[AP_PREFILTER_SH];
 
-        ap_sh_evalf(3, n, y);
+        ap_sh_evalf(AP_PREFILTER_SH_ORDER, n, y);
         for (int c = 0; c < 3; c++) {
                 out[c] = 0;
-                for (int m = 0; m < 9; m++)
+                for (int m = 0; m < AP_PREFILTER_SH; m++)
                         out[c] += f->sh[m * 3 + c] * y[m];
                 out[c] = fmaxf(out[c], 0);
         }

@@ -15,7 +15,7 @@
  *
  * The tangent of a representative normal is the anisotropy axis projected on its plane (the
  * simulator's rule for its shapes). Diffuse light: SH irradiance (Ramamoorthi and Hanrahan
- * 2001) from appearance/envmap.h's projection onto 9 coefficients. For the soft shadows of
+ * 2001) from appearance/envmap.h's projection, bands 0..4. For the soft shadows of
  * spheres.h, the map is also held as AP_PREFILTER_SGS spherical Gaussian lobes (seed 000 eq. 6)
  * centred on even directions, each carrying the light within it. docs/appearance.md,
  * "Environment relighting". */
@@ -23,7 +23,9 @@
 
 #include "appearance/envmap.h"
 
-#define AP_PREFILTER_SGS 32 /* light lobes for the diffuse visibility */
+#define AP_PREFILTER_SGS      32 /* light lobes for the diffuse visibility */
+#define AP_PREFILTER_SH_ORDER 5  /* SH bands 0..4 of the irradiance */
+#define AP_PREFILTER_SH       (AP_PREFILTER_SH_ORDER * AP_PREFILTER_SH_ORDER)
 
 struct ap_prefilter_params {
         int pairs;     /* representative normal pairs, 1..256 */
@@ -39,9 +41,9 @@ struct ap_prefilter {
         float *normals; /* 3 per pair: n_k (z > 0) */
         float *maps;    /* per pair width * height texels of L' (RGB) and A */
         int width, height;
-        float a;         /* eq. 7's exponent, from the normals' spacing */
-        float cmin;      /* n . n_k below which the weight is under 1e-3 (left out) */
-        float sh[9 * 3]; /* irradiance coefficients: A_l L_lm, [m * 3 + c] */
+        float a;                       /* eq. 7's exponent, from the normals' spacing */
+        float cmin;                    /* n . n_k below which the weight is under 1e-3 (left out) */
+        float sh[AP_PREFILTER_SH * 3]; /* irradiance coefficients: A_l L_lm, [m * 3 + c] */
         float sg_dir[3 * AP_PREFILTER_SGS], sg_eta, sg_mu[AP_PREFILTER_SGS];
 };
 

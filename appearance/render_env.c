@@ -57,7 +57,7 @@ static float diffuse_vis(const struct ap_env_renderer *r, const float p[3], cons
 
         for (int k = 0; k < AP_PREFILTER_SGS; k++) {
                 const float *zk = pf->sg_dir + 3 * k;
-                float zm[3], len, z[3], eta, mu, td;
+                float zm[3], len, z[3], eta, mu, td, tp;
                 for (int q = 0; q < 3; q++)
                         zm[q] = pf->sg_eta * zk[q] + COS_ETA * n[q];
                 len = sqrtf(dot3(zm, zm));
@@ -68,11 +68,13 @@ static float diffuse_vis(const struct ap_env_renderer *r, const float p[3], cons
                 eta = len;
                 mu = pf->sg_mu[k] * COS_MU * expf(len - pf->sg_eta - COS_ETA);
                 double full = mu * 2 * M_PI / eta * (1 - exp(-2 * eta));
-                td = ap_ssdf(r->sp, p, n, z);
+                /* the point's own tangent plane cuts both: E(n) holds only the light above it */
+                tp = asinf(CLAMP(dot3(z, n), -1.f, 1.f));
+                td = fminf(ap_ssdf(r->sp, p, n, z), tp);
                 if (!on_ground)
                         td = fminf(td, plane_ssdf(r, z));
                 num += full * ap_sg_visible(r->sp, td, eta);
-                den += full;
+                den += full * ap_sg_visible(r->sp, tp, eta);
         }
         return den > 0 ? (float)(num / den) : 1;
 }
@@ -231,8 +233,9 @@ static void shade_object(const struct ap_env_renderer *r, int32_t t, const float
         for (int q = 0; q < 3; q++)
                 rr[q] = 2 * nv * n[q] - v[q];
         ap_prefilter_specular(r->sc.pf, n, rr, s);
-        td = fminf(ap_ssdf(r->sp, p, n, rr), plane_ssdf(r, rr));
-        vs = ap_sg_visible(r->sp, td, 1 / (2 * x->ax * x->ay));
+        float eta = 1 / (2 * x->ax * x->ay), tp = asinf(CLAMP(dot3(rr, n), -1.f, 1.f));
+        td = fminf(fminf(ap_ssdf(r->sp, p, n, rr), plane_ssdf(r, rr)), tp);
+        vs = ap_sg_visible(r->sp, td, eta) / fmaxf(ap_sg_visible(r->sp, tp, eta), 1e-3f);
         for (int q = 0; q < 3; q++)
                 out[q] += x->ks * s[q] * vs;
 }

@@ -9,12 +9,13 @@
  * V_d the visible share of the light reaching the point: the light lobes of prefilter.h each
  * multiplied by the cosine lobe (seed 000 eq. 11, cosine as one SG: eta 2.133, mu 1.170),
  * their visible fractions from the SSDF of the sphere set (spheres.h) and of the ground plane
- * (eq. 12), weighted by their energy; computed once per mesh vertex (and per point of a grid on
+ * (eq. 12), weighted by their energy, over the same relative to the point's own tangent plane
+ * (E holds only the light above it); computed once per mesh vertex (and per point of a grid on
  * the ground) when the renderer is made, interpolated in between. V_s the visible fraction of
  * the specular lobe (an SG about the reflected direction r of sharpness 1 / (2 ax ay)), per
- * pixel. The ground: the plane z = 0 within ground_radius, a Lambert surface shaded the same
- * way and shadowed by the spheres. Elsewhere the map itself. docs/appearance.md,
- * "Environment relighting". */
+ * pixel, relative to its part above the tangent plane (the maps' albedo has the rest). The ground:
+ * the plane z = 0 within ground_radius, a Lambert surface shaded the same way and shadowed by the
+ * spheres. Elsewhere the map itself. docs/appearance.md, "Environment relighting". */
 #pragma once
 
 #include <stdint.h>
