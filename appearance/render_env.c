@@ -19,8 +19,9 @@ struct ap_env_renderer {
         struct ap_env_scene sc;
         struct ap_spheres none; /* no spheres: only the table of visible fractions */
         const struct ap_spheres *sp;
-        float *vvis; /* per vertex: V_d */
-        float *gvis; /* AP_ENV_GROUND_GRID^2: V_d on the ground */
+        float *vvis;  /* per vertex: V_d */
+        float *tex_e; /* per texel: E at its normal (RGB) */
+        float *gvis;  /* AP_ENV_GROUND_GRID^2: V_d on the ground */
         float ground_e[3];
         struct ap_pinhole ph;
         float *depth;
@@ -108,6 +109,19 @@ static int vertex_visibility(struct ap_env_renderer *r)
         return 0;
 }
 
+static int texel_irradiance(struct ap_env_renderer *r)
+{
+        const struct ap_brdf_model *m = r->sc.m;
+        size_t n = (size_t)m->atlas.width * m->atlas.height;
+
+        r->tex_e = malloc(3 * n * sizeof(float));
+        if (!r->tex_e)
+                return -ENOMEM;
+        for (size_t i = 0; i < n; i++)
+                ap_prefilter_irradiance(r->sc.pf, m->texels[i].normal, r->tex_e + 3 * i);
+        return 0;
+}
+
 static int ground_visibility(struct ap_env_renderer *r)
 {
         const int g = AP_ENV_GROUND_GRID;
@@ -139,6 +153,8 @@ int ap_env_renderer_new(const struct ap_env_scene *sc, struct ap_env_renderer **
         ap_spheres_table(&r->none);
         r->sp = sc->sp ? sc->sp : &r->none;
         e = vertex_visibility(r);
+        if (e >= 0)
+                e = texel_irradiance(r);
         if (e >= 0 && sc->ground_radius > 0)
                 e = ground_visibility(r);
         if (e < 0) {
@@ -154,6 +170,7 @@ struct ap_env_renderer *ap_env_renderer_free(struct ap_env_renderer *r)
         if (!r)
                 return NULL;
         free(r->vvis);
+        free(r->tex_e);
         free(r->gvis);
         free(r->depth);
         free(r->tri);
@@ -214,7 +231,8 @@ static void shade_object(const struct ap_env_renderer *r, int32_t t, const float
 {
         const struct ap_mesh *m = &r->sc.m->atlas.mesh;
         const struct ap_brdf_texel *x;
-        float w[3], v[3], rr[3], e[3], s[3], vd, vs, nv, td;
+        float w[3], v[3], rr[3], s[3], vd, vs, nv, td;
+        const float *e;
         const float *n;
 
         bary_of(m, t, p, w);
@@ -225,7 +243,7 @@ static void shade_object(const struct ap_env_renderer *r, int32_t t, const float
         nv = dot3(n, v);
         vd = w[0] * r->vvis[m->idx[3 * t]] + w[1] * r->vvis[m->idx[3 * t + 1]] +
              w[2] * r->vvis[m->idx[3 * t + 2]];
-        ap_prefilter_irradiance(r->sc.pf, n, e);
+        e = r->tex_e + 3 * (x - r->sc.m->texels);
         for (int q = 0; q < 3; q++)
                 out[q] = (1 - x->ks) * x->albedo[q] * (float)M_1_PI * e[q] * vd;
         if (x->ks <= 0 || nv <= 0)

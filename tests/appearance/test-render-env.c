@@ -95,11 +95,13 @@ static int normal_class(const struct fixture *f, int x, int y)
  * (the jump of the gradient against the reference's), where their representative normals
  * differ (the seams of the blend) and elsewhere. */
 static void gradient_jumps(const struct fixture *f, const float *a, const float *b,
-                           const uint8_t *mask, double *seam, double *rest)
+                           const uint8_t *mask, double *seam, double *rest, double mean[2])
 {
         const struct ap_camera *c = &f->es.cam;
+        int cnt[2] = {0, 0};
 
         *seam = *rest = 0;
+        mean[0] = mean[1] = 0;
         for (int y = 0; y + 1 < c->height; y++)
                 for (int x = 0; x + 1 < c->width; x++) {
                         size_t i = (size_t)y * c->width + x, nb[2] = {i + 1, i + c->width};
@@ -117,8 +119,12 @@ static void gradient_jumps(const struct fixture *f, const float *a, const float 
                                         *seam = fmax(*seam, jump);
                                 else
                                         *rest = fmax(*rest, jump);
+                                mean[ki == kn[k]] += jump;
+                                cnt[ki == kn[k]]++;
                         }
                 }
+        for (int k = 0; k < 2; k++)
+                mean[k] /= cnt[k] ? cnt[k] : 1;
 }
 
 static void test_reference(void)
@@ -127,7 +133,7 @@ static void test_reference(void)
         size_t n = (size_t)opts.width * opts.height;
         float *ref = malloc(3 * n * sizeof(float)), *img = malloc(3 * n * sizeof(float));
         uint8_t *mask = malloc(n), *obj = malloc(n);
-        double secs, p_all, p_obj, p_none, seam, rest;
+        double secs, p_all, p_obj, p_none, seam, rest, mean[2];
 
         CHECK(ref && img && mask && obj);
         fixture_open(&f);
@@ -142,15 +148,17 @@ static void test_reference(void)
         p_none = envscene_psnr(img, ref, mask, n);
         f.sc.sp = &f.sp;
         render(&f.sc, &f.es.cam, img, mask);
-        gradient_jumps(&f, img, ref, mask, &seam, &rest);
+        gradient_jumps(&f, img, ref, mask, &seam, &rest, mean);
         envscene_dump(img, ref, opts.width, opts.height, "render-env");
         fprintf(stderr,
                 "envlight %dx%d: PSNR %.2f dB (object %.2f dB) with %d spheres, %.2f dB without "
-                "the spheres; gradient jump %.4f at the seams, %.4f elsewhere\n",
-                opts.width, opts.height, p_all, p_obj, f.sp.n, p_none, seam, rest);
+                "the spheres; gradient jump %.4f at the seams, %.4f elsewhere (mean %.5f, %.5f)\n",
+                opts.width, opts.height, p_all, p_obj, f.sp.n, p_none, seam, rest, mean[0],
+                mean[1]);
         CHECK(p_all >= 33);
         CHECK(p_all > p_none);
         CHECK(seam <= 1.5 * rest);
+        CHECK(mean[0] <= 1.3 * mean[1]); /* the nearest map alone: 1.45 */
         fixture_close(&f);
         free(ref);
         free(img);
