@@ -3,7 +3,7 @@
  * through the atlas (atlas.h: the triangle seen, its barycentric point, the triangle's uv);
  *
  *     pixel = scale (diffuse + specular),
- *     diffuse  = (1 - ks) albedo / pi  E(n)  V_d        E: SH irradiance (prefilter.h)
+ *     diffuse  = (1 - ks) albedo / pi  E(n)  V_d        E: SH irradiance, per texel
  *     specular = ks  S(n, r)  V_s                      S: the blended prefiltered maps
  *
  * V_d the visible share of the light reaching the point: the light lobes of prefilter.h each
