@@ -12,23 +12,24 @@
 #include <time.h>
 
 #include "appearance/render_env.h"
+#include "common/clock.h"
 #include "tests/appearance/envscene.h"
 
 #define FRAMES  120
 #define SPHERES 32
 #define THREADS 2
 
-static double clock_s(clockid_t id)
+static double now_s(void)
+{
+        return gn_monotonic_ns() * 1e-9;
+}
+
+static double cpu_s(void)
 {
         struct timespec ts;
 
-        clock_gettime(id, &ts);
+        clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
         return ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static double now_s(void)
-{
-        return clock_s(CLOCK_MONOTONIC);
 }
 
 int main(void)
@@ -76,12 +77,12 @@ int main(void)
                "visibility %.2f s\n",
                t_pf - t0, pp.pairs, pf.width, pf.height, sp.n, t_sp - t_pf, t_new - t_sp);
         t0 = now_s();
-        cpu0 = clock_s(CLOCK_PROCESS_CPUTIME_ID);
+        cpu0 = cpu_s();
         for (int i = 0; i < FRAMES; i++)
                 if (ap_env_render(r, &es.cam, THREADS, img, mask) < 0)
                         return 1;
         t_frames = (now_s() - t0) / FRAMES;
-        cpu_frames = (clock_s(CLOCK_PROCESS_CPUTIME_ID) - cpu0) / FRAMES;
+        cpu_frames = (cpu_s() - cpu0) / FRAMES;
         for (size_t i = 0; i < n; i++)
                 mask[i] = 1;
         psnr = envscene_psnr(img, ref, mask, n);
