@@ -52,10 +52,6 @@ static void texels_fixture(struct ap_brdf_model *m, const struct envscene_opts *
                 float p[3], n[3], t[3], l;
                 if (!ap_atlas_point(a, i, p, n))
                         continue;
-                /* atlas.c's normals follow the winding: outwards only for front 1 */
-                l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) * (a->mesh.front < 0 ? -1 : 1);
-                for (int q = 0; q < 3; q++)
-                        n[q] /= l;
                 for (int q = 0; q < 3; q++)
                         t[q] = (q == 2) - n[2] * n[q];
                 l = sqrtf(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
