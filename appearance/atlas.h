@@ -12,6 +12,8 @@
 
 #include "appearance/raster.h"
 
+#define AP_ATLAS_MIN_CELL 6 /* texels per cell side: legs of two texels */
+
 struct ap_atlas {
         struct ap_mesh mesh; /* owned */
         int width, height;   /* texels */
@@ -19,11 +21,12 @@ struct ap_atlas {
         float *uv;           /* 6 per triangle: (u, v) of its corners, [0, 1], v down */
         int32_t *tri;        /* width * height: the triangle a texel's centre lies in, or -1 */
         float *bary;         /* 3 per texel: its centre's barycentric coordinates in tri */
+        float *vnormal;      /* 3 per vertex: area-weighted unit normals */
 };
 
 /* Builds the atlas of mesh (moved into a->mesh: the caller's struct is zeroed) with cells of
- * cell x cell texels (at least 4). Returns 0, -EINVAL (an empty mesh, cell < 4, an atlas
- * beyond 16384 texels a side) or -ENOMEM. */
+ * cell x cell texels (at least AP_ATLAS_MIN_CELL). Returns 0, -EINVAL (an empty mesh, a smaller
+ * cell, an atlas beyond 16384 texels a side) or -ENOMEM. */
 int ap_atlas_build(struct ap_mesh *mesh, int cell, struct ap_atlas *a);
 
 /* The cell size giving about `texels` texels in all for a mesh of nt triangles. */
