@@ -16,6 +16,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "appearance/io_internal.h"
 #include "appearance/model.h"
 #include "appearance/model_png.h"
 #include "common/cleanup.h"
@@ -129,7 +130,7 @@ static json_t *model_json(const struct ap_model *m, json_t *views)
 }
 
 /* Writes a new file name in dfd with buf and fsyncs it. Returns 0 or -errno. */
-static int put_file(int dfd, const char *name, const void *buf, size_t len)
+int ap_io_put_file(int dfd, const char *name, const void *buf, size_t len)
 {
         _cleanup_close_ int fd = openat(dfd, name, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
         int r;
@@ -182,7 +183,7 @@ static int put_weights(int dfd, const struct ap_view *v, size_t i, int K, int g,
         if (r < 0)
                 return r;
         snprintf(name, sizeof(name), "%03zu_w%d.png", i, g);
-        return put_file(dfd, name, png, len);
+        return ap_io_put_file(dfd, name, png, len);
 }
 
 static int put_mask(int dfd, const struct ap_view *v, size_t i)
@@ -202,7 +203,7 @@ static int put_mask(int dfd, const struct ap_view *v, size_t i)
         if (r < 0)
                 return r;
         snprintf(name, sizeof(name), "%03zu_mask.png", i);
-        return put_file(dfd, name, png, len);
+        return ap_io_put_file(dfd, name, png, len);
 }
 
 /* Writes view i's images into views/ (vfd) and appends its entry to views. */
@@ -233,7 +234,7 @@ static int put_basis(int dfd, const struct ap_model *m)
         /* little-endian on the hosts we build for (x86-64, aarch64) */
         memcpy(b, m->mean, n3 * sizeof(float));
         memcpy(b + n3, m->basis, n3 * m->k * sizeof(float));
-        return put_file(dfd, "basis.f32", b, bytes);
+        return ap_io_put_file(dfd, "basis.f32", b, bytes);
 }
 
 /* Writes every file of m into the empty directory dfd. */
@@ -265,7 +266,7 @@ static int put_model(int dfd, const struct ap_model *m)
         text = doc ? json_dumps(doc, JSON_INDENT(2)) : NULL;
         if (!text)
                 return -ENOMEM;
-        r = put_file(dfd, "model.json", text, strlen(text));
+        r = ap_io_put_file(dfd, "model.json", text, strlen(text));
         if (r == 0 && fsync(dfd) < 0)
                 r = -errno;
         return r;
@@ -300,8 +301,7 @@ void ap_remove_tree(const char *path)
         rmdir(path);
 }
 
-/* Renames tmp to final, exchanging it with an older final (then removed). */
-static int install_dir(const char *tmp, const char *final)
+int ap_io_install_dir(const char *tmp, const char *final)
 {
         if (renameat2(AT_FDCWD, tmp, AT_FDCWD, final, RENAME_NOREPLACE) == 0)
                 return gn_fsync_parent(final);
@@ -332,7 +332,7 @@ int ap_model_write(const struct ap_model *m, const char *ds_dir)
         dfd = open(tmp, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
         r = dfd < 0 ? -errno : put_model(dfd, m);
         if (r == 0)
-                r = install_dir(tmp, final);
+                r = ap_io_install_dir(tmp, final);
         if (r < 0)
                 ap_remove_tree(tmp);
         return r;

@@ -1,12 +1,19 @@
 /* test-brdf.c - the BRDF model of issue 12 (appearance/brdf.h, brdf_fit.h): its evaluation
  * against gonio-sim's own SPEC_BECKMANN lobe (sim/render/material.c) at random directions
- * and parameters. */
+ * and parameters; its files written and read back, malformed ones refused by name. */
+#include <fcntl.h>
 #include <math.h>
 #include <stdlib.h>
+#include <unistd.h>
 
 #include "appearance/brdf.h"
+#include "common/cleanup.h"
+#include "common/fileio.h"
 #include "sim/render/internal.h"
+#include "tests/dataset/ds-util.h"
 #include "tests/test.h"
+
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_brdf_model *, ap_brdf_model_free);
 
 static double urand(unsigned *seed, double lo, double hi)
 {
@@ -76,10 +83,108 @@ static void test_eval(void)
         CHECK(lit > 2000);
 }
 
+/* A model on a tetrahedron with random texels, named "m". */
+static struct ap_brdf_model *small_model(void)
+{
+        static const float pos[] = {0, 0, 0, 10, 0, 0, 0, 10, 0, 0, 0, 10};
+        static const uint32_t idx[] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+        struct ap_brdf_model *m = calloc(1, sizeof(*m));
+        struct ap_mesh me = {4, 4, malloc(sizeof(pos)), malloc(sizeof(idx)), 0};
+        unsigned seed = 3;
+        size_t n;
+
+        CHECK(m && me.pos && me.idx);
+        memcpy(me.pos, pos, sizeof(pos));
+        memcpy(me.idx, idx, sizeof(idx));
+        CHECK_INT(ap_atlas_build(&me, 8, &m->atlas), 0);
+        n = (size_t)m->atlas.width * m->atlas.height;
+        m->texels = calloc(n, sizeof(*m->texels));
+        CHECK(m->texels);
+        for (size_t i = 0; i < n; i++) {
+                struct surf s;
+                struct v3 nn, t;
+                random_material(&seed, &m->texels[i], &s, &nn, &t);
+                m->texels[i].rms = (float)i, m->texels[i].n_samples = (uint32_t)i;
+                m->texels[i].flags = 1u << (i % 3);
+        }
+        snprintf(m->name, sizeof(m->name), "m");
+        snprintf(m->notes, sizeof(m->notes), "a note");
+        m->response = 1.5, m->fit_seconds = 2;
+        return m;
+}
+
+static void put(const char *dir, const char *file, const void *buf, size_t len)
+{
+        _cleanup_close_ int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+
+        CHECK(fd >= 0);
+        CHECK_INT(gn_write_atomic(fd, file, buf, len, NULL), 0);
+}
+
+/* Written and read back bit for bit; a second write replaces the first. */
+static void test_io_roundtrip(void)
+{
+        _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *m = small_model(), *r = NULL;
+        _cleanup_free_ char *dir = tu_tmpdir();
+        char path[512], err[512];
+        size_t n = (size_t)m->atlas.width * m->atlas.height;
+
+        CHECK_INT(ap_brdf_write(m, dir), 0);
+        CHECK_INT(ap_brdf_write(m, dir), 0);
+        snprintf(path, sizeof(path), "%s/models/m", dir);
+        CHECK_INT(ap_brdf_read(path, &r, err, sizeof(err)), 0);
+        CHECK_STR(r->name, "m");
+        CHECK_STR(r->notes, "a note");
+        CHECK(r->response == 1.5 && r->fit_seconds == 2);
+        CHECK_INT(r->atlas.width, m->atlas.width);
+        CHECK_INT(r->atlas.cell, 8);
+        CHECK(memcmp(r->atlas.uv, m->atlas.uv, 24 * m->atlas.mesh.nt) == 0);
+        CHECK(memcmp(r->texels, m->texels, n * sizeof(*m->texels)) == 0);
+        snprintf(path, sizeof(path), "%s/models/none", dir);
+        CHECK_INT(ap_brdf_read(path, &r, err, sizeof(err)), -ENOENT);
+        tu_rm_rf(dir);
+}
+
+/* Each malformed file refused with a sentence naming it and the problem. */
+static void test_io_malformed(void)
+{
+        _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *m = small_model();
+        _cleanup_free_ char *dir = tu_tmpdir();
+        struct ap_brdf_model *r = NULL;
+        char path[512], sub[600], err[512];
+
+        m->texels[5].ax = NAN;
+        CHECK_INT(ap_brdf_write(m, dir), 0);
+        snprintf(path, sizeof(path), "%s/models/m", dir);
+        snprintf(sub, sizeof(sub), "%s/brdf", path);
+        CHECK_INT(ap_brdf_read(path, &r, err, sizeof(err)), -EBADMSG);
+        CHECK_STR_CONTAINS(err, "texels.f32: texel 5: a parameter out of range");
+        put(sub, "texels.u32", "1234", 4);
+        CHECK_INT(ap_brdf_read(path, &r, err, sizeof(err)), -EBADMSG);
+        CHECK_STR_CONTAINS(err, "texels.u32: 4 bytes, expected");
+        put(sub, "mesh.bin", "GNBRDFM0", 8);
+        CHECK_INT(ap_brdf_read(path, &r, err, sizeof(err)), -EBADMSG);
+        CHECK_STR_CONTAINS(err, "brdf/mesh.bin: 8 bytes");
+        CHECK_INT(unlink(strcat(sub, "/mesh.bin")), 0);
+        CHECK_INT(ap_brdf_read(path, &r, err, sizeof(err)), -EBADMSG);
+        CHECK_STR_CONTAINS(err, "mesh.bin: No such file");
+        *strrchr(sub, '/') = 0;
+        put(sub, "brdf.json", "{\"format\": \"gonio-brdf 2\"}", 25);
+        CHECK_INT(ap_brdf_read(path, &r, err, sizeof(err)), -EBADMSG);
+        CHECK_STR_CONTAINS(err, "brdf.json: ");
+        put(sub, "brdf.json", "{", 1);
+        CHECK_INT(ap_brdf_read(path, &r, err, sizeof(err)), -EBADMSG);
+        CHECK_STR_CONTAINS(err, "brdf/brdf.json: line 1");
+        CHECK(r == NULL);
+        tu_rm_rf(dir);
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
                 {"eval", test_eval},
+                {"io-roundtrip", test_io_roundtrip},
+                {"io-malformed", test_io_malformed},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
