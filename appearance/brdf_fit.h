@@ -14,7 +14,7 @@
 #include "dataset/ds.h"
 
 #define AP_BRDF_TEXELS_DEFAULT 20000
-#define AP_BRDF_MIN_SAMPLES    16   /* usable samples a texel needs, else masked */
+#define AP_BRDF_MIN_SAMPLES    48   /* usable samples a texel needs, else masked */
 #define AP_BRDF_NEAR_TAN       0.35 /* a sample is near a highlight: tan(h, n) below this */
 #define AP_BRDF_MIN_NEAR       3    /* samples near a highlight for the lobe, else diffuse only */
 

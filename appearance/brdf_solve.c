@@ -14,13 +14,16 @@
 
 #include "appearance/brdf_internal.h"
 
-#define NP          5 /* log ax, log ay, tangent angle, normal tilt (2) */
-#define MAX_ITER    20
-#define IRLS_ROUNDS 1
-#define N_STARTS    1     /* Levenberg-Marquardt runs from the best points of a grid */
-#define CAUCHY_C    2.385 /* 95% efficiency under Gaussian noise */
-#define LOG_A_MIN   (-6.0)
-#define LOG_A_MAX   0.69 /* alpha 2: the simulator's range */
+#define NP           5 /* log ax, log ay, tangent angle, normal tilt (2) */
+#define MAX_ITER     20
+#define IRLS_ROUNDS  1
+#define N_STARTS     1     /* Levenberg-Marquardt runs from the best points of a grid */
+#define CAUCHY_C     2.385 /* 95% efficiency under Gaussian noise */
+#define CAUCHY_FLOOR 0.002 /* the residual scale at least (full scale 1) */
+#define LOG_A_MIN    (-6.0)
+#define LOG_A_MAX    0.0  /* alpha 1: beyond, a lobe imitates the diffuse term */
+#define RIDGE        1e-6 /* on ks, relative to the diffuse basis's energy */
+#define KS_MAX       0.99
 
 struct problem {
         const struct brdf_sample *s;
@@ -95,8 +98,8 @@ static void solve_linear(struct problem *q, const struct ap_brdf_texel *x)
                         dy[c] += w * D * q->s[i].y[c], sy[c] += w * S * q->s[i].y[c];
         }
         num = sy[0] + sy[1] + sy[2] - (dd > 0 ? ds * (dy[0] + dy[1] + dy[2]) / dd : 0);
-        den = 3 * (ss - (dd > 0 ? ds * ds / dd : 0));
-        q->k = q->lobe && den > 0 ? fmax(num / den, 0) : 0;
+        den = 3 * (ss - (dd > 0 ? ds * ds / dd : 0) + RIDGE * dd); /* k 0 where S explains none */
+        q->k = q->lobe && den > 0 ? fmin(fmax(num / den, 0), KS_MAX) : 0;
         for (int c = 0; c < 3; c++)
                 q->a[c] = dd > 0 ? fmax((dy[c] - q->k * ds) / dd, 0) : 0;
 }
@@ -162,7 +165,7 @@ static double reweight(const struct problem *q, const gsl_vector *f, float *w, d
                 tmp[i] = sqrt(r2 / 3);
         }
         qsort(tmp, q->n, sizeof(double), cmp_double);
-        scale = fmax(1.4826 * tmp[q->n / 2], 1e-6) * CAUCHY_C;
+        scale = fmax(1.4826 * tmp[q->n / 2], CAUCHY_FLOOR) * CAUCHY_C;
         for (size_t i = 0; i < q->n; i++) {
                 double r2 = 0;
                 for (int c = 0; c < 3; c++)
@@ -203,9 +206,9 @@ static void finish(struct problem *q, const double *p, struct ap_brdf_texel *x)
 {
         texel_at(q, p, x);
         solve_linear(q, x);
-        x->ks = (float)fmin(q->k, 1);
+        x->ks = (float)q->k;
         for (int c = 0; c < 3; c++)
-                x->albedo[c] = x->ks < 1 ? (float)(q->a[c] / (1 - x->ks)) : 0;
+                x->albedo[c] = (float)(q->a[c] / (1 - q->k));
         x->flags = q->lobe ? AP_BRDF_FITTED : AP_BRDF_DIFFUSE_ONLY;
         if (!q->lobe)
                 x->ax = x->ay = 1;
