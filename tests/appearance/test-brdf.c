@@ -487,6 +487,91 @@ static void test_relight(void)
         fitted_close(&f);
 }
 
+/* The texels of m by outcome: fitted, diffuse only, masked. */
+static void outcomes(const struct ap_brdf_model *m, size_t k[3])
+{
+        k[0] = k[1] = k[2] = 0;
+        for (size_t i = 0; i < (size_t)m->atlas.width * m->atlas.height; i++)
+                k[m->texels[i].flags & AP_BRDF_FITTED         ? 0
+                  : m->texels[i].flags & AP_BRDF_DIFFUSE_ONLY ? 1
+                                                              : 2]++;
+}
+
+/* Bad input takes the documented fallbacks, stated in the notes: too few samples (one view,
+ * six lights) masks every texel; highlights saturated (a dark, very shiny object under bright
+ * lamps) are left out and counted, the lobe fitted from the rest or the texel diffuse only,
+ * never ks beyond its truth by more than 10% at the median. */
+static void test_fallbacks(void)
+{
+        struct fitted f = {0};
+        struct aps_opts ao;
+        size_t k[3], n = 0;
+        float *ks;
+
+        aps_opts_default(&ao, APS_SHARP);
+        ao.width = 64, ao.height = 48, ao.mesh_rings = 8;
+        ao.turntable_angles = 1, ao.arm_angles = 2, ao.n_lamps = 3;
+        fit_scene(&f, &ao, 1000);
+        outcomes(f.m, k);
+        CHECK(k[0] == 0 && k[1] == 0 && k[2] > 0);
+        CHECK_STR_CONTAINS(f.m->notes, "texels masked (fewer than 48 samples");
+        fitted_close(&f);
+
+        aps_opts_default(&ao, APS_SHARP);
+        ao.width = 64, ao.height = 48, ao.mesh_rings = 8, ao.n_cameras = 2;
+        ao.albedo[0] = ao.albedo[1] = ao.albedo[2] = 0.1, ao.ks = 0.8, ao.intensity = 2e6;
+        fit_scene(&f, &ao, 1000);
+        outcomes(f.m, k);
+        CHECK_STR_CONTAINS(f.m->notes, "saturated samples left out");
+        CHECK(k[0] > 100);
+        CHECK(ks = malloc((k[0] + 1) * sizeof(float)));
+        for (size_t i = 0; i < (size_t)f.m->atlas.width * f.m->atlas.height; i++)
+                if (f.m->texels[i].flags == AP_BRDF_FITTED)
+                        ks[n++] = f.m->texels[i].ks;
+        fprintf(stderr, "saturated: %zu fitted, %zu diffuse only, %zu masked, median ks %.3f\n",
+                k[0], k[1], k[2], quantile(ks, n, 0.5));
+        CHECK(fabsf(quantile(ks, n, 0.5) / 0.8f - 1) < 0.1f);
+        free(ks);
+        fitted_close(&f);
+}
+
+/* gonioctl model fit --brdf: the summary, the model written beside an SH model's place, not
+ * replaced without --force, --texels without --brdf refused. */
+static void test_gonioctl(void)
+{
+        struct fitted f = {0};
+        struct aps_opts ao;
+        struct ap_brdf_model *m = NULL;
+        char args[1024], out[8192], dir[600], err[512];
+
+        if (!getenv("GONIOCTL"))
+                exit(TEST_SKIP);
+        aps_opts_default(&ao, APS_SHARP);
+        ao.width = 64, ao.height = 48, ao.mesh_rings = 8;
+        ao.turntable_angles = 1, ao.arm_angles = 2, ao.n_lamps = 3;
+        aps_open(&f.s, &ao);
+        f.dir = tu_tmpdir();
+        snprintf(f.ds, sizeof(f.ds), "%s/ds", f.dir);
+        ds_close(aps_make_dataset(&f.s, f.ds));
+        snprintf(args, sizeof(args), "model fit %s --brdf --texels 500 --name b", f.ds);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
+        CHECK_STR_CONTAINS(out, "BRDF model ");
+        CHECK_STR_CONTAINS(out, "0 fitted, 0 diffuse only");
+        CHECK_STR_CONTAINS(out, "notes: ");
+        snprintf(dir, sizeof(dir), "%s/models/b", f.ds);
+        CHECK_INT(ap_brdf_read(dir, &m, err, sizeof(err)), 0);
+        CHECK_STR(m->name, "b");
+        ap_brdf_model_free(m);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
+        CHECK_STR_CONTAINS(out, "exists (--force replaces it)");
+        snprintf(args, sizeof(args), "--json model fit %s --brdf --name b --force", f.ds);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
+        CHECK_STR_CONTAINS(out, "\"masked\"");
+        snprintf(args, sizeof(args), "model fit %s --texels 500", f.ds);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 2);
+        fitted_close(&f);
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
@@ -495,6 +580,8 @@ int main(int argc, char **argv)
                 {"io-malformed", test_io_malformed},
                 {"fit-aniso", test_fit_aniso},
                 {"relight", test_relight},
+                {"fallbacks", test_fallbacks},
+                {"gonioctl", test_gonioctl},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
