@@ -7,7 +7,6 @@
 #include <fcntl.h>
 #include <jansson.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,7 +21,6 @@
 #define TEXEL_FLOATS 14 /* albedo 3, ks, ax, ay, f0, normal 3, tangent 3, rms */
 #define TEXEL_U32S   2  /* n_samples, flags */
 #define MESH_MAGIC   "GNBRDFM1"
-#define FILE_MAX     ((size_t)1 << 32)
 
 struct ap_brdf_model *ap_brdf_model_free(struct ap_brdf_model *m)
 {
@@ -128,57 +126,20 @@ int ap_brdf_write(const struct ap_brdf_model *m, const char *ds_dir)
 
 /* ---- reading ---- */
 
-struct rd {
-        char dir[4200];
-        char *err;
-        size_t errlen;
-};
-
-static int bad(const struct rd *rd, const char *file, const char *fmt, ...)
-        __attribute__((format(printf, 3, 4)));
-
-static int bad(const struct rd *rd, const char *file, const char *fmt, ...)
-{
-        char msg[512];
-        va_list ap;
-
-        va_start(ap, fmt);
-        vsnprintf(msg, sizeof(msg), fmt, ap);
-        va_end(ap);
-        snprintf(rd->err, rd->errlen, "%s/%s: %s", rd->dir, file, msg);
-        return -EBADMSG;
-}
-
-/* Reads file of the model's directory, of exactly want bytes (0: any). */
-static int slurp(const struct rd *rd, const char *file, size_t want, void **buf, size_t *len)
-{
-        char path[4400];
-        int r;
-
-        snprintf(path, sizeof(path), "%s/%s", rd->dir, file);
-        r = gn_read_file_at(AT_FDCWD, path, FILE_MAX, buf, len);
-        if (r < 0) {
-                snprintf(rd->err, rd->errlen, "%s: %s", path, strerror(-r));
-                return r == -ENOENT ? -EBADMSG : r;
-        }
-        if (want && *len != want)
-                return bad(rd, file, "%zu bytes, expected %zu", *len, want);
-        return 0;
-}
-
 /* The mesh of mesh.bin (nv vertices, nt triangles as brdf.json says) into *me. */
-static int read_mesh(const struct rd *rd, size_t nv, size_t nt, struct ap_mesh *me)
+static int read_mesh(const struct ap_io_rd *rd, size_t nv, size_t nt, struct ap_mesh *me)
 {
         _cleanup_free_ uint8_t *b = NULL;
         size_t len;
-        int r = slurp(rd, "mesh.bin", 16 + (3 * nv + 9 * nt) * 4, (void **)&b, &len);
+        int r = ap_io_slurp(rd, "mesh.bin", 16 + (3 * nv + 9 * nt) * 4, (void **)&b, &len);
         uint32_t hdr[2];
 
         if (r < 0)
                 return r;
         memcpy(hdr, b + 8, 8);
         if (memcmp(b, MESH_MAGIC, 8) != 0 || hdr[0] != nv || hdr[1] != nt)
-                return bad(rd, "mesh.bin", "not a mesh of %zu vertices and %zu triangles", nv, nt);
+                return ap_io_bad(rd, "mesh.bin", "not a mesh of %zu vertices and %zu triangles", nv,
+                                 nt);
         me->nv = nv, me->nt = nt;
         me->pos = malloc(12 * nv);
         me->idx = malloc(12 * nt);
@@ -188,8 +149,8 @@ static int read_mesh(const struct rd *rd, size_t nv, size_t nt, struct ap_mesh *
         memcpy(me->idx, b + 16 + 12 * nv, 12 * nt);
         for (size_t i = 0; i < 3 * nt; i++)
                 if (me->idx[i] >= nv)
-                        return bad(rd, "mesh.bin", "triangle %zu: vertex %u of %zu", i / 3,
-                                   me->idx[i], nv);
+                        return ap_io_bad(rd, "mesh.bin", "triangle %zu: vertex %u of %zu", i / 3,
+                                         me->idx[i], nv);
         return ap_mesh_orient(me);
 }
 
@@ -209,15 +170,15 @@ static bool texel_of(const float *f, const uint32_t *u, struct ap_brdf_texel *x)
                (x->flags & AP_BRDF_MASKED || (x->ax > 0 && x->ay > 0 && x->ks >= 0 && x->ks <= 1));
 }
 
-static int read_texels(const struct rd *rd, struct ap_brdf_model *m)
+static int read_texels(const struct ap_io_rd *rd, struct ap_brdf_model *m)
 {
         size_t n = (size_t)m->atlas.width * m->atlas.height, len;
         _cleanup_free_ float *f = NULL;
         _cleanup_free_ uint32_t *u = NULL;
-        int r = slurp(rd, "texels.f32", n * TEXEL_FLOATS * 4, (void **)&f, &len);
+        int r = ap_io_slurp(rd, "texels.f32", n * TEXEL_FLOATS * 4, (void **)&f, &len);
 
         if (r == 0)
-                r = slurp(rd, "texels.u32", n * TEXEL_U32S * 4, (void **)&u, &len);
+                r = ap_io_slurp(rd, "texels.u32", n * TEXEL_U32S * 4, (void **)&u, &len);
         if (r < 0)
                 return r;
         m->texels = calloc(n, sizeof(*m->texels));
@@ -225,12 +186,13 @@ static int read_texels(const struct rd *rd, struct ap_brdf_model *m)
                 return -ENOMEM;
         for (size_t i = 0; i < n; i++)
                 if (!texel_of(f + i * TEXEL_FLOATS, u + i * TEXEL_U32S, &m->texels[i]))
-                        return bad(rd, "texels.f32", "texel %zu: a parameter out of range", i);
+                        return ap_io_bad(rd, "texels.f32", "texel %zu: a parameter out of range",
+                                         i);
         return 0;
 }
 
 /* brdf.json's fields into m, the atlas rebuilt from mesh.bin. */
-static int read_header(const struct rd *rd, json_t *doc, struct ap_brdf_model *m)
+static int read_header(const struct ap_io_rd *rd, json_t *doc, struct ap_brdf_model *m)
 {
         const char *fmt = "", *name = "", *notes = "";
         json_int_t nv = 0, nt = 0;
@@ -242,12 +204,13 @@ static int read_header(const struct rd *rd, json_t *doc, struct ap_brdf_model *m
                            "name", &name, "atlas", "width", &w, "height", &h, "cell", &cell,
                            "vertices", &nv, "triangles", &nt, "response", &m->response, "notes",
                            &notes) < 0)
-                return bad(rd, "brdf.json", "%s", e.text);
+                return ap_io_bad(rd, "brdf.json", "%s", e.text);
         if (strcmp(fmt, AP_BRDF_FORMAT) != 0)
-                return bad(rd, "brdf.json", "format '%s', expected '%s'", fmt, AP_BRDF_FORMAT);
+                return ap_io_bad(rd, "brdf.json", "format '%s', expected '%s'", fmt,
+                                 AP_BRDF_FORMAT);
         if (nv < 3 || nt < 1 || nv > (1 << 28) || nt > (1 << 28) || cell < 4)
-                return bad(rd, "brdf.json", "atlas of %lld vertices, %lld triangles, cell %d",
-                           (long long)nv, (long long)nt, cell);
+                return ap_io_bad(rd, "brdf.json", "atlas of %lld vertices, %lld triangles, cell %d",
+                                 (long long)nv, (long long)nt, cell);
         snprintf(m->name, sizeof(m->name), "%s", name);
         snprintf(m->notes, sizeof(m->notes), "%s", notes);
         json_unpack(doc, "{s?{s?F}}", "fit", "seconds", &m->fit_seconds);
@@ -256,14 +219,16 @@ static int read_header(const struct rd *rd, json_t *doc, struct ap_brdf_model *m
                 r = ap_atlas_build(&me, cell, &m->atlas);
         ap_mesh_free(&me);
         if (r == 0 && (m->atlas.width != w || m->atlas.height != h))
-                return bad(rd, "brdf.json", "atlas %dx%d, its mesh and cell give %dx%d", w, h,
-                           m->atlas.width, m->atlas.height);
-        return r == -EINVAL ? bad(rd, "mesh.bin", "no atlas of cell %d on this mesh", cell) : r;
+                return ap_io_bad(rd, "brdf.json", "atlas %dx%d, its mesh and cell give %dx%d", w, h,
+                                 m->atlas.width, m->atlas.height);
+        return r == -EINVAL ? ap_io_bad(rd, "mesh.bin", "no atlas of cell %d on this mesh", cell)
+                            : r;
 }
 
 int ap_brdf_read(const char *dir, struct ap_brdf_model **ret, char *err, size_t errlen)
 {
-        struct rd rd = {.err = err, .errlen = errlen};
+        char sub[4200];
+        struct ap_io_rd rd = {sub, err, errlen};
         _cleanup_(json_decrefp) json_t *doc = NULL;
         _cleanup_free_ void *text = NULL;
         struct ap_brdf_model *m;
@@ -272,13 +237,13 @@ int ap_brdf_read(const char *dir, struct ap_brdf_model **ret, char *err, size_t 
         int r;
 
         *ret = NULL;
-        snprintf(rd.dir, sizeof(rd.dir), "%s/brdf", dir);
-        r = slurp(&rd, "brdf.json", 0, &text, &len);
+        snprintf(sub, sizeof(sub), "%s/brdf", dir);
+        r = ap_io_slurp(&rd, "brdf.json", 0, &text, &len);
         if (r < 0)
                 return r == -EBADMSG ? -ENOENT : r;
         doc = json_loadb(text, len, 0, &e);
         if (!doc)
-                return bad(&rd, "brdf.json", "line %d: %s", e.line, e.text);
+                return ap_io_bad(&rd, "brdf.json", "line %d: %s", e.line, e.text);
         m = calloc(1, sizeof(*m));
         if (!m)
                 return -ENOMEM;
