@@ -7,7 +7,6 @@
  * seen), left out when saturated. Brackets are separate samples: the saturated
  * ones drop out. Images are read once, in order. */
 #include <errno.h>
-#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -15,11 +14,10 @@
 #include <time.h>
 
 #include "appearance/brdf_internal.h"
+#include "appearance/fit_internal.h"
 #include "common/cleanup.h"
-#include "common/fileio.h"
 #include "dataset/ds_png.h"
 
-#define PNG_MAX      ((size_t)1 << 30)
 #define SHADOW_SIDE  256   /* shadow map pixels a side */
 #define SHADOW_BIAS  0.002 /* relative depth tolerance of the shadow test... */
 #define SHADOW_SLOPE 2.0   /* ...plus this many of the map's pixel footprints */
@@ -302,18 +300,7 @@ static void image_free(struct image *im)
 
 static int decode(const struct brdf_ctx *c, const struct ds_capture *r, struct gn_frame *f)
 {
-        _cleanup_free_ void *buf = NULL;
-        char path[4400];
-        size_t len;
-        int e;
-
-        snprintf(path, sizeof(path), "%s/%s", c->dir, r->file);
-        e = gn_read_file_at(AT_FDCWD, path, PNG_MAX, &buf, &len);
-        if (e == 0)
-                e = ds_png_decode(buf, len, f);
-        if (e < 0)
-                snprintf((char *)c->err, sizeof(c->err), "%s: %s", path, strerror(-e));
-        return e;
+        return fit_read_image(c->dir, r, f, (char *)c->err, sizeof(c->err));
 }
 
 static float raw(const struct gn_frame *f, int x, int y, int ch)
