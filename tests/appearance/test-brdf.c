@@ -448,8 +448,8 @@ DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_model *, ap_model_free);
 static void test_relight(void)
 {
         static const double elev[] = {-27, -2, 22, 47, 72};
+        _cleanup_(ap_model_freep) struct ap_model *sh = NULL; /* after r, which refers to it */
         _cleanup_(ap_renderer_freep) struct ap_renderer *r = NULL;
-        _cleanup_(ap_model_freep) struct ap_model *sh = NULL;
         _cleanup_(ds_closep) struct ds *d = NULL;
         struct ap_mesh mesh;
         struct fitted f = {0};
