@@ -104,7 +104,7 @@ int ap_brdf_write(const struct ap_brdf_model *m, const char *ds_dir)
         snprintf(dir, sizeof(dir), "%s/models/%s", ds_dir, m->name);
         if (mkdir(dir, 0755) < 0 && errno != EEXIST)
                 return -errno;
-        snprintf(final, sizeof(final), "%s/brdf", dir);
+        snprintf(final, sizeof(final), "%s/" AP_IO_BRDF_DIR, dir);
         snprintf(tmp, sizeof(tmp), "%s/.brdf.tmp", dir);
         ap_remove_tree(tmp); /* left by an interrupted write */
         if (mkdir(tmp, 0755) < 0)
@@ -237,7 +237,7 @@ int ap_brdf_read(const char *dir, struct ap_brdf_model **ret, char *err, size_t 
         int r;
 
         *ret = NULL;
-        snprintf(sub, sizeof(sub), "%s/brdf", dir);
+        snprintf(sub, sizeof(sub), "%s/" AP_IO_BRDF_DIR, dir);
         r = ap_io_slurp(&rd, "brdf.json", 0, &text, &len);
         if (r < 0)
                 return r == -EBADMSG ? -ENOENT : r;

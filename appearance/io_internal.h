@@ -9,6 +9,8 @@
 /* Writes a new file name in dfd with buf and fsyncs it. Returns 0 or -errno. */
 int ap_io_put_file(int dfd, const char *name, const void *buf, size_t len);
 
+#define AP_IO_BRDF_DIR "brdf" /* models/<name>/brdf/: the BRDF model beside the SH model */
+
 /* Renames directory tmp to final, exchanging it with an older final (then removed), and
  * syncs the parent. Returns 0 or -errno. */
 int ap_io_install_dir(const char *tmp, const char *final);

@@ -321,6 +321,32 @@ int ap_io_install_dir(const char *tmp, const char *final)
         return gn_fsync_parent(final);
 }
 
+/* Hard-links the files of final's BRDF model folder into tmp, so that replacing the SH model
+ * keeps it, whenever the writer is killed (a link, not a move: final holds it throughout). */
+static int keep_brdf(const char *final, const char *tmp)
+{
+        char from[4300], to[4300], file[4600];
+        DIR *d;
+        struct dirent *e;
+        int r = 0;
+
+        snprintf(from, sizeof(from), "%s/%s", final, AP_IO_BRDF_DIR);
+        snprintf(to, sizeof(to), "%s/%s", tmp, AP_IO_BRDF_DIR);
+        if (!(d = opendir(from)))
+                return errno == ENOENT ? 0 : -errno;
+        if (mkdir(to, 0755) < 0)
+                r = -errno;
+        while (r == 0 && (e = readdir(d))) {
+                if (e->d_name[0] == '.')
+                        continue;
+                snprintf(file, sizeof(file), "%s/%s", to, e->d_name);
+                if (linkat(dirfd(d), e->d_name, AT_FDCWD, file, 0) < 0)
+                        r = -errno;
+        }
+        closedir(d);
+        return r;
+}
+
 int ap_model_write(const struct ap_model *m, const char *ds_dir)
 {
         char models[4096], tmp[4200], final[4200];
@@ -339,6 +365,8 @@ int ap_model_write(const struct ap_model *m, const char *ds_dir)
                 return -errno;
         dfd = open(tmp, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
         r = dfd < 0 ? -errno : put_model(dfd, m);
+        if (r == 0)
+                r = keep_brdf(final, tmp);
         if (r == 0)
                 r = ap_io_install_dir(tmp, final);
         if (r < 0)

@@ -131,6 +131,27 @@ static void put(const char *dir, const char *file, const void *buf, size_t len)
 }
 
 /* Written and read back bit for bit; a second write replaces the first. */
+/* Writes a tiny SH model named name into the dataset directory ds (model.h). */
+static void write_sh_model(const char *ds, const char *name)
+{
+        struct ap_model *sh;
+
+        CHECK_INT(ap_model_new(1, 1, 1, &sh), 0);
+        snprintf(sh->name, sizeof(sh->name), "%s", name);
+        snprintf(sh->reg, sizeof(sh->reg), "tikhonov");
+        sh->views[0].dir[2] = 1;
+        sh->views[0].cam = (struct ap_camera){.width = 2,
+                                              .height = 2,
+                                              .fx = 10,
+                                              .fy = 10,
+                                              .R = {1, 0, 0, 0, 1, 0, 0, 0, 1},
+                                              .t = {0, 0, 100}};
+        CHECK_INT(ap_view_alloc(&sh->views[0], 1), 0);
+        sh->views[0].mask[0] = 1;
+        CHECK_INT(ap_model_write(sh, ds), 0);
+        ap_model_free(sh);
+}
+
 static void test_io_roundtrip(void)
 {
         _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *m = small_model(), *r = NULL;
@@ -148,6 +169,12 @@ static void test_io_roundtrip(void)
         CHECK_INT(r->atlas.width, m->atlas.width);
         CHECK_INT(r->atlas.cell, 8);
         CHECK(memcmp(r->atlas.uv, m->atlas.uv, 24 * m->atlas.mesh.nt) == 0);
+        CHECK(memcmp(r->texels, m->texels, n * sizeof(*m->texels)) == 0);
+        /* an SH model written, then replaced, under the same name keeps the BRDF model */
+        r = ap_brdf_model_free(r);
+        write_sh_model(dir, "m");
+        write_sh_model(dir, "m");
+        CHECK_INT(ap_brdf_read(path, &r, err, sizeof(err)), 0);
         CHECK(memcmp(r->texels, m->texels, n * sizeof(*m->texels)) == 0);
         snprintf(path, sizeof(path), "%s/models/none", dir);
         CHECK_INT(ap_brdf_read(path, &r, err, sizeof(err)), -ENOENT);
