@@ -94,8 +94,8 @@ static double cpu_fps(const char *ds, const char *model, int w, int h)
                 exit(1);
         ap_renderer_centre(r, c);
         memcpy(dir, m->views[0].dir, sizeof(dir));
-        in.fx = in.fy = m->views[0].cam.fx * fmin((double)w / m->views[0].cam.width,
-                                                  (double)h / m->views[0].cam.height);
+        in.fx = in.fy = m->views[0].cam.fx *
+                        fmin((double)w / m->views[0].cam.width, (double)h / m->views[0].cam.height);
         for (int i = 0; i < 3; i++)
                 eye[i] = c[i] + 400 * dir[i];
         ap_camera_look_at(&in, eye, c, &cam);
@@ -142,8 +142,8 @@ int main(int argc, char **argv)
                 return 1;
         while (fgets(line, sizeof(line), p))
                 snprintf(last, sizeof(last), "%s", line);
-        if (pclose(p) != 0 || sscanf(last, "{\"fps\": %lf, \"first_frame_bytes\": %lld", &fps,
-                                     &first) != 2) {
+        if (pclose(p) != 0 ||
+            sscanf(last, "{\"fps\": %lf, \"first_frame_bytes\": %lld", &fps, &first) != 2) {
                 fprintf(stderr, "viewer: the browser half failed: %s\n", last);
                 return 1;
         }
