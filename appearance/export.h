@@ -42,3 +42,11 @@ int ap_export_ply(struct ds *d, const char *ds_dir, const char *dir, const struc
                   char *err, size_t errlen);
 int ap_export_rti(struct ds *d, const char *ds_dir, const char *dir, const struct ap_export_opts *o,
                   char *err, size_t errlen);
+
+struct ap_brdf_model;
+
+/* Writes the BRDF model m (brdf.h) as glTF 2.0 into the folder dir, which must not exist or be
+ * empty (as ap_write_folder): model.gltf, model.bin and its PNG textures (docs/exports.md,
+ * "glTF"). Returns 0, -EINVAL (no model, an empty mesh), -EEXIST or -errno, with a sentence
+ * in err. */
+int ap_export_gltf_model(const struct ap_brdf_model *m, const char *dir, char *err, size_t errlen);
