@@ -24,6 +24,9 @@
 #define RADIUS 25.0               /* mm */
 #define CELL   8                  /* atlas texels a cell side */
 #define Q      (0.5 / 255 + 1e-4) /* half an 8-bit step */
+/* a unit vector of 8-bit components ((x + 1) / 2 quantised) is within atan(sqrt(3) / 255)
+ * = 0.39 degrees of the one written */
+#define ANGLE_TOL (0.5f * (float)M_PI / 180)
 
 /* ---- the model ---- */
 
@@ -274,11 +277,36 @@ static void cross3(const float *a, const float *b, float *c)
         c[2] = a[0] * b[1] - a[1] * b[0];
 }
 
+/* Triangle t's tangent frame follows its uvs as glTF's normal textures need it: T along
+ * +u, the bitangent N x T w up the image (along -v: glTF's v runs down the image). */
+static void check_handedness(const struct gltf *g, size_t t)
+{
+        const float *p = &g->attr[0][9 * t], *uv = &g->attr[3][6 * t];
+        float e1[3], e2[3], dpdu[3], dpdv[3], b[3];
+        float du1 = uv[2] - uv[0], dv1 = uv[3] - uv[1], du2 = uv[4] - uv[0], dv2 = uv[5] - uv[1];
+        float det = du1 * dv2 - du2 * dv1;
+
+        for (int k = 0; k < 3; k++) {
+                e1[k] = p[3 + k] - p[k];
+                e2[k] = p[6 + k] - p[k];
+                dpdu[k] = (e1[k] * dv2 - e2[k] * dv1) / det;
+                dpdv[k] = (e2[k] * du1 - e1[k] * du2) / det;
+        }
+        for (int c = 0; c < 3; c++) {
+                const float *n = &g->attr[1][3 * (3 * t + c)], *tg = &g->attr[2][4 * (3 * t + c)];
+                cross3(n, tg, b);
+                CHECK(dot3(tg, dpdu) > 0);
+                CHECK(dot3(b, dpdv) * tg[3] < 0);
+        }
+}
+
 /* Every corner is its own vertex: the mesh's position, the atlas' uv, a unit normal, a unit
- * tangent orthogonal to it with w = +-1. */
+ * tangent orthogonal to it with w = +-1, the frame oriented by the uvs. */
 static void check_vertices(const struct gltf *g, const struct ap_atlas *a)
 {
         CHECK_INT(g->nv, 3 * a->mesh.nt);
+        for (size_t t = 0; t < a->mesh.nt; t++)
+                check_handedness(g, t);
         for (size_t v = 0; v < g->nv; v++) {
                 const float *p = &g->attr[0][3 * v], *n = &g->attr[1][3 * v],
                             *t = &g->attr[2][4 * v], *uv = &g->attr[3][2 * v];
@@ -387,7 +415,7 @@ static void check_lobe(const struct gltf *g, size_t i, const struct ap_brdf_texe
                 memcpy(want, x->tangent, sizeof(want));
         else
                 cross3(x->normal, x->tangent, want);
-        CHECK(fabsf(dot3(d, want)) >= cosf(2 * (float)M_PI / 180));
+        CHECK(fabsf(dot3(d, want)) >= cosf(ANGLE_TOL));
 }
 
 /* The base colour and metalness of texel i against x (docs/exports.md's mapping). */
@@ -425,7 +453,7 @@ static void check_texel(const struct gltf *g, const struct ap_brdf_model *m, int
                        snorm(g->img[IMG_NORMAL][3 * i + 1]) * B[k] +
                        snorm(g->img[IMG_NORMAL][3 * i + 2]) * N[k];
         normalize3(n);
-        CHECK(dot3(n, px->normal) >= cosf((float)M_PI / 180));
+        CHECK(dot3(n, px->normal) >= cosf(ANGLE_TOL));
         check_lobe(g, i, px, T, B, n);
         check_colour(g, i, px);
 }
