@@ -13,6 +13,7 @@
 #include <fcntl.h>
 #include <jansson.h>
 #include <math.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -182,10 +183,14 @@ static void metal_fit(const struct ap_brdf_texel *x, float c[3], float *m)
 }
 
 /* Texel x's roughness r and anisotropy strength s with its direction dir (the one of larger
- * alpha): KHR_materials_anisotropy's alpha_b = r^2, alpha_t = mix(r^2, 1, s^2). */
+ * alpha): KHR_materials_anisotropy's alpha_b = r^2, alpha_t = mix(r^2, 1, s^2). A texel
+ * without a lobe (ks 0: diffuse only) is fully rough, so that glTF's 0.04 floor of specular
+ * makes no glint. */
 static void aniso_fit(const struct ap_brdf_texel *x, float *r, float *s, struct v3 *dir)
 {
-        float amin = fminf(fminf(x->ax, x->ay), 1.0f), amax = fminf(fmaxf(x->ax, x->ay), 1.0f);
+        bool lobe = x->ks > 0;
+        float amin = lobe ? fminf(fminf(x->ax, x->ay), 1.0f) : 1.0f;
+        float amax = lobe ? fminf(fmaxf(x->ax, x->ay), 1.0f) : 1.0f;
         struct v3 n = v3_at(x->normal), t = v3_at(x->tangent);
 
         amin = fmaxf(amin, 0.0f);
