@@ -73,15 +73,34 @@ static struct v3 face_normal(const struct ap_mesh *m, size_t t)
         return v3_len(n) > 0 ? v3_norm(n) : v3(0, 0, 1);
 }
 
+/* The normals of triangle t's corners: their vertices' area-weighted normals; for a vertex
+ * of collapsed triangles only (no normal), the mean of the other corners' or else the
+ * triangle's own. */
+static void corner_normals(const struct ap_atlas *a, size_t t, struct v3 n[3])
+{
+        struct v3 sum = v3(0, 0, 0);
+        bool ok[3];
+
+        for (int c = 0; c < 3; c++) {
+                n[c] = v3_at(&a->vnormal[3 * a->mesh.idx[3 * t + c]]);
+                ok[c] = fabsf(v3_len(n[c]) - 1) < 1e-3f;
+                sum = ok[c] ? v3_add(sum, n[c]) : sum;
+        }
+        sum = v3_len(sum) > 1e-3f ? v3_norm(sum) : face_normal(&a->mesh, t);
+        for (int c = 0; c < 3; c++)
+                n[c] = ok[c] ? n[c] : sum;
+}
+
 /* The vertices of triangle t (3 corners x 12 floats: position, normal, tangent xyzw, uv). */
 static void corner_vertices(const struct ap_atlas *a, size_t t, float out[3][12])
 {
         const struct ap_mesh *m = &a->mesh;
         const float *uv = &a->uv[6 * t];
-        struct v3 p[3], e1, e2, dpdu, dpdv;
+        struct v3 p[3], nc[3], e1, e2, dpdu, dpdv;
         float du1 = uv[2] - uv[0], dv1 = uv[3] - uv[1], du2 = uv[4] - uv[0], dv2 = uv[5] - uv[1];
         float det = du1 * dv2 - du2 * dv1;
 
+        corner_normals(a, t, nc);
         for (int c = 0; c < 3; c++)
                 p[c] = v3_at(&m->pos[3 * m->idx[3 * t + c]]);
         e1 = v3_sub(p[1], p[0]);
@@ -89,11 +108,8 @@ static void corner_vertices(const struct ap_atlas *a, size_t t, float out[3][12]
         dpdu = v3_scale(v3_sub(v3_scale(e1, dv2), v3_scale(e2, dv1)), det != 0 ? 1 / det : 0);
         dpdv = v3_scale(v3_sub(v3_scale(e2, du1), v3_scale(e1, du2)), det != 0 ? 1 / det : 0);
         for (int c = 0; c < 3; c++) {
-                struct v3 n = v3_at(&a->vnormal[3 * m->idx[3 * t + c]]), tg;
+                struct v3 n = nc[c], tg = orthonormal(dpdu, n);
                 float *o = out[c];
-                if (!(fabsf(v3_len(n) - 1) < 1e-3f))
-                        n = face_normal(m, t);
-                tg = orthonormal(dpdu, n);
                 memcpy(o, &p[c], sizeof(float[3]));
                 memcpy(o + 3, &n, sizeof(float[3]));
                 memcpy(o + 6, &tg, sizeof(float[3]));

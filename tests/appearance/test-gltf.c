@@ -44,12 +44,14 @@ static void cube_point(int f, int i, int j, float *p)
                 p[k] = (float)(RADIUS * q[k] / l);
 }
 
-/* A cube-sphere: 6 faces of GRID x GRID quads, 2 triangles each, vertices shared in a face. */
+/* A cube-sphere: 6 faces of GRID x GRID quads, 2 triangles each, vertices shared in a face;
+ * then a collapsed triangle (as at the poles of a UV sphere) whose first two corners are a
+ * vertex of no other triangle (no area-weighted normal), at vertex 0. */
 static void sphere(struct ap_mesh *m)
 {
         size_t per = (GRID + 1) * (GRID + 1), t = 0;
 
-        *m = (struct ap_mesh){.nv = 6 * per, .nt = 6 * GRID * GRID * 2};
+        *m = (struct ap_mesh){.nv = 6 * per + 1, .nt = 6 * GRID * GRID * 2 + 1};
         m->pos = malloc(3 * m->nv * sizeof(float));
         m->idx = malloc(3 * m->nt * sizeof(uint32_t));
         CHECK(m->pos && m->idx);
@@ -64,6 +66,9 @@ static void sphere(struct ap_mesh *m)
                                 uint32_t b = a + GRID + 1, q[6] = {a, b, a + 1, a + 1, b, b + 1};
                                 memcpy(&m->idx[3 * t], q, sizeof(q));
                         }
+        memcpy(&m->pos[3 * (m->nv - 1)], &m->pos[0], sizeof(float[3]));
+        m->idx[3 * t] = m->idx[3 * t + 1] = (uint32_t)(m->nv - 1);
+        m->idx[3 * t + 2] = 1;
 }
 
 static void normalize3(float *v)
@@ -291,6 +296,8 @@ static void check_handedness(const struct gltf *g, size_t t)
         float du1 = uv[2] - uv[0], dv1 = uv[3] - uv[1], du2 = uv[4] - uv[0], dv2 = uv[5] - uv[1];
         float det = du1 * dv2 - du2 * dv1;
 
+        if (p[0] == p[3] && p[1] == p[4] && p[2] == p[5])
+                return; /* collapsed: any frame */
         for (int k = 0; k < 3; k++) {
                 e1[k] = p[3 + k] - p[k];
                 e2[k] = p[6 + k] - p[k];
