@@ -126,6 +126,7 @@ struct frame {
         struct v3 t, b, n;
 };
 
+/* The frame at texel i's centre from its triangle's corners in vert (DESIGN). */
 static struct frame texel_frame(const struct ap_atlas *a, const float *vert, size_t i)
 {
         const float *bary = &a->bary[3 * i];
@@ -145,6 +146,7 @@ static struct frame texel_frame(const struct ap_atlas *a, const float *vert, siz
         return f;
 }
 
+/* [0, 1] into a byte. */
 static uint8_t unorm8(float x)
 {
         return (uint8_t)lrintf(255.0f * fminf(fmaxf(x, 0.0f), 1.0f));
@@ -156,6 +158,7 @@ static uint8_t snorm8(float x)
         return unorm8(0.5f * x + 0.5f);
 }
 
+/* A linear value in [0, 1] encoded with the sRGB transfer function (IEC 61966-2-1). */
 static float srgb_encode(float c)
 {
         c = fminf(fmaxf(c, 0.0f), 1.0f);
@@ -251,7 +254,21 @@ static void encode_blank(uint8_t px[TEX_N][3])
         memcpy(px, blank, sizeof(blank));
 }
 
-/* Fills the texture images img[TEX_N] (3 bytes a texel each) of model m. */
+/* Whether every parameter of texel x is a number (a fit can leave NaN where it failed). */
+static bool texel_finite(const struct ap_brdf_texel *x)
+{
+        const float v[] = {x->albedo[0],  x->albedo[1],  x->albedo[2], x->ks,        x->ax,
+                           x->ay,         x->f0,         x->normal[0], x->normal[1], x->normal[2],
+                           x->tangent[0], x->tangent[1], x->tangent[2]};
+
+        for (size_t k = 0; k < sizeof(v) / sizeof(v[0]); k++)
+                if (!isfinite(v[k]))
+                        return false;
+        return true;
+}
+
+/* Fills the texture images img[TEX_N] (3 bytes a texel each) of model m: blank where a
+ * texel is of no triangle, masked or not a number. */
 static void fill_textures(const struct ap_brdf_model *m, const float *vert, uint8_t *img[TEX_N])
 {
         const struct ap_atlas *a = &m->atlas;
@@ -259,7 +276,7 @@ static void fill_textures(const struct ap_brdf_model *m, const float *vert, uint
         for (size_t i = 0; i < (size_t)a->width * a->height; i++) {
                 const struct ap_brdf_texel *x = &m->texels[i];
                 uint8_t px[TEX_N][3];
-                if (a->tri[i] < 0 || (x->flags & AP_BRDF_MASKED)) {
+                if (a->tri[i] < 0 || (x->flags & AP_BRDF_MASKED) || !texel_finite(x)) {
                         encode_blank(px);
                 } else {
                         struct frame f = texel_frame(a, vert, i);

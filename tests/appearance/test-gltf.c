@@ -82,7 +82,7 @@ static void normalize3(float *v)
 /* Texel x at point p (normal n): three materials by height (a dielectric, a coloured
  * conductor-like mix, a pure metal), roughness and anisotropy varying over the sphere, the
  * tangent along the parallels, the shading normal tilted from n; every 13th texel diffuse
- * only (ks 0, no roughness), every 11th masked. */
+ * only (ks 0, no roughness), every 17th not a number, every 11th masked. */
 static void texel_at(size_t i, const float p[3], const float n[3], struct ap_brdf_texel *x)
 {
         float h = p[2] / (float)RADIUS, t[3] = {-n[1], n[0], 0}, tn;
@@ -108,6 +108,8 @@ static void texel_at(size_t i, const float p[3], const float n[3], struct ap_brd
                 x->ks = x->ax = x->ay = 0;
                 x->flags = AP_BRDF_DIFFUSE_ONLY;
         }
+        if (i % 17 == 0) /* a failed fit: written as masked */
+                x->ay = NAN;
         if (i % 11 == 0)
                 *x = (struct ap_brdf_texel){.flags = AP_BRDF_MASKED};
 }
@@ -491,7 +493,7 @@ static void test_decode(void)
                         const float *b = &a->bary[3 * i];
                         if (a->tri[i] < 0 || !(b[0] > 0 && b[1] > 0 && b[2] > 0))
                                 continue;
-                        if (m->texels[i].flags & AP_BRDF_MASKED) {
+                        if ((m->texels[i].flags & AP_BRDF_MASKED) || isnan(m->texels[i].ay)) {
                                 CHECK_INT(g.img[IMG_MR][3 * i + 1], 255);
                                 CHECK_INT(g.img[IMG_MR][3 * i + 2], 0);
                                 masked++;
@@ -503,7 +505,7 @@ static void test_decode(void)
                 }
         fprintf(stderr, "%zu vertices, %dx%d texels, %d decoded (%d diffuse only), %d masked\n",
                 g.nv, g.width, g.height, seen, diffuse, masked);
-        CHECK(seen > 1000 && masked > 50 && diffuse > 50);
+        CHECK(seen > 900 && masked > 50 && diffuse > 50);
         gltf_free(&g);
 }
 
