@@ -535,6 +535,7 @@ static void test_validator(void)
         json_t *report, *issues;
         int r;
 
+        CHECK(getenv("GLTF_VALIDATE")); /* scripts/gltf-validate (meson.build sets it) */
         snprintf(cmd, sizeof(cmd), "%s %s/model.gltf", getenv("GLTF_VALIDATE"), export(m, dir));
         r = run(cmd, out, sizeof(out));
         if (r == TEST_SKIP)
@@ -560,6 +561,7 @@ static void test_blender(void)
                 fprintf(stderr, "no /usr/bin/blender (scripts/install-deps installs it)\n");
                 exit(TEST_SKIP);
         }
+        CHECK(getenv("GLTF_BLENDER")); /* tests/appearance/gltf-blender.py */
         snprintf(cmd, sizeof(cmd),
                  "/usr/bin/blender -b --factory-startup -noaudio --python-exit-code 3 "
                  "--python %s -- %s/model.gltf %zu %zu 2>&1",
