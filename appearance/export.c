@@ -1,6 +1,13 @@
 /* export.c - ap_export (export.h): the format table, the destination checked (absent or an
  * empty folder), the writer run in a temporary folder beside it, renamed into place; and
- * what the writers share (export_internal.h): the geometry, the images, the scan's cloud. */
+ * what the writers share (export_internal.h): the geometry, the images, the scan's cloud.
+ *
+ * DESIGN: the temporary folder (.NAME.export-XXXXXX beside NAME) is locked (flock on its
+ * descriptor) from just after its creation until it is renamed or removed, so that a killed
+ * export's folder, whose lock died with it, is told from one being written by a live export:
+ * the next export to the same NAME removes the unlocked ones and says so. A folder caught in
+ * the instant between its creation and its lock is taken for a killed one's too: the export
+ * writing it then fails (ENOENT), which leaves no partial NAME either. */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -9,6 +16,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -51,26 +59,93 @@ static int check_destination(const char *path)
         return r;
 }
 
-int ap_write_folder(const char *out_dir, ap_fill_fn fill, void *ctx, char *err, size_t errlen)
+/* The folder holding out_dir into parent, and ".BASE.export-", the prefix of its temporary
+ * folders, into prefix. */
+static void temporary_prefix(const char *out_dir, char *parent, size_t plen, char *prefix,
+                             size_t xlen)
 {
-        char tmp[8400], dir[4096], base[4096];
-        int r = check_destination(out_dir);
+        char dir[4096], base[4096];
 
-        if (r < 0) {
-                snprintf(err, errlen, "%s: %s", out_dir,
-                         r == -EEXIST ? "exists and is not an empty folder" : strerror(-r));
-                return r;
-        }
         snprintf(dir, sizeof(dir), "%s", out_dir);
         snprintf(base, sizeof(base), "%s", out_dir);
-        snprintf(tmp, sizeof(tmp), "%s/.%s.export-XXXXXX", dirname(dir), basename(base));
+        snprintf(parent, plen, "%s", dirname(dir));
+        snprintf(prefix, xlen, ".%s.export-", basename(base));
+}
+
+/* Removes the temporary folders of out_dir that no live export holds (left by a killed
+ * one); says how many in notes (notes_len bytes) when notes is not NULL. */
+static void remove_stale(const char *out_dir, char *notes, size_t notes_len)
+{
+        char parent[4096], prefix[4200], path[8400];
+        struct dirent *e;
+        unsigned n = 0;
+        DIR *d;
+
+        temporary_prefix(out_dir, parent, sizeof(parent), prefix, sizeof(prefix));
+        if (!(d = opendir(parent)))
+                return;
+        while ((e = readdir(d))) {
+                if (strncmp(e->d_name, prefix, strlen(prefix)) != 0 ||
+                    strlen(e->d_name) != strlen(prefix) + 6)
+                        continue;
+                snprintf(path, sizeof(path), "%s/%s", parent, e->d_name);
+                int fd = open(path, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+                if (fd >= 0 && flock(fd, LOCK_EX | LOCK_NB) == 0) {
+                        ap_remove_tree(path);
+                        n++;
+                }
+                if (fd >= 0)
+                        close(fd);
+        }
+        closedir(d);
+        if (n > 0 && notes)
+                snprintf(notes, notes_len,
+                         "removed %u temporary folder%s of an interrupted export (%s/%sXXXXXX)", n,
+                         n > 1 ? "s" : "", parent, prefix);
+}
+
+/* Creates and locks the temporary folder of out_dir into tmp. Returns its fd or -errno. */
+static int make_temporary(const char *out_dir, char *tmp, size_t len, char *err, size_t errlen)
+{
+        char parent[4096], prefix[4200];
+        int fd, r;
+
+        temporary_prefix(out_dir, parent, sizeof(parent), prefix, sizeof(prefix));
+        snprintf(tmp, len, "%s/%sXXXXXX", parent, prefix);
         if (!mkdtemp(tmp)) {
                 r = -errno;
                 snprintf(err, errlen, "cannot create a temporary folder beside %s: %s", out_dir,
                          strerror(-r));
                 return r;
         }
-        chmod(tmp, 0755);
+        fd = open(tmp, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+        if (fd < 0 || flock(fd, LOCK_EX) < 0) {
+                r = -errno;
+                snprintf(err, errlen, "cannot lock %s: %s", tmp, strerror(-r));
+                if (fd >= 0)
+                        close(fd);
+                ap_remove_tree(tmp);
+                return r;
+        }
+        fchmod(fd, 0755);
+        return fd;
+}
+
+/* ap_write_folder, the stale temporary folders it removed said in notes (or NULL). */
+static int write_folder(const char *out_dir, ap_fill_fn fill, void *ctx, char *notes,
+                        size_t notes_len, char *err, size_t errlen)
+{
+        char tmp[8400];
+        int fd, r = check_destination(out_dir);
+
+        if (r < 0) {
+                snprintf(err, errlen, "%s: %s", out_dir,
+                         r == -EEXIST ? "exists and is not an empty folder" : strerror(-r));
+                return r;
+        }
+        remove_stale(out_dir, notes, notes_len);
+        if ((fd = make_temporary(out_dir, tmp, sizeof(tmp), err, errlen)) < 0)
+                return fd;
         r = fill(ctx, tmp, err, errlen);
         if (r == 0 && rename(tmp, out_dir) < 0) {
                 r = errno == ENOTEMPTY ? -EEXIST : -errno;
@@ -79,7 +154,13 @@ int ap_write_folder(const char *out_dir, ap_fill_fn fill, void *ctx, char *err, 
         }
         if (r < 0)
                 ap_remove_tree(tmp);
+        close(fd); /* the lock: after the rename or the removal */
         return r < 0 ? r : gn_fsync_parent(out_dir);
+}
+
+int ap_write_folder(const char *out_dir, ap_fill_fn fill, void *ctx, char *err, size_t errlen)
+{
+        return write_folder(out_dir, fill, ctx, NULL, 0, err, errlen);
 }
 
 struct dataset_export {
@@ -105,6 +186,8 @@ int ap_export(const char *ds_dir, const char *format, const char *out_dir,
 
         if (!ds_dir || !format || !out_dir || !*out_dir)
                 return -EINVAL;
+        if (opts.notes && opts.notes_len > 0)
+                opts.notes[0] = 0;
         for (size_t i = 0; i < sizeof(formats) / sizeof(formats[0]); i++) {
                 struct dataset_export x = {formats[i].fn, NULL, ds_dir, &opts};
                 if (strcmp(formats[i].name, format) != 0)
@@ -114,7 +197,8 @@ int ap_export(const char *ds_dir, const char *format, const char *out_dir,
                         return r;
                 }
                 x.d = d;
-                return ap_write_folder(out_dir, fill_dataset_export, &x, err, errlen);
+                return write_folder(out_dir, fill_dataset_export, &x, opts.notes, opts.notes_len,
+                                    err, errlen);
         }
         snprintf(err, errlen, "unknown format '%s' (colmap, nerfstudio, ply, rti)", format);
         return -EINVAL;

@@ -13,13 +13,16 @@ struct ap_export_opts {
         const char *model;       /* models/<name> of the dataset to export from; NULL: "default" */
         const char *calibration; /* calibration file, "nominal", or NULL: the dataset's own */
         const struct rig_backend *const *backends; /* to read the dataset's rig.yaml */
+        char *notes;      /* NULL, or notes_len bytes for what the export did besides writing: */
+        size_t notes_len; /* temporary folders of killed exports removed ("" for nothing) */
 };
 
 /* Writes the dataset at ds_dir as format ("colmap", "nerfstudio", "ply", "rti") into the
- * folder out_dir, which must not exist or be empty: built in a temporary folder, then
- * renamed. Returns 0, -EINVAL (unknown format, with the known ones in err), -EEXIST (out_dir
- * not empty), -ENOENT (what the format needs is missing: a model, a scan) or -errno, with a
- * sentence in err. */
+ * folder out_dir, which must not exist or be empty: built in a temporary folder, locked while
+ * it is written, then renamed; out_dir's temporary folders that no live export holds (left by
+ * a killed one) are removed first and counted in o->notes. Returns 0, -EINVAL (unknown
+ * format, with the known ones in err), -EEXIST (out_dir not empty), -ENOENT (what the format
+ * needs is missing: a model, a scan) or -errno, with a sentence in err. */
 int ap_export(const char *ds_dir, const char *format, const char *out_dir,
               const struct ap_export_opts *o, char *err, size_t errlen);
 
@@ -27,7 +30,8 @@ int ap_export(const char *ds_dir, const char *format, const char *out_dir,
 typedef int (*ap_fill_fn)(void *ctx, const char *dir, char *err, size_t errlen);
 
 /* Creates the folder out_dir (which must not exist or be empty) by fill(ctx, ...) on a
- * temporary folder beside it, renamed into place when fill succeeds and removed when not.
+ * temporary folder beside it, locked while filled, renamed into place when fill succeeds and
+ * removed when not; out_dir's temporary folders no live writer holds are removed first.
  * Returns 0, -EEXIST (out_dir not empty), or fill's or the file system's -errno, with a
  * sentence in err. */
 int ap_write_folder(const char *out_dir, ap_fill_fn fill, void *ctx, char *err, size_t errlen);

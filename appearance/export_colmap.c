@@ -41,22 +41,32 @@ static void quaternion(const double R[9], double q[4])
                         q[k] = -q[k];
 }
 
+/* The camera of the first image of rig camera c, or NULL when c has no image. */
+static const struct ap_camera *first_camera(const struct ap_geometry *g, size_t c)
+{
+        for (size_t v = 0; v < g->n_shots; v++)
+                if (g->shots[v].cam == (int)c)
+                        return &g->cameras[g->shots[v].view];
+        return NULL;
+}
+
+/* cameras.txt: one line per rig camera with images (the header counts those lines). */
 static int write_cameras(const struct ap_geometry *g, const char *dir, char *err, size_t errlen)
 {
         FILE *f = exp_open(dir, "cameras.txt", err, errlen);
+        size_t n = 0;
 
         if (!f)
                 return -errno;
+        for (size_t c = 0; c < g->rc->n_cameras; c++)
+                n += first_camera(g, c) != NULL;
         fprintf(f,
                 "# Camera list with one line of data per camera:\n"
                 "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
                 "# Number of cameras: %zu\n",
-                g->rc->n_cameras);
+                n);
         for (size_t c = 0; c < g->rc->n_cameras; c++) {
-                const struct ap_camera *k = NULL;
-                for (size_t v = 0; v < g->n_shots && !k; v++)
-                        if (g->shots[v].cam == (int)c)
-                                k = &g->cameras[g->shots[v].view];
+                const struct ap_camera *k = first_camera(g, c);
                 if (!k)
                         continue;
                 fprintf(f, "%zu %s %d %d %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g", c + 1,

@@ -21,8 +21,9 @@
 #include "common/cleanup.h"
 #include "common/fileio.h"
 
-#define MODEL_FORMAT "gonio-appearance 1"
-#define Q_MAX        65535.0f
+#define MODEL_VERSION 1
+#define MODEL_FORMAT  "gonio-appearance 1"
+#define Q_MAX         65535.0f
 
 struct ap_model *ap_model_free(struct ap_model *m)
 {
@@ -510,11 +511,15 @@ static int read_header(const struct rd *rd, json_t *doc, struct ap_model **ret)
         const char *fmt = "", *name = "", *notes = "", *reg = "";
         json_t *views = NULL;
         json_error_t e;
-        int order, k, r;
+        int order, k, version, r;
 
         if (json_unpack_ex(doc, &e, 0, "{s:s,s:s,s:i,s:i,s:s,s:o}", "format", &fmt, "name", &name,
                            "order", &order, "components", &k, "notes", &notes, "views", &views) < 0)
                 return bad(rd, "model.json", "%s", e.text);
+        if (sscanf(fmt, "gonio-appearance %d", &version) == 1 && version > MODEL_VERSION)
+                return bad(rd, "model.json",
+                           "format '%s' is newer than this gonio reads ('%s'): update gonio", fmt,
+                           MODEL_FORMAT);
         if (strcmp(fmt, MODEL_FORMAT) != 0)
                 return bad(rd, "model.json", "format '%s', expected '%s'", fmt, MODEL_FORMAT);
         if (order < 1 || order > AP_ORDER_MAX || k < 1 || k > AP_K_MAX)
@@ -549,7 +554,8 @@ int ap_model_read(const char *dir, struct ap_model **ret, char *err, size_t errl
                 return r == -EBADMSG ? -ENOENT : r;
         doc = json_loadb(text, len, 0, &e);
         if (!doc)
-                return bad(&rd, "model.json", "line %d: %s", e.line, e.text);
+                return bad(&rd, "model.json", "line %d: %s%s", e.line, e.text,
+                           e.position >= (int)len ? " (the file is cut short)" : "");
         r = read_header(&rd, doc, &m);
         for (size_t i = 0; r == 0 && i < m->n_views; i++)
                 r = read_view(&rd, json_array_get(json_object_get(doc, "views"), i), m, i);

@@ -56,17 +56,20 @@ static int parse_export(int n, char **words, struct export_cli *e)
 int export_command(const struct args *a, struct out *o, json_t **ret)
 {
         struct export_cli e = {0};
-        char err[1024] = "";
+        char err[1024] = "", notes[1024] = "";
         int r;
 
         if (parse_export(a->nwords - 1, a->words + 1, &e) < 0)
                 return EXIT_USAGE;
+        e.o.notes = notes;
+        e.o.notes_len = sizeof(notes);
         r = ap_export(e.dataset, e.format, e.dir, &e.o, err, sizeof(err));
         if (r < 0) {
                 out_error(o, WHAT, "%s", err[0] ? err : strerror(-r));
                 return cmd_exit_for_errno(r);
         }
-        *ret = json_pack("{s:s,s:s,s:s}", "dataset", e.dataset, "format", e.format, "dir", e.dir);
+        *ret = json_pack("{s:s,s:s,s:s,s:s}", "dataset", e.dataset, "format", e.format, "dir",
+                         e.dir, "notes", notes);
         return *ret ? EXIT_OK : EXIT_PROTOCOL;
 }
 
@@ -75,4 +78,6 @@ void export_print(json_t *res)
         printf("%s: %s written into %s\n", json_string_value(json_object_get(res, "dataset")),
                json_string_value(json_object_get(res, "format")),
                json_string_value(json_object_get(res, "dir")));
+        if (*json_string_value(json_object_get(res, "notes")))
+                printf("notes: %s\n", json_string_value(json_object_get(res, "notes")));
 }

@@ -30,6 +30,7 @@ struct aps_opts {
         double albedo[3];
         double ks, alpha; /* Beckmann lobe: weight and roughness; ks 0: diffuse */
         bool mesh;        /* store the true surface as the dataset's mesh.ply */
+        double dist[5];   /* the cameras' lens distortion (OpenCV k1 k2 p1 p2 k3; 0: none) */
 };
 
 /* The materials of the tests and of docs/appearance.md's PSNR table. */

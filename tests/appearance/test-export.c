@@ -69,6 +69,43 @@ static void distort_rig(const char *path)
         CHECK_INT(gn_write_atomic(AT_FDCWD, file, out, n, NULL), 0);
 }
 
+/* Adds a third camera that took no image to the dataset's rig.yaml, after c1. */
+static void add_idle_camera(const char *path)
+{
+        static const char cam[] = "  - { name: c9, sim: { bus: frames }, elevation: 70, distance: "
+                                  "400, azimuth: 0, target: [0, 0, 30], width: 48, height: 36, "
+                                  "fx: 192, fy: 192, exposure_us: 20000 }\n";
+        _cleanup_free_ char *text = NULL;
+        char file[600], out[16384];
+        const char *at;
+        size_t len;
+        int n;
+
+        snprintf(file, sizeof(file), "%s/rig.yaml", path);
+        CHECK_INT(gn_read_file_at(AT_FDCWD, file, 1 << 20, (void **)&text, &len), 0);
+        CHECK((at = strstr(text, "name: c1, ")) != NULL);
+        CHECK((at = strchr(at, '\n')) != NULL);
+        n = snprintf(out, sizeof(out), "%.*s%s%s", (int)(at + 1 - text), text, cam, at + 1);
+        CHECK(n > 0 && (size_t)n < sizeof(out));
+        CHECK_INT(gn_write_atomic(AT_FDCWD, file, out, (size_t)n, NULL), 0);
+}
+
+/* The count in cameras.txt's "# Number of cameras: N" line. */
+static int header_cameras(const char *dir)
+{
+        char path[600], line[512];
+        FILE *f;
+        int n = -1;
+
+        snprintf(path, sizeof(path), "%s/cameras.txt", dir);
+        CHECK((f = fopen(path, "re")) != NULL);
+        while (fgets(line, sizeof(line), f))
+                if (sscanf(line, "# Number of cameras: %d", &n) == 1)
+                        break;
+        fclose(f);
+        return n;
+}
+
 /* The scan: N_SCAN points of the sphere (centre (0, 0, 30), radius 30) with outward normals
  * and colours, as the dataset's scan.ply. */
 static void write_scan(const char *path)
@@ -227,7 +264,8 @@ static bool cm_project(const struct cm_camera *c, const struct cm_image *im, con
         return true;
 }
 
-/* The COLMAP model: every scan point of every image lands where gonio's camera puts it. */
+/* The COLMAP model: every scan point of every image lands where gonio's camera puts it; a rig
+ * camera without images has no line, and the header counts the lines written. */
 static void test_colmap(void)
 {
         _cleanup_(rm_rfp) char *dir = tu_tmpdir();
@@ -240,11 +278,13 @@ static void test_colmap(void)
         double worst = 0;
         int nc, ni, seen = 0;
 
+        add_idle_camera(path);
         snprintf(out, sizeof(out), "%s/colmap", dir);
         CHECK_INT(export(path, "colmap", out, err, sizeof(err)), 0);
         nc = read_cameras(out, cams, 4);
         ni = read_images(out, im, MAX_SHOT);
         CHECK_INT(nc, 2);
+        CHECK_INT(header_cameras(out), 2);
         CHECK_STR(cams[0].model, "FULL_OPENCV");
         CHECK_STR(cams[1].model, "OPENCV");
         CHECK_INT((int)g->n_shots, 24);

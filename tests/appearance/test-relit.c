@@ -4,6 +4,7 @@
  * gonioctl model render on a model written into its dataset, with bad input. */
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -231,6 +232,32 @@ static void test_gonioctl(void)
         fitted_free(&f);
 }
 
+/* The model's model.json cut in half, then from a newer gonio: gonioctl model render says
+ * which, exit 6, no image written. */
+static void check_bad_model_json(const struct fitted *f)
+{
+        _cleanup_free_ char *text = NULL;
+        char path[600], args[2048], out[4096], *v;
+        size_t len;
+
+        snprintf(path, sizeof(path), "%s/models/default/model.json", f->ds);
+        CHECK_INT(gn_read_file_at(AT_FDCWD, path, 1 << 24, (void **)&text, &len), 0);
+        snprintf(args, sizeof(args),
+                 "model render %s/models/default --dir 0,0,1 --view 0,15 -o %s/y.png", f->ds,
+                 f->dir);
+        CHECK_INT(gn_write_atomic(AT_FDCWD, path, text, len / 2, NULL), 0);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
+        CHECK_STR_CONTAINS(out, "model.json: line ");
+        CHECK_STR_CONTAINS(out, "(the file is cut short)");
+        CHECK((v = strstr(text, "gonio-appearance 1")) != NULL);
+        v[strlen("gonio-appearance ")] = '2';
+        CHECK_INT(gn_write_atomic(AT_FDCWD, path, text, len, NULL), 0);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
+        CHECK_STR_CONTAINS(out, "format 'gonio-appearance 2' is newer than this gonio reads");
+        snprintf(path, sizeof(path), "%s/y.png", f->dir);
+        CHECK(access(path, F_OK) < 0);
+}
+
 /* A missing model, a bad environment map, views out of range, bad command lines. */
 static void test_gonioctl_bad(void)
 {
@@ -264,6 +291,7 @@ static void test_gonioctl_bad(void)
         snprintf(args, sizeof(args),
                  "model render %s/models/default --dir 0,0 --view 0,15 -o %s/x.png", f.ds, f.dir);
         CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 2);
+        check_bad_model_json(&f);
         fitted_free(&f);
 }
 

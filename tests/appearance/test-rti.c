@@ -9,9 +9,14 @@
 #include <fcntl.h>
 #include <jansson.h>
 #include <math.h>
+#include <signal.h>
+#include <spawn.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
 
 #include "appearance/export.h"
 #include "common/cleanup.h"
@@ -419,6 +424,149 @@ static void test_gonioctl(void)
         fixture_close(&fx);
 }
 
+#define KILLS 5
+
+/* Every view folder of the RTI export out reads back: its .lp, each image it names, its PTM
+ * and relight's info.json. Returns the number of views. */
+static int check_complete(const char *out)
+{
+        DIR *d = opendir(out);
+        struct dirent *e;
+        int n = 0;
+
+        CHECK(d);
+        while ((e = readdir(d))) {
+                char path[1200];
+                struct lp lp;
+                struct ptm p;
+                json_error_t je;
+                json_t *info;
+                if (e->d_name[0] == '.')
+                        continue;
+                snprintf(path, sizeof(path), "%s/%s/%s.lp", out, e->d_name, e->d_name);
+                lp_read(path, &lp);
+                for (size_t j = 0; j < lp.n; j++) {
+                        snprintf(path, sizeof(path), "%s/%s/%s", out, e->d_name, lp.path[j]);
+                        CHECK(access(path, R_OK) == 0);
+                }
+                snprintf(path, sizeof(path), "%s/%s/%s.ptm", out, e->d_name, e->d_name);
+                ptm_read(path, &p);
+                free(p.coef);
+                free(p.rgb);
+                snprintf(path, sizeof(path), "%s/%s/relight/info.json", out, e->d_name);
+                CHECK((info = json_load_file(path, 0, &je)) != NULL);
+                json_decref(info);
+                n++;
+        }
+        closedir(d);
+        return n;
+}
+
+/* The entries of dir whose names start with prefix. */
+static int count_prefix(const char *dir, const char *prefix)
+{
+        DIR *d = opendir(dir);
+        struct dirent *e;
+        int n = 0;
+
+        CHECK(d);
+        while ((e = readdir(d)))
+                n += strncmp(e->d_name, prefix, strlen(prefix)) == 0;
+        closedir(d);
+        return n;
+}
+
+static double now_s(void)
+{
+        struct timespec t;
+
+        clock_gettime(CLOCK_MONOTONIC, &t);
+        return (double)t.tv_sec + t.tv_nsec * 1e-9;
+}
+
+/* Starts gonioctl dataset export ds --format rti -o out (output to /dev/null); kills it with
+ * SIGKILL after delay_s unless delay_s < 0. Returns its wait status. */
+static int export_run(const char *ds, const char *out, double delay_s)
+{
+        char *argv[] = {
+                getenv("GONIOCTL"), "dataset", "export", (char *)ds, "--format", "rti", "-o",
+                (char *)out,        NULL};
+        posix_spawn_file_actions_t fa;
+        extern char **environ;
+        pid_t pid;
+        int st;
+
+        CHECK_INT(posix_spawn_file_actions_init(&fa), 0);
+        CHECK_INT(posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0), 0);
+        CHECK_INT(posix_spawn_file_actions_adddup2(&fa, 1, 2), 0);
+        CHECK_INT(posix_spawn(&pid, argv[0], &fa, NULL, argv, environ), 0);
+        posix_spawn_file_actions_destroy(&fa);
+        if (delay_s >= 0) {
+                struct timespec t = {(time_t)delay_s, (long)((delay_s - (time_t)delay_s) * 1e9)};
+                nanosleep(&t, NULL);
+                kill(pid, SIGKILL);
+        }
+        CHECK(waitpid(pid, &st, 0) == pid);
+        return st;
+}
+
+/* gonioctl dataset export --format rti SIGKILLed at KILLS seeded moments of its run (each a
+ * fresh run into its own folder): the folder is then absent or complete, never partial; a
+ * rerun succeeds, removes the killed run's temporary folder and says so. */
+static void test_kill(void)
+{
+        unsigned seed = getenv("GONIO_TEST_SEED") ? (unsigned)atoi(getenv("GONIO_TEST_SEED")) : 11;
+        _cleanup_(rm_rfp) char *dir = NULL;
+        char ds[600], out[700], args[1600], text[8192], prefix[64];
+        struct apscene s;
+        struct aps_opts o;
+        int views, stale = 0;
+        double t0, full;
+
+        if (!getenv("GONIOCTL"))
+                exit(TEST_SKIP);
+        aps_opts_default(&o, APS_DIFFUSE);
+        o.width = 128, o.height = 96, o.n_cameras = 2, o.turntable_angles = 3, o.arm_angles = 6;
+        o.n_lamps = 4, o.mesh = false;
+        memcpy(o.lamp_elevation_deg, (double[]){10, 35, 60, 85}, 4 * sizeof(double));
+        aps_open(&s, &o);
+        dir = tu_tmpdir();
+        snprintf(ds, sizeof(ds), "%s/ds", dir);
+        ds_close(aps_make_dataset(&s, ds));
+        aps_close(&s);
+        snprintf(out, sizeof(out), "%s/full", dir);
+        t0 = now_s();
+        CHECK_INT(export_run(ds, out, -1), 0);
+        full = now_s() - t0;
+        views = check_complete(out);
+        fprintf(stderr, "seed %u; a whole export: %.3f s, %d views\n", seed, full, views);
+        srand(seed);
+        for (int i = 0; i < KILLS; i++) {
+                double at = full * (0.05 + 0.9 * rand() / RAND_MAX);
+                int st, left;
+                snprintf(out, sizeof(out), "%s/k%d", dir, i);
+                snprintf(prefix, sizeof(prefix), ".k%d.export-", i);
+                st = export_run(ds, out, at);
+                left = count_prefix(dir, prefix);
+                fprintf(stderr, "kill %d at %.3f s: %s, output %s, %d temporary folder(s)\n", i, at,
+                        WIFSIGNALED(st) ? "killed" : "had ended",
+                        access(out, F_OK) == 0 ? "present" : "absent", left);
+                CHECK(left <= 1);
+                stale += left;
+                if (access(out, F_OK) == 0) { /* renamed before the kill: whole */
+                        CHECK_INT(check_complete(out), views);
+                        continue;
+                }
+                snprintf(args, sizeof(args), "dataset export %s --format rti -o %s", ds, out);
+                CHECK_INT(test_run_gonioctl(args, text, sizeof(text)), 0);
+                if (left)
+                        CHECK_STR_CONTAINS(text, "removed 1 temporary folder of an interrupted");
+                CHECK_INT(count_prefix(dir, prefix), 0);
+                CHECK_INT(check_complete(out), views);
+        }
+        CHECK(stale >= 1); /* some kill landed while the export was writing */
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
@@ -427,6 +575,7 @@ int main(int argc, char **argv)
                 {"relight", test_relight},
                 {"few-lights", test_few_lights},
                 {"gonioctl", test_gonioctl},
+                {"kill", test_kill},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
