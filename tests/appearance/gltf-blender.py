@@ -1,6 +1,7 @@
-"""gltf-blender.py - run by Blender (blender -b --python gltf-blender.py -- FILE.gltf NV NT):
+"""gltf-blender.py - run by Blender (blender -b --python gltf-blender.py -- FILE.gltf NV NT X Y Z):
 imports FILE with Blender's own glTF importer and checks what it made: one mesh of NV
-vertices (every corner its own) and NT faces, with UVs, and a Principled BSDF whose base
+vertices (every corner its own) and NT faces, with UVs, its first vertex at (X, Y, Z) mm of
+gonio's object frame in Blender's (z up too) in m, and a Principled BSDF whose base
 colour is basecolor.png (sRGB), whose roughness and metallic come from
 metallic_roughness.png (non-colour) and whose normal is a normal map of normal.png. Blender
 3.4 has no KHR_materials_anisotropy: what it makes of the extension is printed, not checked
@@ -30,12 +31,17 @@ def upstream_image(socket):
 
 
 def main():
-    path, nv, nt = sys.argv[sys.argv.index('--') + 1:]
+    path, nv, nt, *first = sys.argv[sys.argv.index('--') + 1:]
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.import_scene.gltf(filepath=path)
     meshes = [o for o in bpy.context.scene.objects if o.type == 'MESH']
     assert len(meshes) == 1, meshes
     me = meshes[0].data
+    # gonio's object frame (z up, mm) is Blender's (z up) in m: the node's rotation to glTF's
+    # y up and Blender's conversion back cancel
+    world = meshes[0].matrix_world @ me.vertices[0].co
+    print('gltf-blender: first vertex at', tuple(world), 'm')
+    assert all(abs(world[k] - 1e-3 * float(first[k])) < 1e-7 for k in range(3)), world
     print(f'gltf-blender: {len(me.vertices)} vertices, {len(me.polygons)} faces, '
           f'{len(me.uv_layers)} uv layers')
     assert len(me.polygons) == int(nt), len(me.polygons)

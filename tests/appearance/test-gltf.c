@@ -554,6 +554,7 @@ static void test_blender(void)
 {
         _cleanup_(rm_rfp) char *dir = tu_tmpdir();
         _cleanup_(model_freep) struct ap_brdf_model *m = make_model();
+        size_t first = m->atlas.mesh.idx[0];
         char cmd[1600], out[8192];
         int r;
 
@@ -564,8 +565,10 @@ static void test_blender(void)
         CHECK(getenv("GLTF_BLENDER")); /* tests/appearance/gltf-blender.py */
         snprintf(cmd, sizeof(cmd),
                  "/usr/bin/blender -b --factory-startup -noaudio --python-exit-code 3 "
-                 "--python %s -- %s/model.gltf %zu %zu 2>&1",
-                 getenv("GLTF_BLENDER"), export(m, dir), 3 * m->atlas.mesh.nt, m->atlas.mesh.nt);
+                 "--python %s -- %s/model.gltf %zu %zu %.9g %.9g %.9g 2>&1",
+                 getenv("GLTF_BLENDER"), export(m, dir), 3 * m->atlas.mesh.nt, m->atlas.mesh.nt,
+                 m->atlas.mesh.pos[3 * first], m->atlas.mesh.pos[3 * first + 1],
+                 m->atlas.mesh.pos[3 * first + 2]);
         r = run(cmd, out, sizeof(out));
         fprintf(stderr, "%s", out);
         CHECK_INT(r, 0);
