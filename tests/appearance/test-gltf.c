@@ -82,8 +82,10 @@ static void normalize3(float *v)
 /* Texel x at point p (normal n): three materials by height (a dielectric, a coloured
  * conductor-like mix, a pure metal), roughness and anisotropy varying over the sphere, the
  * tangent along the parallels, the shading normal tilted from n; every 13th texel diffuse
- * only (ks 0, no roughness), every 17th not a number, every 11th masked. */
-static void texel_at(size_t i, const float p[3], const float n[3], struct ap_brdf_texel *x)
+ * only (ks 0), with nan every 17th not a number (which the model's files cannot hold),
+ * every 11th masked, as are those of the collapsed triangle where the atlas has no normal. */
+static void texel_at(size_t i, const float p[3], const float n[3], bool nan,
+                     struct ap_brdf_texel *x)
 {
         float h = p[2] / (float)RADIUS, t[3] = {-n[1], n[0], 0}, tn;
         int kind = h < -0.3f ? 0 : h < 0.3f ? 1 : 2;
@@ -105,16 +107,17 @@ static void texel_at(size_t i, const float p[3], const float n[3], struct ap_brd
                 x->tangent[k] = t[k] - tn * x->normal[k];
         normalize3(x->tangent);
         if (i % 13 == 0) { /* the fit's fallback: no lobe */
-                x->ks = x->ax = x->ay = 0;
+                x->ks = 0;
                 x->flags = AP_BRDF_DIFFUSE_ONLY;
         }
-        if (i % 17 == 0) /* a failed fit: written as masked */
+        if (nan && i % 17 == 0) /* a failed fit: written as masked */
                 x->ay = NAN;
-        if (i % 11 == 0)
+        if (i % 11 == 0 || fabsf(n[0]) + fabsf(n[1]) + fabsf(n[2]) == 0) /* or no normal */
                 *x = (struct ap_brdf_texel){.flags = AP_BRDF_MASKED};
 }
 
-static struct ap_brdf_model *make_model(void)
+/* The model on the cube-sphere (texel_at; texels of no triangle masked). */
+static struct ap_brdf_model *make_model(bool nan)
 {
         struct ap_brdf_model *m = calloc(1, sizeof(*m));
         struct ap_mesh mesh;
@@ -128,7 +131,9 @@ static struct ap_brdf_model *make_model(void)
         for (size_t i = 0; i < (size_t)m->atlas.width * m->atlas.height; i++) {
                 float p[3], n[3];
                 if (ap_atlas_point(&m->atlas, i, p, n))
-                        texel_at(i, p, n, &m->texels[i]);
+                        texel_at(i, p, n, nan, &m->texels[i]);
+                else
+                        m->texels[i].flags = AP_BRDF_MASKED;
         }
         m->response = 1;
         return m;
@@ -478,7 +483,7 @@ static void check_texel(const struct gltf *g, const struct ap_brdf_model *m, int
 static void test_decode(void)
 {
         _cleanup_(rm_rfp) char *dir = tu_tmpdir();
-        _cleanup_(model_freep) struct ap_brdf_model *m = make_model();
+        _cleanup_(model_freep) struct ap_brdf_model *m = make_model(true);
         const struct ap_atlas *a = &m->atlas;
         struct gltf g = {0};
         int seen = 0, masked = 0, diffuse = 0;
@@ -529,7 +534,7 @@ static int run(const char *cmd, char *out, size_t len)
 static void test_validator(void)
 {
         _cleanup_(rm_rfp) char *dir = tu_tmpdir();
-        _cleanup_(model_freep) struct ap_brdf_model *m = make_model();
+        _cleanup_(model_freep) struct ap_brdf_model *m = make_model(true);
         static char out[1 << 20];
         char cmd[1200];
         json_t *report, *issues;
@@ -553,7 +558,7 @@ static void test_validator(void)
 static void test_blender(void)
 {
         _cleanup_(rm_rfp) char *dir = tu_tmpdir();
-        _cleanup_(model_freep) struct ap_brdf_model *m = make_model();
+        _cleanup_(model_freep) struct ap_brdf_model *m = make_model(true);
         size_t first = m->atlas.mesh.idx[0];
         char cmd[1600], out[8192];
         int r;
@@ -580,7 +585,7 @@ static void test_blender(void)
 static void test_bad(void)
 {
         _cleanup_(rm_rfp) char *dir = tu_tmpdir();
-        _cleanup_(model_freep) struct ap_brdf_model *m = make_model();
+        _cleanup_(model_freep) struct ap_brdf_model *m = make_model(true);
         struct ap_brdf_model empty = {0};
         char out[600], keep[700], err[512];
 
