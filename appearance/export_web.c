@@ -165,19 +165,14 @@ static void mask_crop(const struct ap_view *v, int crop[4])
         crop[3] = (hi[1] + 2 < h ? hi[1] + 2 : h) - crop[1];
 }
 
-/* Component k's range over the masked pixels: W = offset + scale * q, q = 0..255. */
+/* Component k's quantisation to 8 bits over the masked pixels: W = offset + scale * q. */
 static void quantisation(const struct ap_view *v, int K, int k, float *scale, float *offset)
 {
-        size_t n = (size_t)v->cam.width * v->cam.height;
-        float lo = INFINITY, hi = -INFINITY;
+        float lo, hi;
 
-        for (size_t i = 0; i < n; i++)
-                if (v->mask[i]) {
-                        lo = fminf(lo, v->weights[i * K + k]);
-                        hi = fmaxf(hi, v->weights[i * K + k]);
-                }
-        *offset = isfinite(lo) ? lo : 0;
-        *scale = isfinite(lo) && hi > lo ? (hi - lo) / 255 : 0;
+        ap_view_range(v, K, k, &lo, &hi);
+        *offset = lo;
+        *scale = hi > lo ? (hi - lo) / 255 : 0;
 }
 
 /* View i's chunk: the cropped mask (0/1) then ceil(K/4) RGBA planes of quantised weights. */

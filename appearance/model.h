@@ -88,6 +88,10 @@ int ap_model_new(int order, int k, size_t n_views, struct ap_model **ret);
  * -EINVAL (no size) or -ENOMEM; ap_model_free frees them. */
 int ap_view_alloc(struct ap_view *v, int k);
 
+/* The range [lo, hi] of component k of v's weights (K a pixel) over its masked pixels; 0, 0
+ * when none is masked in. */
+void ap_view_range(const struct ap_view *v, int K, int k, float *lo, float *hi);
+
 /* Frees m's arrays and m itself. NULL is a no-op. Returns NULL. */
 struct ap_model *ap_model_free(struct ap_model *m);
 

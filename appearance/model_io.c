@@ -143,19 +143,26 @@ static int put_file(int dfd, const char *name, const void *buf, size_t len)
         return r;
 }
 
+void ap_view_range(const struct ap_view *v, int K, int k, float *lo, float *hi)
+{
+        size_t n = (size_t)v->cam.width * v->cam.height;
+
+        *lo = INFINITY, *hi = -INFINITY;
+        for (size_t p = 0; p < n; p++)
+                if (v->mask[p]) {
+                        *lo = fminf(*lo, v->weights[p * K + k]);
+                        *hi = fmaxf(*hi, v->weights[p * K + k]);
+                }
+        if (!(*lo <= *hi))
+                *lo = *hi = 0;
+}
+
 /* Quantisation of component k of v's weights inside its mask to 0..65535. */
 static void quantisation(const struct ap_view *v, int K, int k, float *scale, float *offset)
 {
-        size_t n = (size_t)v->cam.width * v->cam.height;
-        float lo = INFINITY, hi = -INFINITY;
+        float lo, hi;
 
-        for (size_t p = 0; p < n; p++)
-                if (v->mask[p]) {
-                        lo = fminf(lo, v->weights[p * K + k]);
-                        hi = fmaxf(hi, v->weights[p * K + k]);
-                }
-        if (!(lo <= hi))
-                lo = hi = 0;
+        ap_view_range(v, K, k, &lo, &hi);
         *offset = lo;
         *scale = hi > lo ? (hi - lo) / Q_MAX : 1;
 }

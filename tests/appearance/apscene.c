@@ -61,15 +61,18 @@ static void cameras_yaml(const struct aps_opts *o, char *buf, size_t len)
         size_t n = (size_t)snprintf(buf, len, "cameras:\n");
         double f = 4.0 * o->width;
         const double *k = o->dist;
+        char dist[160] = ""; /* only when there is one: tests add their own to the rig text */
 
+        if (k[0] || k[1] || k[2] || k[3] || k[4])
+                snprintf(dist, sizeof(dist), ", distortion: [%g, %g, %g, %g, %g]", k[0], k[1], k[2],
+                         k[3], k[4]);
         for (int i = 0; i < o->n_cameras && n < len; i++)
                 n += (size_t)snprintf(buf + n, len - n,
                                       "  - { name: c%d, sim: { bus: frames }, elevation: %g,"
                                       " distance: %g, azimuth: 0, target: [0, 0, %g], width: %d,"
-                                      " height: %d, fx: %g, fy: %g, exposure_us: %d,"
-                                      " distortion: [%g, %g, %g, %g, %g] }\n",
+                                      " height: %d, fx: %g, fy: %g, exposure_us: %d%s }\n",
                                       i, cam_elevation[i], CAM_DIST, APS_SIZE_MM / 2, o->width,
-                                      o->height, f, f, EXPOSURE, k[0], k[1], k[2], k[3], k[4]);
+                                      o->height, f, f, EXPOSURE, dist);
         CHECK(n < len);
 }
 

@@ -1,0 +1,242 @@
+// shaders.js - the GLSL of gonio's relighting viewer (viewer.js, docs/viewer.md): the vertex
+// shader shared by every pass (object frame to an OpenCV pinhole camera's clip space), the
+// depth pass (camera z into a float target: the views' depth maps, the frame's pre-pass), and
+// the main pass, which computes appearance/render_px.c's per-pixel work: the views around the
+// view direction (views.c), their weights sampled where they see the point, the light term.
+'use strict';
+
+// The sources, with the constants the page shares with the renderer (CUBE, VIEW_TEXELS).
+function gonioShaders({CUBE, VIEW_TEXELS}) {
+  const VS = `#version 300 es
+layout(location = 0) in vec3 pos;
+uniform mat3 Rm;
+uniform vec3 tv;
+uniform vec4 proj;
+uniform vec2 depthRange;
+out vec3 vPos;
+out float vZ;
+void main() {
+  vec3 xc = Rm * pos + tv;
+  float n = depthRange.x, f = depthRange.y;
+  vPos = pos;
+  vZ = xc.z;
+  gl_Position = vec4(proj.x * xc.x + proj.z * xc.z, proj.y * xc.y + proj.w * xc.z,
+                     (xc.z * (f + n) - 2.0 * f * n) / (f - n), xc.z);
+}`;
+
+  const DEPTH_FS = `#version 300 es
+precision highp float;
+in vec3 vPos;
+in float vZ;
+out vec4 o;
+void main() { o = vec4(vZ, 0.0, 0.0, 1.0); }`;
+
+  const MAIN_FS = `#version 300 es
+precision highp float;
+precision highp int;
+precision highp sampler2DArray;
+uniform highp sampler2D viewTex, faceTex, bndTex, dirTex, lightTex, startTex;
+uniform highp sampler2DArray maskArr, weightArr, depthArr;
+uniform int K, G, nFaces, nBnd, nViews, pixelMode, pointLight, lightTexels, startSide;
+uniform vec3 camC, objDir, lpos;
+uniform float lscale, gain;
+uniform float lconst[100];
+in vec3 vPos;
+in float vZ;
+out vec4 outColor;
+float acc[32];
+
+vec4 vt(int v, int i) { return texelFetch(viewTex, ivec2(i, v), 0); }
+
+int cubeFace(vec3 d, out float s, out float t) {
+  vec3 a = abs(d);
+  if (a.x >= a.y && a.x >= a.z) { s = d.y / a.x; t = d.z / a.x; return d.x > 0.0 ? 0 : 1; }
+  if (a.y >= a.z) { s = d.x / a.y; t = d.z / a.y; return d.y > 0.0 ? 2 : 3; }
+  s = d.x / a.z; t = d.y / a.z; return d.z > 0.0 ? 4 : 5;
+}
+
+// The unnormalised weights of face f's views at d (views.c face_weights).
+vec3 faceRaw(int f, vec3 d) {
+  return vec3(dot(d, texelFetch(faceTex, ivec2(1, f), 0).xyz),
+              dot(d, texelFetch(faceTex, ivec2(2, f), 0).xyz),
+              dot(d, texelFetch(faceTex, ivec2(3, f), 0).xyz));
+}
+
+// views.c walk: from the cube map's start face across the edges to the face around d; -1
+// when the walk leaves the faces (then every face is tried), -2 outside the covered region.
+int walk(vec3 d) {
+  float s, t;
+  int n = startSide, face = cubeFace(d, s, t);
+  int is = clamp(int((s + 1.0) * 0.5 * float(n)), 0, n - 1);
+  int it = clamp(int((t + 1.0) * 0.5 * float(n)), 0, n - 1);
+  int f = int(texelFetch(startTex, ivec2(is, face * n + it), 0).x);
+  for (int step = 0; step < nFaces && f >= 0; step++) {
+    vec3 r = faceRaw(f, d);
+    float sum = r.x + r.y + r.z;
+    if (!(sum > 0.0)) return -1;
+    int m = r.y < r.x ? 1 : 0;
+    if (r.z < r[m]) m = 2;
+    if (r[m] >= -1e-6 * sum) return f;
+    f = int(texelFetch(faceTex, ivec2(4, f), 0)[m]);
+  }
+  return f == -2 ? -2 : -1;
+}
+
+// views.c ap_views_weights: the face whose cone holds d, else the nearest boundary edge or view
+void viewWeights(vec3 d, out ivec3 idx, out vec3 w) {
+  int f = walk(d);
+  for (int g = 0; g < nFaces && f == -1; g++) {
+    vec3 r = faceRaw(g, d);
+    if (r.x + r.y + r.z > 0.0 && r.x >= -1e-6 && r.y >= -1e-6 && r.z >= -1e-6) f = g;
+  }
+  if (f >= 0) {
+    vec3 r = faceRaw(f, d);
+    float s = r.x + r.y + r.z;
+    idx = ivec3(texelFetch(faceTex, ivec2(0, f), 0).xyz);
+    w = vec3(r.x > 0.0 ? r.x / s : 0.0, r.y > 0.0 ? r.y / s : 0.0, r.z > 0.0 ? r.z / s : 0.0);
+    return;
+  }
+  float best = -2.0, len = length(d);
+  idx = ivec3(0);
+  w = vec3(1.0, 0.0, 0.0);
+  for (int l = 0; l < nViews; l++) {
+    vec4 dv = texelFetch(dirTex, ivec2(0, l), 0);
+    if (dv.w == 0.0 && dot(d, dv.xyz) / len > best) {
+      best = dot(d, dv.xyz) / len;
+      idx = ivec3(l);
+    }
+  }
+  for (int i = 0; i < nBnd; i++) {
+    vec4 ab = texelFetch(bndTex, ivec2(0, i), 0);
+    vec3 n = texelFetch(bndTex, ivec2(1, i), 0).xyz;
+    vec3 p = d - dot(d, n) * n;
+    float cs = length(p) / len;
+    if (cs <= best) continue;
+    int a = int(ab.x), b = int(ab.y);
+    float wa = dot(cross(p, texelFetch(dirTex, ivec2(0, b), 0).xyz), n);
+    float wb = dot(cross(texelFetch(dirTex, ivec2(0, a), 0).xyz, p), n);
+    if (wa < 0.0 || wb < 0.0 || wa + wb <= 0.0) continue;
+    best = cs;
+    idx = ivec3(a, b, a);
+    w = vec3(wa / (wa + wb), wb / (wa + wb), 0.0);
+  }
+}
+
+// One bilinear tap of view vi: its mask at m (crop coordinates) and its depth at dd (depth
+// layer coordinates) within tol of z.
+float tap(int vi, ivec2 m, ivec2 dd, float z, float tol, ivec2 csz, ivec2 dsz) {
+  if (any(lessThan(m, ivec2(0))) || any(greaterThanEqual(m, csz)) ||
+      any(lessThan(dd, ivec2(0))) || any(greaterThanEqual(dd, dsz)))
+    return 0.0;
+  if (texelFetch(maskArr, ivec3(m, vi), 0).r == 0.0) return 0.0;
+  return abs(texelFetch(depthArr, ivec3(dd, vi), 0).r - z) <= tol ? 1.0 : 0.0;
+}
+
+// render_px.c sample_view: adds wgt times view vi's weights at p to acc.
+bool sampleView(int vi, vec3 p, float wgt) {
+  vec4 r0 = vt(vi, 0), r1 = vt(vi, 1), r2 = vt(vi, 2), in4 = vt(vi, 3), k4 = vt(vi, 4);
+  vec4 m5 = vt(vi, 5), m6 = vt(vi, 6), cr = vt(vi, 7), m8 = vt(vi, 8);
+  if (m5.w == 0.0) return false; // not loaded yet
+  vec3 x = vec3(r0.x * p.x + r0.y * p.y + r0.z * p.z + r0.w,
+                r1.x * p.x + r1.y * p.y + r1.z * p.z + r1.w,
+                r2.x * p.x + r2.y * p.y + r2.z * p.z + r2.w);
+  if (x.z <= 0.0) return false;
+  float iz = 1.0 / x.z, xd = x.x * iz, yd = x.y * iz;
+  float pu = in4.x * xd + in4.z, pv = in4.y * yd + in4.w;
+  if (m8.w != 0.0) {
+    float q2 = xd * xd + yd * yd, rad = 1.0 + q2 * (k4.x + q2 * (k4.y + q2 * m5.x));
+    float xn = xd * rad + 2.0 * k4.z * xd * yd + k4.w * (q2 + 2.0 * xd * xd);
+    yd = yd * rad + k4.z * (q2 + 2.0 * yd * yd) + 2.0 * k4.w * xd * yd;
+    xd = xn;
+  }
+  float u = in4.x * xd + in4.z, v = in4.y * yd + in4.w;
+  int x0 = int(floor(u)), y0 = int(floor(v));
+  float a = u - float(x0), b = v - float(y0);
+  float du = pu - a + m6.x + 0.5, dv = pv - b + m6.y + 0.5;
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= int(m5.y) || y0 + 1 >= int(m5.z) || du < 0.0 || dv < 0.0 ||
+      int(du) + 1 >= int(m6.z) || int(dv) + 1 >= int(m6.w))
+    return false;
+  ivec2 m = ivec2(x0, y0) - ivec2(cr.xy), csz = ivec2(cr.zw);
+  ivec2 dd = ivec2(int(du), int(dv)) - ivec2(m8.xy), dsz = csz + 2 * ivec2(m6.xy);
+  float tol = x.z * m8.z;
+  vec4 bw = vec4(tap(vi, m, dd, x.z, tol, csz, dsz) * (1.0 - a) * (1.0 - b),
+                 tap(vi, m + ivec2(1, 0), dd + ivec2(1, 0), x.z, tol, csz, dsz) * a * (1.0 - b),
+                 tap(vi, m + ivec2(0, 1), dd + ivec2(0, 1), x.z, tol, csz, dsz) * (1.0 - a) * b,
+                 tap(vi, m + ivec2(1, 1), dd + ivec2(1, 1), x.z, tol, csz, dsz) * a * b);
+  float tw = bw.x + bw.y + bw.z + bw.w;
+  if (!(tw > 1e-3)) return false;
+  bw /= tw;
+  for (int gi = 0; gi < 8; gi++) {
+    if (gi >= G) break;
+    int layer = vi * G + gi;
+    vec4 s = 255.0 * (bw.x * texelFetch(weightArr, ivec3(m, layer), 0) +
+                      bw.y * texelFetch(weightArr, ivec3(m + ivec2(1, 0), layer), 0) +
+                      bw.z * texelFetch(weightArr, ivec3(m + ivec2(0, 1), layer), 0) +
+                      bw.w * texelFetch(weightArr, ivec3(m + ivec2(1, 1), layer), 0));
+    vec4 sc = vt(vi, ${VIEW_TEXELS} + gi), off = vt(vi, ${VIEW_TEXELS} + G + gi);
+    for (int c = 0; c < 4; c++)
+      if (4 * gi + c < K) acc[4 * gi + c] += wgt * (off[c] + sc[c] * s[c]);
+  }
+  return true;
+}
+
+
+// render_px.c cube_sample + light_sum: the light term of unit l applied to acc.
+vec3 pointTerm(vec3 l) {
+  const int n = ${CUBE};
+  float s, t;
+  int face = cubeFace(l, s, t);
+  float fs = clamp((s + 1.0) * 0.5 * float(n) - 0.5, 0.0, float(n - 1));
+  float ft = clamp((t + 1.0) * 0.5 * float(n) - 0.5, 0.0, float(n - 1));
+  int i0 = int(fs), j0 = int(ft), i1 = min(i0 + 1, n - 1), j1 = min(j0 + 1, n - 1);
+  float a = fs - float(i0), b = ft - float(j0);
+  vec3 q = vec3(0.0);
+  for (int r = 0; r < 25; r++) {
+    if (r >= lightTexels) break;
+    vec4 v = (1.0 - b) * ((1.0 - a) * texelFetch(lightTex, ivec2(i0 * lightTexels + r, face * n + j0), 0) +
+                          a * texelFetch(lightTex, ivec2(i1 * lightTexels + r, face * n + j0), 0)) +
+             b * ((1.0 - a) * texelFetch(lightTex, ivec2(i0 * lightTexels + r, face * n + j1), 0) +
+                  a * texelFetch(lightTex, ivec2(i1 * lightTexels + r, face * n + j1), 0));
+    for (int c = 0; c < 4; c++) {
+      int f = 4 * r + c, k = f / 3;
+      if (k > K) break;
+      q[f % 3] += (k == 0 ? 1.0 : acc[k - 1]) * v[c];
+    }
+  }
+  return q;
+}
+
+vec3 constTerm() {
+  vec3 q = vec3(lconst[0], lconst[1], lconst[2]);
+  for (int k = 0; k < 32; k++) {
+    if (k >= K) break;
+    q += acc[k] * vec3(lconst[3 * k + 3], lconst[3 * k + 4], lconst[3 * k + 5]);
+  }
+  return q;
+}
+
+void main() {
+  vec3 p = vPos, d = objDir;
+  ivec3 idx;
+  vec3 w;
+  float ws = 0.0;
+  for (int k = 0; k < 32; k++) acc[k] = 0.0;
+  if (pixelMode != 0) d = normalize(camC - p);
+  viewWeights(d, idx, w);
+  for (int j = 0; j < 3; j++)
+    if (w[j] > 0.0 && sampleView(idx[j], p, w[j])) ws += w[j];
+  if (!(ws > 0.0)) discard;
+  for (int k = 0; k < 32; k++) acc[k] /= ws;
+  vec3 rgb;
+  if (pointLight != 0) {
+    vec3 l = lpos - p;
+    float r2 = dot(l, l);
+    rgb = lscale / r2 * pointTerm(l * inversesqrt(r2));
+  } else {
+    rgb = lscale * constTerm();
+  }
+  outColor = vec4(clamp(rgb * gain, 0.0, 1.0), 1.0);
+}`;
+
+  return {VS, DEPTH_FS, MAIN_FS};
+}
