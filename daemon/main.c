@@ -79,9 +79,13 @@ int main(int argc, char **argv)
         if (!sock[0])
                 default_socket(sock, sizeof(sock));
         r = manager_new(rig, sock, data && *data ? data : "/var/lib/gonio", &m);
-        if (r < 0)
+        if (r < 0) {
+                log_error_errno(r, "cannot start: %m");
                 return 1;
+        }
         r = manager_run(m);
+        if (r < 0)
+                log_error_errno(r, "the event loop failed: %m");
         manager_free(m);
         log_info("stopped");
         return r < 0 ? 1 : 0;

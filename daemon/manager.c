@@ -84,8 +84,6 @@ static int on_signal(sd_event_source *s, const struct signalfd_siginfo *si, void
         struct manager *m = userdata;
         sd_event_source *tick = NULL;
 
-        if (!m->rig)
-                return sd_event_exit(m->event, 0);
         if (m->shutdown_deadline)
                 return 0;
         log_info("shutting down: bringing the rig to its safe state");
@@ -121,12 +119,10 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
                 log_error_errno(r, "Cannot create data directory %s: %m", data_dir);
                 goto fail;
         }
+        /* Blocked from here; taken only once manager_run starts (a signal during the start,
+         * while opening the devices runs the loop, would end it half built). */
         if ((r = gn_sigroute_here((const int[]){SIGTERM, SIGINT}, 2)) < 0 ||
             (r = sd_event_default(&m->event)) < 0 ||
-            (r = sd_event_add_signal(m->event, NULL, SIGTERM | SD_EVENT_SIGNAL_PROCMASK, on_signal,
-                                     m)) < 0 ||
-            (r = sd_event_add_signal(m->event, NULL, SIGINT | SD_EVENT_SIGNAL_PROCMASK, on_signal,
-                                     m)) < 0 ||
             (r = sd_event_set_watchdog(m->event, true)) < 0)
                 goto fail;
         /* Claim the socket first: a second goniod must not touch the rig. */
@@ -161,6 +157,12 @@ int manager_run(struct manager *m)
 {
         int r;
 
+        /* a signal pending since the start is taken now: an orderly shutdown */
+        if ((r = sd_event_add_signal(m->event, NULL, SIGTERM | SD_EVENT_SIGNAL_PROCMASK, on_signal,
+                                     m)) < 0 ||
+            (r = sd_event_add_signal(m->event, NULL, SIGINT | SD_EVENT_SIGNAL_PROCMASK, on_signal,
+                                     m)) < 0)
+                return r;
         (void)sd_notify(false, "READY=1\nSTATUS=serving");
         log_info("rig '%s' ready (%s)", m->rc->name, rig_state(m->rig));
         ds_forbid_thread(true); /* no dataset I/O on the loop while it serves */

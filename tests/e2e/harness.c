@@ -322,6 +322,29 @@ void rigenv_term_daemon(struct rigenv *e)
         start_daemon(e);
 }
 
+void rigenv_term_starting(struct rigenv *e, int n, double step_s)
+{
+        char *argv[] = {(char *)e->goniod, "--rig",  e->rig,  "--socket",
+                        e->sock,           "--data", e->data, NULL};
+        int fd, status;
+
+        stop_pid(e->daemon, "goniod");
+        for (int i = 0; i < n; i++) {
+                pid_t pid = spawn(argv, &fd, NULL);
+                close(fd);
+                usleep((useconds_t)(i * step_s * 1e6));
+                CHECK(kill(pid, SIGTERM) == 0);
+                CHECK(waitpid(pid, &status, 0) == pid);
+                if ((WIFEXITED(status) && WEXITSTATUS(status) == 0) ||
+                    (WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM))
+                        continue;
+                fprintf(stderr, "goniod SIGTERMed %.0f ms after its start: status 0x%x\n",
+                        i * step_s * 1e3, status);
+                CHECK(!"goniod ended its start with an error");
+        }
+        start_daemon(e);
+}
+
 void rigenv_stop(struct rigenv *e)
 {
         char cmd[400];

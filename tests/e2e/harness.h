@@ -37,6 +37,12 @@ void rigenv_crash_daemon(struct rigenv *e);
  * the same rig, socket and data. */
 void rigenv_term_daemon(struct rigenv *e);
 
+/* Stops goniod; then n times starts it and SIGTERMs it i * step_s after the start (while it
+ * opens the devices, or earlier), checking that it ends with status 0, or by the signal when
+ * that came before goniod took its signals, never by a start ended half built; then starts
+ * it for good. */
+void rigenv_term_starting(struct rigenv *e, int n, double step_s);
+
 /* The monotonic clock in seconds: waits in tests have deadlines in seconds, never a count of
  * polls (a loaded machine makes each poll slower). */
 double now_s(void);

@@ -5,7 +5,8 @@
  * stops motion and leaves a consistent dataset; a paused session survives kill -9 of goniod;
  * sessions aborted the moment they run, many times, each end recorded (run-abort); SIGTERM
  * at any moment of a session, many times, ends goniod with status 0 and the laser and the
- * lamps off (sigterm). One case per run: goniod gonioctl gonio-sim CASE. */
+ * lamps off (sigterm), and as soon as it answers, while it starts (sigterm-start). One case per
+ * run: goniod gonioctl gonio-sim CASE. */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -587,6 +588,14 @@ static void test_sigterm(struct rigenv *e)
         CHECK(i >= 5);
 }
 
+/* SIGTERM at every moment of goniod's start, 2 ms apart over 120 ms (it opens the devices,
+ * running its loop, in that time): status 0, or the signal's default action before goniod
+ * takes its signals, never a start ended half built with status 1. */
+static void test_sigterm_start(struct rigenv *e)
+{
+        rigenv_term_starting(e, 60, 0.002);
+}
+
 int main(int argc, char **argv)
 {
         const char *c = argc == 5 ? argv[4] : "";
@@ -615,6 +624,8 @@ int main(int argc, char **argv)
                 test_run_abort(&e);
         else if (strcmp(c, "sigterm") == 0)
                 test_sigterm(&e);
+        else if (strcmp(c, "sigterm-start") == 0)
+                test_sigterm_start(&e);
         else
                 CHECK(!"unknown case");
         rigenv_stop(&e);
