@@ -80,10 +80,12 @@ static void face_normal(const struct ap_mesh *m, size_t t, float n[3])
         n[2] = u[0] * v[1] - u[1] * v[0];
 }
 
-/* Area-weighted vertex normals (the faces' normal times area summed, then normalised). */
+/* Area-weighted vertex normals (the faces' normal times area summed, then normalised),
+ * outwards on a closed mesh wound clockwise (front -1, raster.h's ap_mesh_orient). */
 static void vertex_normals(struct ap_atlas *a)
 {
         const struct ap_mesh *m = &a->mesh;
+        float sign = m->front < 0 ? -1.f : 1.f;
 
         for (size_t t = 0; t < m->nt; t++) {
                 float n[3];
@@ -95,7 +97,7 @@ static void vertex_normals(struct ap_atlas *a)
         for (size_t i = 0; i < m->nv; i++) {
                 float *n = &a->vnormal[3 * i], l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
                 for (int j = 0; j < 3 && l > 0; j++)
-                        n[j] /= l;
+                        n[j] *= sign / l;
         }
 }
 
@@ -153,7 +155,7 @@ bool ap_atlas_point(const struct ap_atlas *a, size_t i, float p[3], float n[3])
         l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
         if (!(l > 0)) { /* vertices of degenerate faces only: the face's own normal */
                 face_normal(&a->mesh, (size_t)t, n);
-                l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+                l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) * (a->mesh.front < 0 ? -1 : 1);
         }
         for (int j = 0; j < 3 && l > 0; j++)
                 n[j] /= l;

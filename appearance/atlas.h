@@ -21,7 +21,8 @@ struct ap_atlas {
         float *uv;           /* 6 per triangle: (u, v) of its corners, [0, 1], v down */
         int32_t *tri;        /* width * height: the triangle a texel's centre lies in, or -1 */
         float *bary;         /* 3 per texel: its centre's barycentric coordinates in tri */
-        float *vnormal;      /* 3 per vertex: area-weighted unit normals */
+        float *vnormal;      /* 3 per vertex: area-weighted unit normals, outwards when the
+                              * mesh is closed (front != 0), else by its winding */
 };
 
 /* Builds the atlas of mesh (moved into a->mesh: the caller's struct is zeroed) with cells of

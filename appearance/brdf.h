@@ -48,6 +48,7 @@ struct ap_brdf_model {
         double response;              /* pixel value per unit of (I / r^2) f cos (Units) */
         char notes[1024];             /* the fallbacks taken, "" none */
         double fit_seconds;
+        double read_seconds; /* of fit_seconds, reading the samples (not stored) */
 };
 
 /* Frees m and its arrays; NULL is a no-op. Returns NULL. */

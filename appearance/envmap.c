@@ -1,5 +1,5 @@
 /* envmap.c - lat-long environment maps (envmap.h): PNG through the dataset's decoder, PFM
- * parsed here (a three-line text header, then float rows bottom first), and the projection
+ * through common/pfm.h, and the projection
  * onto the SH basis by summing over pixels with each row's exact solid angle. */
 #include <errno.h>
 #include <fcntl.h>
@@ -15,6 +15,7 @@
 #include "appearance/sh.h"
 #include "common/cleanup.h"
 #include "common/fileio.h"
+#include "common/pfm.h"
 #include "dataset/ds_png.h"
 
 #define ENVMAP_FILE_MAX ((size_t)1 << 31)
@@ -61,37 +62,9 @@ static int load_png(const uint8_t *buf, size_t len, struct ap_envmap *out)
         return 0;
 }
 
-/* A PFM: "PF" (RGB) or "Pf" (grey), width height, scale (negative: little-endian). */
 static int load_pfm(const uint8_t *buf, size_t len, struct ap_envmap *out)
 {
-        long w, h;
-        double scale;
-        int n = 0, ch = buf[1] == 'F' ? 3 : 1, r;
-        bool le;
-
-        if (sscanf((const char *)buf + 2, "%ld %ld %lf%n", &w, &h, &scale, &n) != 3 || scale == 0 ||
-            !isfinite(scale))
-                return -EBADMSG;
-        n += 3; /* "PF" and the single whitespace after the scale */
-        if ((r = alloc_rgb(out, w, h)) < 0)
-                return r;
-        if (len < (size_t)n + (size_t)(w * h * ch) * 4)
-                return -EBADMSG;
-        le = scale < 0;
-        for (long y = 0; y < h; y++)
-                for (long x = 0; x < w; x++)
-                        for (int c = 0; c < 3; c++) {
-                                const uint8_t *p =
-                                        buf + n +
-                                        (((h - 1 - y) * w + x) * ch + (ch == 3 ? c : 0)) * 4;
-                                uint32_t u =
-                                        le ? p[0] | p[1] << 8 | p[2] << 16 | (uint32_t)p[3] << 24
-                                           : (uint32_t)p[0] << 24 | p[1] << 16 | p[2] << 8 | p[3];
-                                float v;
-                                memcpy(&v, &u, 4);
-                                out->rgb[(y * w + x) * 3 + c] = isfinite(v) ? v : 0;
-                        }
-        return 0;
+        return gn_pfm_decode(buf, len, AP_ENVMAP_MAX_SIDE, &out->rgb, &out->width, &out->height);
 }
 
 int ap_envmap_load(const char *path, struct ap_envmap *out, char *err, size_t errlen)
@@ -159,4 +132,20 @@ void ap_envmap_project(const struct ap_envmap *e, int order, double *coef)
                                         coef[i * 3 + c] += px[c] * y[i] * dw;
                 }
         }
+}
+
+void ap_envmap_bilinear(const float *px, int width, int height, int channels, float x, float y,
+                        float *out)
+{
+        float fx = floorf(x), fy = floorf(y), tx = x - fx, ty = y - fy;
+        int x0 = ((int)fx % width + width) % width, x1 = (x0 + 1) % width;
+        int y0 = CLAMP((int)fy, 0, height - 1), y1 = CLAMP((int)fy + 1, 0, height - 1);
+        const float *a = px + (size_t)channels * ((size_t)y0 * width + x0);
+        const float *b = px + (size_t)channels * ((size_t)y0 * width + x1);
+        const float *c = px + (size_t)channels * ((size_t)y1 * width + x0);
+        const float *d = px + (size_t)channels * ((size_t)y1 * width + x1);
+
+        for (int q = 0; q < channels; q++)
+                out[q] = (1 - ty) * ((1 - tx) * a[q] + tx * b[q]) +
+                         ty * ((1 - tx) * c[q] + tx * d[q]);
 }

@@ -33,6 +33,11 @@ void ap_envmap_free(struct ap_envmap *e);
  * (pixel centres at half-integers). */
 void ap_envmap_dir(int width, int height, double x, double y, double d[3]);
 
+/* Bilinear lookup at (x, y) in pixels (centres at integers) of a lat-long image px of
+ * channels floats a pixel: wrapped in x, clamped in y. out gets channels values. */
+void ap_envmap_bilinear(const float *px, int width, int height, int channels, float x, float y,
+                        float *out);
+
 /* Projects e onto the SH of order P: coef[m * 3 + c] = sum over pixels of
  * E_c Y_m d(omega), each pixel's solid angle exact for its row. Never fails. */
 void ap_envmap_project(const struct ap_envmap *e, int order, double *coef);

@@ -92,6 +92,11 @@ int fit_mesh_read(struct fit_ctx *c);
  * Returns 0 or -ENOMEM. */
 int fit_tile_points(const struct fit_ctx *c, struct fit_view *v);
 
+/* Decodes the image of row r (its file in dataset directory dir) into f. Returns 0 or -errno
+ * with "PATH: reason" in err. Any thread. */
+int fit_read_image(const char *dir, const struct ds_capture *r, struct gn_frame *f, char *err,
+                   size_t errlen);
+
 /* Fits view i: its images (merged, dark subtracted, normalised) to coefficients, masked; in
  * the pilot pass adds its sample vectors to c and keeps them in the view; in the final pass
  * projects them (the kept ones, else fitted again) on the model's basis into the model's

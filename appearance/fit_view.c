@@ -89,19 +89,30 @@ static int vdata_init(struct vdata *d, const struct fit_ctx *c, const struct fit
         return 0;
 }
 
-/* Decodes the image of row r (its file in the dataset). */
-static int load(struct fit_ctx *c, const struct ds_capture *r, struct gn_frame *f)
+int fit_read_image(const char *dir, const struct ds_capture *r, struct gn_frame *f, char *err,
+                   size_t errlen)
 {
         _cleanup_free_ void *buf = NULL;
         char path[4400];
         size_t len;
         int e;
 
-        snprintf(path, sizeof(path), "%s/%s", c->dir, r->file);
+        snprintf(path, sizeof(path), "%s/%s", dir, r->file);
         e = gn_read_file_at(AT_FDCWD, path, PNG_MAX, &buf, &len);
         if (e == 0)
                 e = ds_png_decode(buf, len, f);
-        return e < 0 ? fit_fail(c, e, "%s: %s", path, strerror(-e)) : 0;
+        if (e < 0)
+                snprintf(err, errlen, "%s: %s", path, strerror(-e));
+        return e;
+}
+
+/* Decodes the image of row r (its file in the dataset). */
+static int load(struct fit_ctx *c, const struct ds_capture *r, struct gn_frame *f)
+{
+        char err[512];
+        int e = fit_read_image(c->dir, r, f, err, sizeof(err));
+
+        return e < 0 ? fit_fail(c, e, "%s", err) : 0;
 }
 
 /* The dark frame of row r (a row of c->all), or NULL. */

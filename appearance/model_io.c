@@ -16,6 +16,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "appearance/io_internal.h"
 #include "appearance/model.h"
 #include "appearance/model_png.h"
 #include "common/cleanup.h"
@@ -130,7 +131,7 @@ static json_t *model_json(const struct ap_model *m, json_t *views)
 }
 
 /* Writes a new file name in dfd with buf and fsyncs it. Returns 0 or -errno. */
-static int put_file(int dfd, const char *name, const void *buf, size_t len)
+int ap_io_put_file(int dfd, const char *name, const void *buf, size_t len)
 {
         _cleanup_close_ int fd = openat(dfd, name, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
         int r;
@@ -190,7 +191,7 @@ static int put_weights(int dfd, const struct ap_view *v, size_t i, int K, int g,
         if (r < 0)
                 return r;
         snprintf(name, sizeof(name), "%03zu_w%d.png", i, g);
-        return put_file(dfd, name, png, len);
+        return ap_io_put_file(dfd, name, png, len);
 }
 
 static int put_mask(int dfd, const struct ap_view *v, size_t i)
@@ -210,7 +211,7 @@ static int put_mask(int dfd, const struct ap_view *v, size_t i)
         if (r < 0)
                 return r;
         snprintf(name, sizeof(name), "%03zu_mask.png", i);
-        return put_file(dfd, name, png, len);
+        return ap_io_put_file(dfd, name, png, len);
 }
 
 /* Writes view i's images into views/ (vfd) and appends its entry to views. */
@@ -241,7 +242,7 @@ static int put_basis(int dfd, const struct ap_model *m)
         /* little-endian on the hosts we build for (x86-64, aarch64) */
         memcpy(b, m->mean, n3 * sizeof(float));
         memcpy(b + n3, m->basis, n3 * m->k * sizeof(float));
-        return put_file(dfd, "basis.f32", b, bytes);
+        return ap_io_put_file(dfd, "basis.f32", b, bytes);
 }
 
 /* Writes every file of m into the empty directory dfd. */
@@ -273,7 +274,7 @@ static int put_model(int dfd, const struct ap_model *m)
         text = doc ? json_dumps(doc, JSON_INDENT(2)) : NULL;
         if (!text)
                 return -ENOMEM;
-        r = put_file(dfd, "model.json", text, strlen(text));
+        r = ap_io_put_file(dfd, "model.json", text, strlen(text));
         if (r == 0 && fsync(dfd) < 0)
                 r = -errno;
         return r;
@@ -308,8 +309,7 @@ void ap_remove_tree(const char *path)
         rmdir(path);
 }
 
-/* Renames tmp to final, exchanging it with an older final (then removed). */
-static int install_dir(const char *tmp, const char *final)
+int ap_io_install_dir(const char *tmp, const char *final)
 {
         if (renameat2(AT_FDCWD, tmp, AT_FDCWD, final, RENAME_NOREPLACE) == 0)
                 return gn_fsync_parent(final);
@@ -319,6 +319,32 @@ static int install_dir(const char *tmp, const char *final)
                 return -errno;
         ap_remove_tree(tmp);
         return gn_fsync_parent(final);
+}
+
+/* Hard-links the files of final's BRDF model folder into tmp, so that replacing the SH model
+ * keeps it, whenever the writer is killed (a link, not a move: final holds it throughout). */
+static int keep_brdf(const char *final, const char *tmp)
+{
+        char from[4300], to[4300], file[4600];
+        DIR *d;
+        struct dirent *e;
+        int r = 0;
+
+        snprintf(from, sizeof(from), "%s/%s", final, AP_IO_BRDF_DIR);
+        snprintf(to, sizeof(to), "%s/%s", tmp, AP_IO_BRDF_DIR);
+        if (!(d = opendir(from)))
+                return errno == ENOENT ? 0 : -errno;
+        if (mkdir(to, 0755) < 0)
+                r = -errno;
+        while (r == 0 && (e = readdir(d))) {
+                if (e->d_name[0] == '.')
+                        continue;
+                snprintf(file, sizeof(file), "%s/%s", to, e->d_name);
+                if (linkat(dirfd(d), e->d_name, AT_FDCWD, file, 0) < 0)
+                        r = -errno;
+        }
+        closedir(d);
+        return r;
 }
 
 int ap_model_write(const struct ap_model *m, const char *ds_dir)
@@ -340,7 +366,9 @@ int ap_model_write(const struct ap_model *m, const char *ds_dir)
         dfd = open(tmp, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
         r = dfd < 0 ? -errno : put_model(dfd, m);
         if (r == 0)
-                r = install_dir(tmp, final);
+                r = keep_brdf(final, tmp);
+        if (r == 0)
+                r = ap_io_install_dir(tmp, final);
         if (r < 0)
                 ap_remove_tree(tmp);
         return r;
@@ -348,17 +376,7 @@ int ap_model_write(const struct ap_model *m, const char *ds_dir)
 
 /* ---- reading ---- */
 
-/* Where a read is, for messages: the model's directory and the error buffer. */
-struct rd {
-        const char *dir;
-        char *err;
-        size_t errlen;
-};
-
-static int bad(const struct rd *rd, const char *file, const char *fmt, ...)
-        __attribute__((format(printf, 3, 4)));
-
-static int bad(const struct rd *rd, const char *file, const char *fmt, ...)
+int ap_io_bad(const struct ap_io_rd *rd, const char *file, const char *fmt, ...)
 {
         char msg[512];
         va_list ap;
@@ -370,35 +388,51 @@ static int bad(const struct rd *rd, const char *file, const char *fmt, ...)
         return -EBADMSG;
 }
 
+int ap_io_slurp(const struct ap_io_rd *rd, const char *file, size_t want, void **buf, size_t *len)
+{
+        char path[4400];
+        int r;
+
+        snprintf(path, sizeof(path), "%s/%s", rd->dir, file);
+        r = gn_read_file_at(AT_FDCWD, path, (size_t)1 << 32, buf, len);
+        if (r < 0) {
+                snprintf(rd->err, rd->errlen, "%s: %s", path, strerror(-r));
+                return r == -ENOENT ? -EBADMSG : r;
+        }
+        if (want && *len != want)
+                return ap_io_bad(rd, file, "%zu bytes, expected %zu", *len, want);
+        return 0;
+}
+
 /* Reads n numbers of array key of o into v. */
-static int get_vec(const struct rd *rd, json_t *o, const char *key, double *v, size_t n,
+static int get_vec(const struct ap_io_rd *rd, json_t *o, const char *key, double *v, size_t n,
                    const char *where)
 {
         json_t *a = json_object_get(o, key);
 
         if (!json_is_array(a) || json_array_size(a) != n)
-                return bad(rd, "model.json", "%s: '%s' is not an array of %zu numbers", where, key,
-                           n);
+                return ap_io_bad(rd, "model.json", "%s: '%s' is not an array of %zu numbers", where,
+                                 key, n);
         for (size_t i = 0; i < n; i++) {
                 if (!json_is_number(json_array_get(a, i)))
-                        return bad(rd, "model.json", "%s: '%s'[%zu] is not a number", where, key,
-                                   i);
+                        return ap_io_bad(rd, "model.json", "%s: '%s'[%zu] is not a number", where,
+                                         key, i);
                 v[i] = json_number_value(json_array_get(a, i));
         }
         return 0;
 }
 
-static int get_camera(const struct rd *rd, json_t *o, struct ap_camera *c, const char *where)
+static int get_camera(const struct ap_io_rd *rd, json_t *o, struct ap_camera *c, const char *where)
 {
         json_error_t e;
         int r;
 
         if (json_unpack_ex(o, &e, 0, "{s:i,s:i,s:F,s:F,s:F,s:F}", "width", &c->width, "height",
                            &c->height, "fx", &c->fx, "fy", &c->fy, "cx", &c->cx, "cy", &c->cy) < 0)
-                return bad(rd, "model.json", "%s: geometry: %s", where, e.text);
+                return ap_io_bad(rd, "model.json", "%s: geometry: %s", where, e.text);
         if (c->width <= 0 || c->height <= 0 || c->width > 16384 || c->height > 16384)
-                return bad(rd, "model.json", "%s: geometry: size %dx%d out of range", where,
-                           c->width, c->height);
+                return ap_io_bad(rd, "model.json", "%s: geometry: size %dx%d out of range", where,
+                                 c->width, c->height);
         r = get_vec(rd, o, "dist", c->dist, 5, where);
         if (r == 0)
                 r = get_vec(rd, o, "R", c->R, 9, where);
@@ -407,35 +441,22 @@ static int get_camera(const struct rd *rd, json_t *o, struct ap_camera *c, const
         return r;
 }
 
-/* Reads a whole file of the model's directory. */
-static int slurp(const struct rd *rd, const char *file, void **buf, size_t *len)
-{
-        char path[4200];
-        int r;
-
-        snprintf(path, sizeof(path), "%s/%s", rd->dir, file);
-        r = gn_read_file_at(AT_FDCWD, path, (size_t)1 << 31, buf, len);
-        if (r < 0)
-                snprintf(rd->err, rd->errlen, "%s: %s", path, strerror(-r));
-        return r == -ENOENT ? -EBADMSG : r;
-}
-
-static int read_png(const struct rd *rd, const char *file, const struct ap_view *v, uint16_t *u16,
-                    uint8_t *u8)
+static int read_png(const struct ap_io_rd *rd, const char *file, const struct ap_view *v,
+                    uint16_t *u16, uint8_t *u8)
 {
         _cleanup_free_ void *buf = NULL;
         char msg[256];
         size_t len;
-        int r = slurp(rd, file, &buf, &len);
+        int r = ap_io_slurp(rd, file, 0, &buf, &len);
 
         if (r < 0)
                 return r;
         r = ap_png_decode(buf, len, v->cam.width, v->cam.height, u16, u8, msg, sizeof(msg));
-        return r == -EBADMSG ? bad(rd, file, "%s", msg) : r;
+        return r == -EBADMSG ? ap_io_bad(rd, file, "%s", msg) : r;
 }
 
 /* Reads view i's weight images and mask. */
-static int read_view_images(const struct rd *rd, struct ap_view *v, size_t i, int K)
+static int read_view_images(const struct ap_io_rd *rd, struct ap_view *v, size_t i, int K)
 {
         size_t n = (size_t)v->cam.width * v->cam.height;
         _cleanup_free_ uint16_t *q = malloc(n * 4 * sizeof(uint16_t));
@@ -466,7 +487,7 @@ static double angle_of(json_t *o, const char *key)
         return json_is_number(v) ? json_number_value(v) : NAN;
 }
 
-static int read_view(const struct rd *rd, json_t *o, struct ap_model *m, size_t i)
+static int read_view(const struct ap_io_rd *rd, json_t *o, struct ap_model *m, size_t i)
 {
         struct ap_view *v = &m->views[i];
         double q[2 * AP_K_MAX];
@@ -476,7 +497,7 @@ static int read_view(const struct rd *rd, json_t *o, struct ap_model *m, size_t 
 
         snprintf(where, sizeof(where), "views[%zu]", i);
         if (json_unpack(o, "{s:s}", "camera", &cam) < 0 || strlen(cam) >= sizeof(v->camera))
-                return bad(rd, "model.json", "%s: no camera name", where);
+                return ap_io_bad(rd, "model.json", "%s: no camera name", where);
         snprintf(v->camera, sizeof(v->camera), "%s", cam);
         v->turntable_deg = angle_of(o, "turntable_deg");
         v->camera_arm_deg = angle_of(o, "camera_arm_deg");
@@ -496,24 +517,24 @@ static int read_view(const struct rd *rd, json_t *o, struct ap_model *m, size_t 
         return r < 0 ? r : read_view_images(rd, v, i, m->k);
 }
 
-static int read_basis(const struct rd *rd, struct ap_model *m)
+static int read_basis(const struct ap_io_rd *rd, struct ap_model *m)
 {
         size_t n3 = 3 * (size_t)m->n_coef, want = n3 * (m->k + 1) * sizeof(float), len;
         _cleanup_free_ void *buf = NULL;
-        int r = slurp(rd, "basis.f32", &buf, &len);
+        int r = ap_io_slurp(rd, "basis.f32", 0, &buf, &len);
 
         if (r < 0)
                 return r;
         if (len != want)
-                return bad(rd, "basis.f32", "%zu bytes, expected %zu ((K + 1) x 3M float32)", len,
-                           want);
+                return ap_io_bad(rd, "basis.f32", "%zu bytes, expected %zu ((K + 1) x 3M float32)",
+                                 len, want);
         memcpy(m->mean, buf, n3 * sizeof(float));
         memcpy(m->basis, (float *)buf + n3, n3 * m->k * sizeof(float));
         return 0;
 }
 
 /* The header fields of model.json into a new model (views not read). */
-static int read_header(const struct rd *rd, json_t *doc, struct ap_model **ret)
+static int read_header(const struct ap_io_rd *rd, json_t *doc, struct ap_model **ret)
 {
         const char *fmt = "", *name = "", *notes = "", *reg = "";
         json_t *views = NULL;
@@ -522,17 +543,18 @@ static int read_header(const struct rd *rd, json_t *doc, struct ap_model **ret)
 
         if (json_unpack_ex(doc, &e, 0, "{s:s,s:s,s:i,s:i,s:s,s:o}", "format", &fmt, "name", &name,
                            "order", &order, "components", &k, "notes", &notes, "views", &views) < 0)
-                return bad(rd, "model.json", "%s", e.text);
+                return ap_io_bad(rd, "model.json", "%s", e.text);
         if (sscanf(fmt, "gonio-appearance %d", &version) == 1 && version > MODEL_VERSION)
-                return bad(rd, "model.json",
-                           "format '%s' is newer than this gonio reads ('%s'): update gonio", fmt,
-                           MODEL_FORMAT);
+                return ap_io_bad(rd, "model.json",
+                                 "format '%s' is newer than this gonio reads ('%s'): update gonio",
+                                 fmt, MODEL_FORMAT);
         if (strcmp(fmt, MODEL_FORMAT) != 0)
-                return bad(rd, "model.json", "format '%s', expected '%s'", fmt, MODEL_FORMAT);
+                return ap_io_bad(rd, "model.json", "format '%s', expected '%s'", fmt, MODEL_FORMAT);
         if (order < 1 || order > AP_ORDER_MAX || k < 1 || k > AP_K_MAX)
-                return bad(rd, "model.json", "order %d or components %d out of range", order, k);
+                return ap_io_bad(rd, "model.json", "order %d or components %d out of range", order,
+                                 k);
         if (!json_is_array(views) || json_array_size(views) == 0)
-                return bad(rd, "model.json", "'views' is not a non-empty array");
+                return ap_io_bad(rd, "model.json", "'views' is not a non-empty array");
         r = ap_model_new(order, k, json_array_size(views), ret);
         if (r < 0)
                 return r;
@@ -548,7 +570,7 @@ static int read_header(const struct rd *rd, json_t *doc, struct ap_model **ret)
 
 int ap_model_read(const char *dir, struct ap_model **ret, char *err, size_t errlen)
 {
-        struct rd rd = {dir, err, errlen};
+        struct ap_io_rd rd = {dir, err, errlen};
         _cleanup_(json_decrefp) json_t *doc = NULL;
         _cleanup_free_ void *text = NULL;
         struct ap_model *m = NULL;
@@ -556,13 +578,13 @@ int ap_model_read(const char *dir, struct ap_model **ret, char *err, size_t errl
         size_t len;
         int r;
 
-        r = slurp(&rd, "model.json", &text, &len);
+        r = ap_io_slurp(&rd, "model.json", 0, &text, &len);
         if (r < 0)
                 return r == -EBADMSG ? -ENOENT : r;
         doc = json_loadb(text, len, 0, &e);
         if (!doc)
-                return bad(&rd, "model.json", "line %d: %s%s", e.line, e.text,
-                           e.position >= (int)len ? " (the file is cut short)" : "");
+                return ap_io_bad(&rd, "model.json", "line %d: %s%s", e.line, e.text,
+                                 e.position >= (int)len ? " (the file is cut short)" : "");
         r = read_header(&rd, doc, &m);
         for (size_t i = 0; r == 0 && i < m->n_views; i++)
                 r = read_view(&rd, json_array_get(json_object_get(doc, "views"), i), m, i);

@@ -1,8 +1,9 @@
 /* model.c - gonioctl model fit DATASET [--name N] [--order P] [--components K] [--sample F]
  * [--reg tikhonov|tsvd] [--reg-param X] [--tile N] [--threads N] [--calibration FILE|nominal]
  * [--mesh FILE] [--force]: the appearance fit of a dataset (appearance/fit.h) written as
- * models/<name>/ of the dataset (appearance/model.h), without goniod; the summary as text or
- * JSON (docs/appearance.md, "gonioctl model fit"). */
+ * models/<name>/ of the dataset (appearance/model.h), without goniod; with --brdf [--texels N]
+ * the BRDF fit instead (appearance/brdf_fit.h) written as models/<name>/brdf/; the summary as
+ * text or JSON (docs/appearance.md, "gonioctl model fit"). */
 #include <errno.h>
 #include <getopt.h>
 #include <limits.h>
@@ -11,6 +12,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "appearance/brdf_fit.h"
 #include "appearance/fit.h"
 #include "client/cmd.h"
 #include "client/model.h"
@@ -22,12 +24,15 @@
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ds *, ds_close);
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_model *, ap_model_free);
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_brdf_model *, ap_brdf_model_free);
 
 /* What the command line asks beyond the fit's options. */
 struct fit_cli {
         struct ap_fit_opts o;
         const char *dataset;
         bool force;
+        bool brdf;   /* --brdf: the BRDF fit */
+        long texels; /* its --texels, 0: the default */
 };
 
 /* Stores option c's value v into f. Returns 0 or -EINVAL (message printed). */
@@ -65,6 +70,8 @@ static int set_opt(struct fit_cli *f, int c, const char *v)
         case 'j':
                 f->o.threads = (int)n;
                 return integer && n <= 16 ? 0 : -EINVAL;
+        case 'T':
+                return args_parse_long(v, 16, 1L << 26, &f->texels);
         case 'r':
                 f->o.reg = strcmp(v, "tsvd") == 0 ? AP_REG_TSVD : AP_REG_TIKHONOV;
                 return strcmp(v, "tsvd") == 0 || strcmp(v, "tikhonov") == 0 ? 0 : -EINVAL;
@@ -87,6 +94,8 @@ static int parse_fit(int n, char **words, struct fit_cli *f)
                 {"calibration", required_argument, NULL, 'c'},
                 {"mesh", required_argument, NULL, 'm'},
                 {"force", no_argument, NULL, 'f'},
+                {"brdf", no_argument, NULL, 'b'},
+                {"texels", required_argument, NULL, 'T'},
                 {},
         };
         int c, li = 0;
@@ -96,8 +105,8 @@ static int parse_fit(int n, char **words, struct fit_cli *f)
         optind = 0; /* glibc: a full reset, words is not the process's argv */
         opterr = 0;
         while ((c = getopt_long(n, words, "", opts, &li)) != -1) {
-                if (c == 'f')
-                        f->force = true;
+                if (c == 'f' || c == 'b')
+                        *(c == 'f' ? &f->force : &f->brdf) = true;
                 else if (c == '?' || c == ':')
                         return args_usage_error(WHAT, "unknown option or missing value '%s'",
                                                 words[optind - 1]);
@@ -108,6 +117,8 @@ static int parse_fit(int n, char **words, struct fit_cli *f)
         if (optind != n - 1)
                 return args_usage_error(WHAT, "needs one DATASET (usage: model fit DATASET "
                                               "[--name N] [--order P] [--components K] ...)");
+        if (f->texels && !f->brdf)
+                return args_usage_error(WHAT, "--texels needs --brdf");
         f->dataset = words[optind];
         return 0;
 }
@@ -122,6 +133,61 @@ static json_t *summary_json(const struct ap_model *m, const char *dir)
                          m->fit_seconds, "notes", m->notes);
 }
 
+static int cmp_float(const void *a, const void *b)
+{
+        float x = *(const float *)a, y = *(const float *)b;
+
+        return (x > y) - (x < y);
+}
+
+/* The summary of BRDF model m written at dir: texels by outcome, the median rms. */
+static json_t *brdf_summary_json(const struct ap_brdf_model *m, const char *dir)
+{
+        size_t n = (size_t)m->atlas.width * m->atlas.height, k[3] = {0}, nr = 0;
+        _cleanup_free_ float *rms = malloc((n + 1) * sizeof(float));
+
+        for (size_t i = 0; rms && i < n; i++) {
+                uint32_t fl = m->texels[i].flags;
+                k[fl & AP_BRDF_FITTED ? 0 : fl & AP_BRDF_DIFFUSE_ONLY ? 1 : 2]++;
+                if (!(fl & AP_BRDF_MASKED))
+                        rms[nr++] = m->texels[i].rms;
+        }
+        if (!rms)
+                return NULL;
+        qsort(rms, nr, sizeof(float), cmp_float);
+        return json_pack("{s:s,s:s,s:b,s:I,s:I,s:I,s:I,s:f,s:f,s:f,s:s}", "model", dir, "name",
+                         m->name, "brdf", 1, "texels", (json_int_t)n, "fitted", (json_int_t)k[0],
+                         "diffuse_only", (json_int_t)k[1], "masked", (json_int_t)k[2], "median_rms",
+                         nr ? (double)rms[nr / 2] : 0.0, "response", m->response, "seconds",
+                         m->fit_seconds, "notes", m->notes);
+}
+
+/* The BRDF fit of dataset d with f's options, written and summarised. */
+static int model_fit_brdf(const struct fit_cli *f, struct ds *d, const char *dir, struct out *o,
+                          json_t **ret)
+{
+        _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *m = NULL;
+        struct ap_brdf_fit_opts bo;
+        char err[1024];
+        int r;
+
+        ap_brdf_fit_opts_default(&bo);
+        bo.name = f->o.name, bo.threads = f->o.threads, bo.calibration = f->o.calibration;
+        bo.backends = f->o.backends;
+        if (f->texels)
+                bo.texels = (size_t)f->texels;
+        if ((r = ap_brdf_fit(d, &bo, &m, err, sizeof(err))) < 0) {
+                out_error(o, WHAT, "%s: %s", f->dataset, err);
+                return cmd_exit_for_errno(r);
+        }
+        if ((r = ap_brdf_write(m, ds_path(d))) < 0) {
+                out_error(o, WHAT, "cannot write %s: %s", dir, strerror(-r));
+                return EXIT_STORAGE;
+        }
+        *ret = brdf_summary_json(m, dir);
+        return *ret ? EXIT_OK : EXIT_PROTOCOL;
+}
+
 /* Fits, writes and summarises the model of f's dataset. */
 static int model_fit(const struct fit_cli *f, struct out *o, json_t **ret)
 {
@@ -134,11 +200,13 @@ static int model_fit(const struct fit_cli *f, struct out *o, json_t **ret)
                 out_error(o, WHAT, "cannot open dataset %s: %s", f->dataset, strerror(-r));
                 return EXIT_INVALID;
         }
-        snprintf(dir, sizeof(dir), "%s/models/%s", ds_path(d), f->o.name);
+        snprintf(dir, sizeof(dir), "%s/models/%s%s", ds_path(d), f->o.name, f->brdf ? "/brdf" : "");
         if (!f->force && access(dir, F_OK) == 0) {
                 out_error(o, WHAT, "%s exists (--force replaces it)", dir);
                 return EXIT_INVALID;
         }
+        if (f->brdf)
+                return model_fit_brdf(f, d, dir, o, ret);
         if ((r = ap_fit(d, &f->o, &m, err, sizeof(err))) < 0) {
                 out_error(o, WHAT, "%s: %s", f->dataset, err);
                 return cmd_exit_for_errno(r);
@@ -173,12 +241,9 @@ int model_command(const struct args *a, struct out *o, json_t **ret)
         return model_fit(&f, o, ret);
 }
 
-void model_print(json_t *res)
+/* The SH model's summary lines. */
+static void sh_print(json_t *res)
 {
-        const char *notes = json_string_value(json_object_get(res, "notes"));
-
-        if (!res) /* model render: printed already */
-                return;
         printf("model %s: order %d, %d components, %d views, %s %g\n",
                json_string_value(json_object_get(res, "model")),
                (int)json_integer_value(json_object_get(res, "order")),
@@ -190,6 +255,27 @@ void model_print(json_t *res)
                json_real_value(json_object_get(res, "rms_sh")),
                json_real_value(json_object_get(res, "rms_pca")),
                json_real_value(json_object_get(res, "seconds")));
+}
+
+void model_print(json_t *res)
+{
+        const char *notes = json_string_value(json_object_get(res, "notes"));
+
+        if (!res) /* model render: printed already */
+                return;
+        if (json_is_true(json_object_get(res, "brdf"))) {
+                printf("BRDF model %s: %lld texels: %lld fitted, %lld diffuse only, %lld masked\n",
+                       json_string_value(json_object_get(res, "model")),
+                       (long long)json_integer_value(json_object_get(res, "texels")),
+                       (long long)json_integer_value(json_object_get(res, "fitted")),
+                       (long long)json_integer_value(json_object_get(res, "diffuse_only")),
+                       (long long)json_integer_value(json_object_get(res, "masked")));
+                printf("median residual RMS %.5f; %.2f s\n",
+                       json_real_value(json_object_get(res, "median_rms")),
+                       json_real_value(json_object_get(res, "seconds")));
+        } else {
+                sh_print(res);
+        }
         if (notes && *notes)
                 printf("notes: %s\n", notes);
 }

@@ -283,8 +283,13 @@ static void close_later(struct manager *m, struct ds *d)
 
 int datasets_attach(struct manager *m, struct ds *d, const char *name, int64_t count)
 {
-        int r = capture_attach(m->capture, d, name, count);
+        int r;
 
+        /* goniod is shutting down (an open finished as it stopped): no pool can start */
+        if (sd_event_get_state(m->event) == SD_EVENT_FINISHED)
+                r = -ECANCELED;
+        else
+                r = capture_attach(m->capture, d, name, count);
         if (r < 0)
                 close_later(m, d);
         return r;
@@ -304,7 +309,9 @@ static void opened_done(int result, void *userdata)
                 srv_fail(j->req, result, "goniod is shutting down");
         } else if (result < 0) {
                 srv_fail(j->req, result, "%s", j->msg);
-        } else if ((r = datasets_attach(m, TAKE_PTR(j->d), j->name, j->count)) < 0) {
+        } else if ((r = datasets_attach(m, TAKE_PTR(j->d), j->name, j->count)) == -ECANCELED) {
+                srv_fail(j->req, r, "goniod is shutting down");
+        } else if (r < 0) {
                 srv_fail(j->req, r, "cannot start the storage pool: %s", strerror(-r));
         } else {
                 srv_reply(j->req,

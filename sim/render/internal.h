@@ -19,7 +19,7 @@
 #define SIM_MAX_GEOMS        24
 #define SIM_MAX_TARGETS      8
 #define SIM_MAX_LAMP_SAMPLES 64
-#define SIM_MAX_DOME         4096
+#define SIM_MAX_DOME         16384
 
 /* A texture in linear float, 1 or 3 channels, repeated outside [0,1). */
 struct rtex {
@@ -88,10 +88,13 @@ struct camera {
 
 struct dome_el {
         double dir[3]; /* world frame, unit */
-        double w;      /* radiance x solid angle */
+        double w[3];   /* radiance x solid angle, RGB */
 };
 
+/* The procedural sky (radiance, zenith_ratio, ground) or, with env, a lat-long environment
+ * map (appearance/envmap.h's convention, world frame) scaled by radiance. */
 struct dome {
+        struct rtex *env; /* owned, or NULL */
         double radiance, zenith_ratio, ground;
         double sun_dir[3], sun_cos, sun_radiance; /* sun_cos = cos(sun radius) */
         double threshold;
@@ -158,6 +161,8 @@ int mesh_load(const char *path, struct mesh *m, char *err, size_t errlen);
 
 /* --- texture.c --- */
 int rtex_load_png(const char *path, bool srgb, struct rtex **ret);
+/* A lat-long environment map: PFM, or PNG taken as linear. Returns 0 or -errno. */
+int rtex_load_env(const char *path, struct rtex **ret);
 struct rtex *rtex_free(struct rtex *t);
 void rtex_sample(const struct rtex *t, float u, float v, float out[3]);
 
@@ -178,8 +183,8 @@ void camera_free(struct camera *c);
 /* Sample point k of n of a lamp of radius r at p: a disc facing the origin. */
 void lamp_sample(const double p[3], double r, int k, int n, double out[3]);
 int dome_build(const struct dome *d, struct dome_el **ret, int *n);
-/* Dome radiance in world direction w (unit). */
-double dome_radiance(const struct dome *d, const double w[3]);
+/* Dome radiance (RGB) in world direction w (unit). */
+void dome_radiance(const struct dome *d, const double w[3], double out[3]);
 
 /* --- material.c --- */
 void surf_eval(const struct rmat *m, float u, float v, struct surf *s);

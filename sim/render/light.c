@@ -1,6 +1,7 @@
 /* light.c - lamps on the light arm (positions, area samples), the laser plane and the
  * dome (room / sky) light split adaptively into point lights at infinity, after Takada et
- * al. (seed 004): a patch is split while it carries more than a threshold of the energy. */
+ * al. (seed 004): a patch is split while it carries more than a threshold of the energy.
+ * The dome is procedural or a lat-long environment map; either way only its radiance matters. */
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
@@ -63,16 +64,26 @@ int sim_laser_plane(const struct sim_scene *s, int laser, double n[3], double *d
         return 0;
 }
 
-double dome_radiance(const struct dome *d, const double w[3])
+void dome_radiance(const struct dome *d, const double w[3], double out[3])
 {
-        if (w[2] < 0)
-                return d->radiance * d->ground;
-        return d->radiance * (1 + (d->zenith_ratio - 1) * w[2]);
+        double L = w[2] < 0 ? d->ground : 1 + (d->zenith_ratio - 1) * w[2];
+        float px[3] = {1, 1, 1};
+
+        if (d->env) { /* lat-long, row 0 at the zenith (appearance/envmap.h) */
+                double phi = atan2(w[1], w[0]), th = acos(CLAMP(w[2], -1.0, 1.0));
+                rtex_sample(d->env, (float)(phi * 0.5 * M_1_PI + (phi < 0)),
+                            (float)CLAMP(1 - th * M_1_PI, 0.5 / d->env->h, 1 - 0.5 / d->env->h),
+                            px);
+                L = 1;
+        }
+        for (int c = 0; c < 3; c++)
+                out[c] = d->radiance * L * px[c];
 }
 
 struct patch {
         double t0, t1, p0, p1; /* polar angle from zenith, azimuth */
-        double energy;
+        double e[3];           /* radiance x solid angle, RGB */
+        double energy;         /* their mean: what the split compares */
 };
 
 static void dir_of(double th, double ph, double w[3])
@@ -82,19 +93,31 @@ static void dir_of(double th, double ph, double w[3])
         w[2] = cos(th);
 }
 
-/* Energy (radiance x solid angle) of a patch by 3x3 midpoint quadrature. */
-static double patch_energy(const struct dome *d, const struct patch *p)
+/* Quadrature points per side of a patch: 3, or about one per texel of the map. */
+static int patch_steps(const struct dome *d, const struct patch *p)
 {
-        double e = 0, dt = (p->t1 - p->t0) / 3, dp = (p->p1 - p->p0) / 3;
+        if (!d->env)
+                return 3;
+        return CLAMP((int)ceil((p->t1 - p->t0) * d->env->h * M_1_PI), 3, 64);
+}
 
-        for (int i = 0; i < 3; i++)
-                for (int j = 0; j < 3; j++) {
-                        double w[3], th = p->t0 + (i + 0.5) * dt;
+/* Energy (radiance x solid angle) of a patch by midpoint quadrature. */
+static void patch_energy(const struct dome *d, struct patch *p)
+{
+        int n = patch_steps(d, p);
+        double dt = (p->t1 - p->t0) / n, dp = (p->p1 - p->p0) / n;
+
+        p->e[0] = p->e[1] = p->e[2] = 0;
+        for (int i = 0; i < n; i++)
+                for (int j = 0; j < n; j++) {
+                        double w[3], L[3], th = p->t0 + (i + 0.5) * dt;
 
                         dir_of(th, p->p0 + (j + 0.5) * dp, w);
-                        e += dome_radiance(d, w) * sin(th) * dt * dp;
+                        dome_radiance(d, w, L);
+                        for (int c = 0; c < 3; c++)
+                                p->e[c] += L[c] * sin(th) * dt * dp;
                 }
-        return e;
+        p->energy = (p->e[0] + p->e[1] + p->e[2]) / 3;
 }
 
 static void split(const struct dome *d, struct patch *ps, int i, int *n)
@@ -102,14 +125,14 @@ static void split(const struct dome *d, struct patch *ps, int i, int *n)
         struct patch p = ps[i];
         double tm = (p.t0 + p.t1) / 2, pm = (p.p0 + p.p1) / 2;
         struct patch q[4] = {
-                {p.t0, tm, p.p0, pm, 0},
-                {p.t0, tm, pm, p.p1, 0},
-                {tm, p.t1, p.p0, pm, 0},
-                {tm, p.t1, pm, p.p1, 0},
+                {p.t0, tm, p.p0, pm, {0}, 0},
+                {p.t0, tm, pm, p.p1, {0}, 0},
+                {tm, p.t1, p.p0, pm, {0}, 0},
+                {tm, p.t1, pm, p.p1, {0}, 0},
         };
 
         for (int k = 0; k < 4; k++) {
-                q[k].energy = patch_energy(d, &q[k]);
+                patch_energy(d, &q[k]);
                 if (k == 0)
                         ps[i] = q[k];
                 else
@@ -119,7 +142,7 @@ static void split(const struct dome *d, struct patch *ps, int i, int *n)
 
 int dome_build(const struct dome *d, struct dome_el **ret, int *n_ret)
 {
-        int rows = d->ground > 0 ? 4 : 2, n = 0, cap = MAX(d->max_elements, 8 * rows);
+        int rows = d->ground > 0 || d->env ? 4 : 2, n = 0, cap = MAX(d->max_elements, 8 * rows);
         _cleanup_free_ struct patch *ps = calloc(cap + 4, sizeof(*ps));
         double total = 0;
         struct dome_el *els;
@@ -128,9 +151,10 @@ int dome_build(const struct dome *d, struct dome_el **ret, int *n_ret)
                 return -ENOMEM;
         for (int i = 0; i < rows; i++)
                 for (int j = 0; j < 8; j++) {
-                        struct patch p = {i * M_PI / 4, (i + 1) * M_PI / 4, j * M_PI / 4,
-                                          (j + 1) * M_PI / 4, 0};
-                        p.energy = patch_energy(d, &p);
+                        struct patch p = {i * M_PI / 4, (i + 1) * M_PI / 4,
+                                          j * M_PI / 4, (j + 1) * M_PI / 4,
+                                          {0},          0};
+                        patch_energy(d, &p);
                         total += p.energy;
                         ps[n++] = p;
                 }
@@ -148,7 +172,8 @@ int dome_build(const struct dome *d, struct dome_el **ret, int *n_ret)
                 return -ENOMEM;
         for (int i = 0; i < n; i++) {
                 dir_of((ps[i].t0 + ps[i].t1) / 2, (ps[i].p0 + ps[i].p1) / 2, els[i].dir);
-                els[i].w = ps[i].energy;
+                for (int c = 0; c < 3; c++)
+                        els[i].w[c] = ps[i].e[c];
         }
         *ret = els;
         *n_ret = n;

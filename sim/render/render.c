@@ -58,7 +58,7 @@ struct fctx {
         struct emitter emit[RIG_MAX_LAMPS];
         int n_emit;
         struct v3 *dome_dir; /* object frame */
-        float *dome_w;
+        float *dome_w;       /* RGB */
         int n_dome;
         struct laser_sheet lz[RIG_MAX_LASERS]; /* the lit lasers */
         int n_lz;
@@ -242,17 +242,14 @@ static void resolve_lane(const struct fctx *c, const struct RTCRayHit16 *rh, int
         h->on[i] = -1;
 }
 
-static void accumulate(struct hits *h, int i, struct v3 l, float e, int ch)
+/* Adds the light of irradiance e (RGB, on a plane facing l) from direction l to lane i. */
+static void accumulate(struct hits *h, int i, struct v3 l, const float e[3])
 {
         float f[3];
 
         brdf_cos(&h->sf[i], h->n[i], h->t[i], l, h->v[i], f);
-        if (ch >= 0) {
-                h->L[i][ch] += f[ch] * e;
-                return;
-        }
         for (int k = 0; k < 3; k++)
-                h->L[i][k] += f[k] * e;
+                h->L[i][k] += f[k] * e[k];
 }
 
 static void shade_lamps(const struct fctx *c, struct hits *h)
@@ -280,7 +277,8 @@ static void shade_lamps(const struct fctx *c, struct hits *h)
                         if (!on[i])
                                 continue;
                         struct v3 l = v3(r.dir_x[i], r.dir_y[i], r.dir_z[i]);
-                        accumulate(h, i, l, lp->intensity / (dist[i] * dist[i]), -1);
+                        float e = lp->intensity / (dist[i] * dist[i]);
+                        accumulate(h, i, l, (const float[3]){e, e, e});
                         h->lamps[i] |= 1u << lp->lamp;
                 }
         }
@@ -317,9 +315,11 @@ static void shade_laser(const struct fctx *c, const struct laser_sheet *lz, stru
         }
         occlude(c, on, &r);
         for (int i = 0; i < LANES; i++)
-                if (on[i])
-                        accumulate(h, i, v3(r.dir_x[i], r.dir_y[i], r.dir_z[i]),
-                                   lz->power * g[i] / dist[i], lz->ch);
+                if (on[i]) {
+                        float e[3] = {0, 0, 0};
+                        e[lz->ch] = lz->power * g[i] / dist[i];
+                        accumulate(h, i, v3(r.dir_x[i], r.dir_y[i], r.dir_z[i]), e);
+                }
 }
 
 static void shade_dome(const struct fctx *c, struct hits *h)
@@ -341,24 +341,32 @@ static void shade_dome(const struct fctx *c, struct hits *h)
                 occlude(c, on, &r);
                 for (int i = 0; i < LANES; i++)
                         if (on[i])
-                                accumulate(h, i, l, c->dome_w[k], -1);
+                                accumulate(h, i, l, &c->dome_w[3 * k]);
         }
 }
 
-/* Radiance along a ray that leaves the scene: lamp spheres, then the dome. */
-static float background(const struct fctx *c, struct v3 o, struct v3 d)
+/* Radiance (RGB, into L) along a ray that leaves the scene: lamp spheres, then the dome. */
+static void background(const struct fctx *c, struct v3 o, struct v3 d, float L[3])
 {
+        double wd[3], Ld[3];
+
         for (int k = 0; k < c->n_emit; k++) {
                 struct v3 oc = v3_sub(c->emit[k].c, o);
                 float b = v3_dot(oc, d);
-                if (b > 0 && v3_dot(oc, oc) - b * b <= c->emit[k].r2)
-                        return c->emit[k].radiance;
+                if (b > 0 && v3_dot(oc, oc) - b * b <= c->emit[k].r2) {
+                        L[0] = L[1] = L[2] = c->emit[k].radiance;
+                        return;
+                }
         }
         if (c->s->dome.radiance <= 0)
-                return 0;
+                return;
         struct v3 w = m3_mul(c->Rw, d);
-        double wd[3] = {w.x, w.y, w.z};
-        return (float)dome_radiance(&c->s->dome, wd);
+        wd[0] = w.x;
+        wd[1] = w.y;
+        wd[2] = w.z;
+        dome_radiance(&c->s->dome, wd, Ld);
+        for (int k = 0; k < 3; k++)
+                L[k] = (float)Ld[k];
 }
 
 static void shade_packet(const struct fctx *c, struct RTCRayHit16 *rh, const int *valid,
@@ -408,9 +416,8 @@ static void shade_packet(const struct fctx *c, struct RTCRayHit16 *rh, const int
                         continue;
                 if (rh->hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) {
                         struct v3 o = v3(rh->ray.org_x[i], rh->ray.org_y[i], rh->ray.org_z[i]);
-                        float b = background(
-                                c, o, v3(rh->ray.dir_x[i], rh->ray.dir_y[i], rh->ray.dir_z[i]));
-                        h->L[i][0] = h->L[i][1] = h->L[i][2] = b;
+                        background(c, o, v3(rh->ray.dir_x[i], rh->ray.dir_y[i], rh->ray.dir_z[i]),
+                                   h->L[i]);
                         continue;
                 }
                 resolve_lane(c, rh, i, pix[i], h);
@@ -632,13 +639,14 @@ static int setup_dome(struct fctx *c, const struct gn_pose *st)
         if (!c->s->n_dome)
                 return 0;
         c->dome_dir = malloc(c->s->n_dome * sizeof(*c->dome_dir));
-        c->dome_w = malloc(c->s->n_dome * sizeof(*c->dome_w));
+        c->dome_w = malloc(3 * c->s->n_dome * sizeof(*c->dome_w));
         if (!c->dome_dir || !c->dome_w)
                 return -ENOMEM;
         m3d_rot_z(-pose_deg(st, GN_ROLE_TURNTABLE), Rzi);
         for (int k = 0; k < c->s->n_dome; k++) {
                 c->dome_dir[k] = to_obj(Rzi, c->s->dome_els[k].dir);
-                c->dome_w[k] = (float)c->s->dome_els[k].w;
+                for (int ch = 0; ch < 3; ch++)
+                        c->dome_w[3 * k + ch] = (float)c->s->dome_els[k].w[ch];
         }
         c->n_dome = c->s->n_dome;
         return 0;

@@ -72,8 +72,12 @@ static int parse_rgb(struct yconf *y, struct fy_node *map, const char *key, floa
         return 1;
 }
 
+enum map_kind { MAP_LINEAR, MAP_SRGB, MAP_ENV };
+
+/* The image named by key (a path relative to the rig file), if given. Returns 1, 0 (no key)
+ * or a yconf error. */
 static int load_map(struct sim_scene *s, struct yconf *y, struct fy_node *map, const char *key,
-                    bool srgb, struct rtex **out)
+                    enum map_kind kind, struct rtex **out)
 {
         char rel[RIG_PATH_MAX], path[2 * RIG_PATH_MAX], dir[RIG_PATH_MAX];
         int r = yconf_str(y, map, key, rel, sizeof(rel));
@@ -85,10 +89,10 @@ static int load_map(struct sim_scene *s, struct yconf *y, struct fy_node *map, c
                 snprintf(path, sizeof(path), "%s", rel);
         else
                 snprintf(path, sizeof(path), "%s/%s", dirname(dir), rel);
-        r = rtex_load_png(path, srgb, out);
+        r = kind == MAP_ENV ? rtex_load_env(path, out) : rtex_load_png(path, kind == MAP_SRGB, out);
         if (r < 0)
-                return yconf_error(y, yconf_get(map, key), key, "cannot load PNG '%s': %s", path,
-                                   strerror(-r));
+                return yconf_error(y, yconf_get(map, key), key, "cannot load %s '%s': %s",
+                                   kind == MAP_ENV ? "PNG or PFM" : "PNG", path, strerror(-r));
         return 1;
 }
 
@@ -108,8 +112,8 @@ static int parse_specular(struct sim_scene *s, struct yconf *y, struct fy_node *
             (r = yconf_double(y, map, "alpha_x", 1e-3, 2, &ax)) < 0 ||
             (r = yconf_double(y, map, "alpha_y", 1e-3, 2, &ay)) < 0 ||
             (r = yconf_double(y, map, "ior", 0, 10, &ior)) < 0 ||
-            (r = load_map(s, y, map, "ks_map", false, &m->ks_map)) < 0 ||
-            (r = load_map(s, y, map, "alpha_map", false, &m->alpha_map)) < 0)
+            (r = load_map(s, y, map, "ks_map", MAP_LINEAR, &m->ks_map)) < 0 ||
+            (r = load_map(s, y, map, "alpha_map", MAP_LINEAR, &m->alpha_map)) < 0)
                 return r;
         m->model = (enum spec_model)ELEMENTSOF(models);
         for (size_t i = 0; i < ELEMENTSOF(models); i++)
@@ -138,7 +142,7 @@ static int parse_material(struct sim_scene *s, struct yconf *y, struct fy_node *
                 return 0;
         if ((r = yconf_check_keys(y, map, keys)) < 0 ||
             (r = parse_rgb(y, map, "albedo", m->albedo)) < 0 ||
-            (r = load_map(s, y, map, "albedo_map", true, &m->albedo_map)) < 0)
+            (r = load_map(s, y, map, "albedo_map", MAP_SRGB, &m->albedo_map)) < 0)
                 return r;
         spec = yconf_get(map, "specular");
         return spec ? parse_specular(s, y, spec, m) : 0;
@@ -387,8 +391,8 @@ static int parse_turntable(struct sim_scene *s, struct yconf *y, struct fy_node 
 
 static int parse_dome(struct sim_scene *s, struct yconf *y, struct fy_node *root)
 {
-        static const char *const keys[] = {"radiance",  "zenith_ratio", "ground",
-                                           "threshold", "max_elements", NULL};
+        static const char *const keys[] = {"radiance",     "zenith_ratio", "ground", "threshold",
+                                           "max_elements", "envmap",       NULL};
         struct fy_node *map = yconf_get(root, "dome");
         struct dome *d = &s->dome;
         long maxel = 256;
@@ -403,10 +407,19 @@ static int parse_dome(struct sim_scene *s, struct yconf *y, struct fy_node *root
                     (r = yconf_double(y, map, "radiance", 0, 1e9, &d->radiance)) < 0 ||
                     (r = yconf_double(y, map, "zenith_ratio", 0, 100, &d->zenith_ratio)) < 0 ||
                     (r = yconf_double(y, map, "ground", 0, 10, &d->ground)) < 0 ||
-                    (r = yconf_double(y, map, "threshold", 1e-4, 1, &d->threshold)) < 0 ||
+                    (r = yconf_double(y, map, "threshold", 1e-5, 1, &d->threshold)) < 0 ||
                     (r = yconf_int(y, map, "max_elements", 8, SIM_MAX_DOME, &maxel)) < 0))
                 return r;
         d->max_elements = (int)maxel;
+        if (map && (r = load_map(s, y, map, "envmap", MAP_ENV, &d->env)) < 0)
+                return r;
+        if (d->env && d->env->w != 2 * d->env->h)
+                return yconf_error(y, yconf_get(map, "envmap"), "envmap",
+                                   "not a latitude-longitude map: %dx%d (the width must be twice "
+                                   "the height)",
+                                   d->env->w, d->env->h);
+        if (d->env && !yconf_get(map, "radiance"))
+                d->radiance = 1;
         return d->radiance > 0 ? dome_build(d, &s->dome_els, &s->n_dome) : 0;
 }
 

@@ -117,6 +117,7 @@ struct sim_scene *sim_scene_free(struct sim_scene *s)
         for (size_t i = 0; i < RIG_MAX_CAMERAS; i++)
                 camera_free(&s->cams[i]);
         free(s->dome_els);
+        rtex_free(s->dome.env);
         free(s->noise_q);
         free(s);
         return NULL;

@@ -1,12 +1,17 @@
 /* texture.c - image textures for materials: PNG (8 or 16 bit, any colour type) read with
- * libspng into linear float (sRGB decoded for colour maps), bilinear lookup with wrap. */
+ * libspng into linear float (sRGB decoded for colour maps), bilinear lookup with wrap; the
+ * dome's environment map, PNG (linear) or PFM (common/pfm.h). */
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <spng.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "common/cleanup.h"
+#include "common/fileio.h"
+#include "common/pfm.h"
 #include "internal.h"
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(spng_ctx *, spng_ctx_free);
@@ -58,6 +63,31 @@ int rtex_load_png(const char *path, bool srgb, struct rtex **ret)
         if (!t)
                 return -ENOMEM;
         r = decode(f, t, srgb);
+        if (r < 0) {
+                rtex_free(t);
+                return r;
+        }
+        *ret = t;
+        return 0;
+}
+
+int rtex_load_env(const char *path, struct rtex **ret)
+{
+        _cleanup_free_ void *buf = NULL;
+        struct rtex *t;
+        size_t len;
+        int r;
+
+        r = gn_read_file_at(AT_FDCWD, path, (size_t)1 << 31, &buf, &len);
+        if (r < 0)
+                return r;
+        if (len < 2 || memcmp(buf, "P", 1))
+                return rtex_load_png(path, false, ret);
+        t = calloc(1, sizeof(*t));
+        if (!t)
+                return -ENOMEM;
+        t->channels = 3;
+        r = gn_pfm_decode(buf, len, 16384, &t->px, &t->w, &t->h);
         if (r < 0) {
                 rtex_free(t);
                 return r;

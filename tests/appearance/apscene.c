@@ -38,7 +38,8 @@ void aps_opts_default(struct aps_opts *o, enum aps_material m)
                                .albedo = {0.7, 0.55, 0.4},
                                .ks = m == APS_DIFFUSE ? 0 : 0.25,
                                .alpha = alpha[m],
-                               .mesh = true};
+                               .mesh = true,
+                               .mesh_rings = MESH_RINGS};
 }
 
 /* The lamps section: o's lamps and the probe, all at azimuth 0 of the arm. */
@@ -78,11 +79,12 @@ static void cameras_yaml(const struct aps_opts *o, char *buf, size_t len)
 
 static void scene_yaml(const struct aps_opts *o, char *buf, size_t len)
 {
-        char spec[160] = "{ model: none }";
+        char spec[200] = "{ model: none }";
 
         if (o->ks > 0)
-                snprintf(spec, sizeof(spec), "{ model: beckmann, ks: %g, alpha: %g, ior: 1.5 }",
-                         o->ks, o->alpha);
+                snprintf(spec, sizeof(spec),
+                         "{ model: beckmann, ks: %g, alpha_x: %g, alpha_y: %g, ior: 1.5 }", o->ks,
+                         o->alpha, o->alpha_y > 0 ? o->alpha_y : o->alpha);
         CHECK(snprintf(buf, len,
                        "scene:\n  seed: 1\n"
                        "  object: { shape: %s, size: %g, material: { albedo: [%g, %g, %g],"
@@ -116,7 +118,7 @@ static void render(struct apscene *s, int cam, double tt, double arm, int lamp, 
                    unsigned flags, struct sim_truth *truth)
 {
         struct gn_pose st = {{tt, arm, NAN}, 1u << lamp, false};
-        struct sim_expose ex = {.bits = 16, .no_noise = true};
+        struct sim_expose ex = {.bits = 16, .no_noise = !s->o.noise};
 
         CHECK_INT(sim_render(s->t.s, &st, cam, &ex, ++s->seq, f, flags, truth), 0);
 }
@@ -162,7 +164,7 @@ void aps_lamp_position(const struct apscene *s, int lamp, double arm, double p[3
 
 void aps_write_mesh(const struct apscene *s, const char *dir)
 {
-        const int rings = MESH_RINGS, segs = 2 * MESH_RINGS;
+        const int rings = s->o.mesh_rings, segs = 2 * s->o.mesh_rings;
         struct cal_mesh m = {0};
         double r = APS_SIZE_MM / 2;
         _cleanup_close_ int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);

@@ -29,8 +29,11 @@ struct aps_opts {
         const char *shape;     /* scene.object.shape: "sphere", "gem"... */
         double albedo[3];
         double ks, alpha; /* Beckmann lobe: weight and roughness; ks 0: diffuse */
+        double alpha_y;   /* > 0: the roughness across the object's z axis (alpha along it) */
         bool mesh;        /* store the true surface as the dataset's mesh.ply */
         double dist[5];   /* the cameras' lens distortion (OpenCV k1 k2 p1 p2 k3; 0: none) */
+        int mesh_rings;   /* of that sphere mesh (its segments twice as many) */
+        bool noise;       /* the sensor's shot and read noise on */
 };
 
 /* The materials of the tests and of docs/appearance.md's PSNR table. */
@@ -52,7 +55,8 @@ struct apscene {
 };
 
 /* Defaults: 96x72, one camera, 2 turntable angles, 18 arm angles, 6 lamps (-40 to 85
- * degrees) 500 mm away, a sphere with material m, its mesh stored. */
+ * degrees) 500 mm away, a sphere with material m (isotropic), its mesh of 48 rings stored,
+ * noise off. */
 void aps_opts_default(struct aps_opts *o, enum aps_material m);
 
 /* Builds the rig file and the scene; exits the test on failure. */

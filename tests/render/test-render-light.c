@@ -1,7 +1,14 @@
 /* test-render-light.c - lighting against closed forms: a Lambert sphere under one point
  * lamp, the inverse-square law, the shadow edge of a sphere, the dome's irradiance and
- * its adaptive split. Noise off, 16-bit output. */
+ * its adaptive split, the dome as a lat-long environment map (a constant map on a Lambert
+ * sphere gives the closed form; the picture converges as the elements grow). Noise off,
+ * 16-bit output. */
 #include <math.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
 
 #include "rtest.h"
 #include "sim/render/internal.h"
@@ -198,8 +205,8 @@ static void test_dome(void)
         /* adaptive split: every element below the threshold, energy conserved */
         CHECK_INT(dome_build(&d, &els, &n), 0);
         for (int i = 0; i < n; i++) {
-                CHECK(els[i].w <= 0.01 * 2 * M_PI * 2 + 1e-9);
-                total += els[i].w;
+                CHECK(els[i].w[0] <= 0.01 * 2 * M_PI * 2 + 1e-9);
+                total += els[i].w[0];
         }
         /* closed form: int L0 (1 + 2 cos) dw over the hemisphere = 2 pi + 2 pi = 4 pi */
         CHECK_NEAR(total, 4 * M_PI, 0.005 * 4 * M_PI);
@@ -222,6 +229,129 @@ static void test_dome(void)
         rt_close(&t);
 }
 
+/* A w x h lat-long PFM at path: radiance base everywhere plus, within 0.3 rad of (30 deg
+ * elevation, azimuth 40 deg), a bright patch of radiance sun (RGB ratios 1 : 0.8 : 0.6). */
+static void write_env(const char *path, int w, int h, const float base[3], float sun)
+{
+        FILE *f = fopen(path, "wb");
+        double s[3] = {cos(M_PI / 6) * cos(0.7), cos(M_PI / 6) * sin(0.7), sin(M_PI / 6)};
+
+        CHECK(f != NULL);
+        fprintf(f, "PF\n%d %d\n-1.0\n", w, h);
+        for (int y = h - 1; y >= 0; y--) /* bottom row first */
+                for (int x = 0; x < w; x++) {
+                        double th = M_PI * (y + 0.5) / h, ph = 2 * M_PI * (x + 0.5) / w;
+                        double d = sin(th) * cos(ph) * s[0] + sin(th) * sin(ph) * s[1] +
+                                   cos(th) * s[2];
+                        bool in = acos(fmin(d, 1.0)) < 0.3;
+                        for (int c = 0; c < 3; c++) {
+                                float v = base[c] + (in ? sun * (1 - 0.2f * c) : 0);
+                                fwrite(&v, 4, 1, f);
+                        }
+                }
+        fclose(f);
+}
+
+static void open_env(struct rtest *t, const char *env, int max_elements, const char *object)
+{
+        char cams[512], scene[1024];
+
+        snprintf(cams, sizeof(cams), CAMERA, "30");
+        snprintf(scene, sizeof(scene),
+                 "scene:\n  object: { shape: sphere, size: 60, material: { albedo: [0.8, 0.5, "
+                 "0.2] } }\n%s"
+                 "  dome: { envmap: %s, threshold: 0.00001, max_elements: %d }\n" SENSOR,
+                 object, env, max_elements);
+        rt_open(t, "", "", cams, scene);
+}
+
+static void test_envmap_constant(void)
+{
+        char env[] = "/tmp/test-envmap-XXXXXX";
+        float L[3] = {0.5f, 0.3f, 0.2f}, alb[3] = {0.8f, 0.5f, 0.2f};
+        struct rtest t;
+        struct gn_pose st = {0};
+        struct gn_frame f;
+        struct sim_truth tr;
+        double worst = 0;
+        int n = 0;
+
+        close(mkstemp(env));
+        write_env(env, 64, 32, L, 0);
+        open_env(&t, env, 512, "  turntable: { radius: 0 }\n");
+        rt_render(&t, &st, &ideal16, 0, &f, SIM_TRUTH_POINT, &tr);
+        /* a convex Lambert object under a constant sphere of light: E = pi L everywhere */
+        for (int i = 0; i < f.width * f.height; i++) {
+                if (isnan(tr.point[3 * i]))
+                        continue;
+                for (int c = 0; c < 3; c++) {
+                        double want = dn_of(alb[c] * L[c]),
+                               got = rt_px(&f, i % f.width, i / f.width, c);
+                        CHECK_NEAR(got, want, 0.01 * want);
+                        worst = fmax(worst, fabs(got - want) / want);
+                }
+                n++;
+        }
+        fprintf(stderr, "envmap constant: %d elements, %d pixels, worst relative error %.4f\n",
+                t.s->n_dome, n, worst);
+        CHECK(n > 1000);
+        sim_truth_free(&tr);
+        gn_frame_free_data(&f);
+        rt_close(&t);
+        /* a square map is no lat-long map: refused with a sentence */
+        char scene[512], err[512];
+        write_env(env, 32, 32, L, 0);
+        snprintf(scene, sizeof(scene), "scene:\n  dome: { envmap: %s }\n", env);
+        CHECK(rt_try_open(&t, "", "", "", scene, err, sizeof(err)) < 0);
+        fprintf(stderr, "square map: %s\n", err);
+        CHECK(strstr(err, "latitude-longitude") != NULL);
+        rt_close(&t);
+        unlink(env);
+}
+
+/* RMS difference of two frames (all channels), in DN. */
+static double frame_rms(const struct gn_frame *a, const struct gn_frame *b)
+{
+        double s = 0;
+
+        for (int y = 0; y < a->height; y++)
+                for (int x = 0; x < a->width; x++)
+                        for (int c = 0; c < 3; c++)
+                                s += pow(rt_px(a, x, y, c) - rt_px(b, x, y, c), 2);
+        return sqrt(s / (3.0 * a->width * a->height));
+}
+
+static void test_envmap_converges(void)
+{
+        static const int steps[] = {32, 128, 512, 2048};
+        char env[] = "/tmp/test-envmap-XXXXXX";
+        struct gn_frame f[4];
+        struct gn_pose st = {0};
+        double err[3], ref_mean = 0;
+
+        close(mkstemp(env));
+        write_env(env, 128, 64, (const float[3]){0.05f, 0.06f, 0.08f}, 4.0f);
+        for (int k = 0; k < 4; k++) {
+                struct rtest t;
+                open_env(&t, env, steps[k], "  turntable: { radius: 150, albedo: 0.5 }\n");
+                rt_render(&t, &st, &ideal16, 0, &f[k], 0, NULL);
+                rt_close(&t);
+        }
+        for (int i = 0; i < f[3].width * f[3].height; i++)
+                ref_mean += rt_px(&f[3], i % f[3].width, i / f[3].width, 0);
+        ref_mean /= f[3].width * f[3].height;
+        for (int k = 0; k < 3; k++) {
+                err[k] = frame_rms(&f[k], &f[3]) / ref_mean;
+                fprintf(stderr, "envmap: %4d elements: RMS %.4f of the mean against %d\n", steps[k],
+                        err[k], steps[3]);
+        }
+        CHECK(err[1] < err[0] && err[2] < err[1]);
+        CHECK(err[2] < 0.03);
+        for (int k = 0; k < 4; k++)
+                gn_frame_free_data(&f[k]);
+        unlink(env);
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
@@ -229,6 +359,8 @@ int main(int argc, char **argv)
                 {"inverse-square", test_inverse_square},
                 {"shadow", test_shadow_edge},
                 {"dome", test_dome},
+                {"envmap-constant", test_envmap_constant},
+                {"envmap-converges", test_envmap_converges},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);

@@ -1,0 +1,377 @@
+/* render_env.c - environment relighting of the BRDF model (render_env.h): the visibility of
+ * the diffuse light per vertex and on a ground grid when the renderer is made; per frame,
+ * bands of rows rasterised and shaded by threads. */
+#include <errno.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdbool.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "appearance/render_env.h"
+#include "common/cleanup.h"
+
+#define MAX_THREADS 16
+#define COS_ETA     2.133f /* the cosine lobe as one SG (seed 000, section 4.5) */
+#define COS_MU      1.170f
+
+struct ap_env_renderer {
+        struct ap_env_scene sc;
+        struct ap_spheres none; /* no spheres: only the table of visible fractions */
+        const struct ap_spheres *sp;
+        float *vvis;  /* per vertex: V_d */
+        float *tex_e; /* per texel: E at its normal (RGB) */
+        float *gvis;  /* AP_ENV_GROUND_GRID^2: V_d on the ground */
+        float ground_e[3];
+        struct ap_pinhole ph;
+        float *depth;
+        int32_t *tri;
+        size_t cap;
+};
+
+struct band {
+        const struct ap_env_renderer *r;
+        float Rt[9], C[3];
+        int y0, y1, ret;
+        float *rgb;
+        uint8_t *mask;
+};
+
+static float dot3(const float *a, const float *b)
+{
+        return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+/* The angle of z above the ground's horizon: the plane's SSDF. */
+static float plane_ssdf(const struct ap_env_renderer *r, const float z[3])
+{
+        return r->sc.ground_radius > 0 ? asinf(CLAMP(z[2], -1.f, 1.f)) : (float)M_PI_2;
+}
+
+/* V_d at p (normal n): the light lobes times the cosine lobe (eq. 11), their visible
+ * fractions (eq. 12) weighted by their integrals. on_ground: p is on the plane itself. */
+static float diffuse_vis(const struct ap_env_renderer *r, const float p[3], const float n[3],
+                         bool on_ground)
+{
+        const struct ap_prefilter *pf = r->sc.pf;
+        double num = 0, den = 0;
+
+        for (int k = 0; k < AP_PREFILTER_SGS; k++) {
+                const float *zk = pf->sg_dir + 3 * k;
+                float zm[3], len, z[3], eta, mu, td, tp;
+                for (int q = 0; q < 3; q++)
+                        zm[q] = pf->sg_eta * zk[q] + COS_ETA * n[q];
+                len = sqrtf(dot3(zm, zm));
+                if (len <= 0)
+                        continue;
+                for (int q = 0; q < 3; q++)
+                        z[q] = zm[q] / len;
+                eta = len;
+                mu = pf->sg_mu[k] * COS_MU * expf(len - pf->sg_eta - COS_ETA);
+                double full = mu * 2 * M_PI / eta * (1 - exp(-2 * eta));
+                /* the point's own tangent plane cuts both: E(n) holds only the light above it */
+                tp = asinf(CLAMP(dot3(z, n), -1.f, 1.f));
+                td = fminf(ap_ssdf(r->sp, p, n, z), tp);
+                if (!on_ground)
+                        td = fminf(td, plane_ssdf(r, z));
+                num += full * ap_sg_visible(r->sp, td, eta);
+                den += full * ap_sg_visible(r->sp, tp, eta);
+        }
+        return den > 0 ? (float)(num / den) : 1;
+}
+
+static int vertex_visibility(struct ap_env_renderer *r)
+{
+        const struct ap_mesh *m = &r->sc.m->atlas.mesh;
+        _cleanup_free_ float *nrm = calloc(3 * m->nv, sizeof(float));
+
+        r->vvis = malloc(m->nv * sizeof(float));
+        if (!nrm || !r->vvis)
+                return -ENOMEM;
+        for (size_t t = 0; t < m->nt; t++) { /* area-weighted: the cross product's length */
+                const uint32_t *ix = m->idx + 3 * t;
+                const float *a = m->pos + 3 * ix[0], *b = m->pos + 3 * ix[1],
+                            *c = m->pos + 3 * ix[2];
+                float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+                float e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+                float fn[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                               e1[0] * e2[1] - e1[1] * e2[0]};
+                for (int k = 0; k < 3; k++)
+                        for (int q = 0; q < 3; q++)
+                                nrm[3 * ix[k] + q] += fn[q] * (m->front < 0 ? -1.f : 1.f);
+        }
+        for (size_t i = 0; i < m->nv; i++) {
+                float *n = nrm + 3 * i, l = sqrtf(dot3(n, n));
+                for (int q = 0; q < 3 && l > 0; q++)
+                        n[q] /= l;
+                r->vvis[i] = diffuse_vis(r, m->pos + 3 * i, n, false);
+        }
+        return 0;
+}
+
+static int texel_irradiance(struct ap_env_renderer *r)
+{
+        const struct ap_brdf_model *m = r->sc.m;
+        size_t n = (size_t)m->atlas.width * m->atlas.height;
+
+        r->tex_e = malloc(3 * n * sizeof(float));
+        if (!r->tex_e)
+                return -ENOMEM;
+        for (size_t i = 0; i < n; i++)
+                ap_prefilter_irradiance(r->sc.pf, m->texels[i].normal, r->tex_e + 3 * i);
+        return 0;
+}
+
+static int ground_visibility(struct ap_env_renderer *r)
+{
+        const int g = AP_ENV_GROUND_GRID;
+        const float up[3] = {0, 0, 1}, R = r->sc.ground_radius;
+
+        r->gvis = malloc(sizeof(float) * g * g);
+        if (!r->gvis)
+                return -ENOMEM;
+        for (int j = 0; j < g; j++)
+                for (int i = 0; i < g; i++) {
+                        float p[3] = {-R + 2 * R * i / (g - 1), -R + 2 * R * j / (g - 1), 0.01f};
+                        r->gvis[j * g + i] = diffuse_vis(r, p, up, true);
+                }
+        ap_prefilter_irradiance(r->sc.pf, up, r->ground_e);
+        return 0;
+}
+
+int ap_env_renderer_new(const struct ap_env_scene *sc, struct ap_env_renderer **ret)
+{
+        struct ap_env_renderer *r;
+        int e;
+
+        if (!sc || !sc->m || !sc->env || !sc->pf || !sc->m->atlas.mesh.nt || !sc->m->texels)
+                return -EINVAL;
+        r = calloc(1, sizeof(*r));
+        if (!r)
+                return -ENOMEM;
+        r->sc = *sc;
+        ap_spheres_table(&r->none);
+        r->sp = sc->sp ? sc->sp : &r->none;
+        e = vertex_visibility(r);
+        if (e >= 0)
+                e = texel_irradiance(r);
+        if (e >= 0 && sc->ground_radius > 0)
+                e = ground_visibility(r);
+        if (e < 0) {
+                ap_env_renderer_free(r);
+                return e;
+        }
+        *ret = r;
+        return 0;
+}
+
+struct ap_env_renderer *ap_env_renderer_free(struct ap_env_renderer *r)
+{
+        if (!r)
+                return NULL;
+        free(r->vvis);
+        free(r->tex_e);
+        free(r->gvis);
+        free(r->depth);
+        free(r->tri);
+        free(r);
+        return NULL;
+}
+
+/* The map's radiance along unit d (bilinear, as gonio-sim's dome). */
+static void env_lookup(const struct ap_envmap *e, const float d[3], float out[3])
+{
+        float x = atan2f(d[1], d[0]) * (float)(0.5 * M_1_PI) * e->width - 0.5f;
+        float y = acosf(CLAMP(d[2], -1.f, 1.f)) * (float)M_1_PI * e->height - 0.5f;
+
+        ap_envmap_bilinear(e->rgb, e->width, e->height, 3, x, y, out);
+}
+
+/* Barycentric coordinates of p in triangle t of m. */
+static void bary_of(const struct ap_mesh *m, int32_t t, const float p[3], float w[3])
+{
+        const float *a = m->pos + 3 * m->idx[3 * t], *b = m->pos + 3 * m->idx[3 * t + 1];
+        const float *c = m->pos + 3 * m->idx[3 * t + 2];
+        float v0[3], v1[3], v2[3];
+
+        for (int q = 0; q < 3; q++) {
+                v0[q] = b[q] - a[q];
+                v1[q] = c[q] - a[q];
+                v2[q] = p[q] - a[q];
+        }
+        float d00 = dot3(v0, v0), d01 = dot3(v0, v1), d11 = dot3(v1, v1);
+        float d20 = dot3(v2, v0), d21 = dot3(v2, v1), den = d00 * d11 - d01 * d01;
+        w[1] = den != 0 ? (d11 * d20 - d01 * d21) / den : 1.f / 3;
+        w[2] = den != 0 ? (d00 * d21 - d01 * d20) / den : 1.f / 3;
+        w[0] = 1 - w[1] - w[2];
+}
+
+/* The texel of triangle t at barycentric w: the one under its uv, or a neighbour of t's. */
+static const struct ap_brdf_texel *texel_at(const struct ap_brdf_model *m, int32_t t,
+                                            const float w[3])
+{
+        const struct ap_atlas *a = &m->atlas;
+        const float *uv = a->uv + 6 * t;
+        float u = w[0] * uv[0] + w[1] * uv[2] + w[2] * uv[4];
+        float v = w[0] * uv[1] + w[1] * uv[3] + w[2] * uv[5];
+        int x = CLAMP((int)(u * a->width), 0, a->width - 1);
+        int y = CLAMP((int)(v * a->height), 0, a->height - 1);
+
+        for (int k = 0; k < 9; k++) {
+                int xx = CLAMP(x + (k % 3 + 1) % 3 - 1, 0, a->width - 1);
+                int yy = CLAMP(y + (k / 3 + 1) % 3 - 1, 0, a->height - 1);
+                if (a->tri[(size_t)yy * a->width + xx] == t)
+                        return &m->texels[(size_t)yy * a->width + xx];
+        }
+        return &m->texels[(size_t)y * a->width + x];
+}
+
+static void shade_object(const struct ap_env_renderer *r, int32_t t, const float p[3],
+                         const float d[3], float out[3])
+{
+        const struct ap_mesh *m = &r->sc.m->atlas.mesh;
+        const struct ap_brdf_texel *x;
+        float w[3], v[3], rr[3], s[3], vd, vs, nv, td;
+        const float *e;
+        const float *n;
+
+        bary_of(m, t, p, w);
+        x = texel_at(r->sc.m, t, w);
+        n = x->normal;
+        for (int q = 0; q < 3; q++)
+                v[q] = -d[q];
+        nv = dot3(n, v);
+        vd = w[0] * r->vvis[m->idx[3 * t]] + w[1] * r->vvis[m->idx[3 * t + 1]] +
+             w[2] * r->vvis[m->idx[3 * t + 2]];
+        e = r->tex_e + 3 * (x - r->sc.m->texels);
+        for (int q = 0; q < 3; q++)
+                out[q] = (1 - x->ks) * x->albedo[q] * (float)M_1_PI * e[q] * vd;
+        if (x->ks <= 0 || nv <= 0)
+                return;
+        for (int q = 0; q < 3; q++)
+                rr[q] = 2 * nv * n[q] - v[q];
+        ap_prefilter_specular(r->sc.pf, n, rr, s);
+        float eta = 1 / (2 * x->ax * x->ay), tp = asinf(CLAMP(dot3(rr, n), -1.f, 1.f));
+        td = fminf(fminf(ap_ssdf(r->sp, p, n, rr), plane_ssdf(r, rr)), tp);
+        vs = ap_sg_visible(r->sp, td, eta) / fmaxf(ap_sg_visible(r->sp, tp, eta), 1e-3f);
+        for (int q = 0; q < 3; q++)
+                out[q] += x->ks * s[q] * vs;
+}
+
+/* The ground at ray C + s d, if it is hit within its radius. */
+static bool shade_ground(const struct ap_env_renderer *r, const float C[3], const float d[3],
+                         float out[3])
+{
+        const int g = AP_ENV_GROUND_GRID;
+        float R = r->sc.ground_radius, s, x, y, fx, fy, v;
+
+        if (R <= 0 || d[2] >= 0 || C[2] <= 0)
+                return false;
+        s = -C[2] / d[2];
+        x = C[0] + s * d[0];
+        y = C[1] + s * d[1];
+        if (x * x + y * y > R * R)
+                return false;
+        fx = CLAMP((x + R) / (2 * R) * (g - 1), 0.f, g - 1.001f);
+        fy = CLAMP((y + R) / (2 * R) * (g - 1), 0.f, g - 1.001f);
+        int i = (int)fx, j = (int)fy;
+        const float *q = r->gvis + j * g + i;
+        fx -= i;
+        fy -= j;
+        v = (1 - fy) * ((1 - fx) * q[0] + fx * q[1]) + fy * ((1 - fx) * q[g] + fx * q[g + 1]);
+        for (int c = 0; c < 3; c++)
+                out[c] = r->sc.ground_albedo[c] * (float)M_1_PI * r->ground_e[c] * v;
+        return true;
+}
+
+static void *render_band(void *arg)
+{
+        struct band *b = arg;
+        const struct ap_env_renderer *r = b->r;
+        const struct ap_pinhole *ph = &r->ph;
+
+        b->ret = ap_raster_band(&r->sc.m->atlas.mesh, ph, b->y0, b->y1, r->depth, r->tri);
+        for (int y = b->y0; y < b->y1 && b->ret >= 0; y++)
+                for (int x = 0; x < ph->width; x++) {
+                        size_t i = (size_t)y * ph->width + x;
+                        float dc[3] = {(float)((x - ph->cx) / ph->fx),
+                                       (float)((y - ph->cy) / ph->fy), 1};
+                        float d[3], p[3], *out = b->rgb + 3 * i, l;
+                        uint8_t mk = 1;
+                        for (int q = 0; q < 3; q++)
+                                d[q] = b->Rt[3 * q] * dc[0] + b->Rt[3 * q + 1] * dc[1] +
+                                       b->Rt[3 * q + 2];
+                        if (r->tri[i] >= 0) {
+                                for (int q = 0; q < 3; q++)
+                                        p[q] = b->C[q] + d[q] * r->depth[i];
+                        }
+                        l = sqrtf(dot3(d, d));
+                        for (int q = 0; q < 3; q++)
+                                d[q] /= l;
+                        if (r->tri[i] >= 0)
+                                shade_object(r, r->tri[i], p, d, out);
+                        else if ((mk = 2, !shade_ground(r, b->C, d, out)))
+                                env_lookup(r->sc.env, d, out), mk = 0;
+                        for (int q = 0; q < 3; q++)
+                                out[q] *= r->sc.scale;
+                        if (b->mask)
+                                b->mask[i] = mk;
+                }
+        return NULL;
+}
+
+static int prepare(struct ap_env_renderer *r, const struct ap_camera *cam)
+{
+        size_t n = (size_t)cam->width * cam->height;
+
+        r->ph = (struct ap_pinhole){cam->width, cam->height, cam->fx, cam->fy, cam->cx, cam->cy};
+        memcpy(r->ph.R, cam->R, sizeof(cam->R));
+        memcpy(r->ph.t, cam->t, sizeof(cam->t));
+        if (n <= r->cap)
+                return 0;
+        free(r->depth);
+        free(r->tri);
+        r->depth = malloc(n * sizeof(float));
+        r->tri = malloc(n * sizeof(int32_t));
+        r->cap = r->depth && r->tri ? n : 0;
+        return r->cap ? 0 : -ENOMEM;
+}
+
+int ap_env_render(struct ap_env_renderer *r, const struct ap_camera *cam, int threads, float *rgb,
+                  uint8_t *mask)
+{
+        struct band b[MAX_THREADS];
+        pthread_t th[MAX_THREADS];
+        int nt, e, started = 0;
+
+        if (!r || !cam || cam->width < 1 || cam->height < 1 || !(cam->fx > 0) || !(cam->fy > 0) ||
+            !rgb)
+                return -EINVAL;
+        if ((e = prepare(r, cam)) < 0)
+                return e;
+        nt = CLAMP(threads, 1, MIN(MAX_THREADS, cam->height));
+        for (int i = 0; i < nt; i++) {
+                b[i] = (struct band){.r = r,
+                                     .y0 = cam->height * i / nt,
+                                     .y1 = cam->height * (i + 1) / nt,
+                                     .rgb = rgb,
+                                     .mask = mask};
+                for (int q = 0; q < 3; q++) {
+                        for (int k = 0; k < 3; k++)
+                                b[i].Rt[3 * q + k] = (float)cam->R[3 * k + q];
+                        b[i].C[q] = (float)-(cam->R[q] * cam->t[0] + cam->R[3 + q] * cam->t[1] +
+                                             cam->R[6 + q] * cam->t[2]);
+                }
+                if (i == nt - 1 || pthread_create(&th[i], NULL, render_band, &b[i]))
+                        render_band(&b[i]);
+                else
+                        started |= 1 << i;
+        }
+        for (int i = 0; i < nt; i++)
+                if (started & (1 << i))
+                        pthread_join(th[i], NULL);
+        for (int i = 0; i < nt; i++)
+                if (b[i].ret < 0)
+                        return b[i].ret;
+        return 0;
+}

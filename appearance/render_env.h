@@ -1,0 +1,53 @@
+/* render_env.h - the BRDF model (brdf.h) relit by an environment map with soft shadows, in
+ * real time (issue 12): the mesh rasterised from the camera (raster.h), each pixel's texel found
+ * through the atlas (atlas.h: the triangle seen, its barycentric point, the triangle's uv);
+ *
+ *     pixel = scale (diffuse + specular),
+ *     diffuse  = (1 - ks) albedo / pi  E(n)  V_d        E: SH irradiance, per texel
+ *     specular = ks  S(n, r)  V_s                      S: the blended prefiltered maps
+ *
+ * V_d the visible share of the light reaching the point: the light lobes of prefilter.h each
+ * multiplied by the cosine lobe (seed 000 eq. 11, cosine as one SG: eta 2.133, mu 1.170),
+ * their visible fractions from the SSDF of the sphere set (spheres.h) and of the ground plane
+ * (eq. 12), weighted by their energy, over the same relative to the point's own tangent plane
+ * (E holds only the light above it); computed once per mesh vertex (and per point of a grid on
+ * the ground) when the renderer is made, interpolated in between. V_s the visible fraction of
+ * the specular lobe (an SG about the reflected direction r of sharpness 1 / (2 ax ay)), per
+ * pixel, relative to its part above the tangent plane (the maps' albedo has the rest). The ground:
+ * the plane z = 0 within ground_radius, a Lambert surface shaded the same way and shadowed by the
+ * spheres. Elsewhere the map itself. docs/appearance.md, "Environment relighting". */
+#pragma once
+
+#include <stdint.h>
+
+#include "appearance/brdf.h"
+#include "appearance/envmap.h"
+#include "appearance/prefilter.h"
+#include "appearance/spheres.h"
+
+#define AP_ENV_GROUND_GRID 96 /* visibility samples along each side of the ground's square */
+
+struct ap_env_scene {
+        const struct ap_brdf_model *m; /* borrowed, as the rest: they must outlive the renderer */
+        const struct ap_envmap *env;   /* the background */
+        const struct ap_prefilter *pf;
+        const struct ap_spheres *sp; /* NULL: no shadows */
+        float ground_albedo[3];
+        float ground_radius; /* mm; 0: no ground */
+        float scale;         /* pixel value per unit of radiance */
+};
+
+struct ap_env_renderer;
+
+/* Prepares the rendering of sc (the per-vertex and ground visibility). Returns 0, -EINVAL (no
+ * model, map or prefilter, an empty mesh) or -ENOMEM. */
+int ap_env_renderer_new(const struct ap_env_scene *sc, struct ap_env_renderer **ret);
+
+/* Frees r; NULL is a no-op. Returns NULL. */
+struct ap_env_renderer *ap_env_renderer_free(struct ap_env_renderer *r);
+
+/* Renders what cam sees (its distortion ignored) into rgb (3 floats a pixel, linear) and,
+ * if not NULL, mask (1: the object, 2: the ground, 0: the map), on threads threads. Not
+ * reentrant on one r. Returns 0, -EINVAL (a bad camera) or -ENOMEM. */
+int ap_env_render(struct ap_env_renderer *r, const struct ap_camera *cam, int threads, float *rgb,
+                  uint8_t *mask);
