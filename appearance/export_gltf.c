@@ -474,3 +474,26 @@ int ap_export_gltf_model(const struct ap_brdf_model *m, const char *dir, char *e
         }
         return ap_write_folder(dir, gltf_fill, (void *)m, err, errlen);
 }
+
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_brdf_model *, ap_brdf_model_free);
+
+int ap_export_gltf(struct ds *d, const char *ds_dir, const char *dir,
+                   const struct ap_export_opts *o, char *err, size_t errlen)
+{
+        _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *m = NULL;
+        const char *name = o->model ? o->model : "default";
+        char path[4200];
+        int r;
+
+        (void)d;
+        snprintf(path, sizeof(path), "%s/models/%s", ds_dir, name);
+        r = ap_brdf_read(path, &m, err, errlen);
+        if (r == -ENOENT)
+                snprintf(err, errlen,
+                         "%s has no BRDF model '%s' (models/%s/brdf): fit one with gonioctl "
+                         "model fit --brdf",
+                         ds_dir, name, name);
+        if (r < 0)
+                return r;
+        return gltf_fill(m, dir, err, errlen);
+}

@@ -3,7 +3,8 @@
  * glTF 2.0 and KHR_materials_anisotropy specifications (jansson, libspng), whose texels decode
  * to the model's parameters within the 8-bit quantisation; the Khronos validator
  * (scripts/gltf-validate) reports no errors; Blender imports it (tests/appearance/gltf-blender.py);
- * bad arguments are refused and leave nothing behind. */
+ * gonioctl dataset export --format gltf writes the same files from the model's files; bad
+ * arguments are refused and leave nothing behind. */
 #include <errno.h>
 #include <fcntl.h>
 #include <jansson.h>
@@ -17,6 +18,7 @@
 #include "appearance/export.h"
 #include "common/cleanup.h"
 #include "common/fileio.h"
+#include "dataset/ds.h"
 #include "tests/test.h"
 #include "tests/dataset/ds-util.h"
 
@@ -139,14 +141,7 @@ static struct ap_brdf_model *make_model(bool nan)
         return m;
 }
 
-static void model_freep(struct ap_brdf_model **m)
-{
-        if (*m) {
-                ap_atlas_free(&(*m)->atlas);
-                free((*m)->texels);
-                free(*m);
-        }
-}
+DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_brdf_model *, ap_brdf_model_free);
 
 static void rm_rfp(char **dir)
 {
@@ -483,7 +478,7 @@ static void check_texel(const struct gltf *g, const struct ap_brdf_model *m, int
 static void test_decode(void)
 {
         _cleanup_(rm_rfp) char *dir = tu_tmpdir();
-        _cleanup_(model_freep) struct ap_brdf_model *m = make_model(true);
+        _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *m = make_model(true);
         const struct ap_atlas *a = &m->atlas;
         struct gltf g = {0};
         int seen = 0, masked = 0, diffuse = 0;
@@ -534,7 +529,7 @@ static int run(const char *cmd, char *out, size_t len)
 static void test_validator(void)
 {
         _cleanup_(rm_rfp) char *dir = tu_tmpdir();
-        _cleanup_(model_freep) struct ap_brdf_model *m = make_model(true);
+        _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *m = make_model(true);
         static char out[1 << 20];
         char cmd[1200];
         json_t *report, *issues;
@@ -558,7 +553,7 @@ static void test_validator(void)
 static void test_blender(void)
 {
         _cleanup_(rm_rfp) char *dir = tu_tmpdir();
-        _cleanup_(model_freep) struct ap_brdf_model *m = make_model(true);
+        _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *m = make_model(true);
         size_t first = m->atlas.mesh.idx[0];
         char cmd[1600], out[8192];
         int r;
@@ -580,12 +575,54 @@ static void test_blender(void)
         CHECK_STR_CONTAINS(out, "gltf-blender: ok");
 }
 
+/* ---- gonioctl dataset export --format gltf ---- */
+
+/* Whether the files of the glTF folders a and b are the same bytes. */
+static bool same_files(const char *a, const char *b)
+{
+        static const char *const files[] = {"model.gltf",    "model.bin",
+                                            "basecolor.png", "metallic_roughness.png",
+                                            "normal.png",    "anisotropy.png"};
+        char cmd[1600], out[64];
+
+        for (size_t k = 0; k < sizeof(files) / sizeof(files[0]); k++) {
+                snprintf(cmd, sizeof(cmd), "cmp %s/%s %s/%s >&2", a, files[k], b, files[k]);
+                if (run(cmd, out, sizeof(out)) != 0)
+                        return false;
+        }
+        return true;
+}
+
+/* The model written into a dataset (ap_brdf_write) and exported by gonioctl is the one the
+ * writer exports from memory, byte for byte; a dataset without it is refused by name. */
+static void test_gonioctl(void)
+{
+        _cleanup_(rm_rfp) char *dir = tu_tmpdir();
+        _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *m = make_model(false);
+        char ds[600], args[2000], out[4096];
+        struct ds *d;
+
+        snprintf(ds, sizeof(ds), "%s/ds", dir);
+        CHECK_INT(ds_create(ds, "gltf", NULL, &d), 0);
+        ds_close(d);
+        CHECK_INT(ap_brdf_write(m, ds), 0);
+        snprintf(args, sizeof(args), "dataset export %s --format gltf --model sphere -o %s/cli", ds,
+                 dir);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
+        snprintf(args, sizeof(args), "%s/cli", dir);
+        CHECK(same_files(export(m, dir), args));
+        snprintf(args, sizeof(args), "dataset export %s --format gltf -o %s/none", ds, dir);
+        CHECK(test_run_gonioctl(args, out, sizeof(out)) != 0);
+        CHECK_STR_CONTAINS(out, "has no BRDF model 'default'");
+        CHECK_INT(tu_count(dir, ""), 3); /* ds, cli, gltf */
+}
+
 /* ---- bad input: refused, nothing written (no temporary folder left) ---- */
 
 static void test_bad(void)
 {
         _cleanup_(rm_rfp) char *dir = tu_tmpdir();
-        _cleanup_(model_freep) struct ap_brdf_model *m = make_model(true);
+        _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *m = make_model(true);
         struct ap_brdf_model empty = {0};
         char out[600], keep[700], err[512];
 
@@ -606,9 +643,8 @@ static void test_bad(void)
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
-                {"decode", test_decode},
-                {"validator", test_validator},
-                {"blender", test_blender},
+                {"decode", test_decode},   {"validator", test_validator},
+                {"blender", test_blender}, {"gonioctl", test_gonioctl},
                 {"bad", test_bad},
         };
 
