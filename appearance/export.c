@@ -35,10 +35,9 @@ static const struct {
         const char *name;
         export_fn fn;
 } formats[] = {
-        {"colmap", ap_export_colmap},
-        {"nerfstudio", ap_export_nerfstudio},
-        {"ply", ap_export_ply},
-        {"rti", ap_export_rti},
+        {"colmap", ap_export_colmap}, {"nerfstudio", ap_export_nerfstudio},
+        {"ply", ap_export_ply},       {"rti", ap_export_rti},
+        {"gltf", ap_export_gltf},
 };
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ds *, ds_close);
@@ -200,7 +199,7 @@ int ap_export(const char *ds_dir, const char *format, const char *out_dir,
                 return write_folder(out_dir, fill_dataset_export, &x, opts.notes, opts.notes_len,
                                     err, errlen);
         }
-        snprintf(err, errlen, "unknown format '%s' (colmap, nerfstudio, ply, rti)", format);
+        snprintf(err, errlen, "unknown format '%s' (colmap, nerfstudio, ply, rti, gltf)", format);
         return -EINVAL;
 }
 

@@ -17,12 +17,12 @@ struct ap_export_opts {
         size_t notes_len; /* temporary folders of killed exports removed ("" for nothing) */
 };
 
-/* Writes the dataset at ds_dir as format ("colmap", "nerfstudio", "ply", "rti") into the
- * folder out_dir, which must not exist or be empty: built in a temporary folder, locked while
- * it is written, then renamed; out_dir's temporary folders that no live export holds (left by
- * a killed one) are removed first and counted in o->notes. Returns 0, -EINVAL (unknown
- * format, with the known ones in err), -EEXIST (out_dir not empty), -ENOENT (what the format
- * needs is missing: a model, a scan) or -errno, with a sentence in err. */
+/* Writes the dataset at ds_dir as format ("colmap", "nerfstudio", "ply", "rti", "gltf") into
+ * the folder out_dir, which must not exist or be empty: built in a temporary folder, locked
+ * while it is written, then renamed; out_dir's temporary folders that no live export holds
+ * (left by a killed one) are removed first and counted in o->notes. Returns 0, -EINVAL
+ * (unknown format, with the known ones in err), -EEXIST (out_dir not empty), -ENOENT (what
+ * the format needs is missing: a model, a scan) or -errno, with a sentence in err. */
 int ap_export(const char *ds_dir, const char *format, const char *out_dir,
               const struct ap_export_opts *o, char *err, size_t errlen);
 
@@ -46,3 +46,14 @@ int ap_export_ply(struct ds *d, const char *ds_dir, const char *dir, const struc
                   char *err, size_t errlen);
 int ap_export_rti(struct ds *d, const char *ds_dir, const char *dir, const struct ap_export_opts *o,
                   char *err, size_t errlen);
+/* glTF 2.0 of the BRDF model models/<o->model> (default "default"); -ENOENT without one. */
+int ap_export_gltf(struct ds *d, const char *ds_dir, const char *dir,
+                   const struct ap_export_opts *o, char *err, size_t errlen);
+
+struct ap_brdf_model;
+
+/* Writes the BRDF model m (brdf.h) as glTF 2.0 into the folder dir, which must not exist or be
+ * empty (as ap_write_folder): model.gltf, model.bin and its PNG textures (docs/exports.md,
+ * "glTF"). Returns 0, -EINVAL (no model, an empty mesh), -EEXIST or -errno, with a sentence
+ * in err. */
+int ap_export_gltf_model(const struct ap_brdf_model *m, const char *dir, char *err, size_t errlen);

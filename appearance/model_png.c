@@ -17,11 +17,12 @@ int ap_png_encode(int width, int height, int channels, const uint16_t *u16, cons
                 .width = (uint32_t)width,
                 .height = (uint32_t)height,
                 .bit_depth = channels == 4 ? 16 : 8,
-                .color_type =
-                        channels == 4 ? SPNG_COLOR_TYPE_TRUECOLOR_ALPHA : SPNG_COLOR_TYPE_GRAYSCALE,
+                .color_type = channels == 4   ? SPNG_COLOR_TYPE_TRUECOLOR_ALPHA
+                              : channels == 3 ? SPNG_COLOR_TYPE_TRUECOLOR
+                                              : SPNG_COLOR_TYPE_GRAYSCALE,
         };
         const void *img = channels == 4 ? (const void *)u16 : (const void *)u8;
-        size_t bytes = (size_t)width * height * (channels == 4 ? 8 : 1);
+        size_t bytes = (size_t)width * height * (channels == 4 ? 8 : (size_t)channels);
         int r;
 
         if (!ctx)

@@ -236,7 +236,7 @@ static const struct cmd commands[] = {
         {"dataset", "check", "NAME", "verify rows, files, checksums and session plans",
          "dataset.check", 1, 1, 0, TIMEOUT_LONG_S, p_dataset, NULL, "dataset is consistent"},
         {"dataset", "export",
-         "DATASET --format colmap|nerfstudio|ply|rti -o DIR [--model NAME] "
+         "DATASET --format colmap|nerfstudio|ply|rti|gltf -o DIR [--model NAME] "
          "[--calibration FILE|nominal]",
          "write DATASET in a format other tools read into the new folder DIR (docs/exports.md; "
          "no goniod)",

@@ -636,7 +636,7 @@ static void test_bad(void)
         CHECK_STR_CONTAINS(err, "not an empty folder");
         CHECK_INT(tu_count(out, ""), 1);
         CHECK_INT(export(path, "obj", out, err, sizeof(err)), -EINVAL);
-        CHECK_STR_CONTAINS(err, "colmap, nerfstudio, ply, rti");
+        CHECK_STR_CONTAINS(err, "colmap, nerfstudio, ply, rti, gltf");
         CHECK_INT(unlink(file), 0);
         CHECK_INT(export(path, "ply", out, err, sizeof(err)), 0); /* mesh.ply only */
         CHECK_INT(tu_count(out, ".ply"), 1);
