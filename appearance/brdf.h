@@ -17,6 +17,7 @@
  * own (what gonio-sim was given). Directions in the object frame (model.h). */
 #pragma once
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -58,8 +59,13 @@ struct ap_brdf_model *ap_brdf_model_free(struct ap_brdf_model *m);
  * and v (towards the viewer); 0 where either is below the shading normal's horizon. */
 void ap_brdf_eval(const struct ap_brdf_texel *x, const float l[3], const float v[3], float out[3]);
 
+/* Whether x can be stored and read back: every number finite, known flags, and unless masked
+ * ax, ay > 0 and 0 <= ks <= 1. */
+bool ap_brdf_texel_valid(const struct ap_brdf_texel *x);
+
 /* Writes m as models/<m->name>/ of the dataset directory ds_dir (atomically, as
- * ap_model_write), beside or instead of an SH model of that name. Returns 0 or -errno. */
+ * ap_model_write), beside or instead of an SH model of that name. Returns 0, -EINVAL (a texel that
+ * is not ap_brdf_texel_valid: it could not be read back) or -errno. */
 int ap_brdf_write(const struct ap_brdf_model *m, const char *ds_dir);
 
 /* Reads the BRDF model in directory dir (models/<name>/). Returns 0, -ENOENT (no BRDF model

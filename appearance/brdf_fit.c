@@ -113,7 +113,8 @@ struct worker {
         const struct brdf_ctx *c;
         const struct brdf_samples *s;
         struct ap_brdf_model *m;
-        int k, n; /* texels k, k + n, k + 2n... */
+        int k, n;       /* texels k, k + n, k + 2n... */
+        size_t invalid; /* texels whose solve gave no valid parameters (masked) */
 };
 
 static void *work(void *arg)
@@ -131,6 +132,10 @@ static void *work(void *arg)
                 base_tangent(x->normal, x->tangent);
                 x->f0 = (float)w->c->f0;
                 brdf_solve_texel(w->s->s + w->s->first[i], w->s->first[i + 1] - w->s->first[i], x);
+                if (!ap_brdf_texel_valid(x)) {
+                        *x = (struct ap_brdf_texel){.flags = AP_BRDF_MASKED};
+                        w->invalid++;
+                }
         }
         return NULL;
 }
@@ -147,7 +152,7 @@ static int fit_texels(const struct brdf_ctx *c, const struct brdf_samples *s,
         if (!m->texels)
                 return -ENOMEM;
         for (int k = 0; k < n; k++)
-                w[k] = (struct worker){c, s, m, k, n};
+                w[k] = (struct worker){c, s, m, k, n, 0};
         for (int k = 1; k < n; k++)
                 started[k] = pthread_create(&th[k], NULL, work, &w[k]) == 0;
         for (int k = 0; k < n; k++) /* the first's share, and any a thread did not start for */
@@ -156,6 +161,11 @@ static int fit_texels(const struct brdf_ctx *c, const struct brdf_samples *s,
         for (int k = 1; k < n; k++)
                 if (started[k])
                         pthread_join(th[k], NULL);
+        for (int k = 1; k < n; k++)
+                w[0].invalid += w[k].invalid;
+        if (w[0].invalid)
+                note(m->notes, sizeof(m->notes),
+                     "%zu texels masked: their solve gave no valid parameters", w[0].invalid);
         return 0;
 }
 

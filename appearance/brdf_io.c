@@ -46,6 +46,8 @@ static int put_texels(int dfd, const struct ap_brdf_model *m)
         for (size_t i = 0; i < n; i++) { /* little-endian on the hosts we build for */
                 const struct ap_brdf_texel *x = &m->texels[i];
                 float *o = f + i * TEXEL_FLOATS;
+                if (!ap_brdf_texel_valid(x)) /* it could not be read back */
+                        return -EINVAL;
                 memcpy(o, x->albedo, 3 * sizeof(float));
                 o[3] = x->ks, o[4] = x->ax, o[5] = x->ay, o[6] = x->f0;
                 memcpy(o + 7, x->normal, 3 * sizeof(float));
@@ -154,20 +156,30 @@ static int read_mesh(const struct ap_io_rd *rd, size_t nv, size_t nt, struct ap_
         return ap_mesh_orient(me);
 }
 
-/* One texel from its record; false when a number is not finite or a flag unknown. */
+bool ap_brdf_texel_valid(const struct ap_brdf_texel *x)
+{
+        const float *f[] = {x->albedo, &x->ks,    &x->ax,     &x->ay,
+                            &x->f0,    x->normal, x->tangent, &x->rms};
+        const int n[] = {3, 1, 1, 1, 1, 3, 3, 1};
+
+        for (size_t i = 0; i < ELEMENTSOF(f); i++)
+                for (int k = 0; k < n[i]; k++)
+                        if (!isfinite(f[i][k]))
+                                return false;
+        return (x->flags & ~7u) == 0 &&
+               (x->flags & AP_BRDF_MASKED || (x->ax > 0 && x->ay > 0 && x->ks >= 0 && x->ks <= 1));
+}
+
+/* One texel from its record; false when it is not ap_brdf_texel_valid. */
 static bool texel_of(const float *f, const uint32_t *u, struct ap_brdf_texel *x)
 {
-        for (int k = 0; k < TEXEL_FLOATS; k++)
-                if (!isfinite(f[k]))
-                        return false;
         memcpy(x->albedo, f, 3 * sizeof(float));
         x->ks = f[3], x->ax = f[4], x->ay = f[5], x->f0 = f[6];
         memcpy(x->normal, f + 7, 3 * sizeof(float));
         memcpy(x->tangent, f + 10, 3 * sizeof(float));
         x->rms = f[13];
         x->n_samples = u[0], x->flags = u[1];
-        return (x->flags & ~7u) == 0 &&
-               (x->flags & AP_BRDF_MASKED || (x->ax > 0 && x->ay > 0 && x->ks >= 0 && x->ks <= 1));
+        return ap_brdf_texel_valid(x);
 }
 
 static int read_texels(const struct ap_io_rd *rd, struct ap_brdf_model *m)

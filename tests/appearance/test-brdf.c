@@ -130,7 +130,6 @@ static void put(const char *dir, const char *file, const void *buf, size_t len)
         CHECK_INT(gn_write_atomic(fd, file, buf, len, NULL), 0);
 }
 
-/* Written and read back bit for bit; a second write replaces the first. */
 /* Writes a tiny SH model named name into the dataset directory ds (model.h). */
 static void write_sh_model(const char *ds, const char *name)
 {
@@ -152,6 +151,7 @@ static void write_sh_model(const char *ds, const char *name)
         ap_model_free(sh);
 }
 
+/* Written and read back bit for bit; a second write replaces the first. */
 static void test_io_roundtrip(void)
 {
         _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *m = small_model(), *r = NULL;
@@ -189,10 +189,22 @@ static void test_io_malformed(void)
         struct ap_brdf_model *r = NULL;
         char path[512], sub[600], err[512];
 
-        m->texels[5].ax = NAN;
-        CHECK_INT(ap_brdf_write(m, dir), 0);
+        float *f;
+        size_t len;
+
+        m->texels[5].ax = NAN; /* a texel that could not be read back is not written */
+        CHECK_INT(ap_brdf_write(m, dir), -EINVAL);
         snprintf(path, sizeof(path), "%s/models/m", dir);
         snprintf(sub, sizeof(sub), "%s/brdf", path);
+        CHECK(access(sub, F_OK) < 0 && errno == ENOENT);
+        m->texels[5].ax = 0.2f;
+        CHECK_INT(ap_brdf_write(m, dir), 0);
+        CHECK_INT(gn_read_file_at(AT_FDCWD, strcat(strcpy(err, sub), "/texels.f32"), 1 << 24,
+                                  (void **)&f, &len),
+                  0);
+        f[5 * 14 + 4] = NAN; /* texel 5's ax, on disk */
+        put(sub, "texels.f32", f, len);
+        free(f);
         CHECK_INT(ap_brdf_read(path, &r, err, sizeof(err)), -EBADMSG);
         CHECK_STR_CONTAINS(err, "texels.f32: texel 5: a parameter out of range");
         put(sub, "texels.u32", "1234", 4);
