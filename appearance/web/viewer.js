@@ -22,7 +22,7 @@ const gonio = (() => {
   let progs = {}, tex = {}, meshBuf = {}, views = [], lightRows = 0, groups = 0;
   let params = {az: 0, el: 20, distance: 0, mode: 'pixel', light: 'point',
                 lpos: [0, 0, 0], ldir: [0, 0, 1], env: 0, gain: 1, intensity: 0};
-  let basis = null, dirty = true, lastDraw = 0;
+  let basis = null, dirty = true, lastDraw = {end: 0, ms: 0};
 
   // ---- data ----
   g.manifest = (m) => { man = m; };
@@ -316,7 +316,6 @@ const gonio = (() => {
     v.loaded = true;
     writeViewData(v, i);
     uploadViewData();
-    dirty = true;
   }
 
   function renderDepth(v, i) {
@@ -555,12 +554,15 @@ const gonio = (() => {
     if (s) s.textContent = text;
   }
 
-  // Draws when something changed; while views still arrive, at most once a second so that
-  // a slow GL does not hold the loading up.
-  function loop(now) {
-    if (dirty && (g.state === 'complete' || (g.state === 'first' && now - lastDraw > 1000))) {
+  // Draws when the user changed something; while views still arrive (they are drawn as the
+  // last arrives), at most once a second and never more than a fifth of the time, so that a
+  // slow GL does not hold the loading up.
+  function loop() {
+    const now = performance.now();
+    if (dirty && (g.state === 'complete' ||
+                  (g.state === 'first' && now - lastDraw.end > Math.max(1000, 4 * lastDraw.ms)))) {
       draw();
-      lastDraw = now;
+      lastDraw = {end: performance.now(), ms: performance.now() - now};
     }
     requestAnimationFrame(loop);
   }
