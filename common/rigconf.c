@@ -426,19 +426,25 @@ static int parse_switch_common(struct rig_config *rc, struct fy_node *m, const c
 
         if ((r = parse_backend(rc, m, RIG_CLASS_SWITCH, keys, s->bus, &s->backend)) < 0 ||
             (r = read_name(yc, m, s->name, sizeof(s->name))) < 0 ||
-            (r = read_int(yc, m, "warmup_ms", 0, 60000, &s->warmup_ms)) < 0)
+            (r = read_int(yc, m, "warmup_ms", 0, 60000, &s->warmup_ms)) < 0 ||
+            (r = yconf_double(yc, m, "max_on_s", 0, 86400, &s->max_on_s)) < 0 ||
+            (r = yconf_bool(yc, m, "off_on_disconnect", &s->off_on_disconnect)) < 0)
                 return r;
         return 0;
 }
 
 static int parse_lamp(struct rig_config *rc, struct fy_node *m, struct rig_switch_conf *s)
 {
-        static const char *const keys[] = {"name",    "warmup_ms", "elevation", "radius",
-                                           "azimuth", "intensity", NULL};
+        static const char *const keys[] = {
+                "name",    "warmup_ms", "max_on_s", "off_on_disconnect", "elevation", "radius",
+                "azimuth", "intensity", NULL};
         struct yconf *yc = &rc->yc;
         int r;
 
-        *s = (struct rig_switch_conf){.kind = RIG_SWITCH_LAMP, .radius_mm = 450, .intensity = 1e5};
+        *s = (struct rig_switch_conf){.kind = RIG_SWITCH_LAMP,
+                                      .radius_mm = 450,
+                                      .intensity = 1e5,
+                                      .max_on_s = RIG_LAMP_MAX_ON_S};
         if ((r = parse_switch_common(rc, m, keys, s)) < 0 ||
             (r = yconf_double(yc, m, "elevation", -90, 90, &s->elevation_deg)) < 0 ||
             (r = yconf_double(yc, m, "radius", 1, 1e5, &s->radius_mm)) < 0 ||
@@ -452,8 +458,9 @@ static int parse_lamp(struct rig_config *rc, struct fy_node *m, struct rig_switc
 
 static int parse_laser(struct rig_config *rc, struct fy_node *m, struct rig_switch_conf *s)
 {
-        static const char *const keys[] = {"name",  "warmup_ms", "azimuth", "origin",
-                                           "width", "power",     "channel", NULL};
+        static const char *const keys[] = {"name",    "warmup_ms", "max_on_s", "off_on_disconnect",
+                                           "azimuth", "origin",    "width",    "power",
+                                           "channel", NULL};
         static const char *const channels[] = {"red", "green", "blue"};
         struct yconf *yc = &rc->yc;
         char channel[16] = "red";
@@ -462,7 +469,8 @@ static int parse_laser(struct rig_config *rc, struct fy_node *m, struct rig_swit
         *s = (struct rig_switch_conf){.kind = RIG_SWITCH_LASER,
                                       .laser_origin = {600, 0, 150},
                                       .laser_width_mm = 0.5,
-                                      .laser_power = 1e3};
+                                      .laser_power = 1e3,
+                                      .max_on_s = RIG_LASER_MAX_ON_S};
         if ((r = parse_switch_common(rc, m, keys, s)) < 0 ||
             (r = yconf_double(yc, m, "azimuth", -360, 360, &s->laser_azimuth_deg)) < 0 ||
             (r = yconf_doubles(yc, m, "origin", s->laser_origin, 3, 3, NULL)) < 0 ||

@@ -137,12 +137,18 @@ struct rig_axis_conf {
 
 enum rig_switch_kind { RIG_SWITCH_LAMP, RIG_SWITCH_LASER };
 
+#define RIG_LASER_MAX_ON_S 120.0 /* the default limits of time on */
+#define RIG_LAMP_MAX_ON_S  3600.0
+
 struct rig_switch_conf {
         char name[RIG_NAME_MAX];
         enum rig_switch_kind kind;
         char bus[RIG_NAME_MAX]; /* from the backend map */
         struct rig_backend_conf backend;
-        int warmup_ms; /* settle time after switching on */
+        int warmup_ms;   /* settle time after switching on */
+        double max_on_s; /* switched off after this long on, 0: no limit (docs/rig-file.md) */
+        bool off_on_disconnect; /* switched off when the client that switched it on outside a
+                                 * session disconnects */
         /* lamps: position on the light arm */
         double elevation_deg, radius_mm, azimuth_deg; /* azimuth: offset from arm zero */
         double intensity;                             /* radiant intensity, sim units */

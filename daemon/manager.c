@@ -129,6 +129,7 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
         r = server_new(m->event, socket_path, manager_methods, m, &m->server);
         if (r < 0)
                 goto fail;
+        server_on_close(m->server, manager_client_gone, m);
         r = rig_new(m->event, m->rc, manager_on_rig_event, m, &m->rig);
         if (r < 0)
                 goto fail;

@@ -26,6 +26,9 @@ struct manager {
         struct workq *ds_worker;        /* runs dataset.* off the loop (datasets.c) */
         bool ds_busy;                   /* a dataset.open or close is running */
         uint64_t shutdown_deadline;     /* set once SIGTERM/SIGINT arrived */
+        /* the client (srv_req_client) that switched each switch on outside a session, 0 none:
+         * switch i (rig.h: lamp i >= 0, laser k at RIG_SW_LASER(k)) at [RIG_MAX_LASERS + i] */
+        uint64_t switch_owner[RIG_MAX_LASERS + RIG_MAX_LAMPS];
 };
 
 /* Loads the rig file, opens the rig, listens on socket_path. On a rig-file error the
@@ -38,6 +41,10 @@ int manager_run(struct manager *m);
 
 /* Safe state, closes everything. NULL is a no-op; returns NULL. */
 struct manager *manager_free(struct manager *m);
+
+/* What goniod does when connection client closes (methods.c): the lasers and lamps it
+ * switched on outside a session go off. For server_on_close; ud is the manager. */
+void manager_client_gone(uint64_t client, void *ud);
 
 /* The method table of the control protocol (methods.c). */
 extern const struct srv_method manager_methods[];

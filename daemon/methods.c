@@ -278,6 +278,29 @@ static int m_stop(struct srv_req *req, json_t *params, void *userdata)
         return 0;
 }
 
+static uint64_t *owner_of(struct manager *m, int i)
+{
+        return &m->switch_owner[RIG_MAX_LASERS + i]; /* laser k is i = -1 - k */
+}
+
+void manager_client_gone(uint64_t client, void *ud)
+{
+        struct manager *m = ud;
+
+        for (int i = -(int)m->rc->n_lasers; i < (int)m->rc->n_lamps; i++) {
+                const char *name = rig_switch_conf_of(m->rc, i)->name;
+                if (*owner_of(m, i) != client)
+                        continue;
+                *owner_of(m, i) = 0;
+                if (session_busy_reason(m->session) || scan_busy_reason(m->scan))
+                        continue; /* a session has the rig now: it owns its switches */
+                log_info("client gone: switching %s '%s' off", i < 0 ? "laser" : "lamp", name);
+                if (rig_switch(m->rig, i, false, NULL, NULL) < 0) /* busy: max_on_s ends it */
+                        log_warning("cannot switch '%s' off now: %s", name,
+                                    rig_busy_reason(m->rig));
+        }
+}
+
 /* Switches the n switches of indices first.. (a lamp, or lasers: RIG_SW_LASER) and answers
  * with {key: name, on} once all are done; name lists them, comma-separated. */
 static int switch_and_reply(struct srv_req *req, struct manager *m, int first, int n, bool on,
@@ -296,6 +319,8 @@ static int switch_and_reply(struct srv_req *req, struct manager *m, int first, i
                 r = rig_switch(m->rig, i, on, on_rig_done, o);
                 if (r < 0)
                         op_refused(o, r, rig_switch_conf_of(m->rc, i)->name);
+                else if (rig_switch_conf_of(m->rc, i)->off_on_disconnect)
+                        *owner_of(m, i) = on ? srv_req_client(req) : 0;
         }
         op_part_done(o, 0, NULL);
         return 0;

@@ -611,6 +611,51 @@ static void laser_found_on(struct rig *rig, int i)
         switch_submit(rig, j, true);
 }
 
+struct limit {
+        struct rig *rig;
+        int idx;
+};
+
+static int on_limit(sd_event_source *src, uint64_t usec, void *userdata)
+{
+        struct limit *l = userdata;
+        struct rig *rig = l->rig;
+        int i = l->idx;
+        struct rig_switch *s = rig_switch_slot(rig, i);
+        struct job *j = calloc(1, sizeof(*j));
+
+        log_warning("%s '%s' on for its max_on_s (%g s): switching it off",
+                    i < 0 ? "laser" : "lamp", switch_name(rig, i), s->sw->conf->max_on_s);
+        s->limit = sd_event_source_disable_unref(s->limit); /* frees l */
+        if (j) {
+                *j = (struct job){.rig = rig, .kind = J_SWITCH, .idx = i, .on = false};
+                switch_submit(rig, j, true);
+        }
+        return 0;
+}
+
+/* Arms switch i's limit of time on (its max_on_s, 0: none) when it went on, disarms it
+ * when it went off. */
+static void limit_on_time(struct rig *rig, int i, bool on)
+{
+        struct rig_switch *s = rig_switch_slot(rig, i);
+        double max_on = s->sw->conf->max_on_s;
+        struct limit *l;
+
+        s->limit = sd_event_source_disable_unref(s->limit);
+        if (!on || !(max_on > 0) || !(l = malloc(sizeof(*l))))
+                return;
+        *l = (struct limit){rig, i};
+        if (sd_event_add_time_relative(rig->event, &s->limit, CLOCK_MONOTONIC,
+                                       (uint64_t)(max_on * 1e6), TIMER_ACCURACY, on_limit, l) < 0) {
+                log_warning("%s: cannot limit its time on: %m", switch_name(rig, i));
+                free(l);
+                return;
+        }
+        sd_event_source_set_destroy_callback(s->limit, free);
+        sd_event_source_set_description(s->limit, "max-on");
+}
+
 static void switch_job_done(struct job *j, int result)
 {
         struct rig *rig = j->rig;
@@ -639,6 +684,7 @@ static void switch_job_done(struct job *j, int result)
         if (j->kind != J_SWITCH)
                 return;
         rig_emit(rig, &(struct rig_event){.type = RIG_EVENT_SWITCH, .device = name, .on = j->on});
+        limit_on_time(rig, j->idx, j->on);
         finish_switch_later(rig, s, j->on ? s->sw->conf->warmup_ms : 0, j->done, j->ud);
 }
 
@@ -1033,10 +1079,11 @@ struct rig *rig_free(struct rig *rig)
                 sd_event_source_disable_unref(rig->axes[i].timer);
                 axis_free(rig->axes[i].ax);
         }
-        for (size_t i = 0; i < rig->rc->n_lamps; i++)
-                sw_free(rig->lamps[i].sw);
-        for (size_t i = 0; i < rig->rc->n_lasers; i++)
-                sw_free(rig->lasers[i].sw);
+        for (int i = -(int)rig->rc->n_lasers; i < (int)rig->rc->n_lamps; i++) {
+                struct rig_switch *s = rig_switch_slot(rig, i);
+                s->limit = sd_event_source_disable_unref(s->limit);
+                sw_free(s->sw);
+        }
         for (size_t i = 0; i < rig->rc->n_cameras; i++)
                 cam_free(rig->cams[i]);
         free(rig);

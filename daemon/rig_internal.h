@@ -40,8 +40,9 @@ struct rig_axis {
 struct rig_switch {
         struct sw *sw;
         bool open;
-        unsigned changing; /* switch jobs in flight and warm-ups running */
-        atomic_uint gen;   /* bumped by the safe state; queued switch-ons of older ones drop */
+        unsigned changing;      /* switch jobs in flight and warm-ups running */
+        atomic_uint gen;        /* bumped by the safe state; queued switch-ons of older ones drop */
+        sd_event_source *limit; /* armed while on: switches it off at its max_on_s */
 };
 
 struct exposure;

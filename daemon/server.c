@@ -49,6 +49,7 @@ struct client {
         char *out;
         size_t out_len, out_cap;
         bool hello;           /* answered a successful hello */
+        uint64_t number;      /* srv_req_client */
         uint64_t last_active; /* CLOCK_MONOTONIC usec of its last request, or of accept */
         struct client *next;  /* the list is newest first */
 };
@@ -68,6 +69,9 @@ struct server {
         uint64_t idle_usec;
         uint64_t log_quiet_until; /* log_drop */
         unsigned log_skipped;
+        uint64_t last_number;
+        void (*on_close)(uint64_t client, void *ud);
+        void *on_close_ud;
 };
 
 struct srv_req {
@@ -118,6 +122,8 @@ static void client_close(struct client *c)
                 }
         s->n_clients--;
         log_debug("client %p disconnected", (void *)c);
+        if (s->on_close)
+                s->on_close(c->number, s->on_close_ud);
         client_unref(c);
 }
 
@@ -260,6 +266,17 @@ int srv_req_errmsg(struct srv_req *req, int err, const char *fmt, ...)
 bool srv_req_connected(const struct srv_req *req)
 {
         return req->client->fd >= 0;
+}
+
+uint64_t srv_req_client(const struct srv_req *req)
+{
+        return req->client->number;
+}
+
+void server_on_close(struct server *s, void (*fn)(uint64_t client, void *ud), void *ud)
+{
+        s->on_close = fn;
+        s->on_close_ud = ud;
 }
 
 const char *srv_req_method(const struct srv_req *req)
@@ -460,6 +477,7 @@ static void client_add(struct server *s, int cfd, uint64_t now)
         c->server = s;
         c->ref = 1;
         c->last_active = now;
+        c->number = ++s->last_number;
         r = sd_event_add_io(s->event, &c->io, fd, EPOLLIN, on_client_io, c);
         if (r < 0) {
                 free(c);
@@ -697,6 +715,7 @@ struct server *server_free(struct server *s)
 {
         if (!s)
                 return NULL;
+        s->on_close = NULL;
         while (s->clients)
                 client_close(s->clients);
         sd_event_source_disable_unref(s->listen);

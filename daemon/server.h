@@ -54,6 +54,10 @@ int server_start(struct server *s);
  * returns NULL. */
 struct server *server_free(struct server *s);
 
+/* Has fn(client, ud) called when the connection numbered client (srv_req_client) closes,
+ * whoever closes it; not for the connections server_free closes. */
+void server_on_close(struct server *s, void (*fn)(uint64_t client, void *ud), void *ud);
+
 /* Overrides SRV_MAX_CLIENTS (at least 1, at most what RLIMIT_NOFILE allows) and
  * SRV_IDLE_TIMEOUT_USEC, e.g. for tests. */
 void server_set_limits(struct server *s, unsigned max_clients, uint64_t idle_usec);
@@ -81,6 +85,9 @@ int srv_req_errmsg(struct srv_req *req, int err, const char *fmt, ...)
 
 /* True while the client that sent req is connected. */
 bool srv_req_connected(const struct srv_req *req);
+
+/* The number of the connection req came on: unique over the server's life, never 0. */
+uint64_t srv_req_client(const struct srv_req *req);
 
 /* The method name of req; valid until answered. */
 const char *srv_req_method(const struct srv_req *req);

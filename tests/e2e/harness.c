@@ -260,6 +260,17 @@ static void init(struct rigenv *e, char **argv, double time_scale, const char *r
         snprintf(e->time_scale, sizeof(e->time_scale), "%g", time_scale);
 }
 
+char *rig_insert(const char *rig, const char *after, const char *text)
+{
+        const char *from = rig ? rig : test_rig, *at = strstr(from, after);
+        char *out;
+
+        CHECK(at);
+        at += strlen(after);
+        CHECK(asprintf(&out, "%.*s%s%s", (int)(at - from), from, text, at) > 0);
+        return out;
+}
+
 void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
 {
         init(e, argv, time_scale, rig_text);

@@ -25,6 +25,10 @@ void rigenv_start(struct rigenv *e, char **argv, double time_scale);
 /* Like rigenv_start with the rig file rig_text (YAML; NULL: the default test rig). */
 void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text);
 
+/* Rig file rig (NULL: the default test rig) with text inserted after the first occurrence
+ * of after (which it must hold), malloc'ed: a variant of a device. */
+char *rig_insert(const char *rig, const char *after, const char *text);
+
 /* Like rigenv_start, with goniod's stderr (its log) appended to e->daemon_log, DIR/goniod.log,
  * for this start and every restart. */
 void rigenv_start_logged(struct rigenv *e, char **argv, double time_scale);

@@ -1,0 +1,127 @@
+/* test-safety.c - the laser and lamp safety rules of goniod (docs/goniod.md, "Safety"),
+ * checked on gonio-sim's relay coils, not on goniod's word: a switch goes off after its
+ * max_on_s, counted from when it went on; where the rig file says off_on_disconnect, when
+ * the client that switched it on outside a session disconnects, while what another client
+ * switched on stays on. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "harness.h"
+#include "tests/test.h"
+
+/* Whether gonio-sim has lamp i (or the laser, i < 0) on. */
+static bool sim_on(struct rigenv *e, int i)
+{
+        json_t *r = sim_query(e, "{\"cmd\":\"state\"}\n"), *st = json_object_get(r, "state");
+        bool on = json_is_true(json_array_get(json_object_get(st, i < 0 ? "lasers" : "lamps"),
+                                              i < 0 ? 0 : (size_t)i));
+
+        json_decref(r);
+        return on;
+}
+
+/* Seconds until gonio-sim has switch i off, at most timeout (else the test fails). */
+static double wait_off(struct rigenv *e, int i, double timeout)
+{
+        double t0 = now_s();
+
+        while (sim_on(e, i)) {
+                CHECK(now_s() - t0 < timeout);
+                usleep(20000);
+        }
+        return now_s() - t0;
+}
+
+/* Switches lamp i (or the laser, i < 0) on over the raw connection fd, checked on the
+ * coil. */
+static void raw_on(struct rigenv *e, int fd, int i)
+{
+        char req[160];
+        json_t *r;
+
+        if (i < 0)
+                snprintf(req, sizeof(req),
+                         "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"laser.set\",\"params\":"
+                         "{\"on\":true}}\n");
+        else
+                snprintf(req, sizeof(req),
+                         "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"lamp.set\",\"params\":"
+                         "{\"lamp\":%d,\"on\":true}}\n",
+                         i);
+        r = raw_call(fd, req);
+        CHECK(json_object_get(r, "result") != NULL);
+        json_decref(r);
+        CHECK(sim_on(e, i));
+}
+
+/* The laser (max_on_s 1) and lamp0 (2) go off on their own, the connection kept open, at
+ * their limits; lamp1 (the default: an hour) stays on. */
+static void test_max_on(char **argv)
+{
+        char *a = rig_insert(NULL, "laser: { name: laser, ", "max_on_s: 1, ");
+        char *rig = rig_insert(a, "name: lamp0, ", "max_on_s: 2, ");
+        struct rigenv e;
+        double t0, t_laser, t_lamp;
+        int fd;
+
+        rigenv_start_rig(&e, argv, 10, rig);
+        fd = raw_connect(&e);
+        t0 = now_s();
+        raw_on(&e, fd, -1);
+        raw_on(&e, fd, 0);
+        raw_on(&e, fd, 1);
+        t_laser = now_s() - t0 + wait_off(&e, -1, 5);
+        t_lamp = now_s() - t0 + wait_off(&e, 0, 5);
+        fprintf(stderr, "laser off after %.2f s (max_on_s 1), lamp0 after %.2f s (2)\n", t_laser,
+                t_lamp);
+        CHECK(t_laser >= 0.9 && t_lamp >= 1.9);
+        CHECK(sim_on(&e, 1));
+        close(fd);
+        rigenv_stop(&e);
+        free(rig);
+        free(a);
+}
+
+/* The laser and lamp1 (off_on_disconnect) go off when the client that switched them on
+ * goes, not before; lamp0, switched on by a client still there, stays on, and stays on
+ * after that client goes too (it has no off_on_disconnect). */
+static void test_disconnect(char **argv)
+{
+        char *a = rig_insert(NULL, "laser: { name: laser, ", "off_on_disconnect: true, ");
+        char *rig = rig_insert(a, "name: lamp1, ", "off_on_disconnect: true, ");
+        struct rigenv e;
+        int one, two;
+
+        rigenv_start_rig(&e, argv, 10, rig);
+        one = raw_connect(&e);
+        two = raw_connect(&e);
+        raw_on(&e, one, -1);
+        raw_on(&e, one, 1);
+        raw_on(&e, two, 0);
+        usleep(300 * 1000); /* nothing changes while both stay */
+        CHECK(sim_on(&e, -1) && sim_on(&e, 1) && sim_on(&e, 0));
+        close(one);
+        fprintf(stderr, "after the client left: laser off in %.2f s, lamp1 in %.2f s\n",
+                wait_off(&e, -1, 3), wait_off(&e, 1, 3));
+        CHECK(sim_on(&e, 0));
+        close(two); /* lamp0 has no off_on_disconnect: it stays on */
+        usleep(300 * 1000);
+        CHECK(sim_on(&e, 0));
+        rigenv_stop(&e);
+        free(rig);
+        free(a);
+}
+
+int main(int argc, char **argv)
+{
+        CHECK(argc == 5);
+        if (!strcmp(argv[4], "max-on"))
+                test_max_on(argv);
+        else if (!strcmp(argv[4], "disconnect"))
+                test_disconnect(argv);
+        else
+                CHECK(!"unknown case");
+        return 0;
+}
