@@ -375,3 +375,13 @@ int ap_env_render(struct ap_env_renderer *r, const struct ap_camera *cam, int th
                         return b[i].ret;
         return 0;
 }
+
+const float *ap_env_renderer_vertex_vis(const struct ap_env_renderer *r)
+{
+        return r->vvis;
+}
+
+const float *ap_env_renderer_ground_vis(const struct ap_env_renderer *r)
+{
+        return r->gvis;
+}
