@@ -36,7 +36,7 @@ struct ap_web_opts {
 #define AP_WEB_SPHERES       32 /* spheres of the BRDF model's shadows by default */
 #define AP_WEB_SPHERES_GRID  32 /* ap_spheres_fit's grid */
 #define AP_WEB_PF_PAIRS      12 /* the prefilter's representative normal pairs */
-#define AP_WEB_PF_WIDTH      64 /* and its maps' width */
+#define AP_WEB_PF_WIDTH      48 /* and its maps' width */
 #define AP_WEB_GROUND_ALBEDO 0.5f
 #define AP_WEB_GROUND_RADIUS 3.0f /* the ground's radius over the object's (about the z axis) */
 #define AP_WEB_ENV_MAX_WIDTH 1024 /* wider maps are halved (box) for the page's background */

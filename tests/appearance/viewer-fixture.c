@@ -28,10 +28,10 @@ static const struct envscene_opts brdf_opts = {.width = 96,
                                                .env_width = 32,
                                                .dome_elements = 16,
                                                .ks = 0.3,
-                                               .ax = 0.15,
-                                               .ay = 0.08,
+                                               .ax = 0.2,
+                                               .ay = 0.12,
                                                .ground_radius = 150,
-                                               .mesh_rows = 24};
+                                               .mesh_rows = 36};
 
 static void write_brdf(const char *ds)
 {
