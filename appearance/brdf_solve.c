@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "appearance/brdf_internal.h"
+#include "common/sortx.h"
 
 #define NP           5 /* log ax, log ay, tangent angle, normal tilt (2) */
 #define MAX_ITER     20
@@ -144,13 +145,6 @@ static void minimise(struct problem *q, double *p, gsl_multifit_nlinear_workspac
         memcpy(p, gsl_multifit_nlinear_position(ws)->data, NP * sizeof(double));
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-        double x = *(const double *)a, y = *(const double *)b;
-
-        return (x > y) - (x < y);
-}
-
 /* Cauchy weights of the residuals f (3 per sample) into w; the unweighted sum of squares. */
 static double reweight(const struct problem *q, const gsl_vector *f, float *w, double *tmp)
 {
@@ -164,7 +158,7 @@ static double reweight(const struct problem *q, const gsl_vector *f, float *w, d
                 ss += r2;
                 tmp[i] = sqrt(r2 / 3);
         }
-        qsort(tmp, q->n, sizeof(double), cmp_double);
+        qsort(tmp, q->n, sizeof(double), gn_cmp_double);
         scale = fmax(1.4826 * tmp[q->n / 2], CAUCHY_FLOOR) * CAUCHY_C;
         for (size_t i = 0; i < q->n; i++) {
                 double r2 = 0;

@@ -15,69 +15,42 @@
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_env_renderer *, ap_env_renderer_free);
 
-static int cmp_float(const void *a, const void *b)
-{
-        float x = *(const float *)a, y = *(const float *)b;
-        return (x > y) - (x < y);
-}
-
-/* PLACEHOLDER until the integrator's ap_brdf_prefilter_params (render_env.h) is merged: the
- * median ax, ay, f0 of the fitted texels, the axis the principal direction of their tangents. */
-static void prefilter_params(const struct ap_brdf_model *m, struct ap_prefilter_params *p)
-{
-        size_t n = (size_t)m->atlas.width * m->atlas.height, k = 0;
-        _cleanup_free_ float *v = malloc(3 * n * sizeof(float));
-        double c[9] = {0}, a[3] = {0.3, 0.5, 0.8};
-
-        *p = (struct ap_prefilter_params){.ax = 0.3f, .ay = 0.3f, .f0 = 1, .axis = {0, 0, 1}};
-        for (size_t i = 0; v && i < n; i++) {
-                const struct ap_brdf_texel *x = &m->texels[i];
-                if (!(x->flags & AP_BRDF_FITTED))
-                        continue;
-                v[k] = x->ax, v[n + k] = x->ay, v[2 * n + k++] = x->f0;
-                for (int q = 0; q < 9; q++)
-                        c[q] += x->tangent[q / 3] * x->tangent[q % 3];
-        }
-        for (int j = 0; j < 3 && k; j++)
-                qsort(v + j * n, k, sizeof(float), cmp_float);
-        if (k)
-                p->ax = v[k / 2], p->ay = v[n + k / 2], p->f0 = v[2 * n + k / 2];
-        for (int it = 0; it < 50 && k; it++) { /* power iteration */
-                double b[3] = {0}, l;
-                for (int q = 0; q < 9; q++)
-                        b[q / 3] += c[q] * a[q % 3];
-                l = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
-                for (int q = 0; q < 3 && l > 0; q++)
-                        a[q] = b[q] / l;
-        }
-        for (int q = 0; q < 3 && k; q++)
-                p->axis[q] = (float)a[q];
-}
-
 int ap_web_spheres(const struct ap_brdf_model *m, int n, struct ap_spheres *out)
 {
         return ap_spheres_fit(&m->atlas.mesh, n, AP_WEB_SPHERES_GRID, out);
 }
 
+/* The ground's radius for mesh m: AP_WEB_GROUND_RADII times its bounding radius when it
+ * stands on z = 0 (its lowest point within AP_WEB_GROUND_TOUCH), else none (model render's). */
+static float ground_radius(const struct ap_mesh *m)
+{
+        float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+
+        for (size_t i = 0; i < 3 * m->nv; i++) {
+                lo[i % 3] = fminf(lo[i % 3], m->pos[i]);
+                hi[i % 3] = fmaxf(hi[i % 3], m->pos[i]);
+        }
+        if (!(fabsf(lo[2]) <= AP_WEB_GROUND_TOUCH))
+                return 0;
+        return AP_WEB_GROUND_RADII * 0.5f *
+               sqrtf(powf(hi[0] - lo[0], 2) + powf(hi[1] - lo[1], 2) + powf(hi[2] - lo[2], 2));
+}
+
 int ap_web_env_scene(const struct ap_brdf_model *m, const struct ap_envmap *env,
                      const struct ap_spheres *sp, struct ap_prefilter *pf, struct ap_env_scene *sc)
 {
-        const struct ap_mesh *me = &m->atlas.mesh;
-        struct ap_prefilter_params p;
-        float rad = 0;
+        struct ap_prefilter_params p = {
+                .pairs = AP_WEB_PF_PAIRS, .width = AP_WEB_PF_WIDTH, .threads = 2};
 
-        prefilter_params(m, &p);
-        p.pairs = AP_WEB_PF_PAIRS, p.width = AP_WEB_PF_WIDTH, p.threads = 2;
-        for (size_t i = 0; i < me->nv; i++)
-                rad = fmaxf(rad, hypotf(me->pos[3 * i], me->pos[3 * i + 1]));
+        ap_brdf_prefilter_params(m, &p);
         *sc = (struct ap_env_scene){
-                m,
-                env,
-                pf,
-                sp,
-                {AP_WEB_GROUND_ALBEDO, AP_WEB_GROUND_ALBEDO, AP_WEB_GROUND_ALBEDO},
-                AP_WEB_GROUND_RADIUS * rad,
-                (float)m->response};
+                .m = m,
+                .env = env,
+                .pf = pf,
+                .sp = sp,
+                .ground_albedo = {AP_WEB_GROUND_ALBEDO, AP_WEB_GROUND_ALBEDO, AP_WEB_GROUND_ALBEDO},
+                .ground_radius = ground_radius(&m->atlas.mesh),
+                .scale = (float)m->response};
         return ap_prefilter_build(env, &p, pf);
 }
 

@@ -18,6 +18,7 @@
 #include "sim/render/render.h"
 #ifdef AP_CALFILE
 #include "calib/calfile.h"
+#include "common/sortx.h"
 #endif
 
 #define DEG          (M_PI / 180)
@@ -142,13 +143,6 @@ static void lamp_position(const struct fit_ctx *c, const void *cal, const struct
         rotz(isnan(v->tt_deg) ? 0 : -v->tt_deg, p, p);
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-        double x = *(const double *)a, y = *(const double *)b;
-
-        return x < y ? -1 : x > y;
-}
-
 /* The median distance and intensity of the lights: the light T is relative to. */
 static int reference_light(struct fit_ctx *c, size_t n)
 {
@@ -166,8 +160,8 @@ static int reference_light(struct fit_ctx *c, size_t n)
                                         ? c->rc->lamps[l->lamp].intensity
                                         : 1;
                 }
-        qsort(d, j, sizeof(double), cmp_double);
-        qsort(in, j, sizeof(double), cmp_double);
+        qsort(d, j, sizeof(double), gn_cmp_double);
+        qsort(in, j, sizeof(double), gn_cmp_double);
         c->d_ref = d[j / 2];
         c->i_ref = in[j / 2];
         for (size_t i = 0; i < c->n_views; i++)

@@ -15,6 +15,7 @@
 #include "sim/render/internal.h"
 
 #define MAX_THREADS 16
+#define NDF_TAIL    1e-4f /* samples whose NDF is below this share of its peak are left out */
 
 /* The input map: directions, solid angles and radiance of its texels. */
 struct src {
@@ -98,7 +99,7 @@ static void texel(const struct ap_prefilter *f, const struct src *s, struct v3 n
         struct v3 t = tangent_of(f, n), b = v3_cross(n, t);
         struct v3 v = v3_madd(v3_scale(w, -1), n, 2 * v3_dot(n, w));
         double sl[3] = {0}, sd = 0, sa = 0;
-        float spec[3];
+        float nv = v3_dot(n, v), dmin = NDF_TAIL / ((float)M_PI * f->p.ax * f->p.ay);
 
         float th = acosf(CLAMP(w.z, -1.f, 1.f)), cone = cosf(cone_rad);
         int y0 = MAX(0, (int)floorf((th - cone_rad) / (float)M_PI * s->h));
@@ -106,17 +107,19 @@ static void texel(const struct ap_prefilter *f, const struct src *s, struct v3 n
 
         for (int i = y0 * s->w; i < y1 * s->w; i++) { /* the rows the cone reaches */
                 struct v3 l = v3(s->dir[3 * i], s->dir[3 * i + 1], s->dir[3 * i + 2]);
-                if (v3_dot(l, w) < cone || v3_dot(l, n) <= 0)
+                float nl = v3_dot(l, n);
+                if (v3_dot(l, w) < cone || nl <= 0)
                         continue;
                 struct v3 h = v3_norm(v3_add(l, v));
-                float d = beckmann_ndf(&sf, v3_dot(h, n), v3_dot(h, t), v3_dot(h, b)) * s->dw[i];
-                if (d <= 0)
+                float d = beckmann_ndf(&sf, v3_dot(h, n), v3_dot(h, t), v3_dot(h, b));
+                if (d <= dmin) /* the NDF's tail: no weight in either sum */
                         continue;
+                d *= s->dw[i];
                 for (int c = 0; c < 3; c++)
                         sl[c] += d * s->rgb[3 * i + c];
                 sd += d;
-                brdf_cos(&sf, n, t, l, v, spec);
-                sa += spec[0] * s->dw[i];
+                if (nv > 0) /* brdf_cos's specular part for ks = 1, its NDF from d */
+                        sa += d * beckmann_gf(&sf, t, b, l, v, h, nl, nv);
         }
         for (int c = 0; c < 3; c++)
                 out[c] = sd > 0 ? (float)(sl[c] / sd) : 0;

@@ -10,6 +10,7 @@
 
 #include "appearance/render_env.h"
 #include "common/cleanup.h"
+#include "common/sortx.h"
 
 #define MAX_THREADS 16
 #define COS_ETA     2.133f /* the cosine lobe as one SG (seed 000, section 4.5) */
@@ -374,6 +375,52 @@ int ap_env_render(struct ap_env_renderer *r, const struct ap_camera *cam, int th
                 if (b[i].ret < 0)
                         return b[i].ret;
         return 0;
+}
+
+/* The principal eigenvector of the symmetric 3x3 matrix S (power iteration from the
+ * largest diagonal axis) into v. */
+static void principal_axis(const double S[9], float v[3])
+{
+        int k = S[0] >= S[4] && S[0] >= S[8] ? 0 : S[4] >= S[8] ? 1 : 2;
+        double x[3] = {k == 0, k == 1, k == 2};
+
+        for (int it = 0; it < 64; it++) {
+                double y[3], l;
+                for (int i = 0; i < 3; i++)
+                        y[i] = S[3 * i] * x[0] + S[3 * i + 1] * x[1] + S[3 * i + 2] * x[2];
+                l = sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]);
+                if (!(l > 0))
+                        break;
+                for (int i = 0; i < 3; i++)
+                        x[i] = y[i] / l;
+        }
+        for (int i = 0; i < 3; i++)
+                v[i] = (float)x[i];
+}
+
+void ap_brdf_prefilter_params(const struct ap_brdf_model *m, struct ap_prefilter_params *p)
+{
+        size_t n = (size_t)m->atlas.width * m->atlas.height, k = 0;
+        _cleanup_free_ double *v = malloc(3 * (n + 1) * sizeof(double));
+        double S[9] = {0};
+
+        p->ax = p->ay = 0.3f, p->f0 = 0.04f;
+        p->axis[0] = p->axis[1] = 0, p->axis[2] = 1;
+        for (size_t i = 0; v && i < n; i++) {
+                const struct ap_brdf_texel *x = &m->texels[i];
+                if (!(x->flags & AP_BRDF_FITTED))
+                        continue;
+                v[k] = x->ax, v[n + k] = x->ay, v[2 * n + k] = x->f0, k++;
+                for (int a = 0; a < 9; a++)
+                        S[a] += x->ks * x->tangent[a / 3] * x->tangent[a % 3];
+        }
+        if (!k)
+                return;
+        if (S[0] + S[4] + S[8] > 0)
+                principal_axis(S, p->axis);
+        p->ax = (float)gn_median(v, k);
+        p->ay = (float)gn_median(v + n, k);
+        p->f0 = (float)gn_median(v + 2 * n, k);
 }
 
 const float *ap_env_renderer_vertex_vis(const struct ap_env_renderer *r)

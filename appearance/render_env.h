@@ -37,6 +37,12 @@ struct ap_env_scene {
         float scale;         /* pixel value per unit of radiance */
 };
 
+/* The prefilter's material for model m (prefilter.h takes one NDF for the whole map): the
+ * median ax, ay and f0 over the fitted texels, the anisotropy axis as the principal direction
+ * of their tangents; pairs, width and threads left as p has them. A model without a fitted
+ * texel gives ax = ay = 0.3, f0 0.04 and the axis +z. */
+void ap_brdf_prefilter_params(const struct ap_brdf_model *m, struct ap_prefilter_params *p);
+
 struct ap_env_renderer;
 
 /* Prepares the rendering of sc (the per-vertex and ground visibility). Returns 0, -EINVAL (no

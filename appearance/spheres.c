@@ -10,6 +10,7 @@
 
 #include "appearance/spheres.h"
 #include "common/cleanup.h"
+#include "common/sortx.h"
 
 #define SURFACE_SAMPLES 6000
 
@@ -20,12 +21,6 @@ struct cloud {
         float lo[3], step;
         int dim[3];
 };
-
-static int cmp_float(const void *a, const void *b)
-{
-        float x = *(const float *)a, y = *(const float *)b;
-        return (x > y) - (x < y);
-}
 
 /* The heights where the vertical line through (x, y) crosses m, sorted, into z; their count. */
 static size_t column_hits(const struct ap_mesh *m, float x, float y, float *z)
@@ -44,7 +39,7 @@ static size_t column_hits(const struct ap_mesh *m, float x, float y, float *z)
                         continue;
                 z[n++] = a[2] + u * (b[2] - a[2]) + v * (c[2] - a[2]);
         }
-        qsort(z, n, sizeof(*z), cmp_float);
+        qsort(z, n, sizeof(*z), gn_cmp_float);
         return n;
 }
 

@@ -14,6 +14,7 @@
 #include "appearance/cube.h"
 #include "appearance/views.h"
 #include "common/cleanup.h"
+#include "common/sortx.h"
 
 #define PLANE_EPS      1e-9 /* a point this close to a plane is on it */
 #define DUP_COS        (1.0 - 5e-13)
@@ -188,13 +189,6 @@ static int build_hull(struct ap_views *v)
         return 0;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-        double x = *(const double *)a, y = *(const double *)b;
-
-        return (x > y) - (x < y);
-}
-
 static int mark_holes(struct ap_views *v)
 {
         _cleanup_free_ double *rad = malloc((v->nf + 1) * sizeof(double));
@@ -204,7 +198,7 @@ static int mark_holes(struct ap_views *v)
                 return -ENOMEM;
         for (size_t i = 0; i < v->nf; i++)
                 rad[i] = acos(fmax(-1, fmin(1, v->f[i].d)));
-        qsort(rad, v->nf, sizeof(double), cmp_double);
+        qsort(rad, v->nf, sizeof(double), gn_cmp_double);
         median = v->nf ? rad[v->nf / 2] : 0;
         for (size_t i = 0; i < v->nf; i++) {
                 double ri = acos(fmax(-1, fmin(1, v->f[i].d)));

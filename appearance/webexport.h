@@ -35,10 +35,12 @@ struct ap_web_opts {
 
 #define AP_WEB_SPHERES       32 /* spheres of the BRDF model's shadows by default */
 #define AP_WEB_SPHERES_GRID  32 /* ap_spheres_fit's grid */
-#define AP_WEB_PF_PAIRS      12 /* the prefilter's representative normal pairs */
-#define AP_WEB_PF_WIDTH      48 /* and its maps' width */
+#define AP_WEB_PF_PAIRS      16 /* the prefilter's representative normal pairs */
+#define AP_WEB_PF_WIDTH      48 /* and its maps' width (model render: 96; here the page's data) */
 #define AP_WEB_GROUND_ALBEDO 0.5f
-#define AP_WEB_GROUND_RADIUS 3.0f /* the ground's radius over the object's (about the z axis) */
+#define AP_WEB_GROUND_TOUCH                                                                        \
+        2.0f /* mm: the mesh stands on z = 0 when its lowest point is this near */
+#define AP_WEB_GROUND_RADII  3.0f /* the ground's radius in the mesh's bounding radii */
 #define AP_WEB_ENV_MAX_WIDTH 1024 /* wider maps are halved (box) for the page's background */
 
 /* The sphere set of the BRDF model m's shadows, n spheres (ap_spheres_fit on its atlas mesh).
@@ -47,8 +49,8 @@ int ap_web_spheres(const struct ap_brdf_model *m, int n, struct ap_spheres *out)
 
 /* The scene the page shows the BRDF model m in under env: env prefiltered into *pf (free with
  * ap_prefilter_free) with ap_brdf_prefilter_params, AP_WEB_PF_PAIRS and AP_WEB_PF_WIDTH; sp's
- * shadows; a ground of AP_WEB_GROUND_ALBEDO, AP_WEB_GROUND_RADIUS times the object's radius
- * about the z axis; the model's response as the scale. sc borrows m, env, pf and sp. Returns
+ * shadows; a ground disc as gonioctl model render's (AP_WEB_GROUND_*: none when the mesh does
+ * not stand on z = 0); the model's response as the scale. sc borrows m, env, pf and sp. Returns
  * as ap_prefilter_build. */
 int ap_web_env_scene(const struct ap_brdf_model *m, const struct ap_envmap *env,
                      const struct ap_spheres *sp, struct ap_prefilter *pf, struct ap_env_scene *sc);

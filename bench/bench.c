@@ -13,6 +13,7 @@
 #include "common/clock.h"
 #include "common/pose.h"
 #include "tests/test.h"
+#include "common/sortx.h"
 
 /* The programs of the build tree this program lives in, as the harness takes them. */
 static char **tools(void)
@@ -77,20 +78,13 @@ void bench_add(struct bench_samples *s, double v)
         s->v[s->n++] = v;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-        double x = *(const double *)a, y = *(const double *)b;
-
-        return (x > y) - (x < y);
-}
-
 double bench_quantile(struct bench_samples *s, double q)
 {
         size_t i;
 
         if (s->n == 0)
                 return NAN;
-        qsort(s->v, s->n, sizeof(*s->v), cmp_double);
+        qsort(s->v, s->n, sizeof(*s->v), gn_cmp_double);
         i = (size_t)ceil(q * (double)s->n);
         return s->v[i > 0 ? i - 1 : 0];
 }

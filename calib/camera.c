@@ -11,6 +11,7 @@
 
 #include "calib/camera.h"
 #include "common/cleanup.h"
+#include "common/sortx.h"
 
 /* The corners found in one view, in board (obj, z = 0) and image (uv) coordinates. */
 struct view_pts {
@@ -189,13 +190,6 @@ static int fit(struct solve *s, double *view_rms)
         return 0;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-        double x = *(const double *)a, y = *(const double *)b;
-
-        return (x > y) - (x < y);
-}
-
 /* The view to reject next: the worst above the threshold, or -1. */
 static ssize_t outlier(const struct solve *s, const double *view_rms, double *median)
 {
@@ -208,7 +202,7 @@ static ssize_t outlier(const struct solve *s, const double *view_rms, double *me
         for (size_t i = 0; i < nv; i++)
                 if (!isnan(view_rms[i]))
                         sorted[n++] = view_rms[i];
-        qsort(sorted, n, sizeof(double), cmp_double);
+        qsort(sorted, n, sizeof(double), gn_cmp_double);
         *median = n % 2 ? sorted[n / 2] : (sorted[n / 2 - 1] + sorted[n / 2]) / 2;
         double limit = MAX(s->o.outlier_factor * *median, s->o.outlier_floor_px);
         for (size_t i = 0; i < nv; i++)

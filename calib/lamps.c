@@ -11,6 +11,7 @@
 #include "calib/turntable_geom.h"
 #include "common/cleanup.h"
 #include "common/riggeom.h"
+#include "common/sortx.h"
 
 #define DEG                   CAL_LAMPS_DEG
 #define SPHERE_MIN_SPREAD_DEG 1.0 /* silhouette axes spread less: the diameter gives depth */
@@ -138,7 +139,7 @@ static int fit_robust(struct line *l, size_t n, int min_used, double floor_mm, s
                                 worst = i;
                         }
                 }
-                qsort(d, m, sizeof(*d), cal_lamps_cmp_double);
+                qsort(d, m, sizeof(*d), gn_cmp_double);
                 if (far <= fmax(CAL_LAMPS_OUTLIER_FACTOR * d[m / 2], floor_mm))
                         break;
                 l[worst].used = false;

@@ -10,6 +10,7 @@
 #include "calib/lamps_internal.h"
 #include "calib/turntable_geom.h"
 #include "common/cleanup.h"
+#include "common/sortx.h"
 
 #define DEG            CAL_LAMPS_DEG
 #define MAX_CANDIDATES 8
@@ -181,7 +182,7 @@ static int cone_robust(struct edges *e, double f, struct cal_sphere_image *out)
                                 sorted[m++] = res[i];
                 if (m < MIN_EDGES)
                         return -ENOENT;
-                qsort(sorted, m, sizeof(*sorted), cal_lamps_cmp_double);
+                qsort(sorted, m, sizeof(*sorted), gn_cmp_double);
                 double thr = fmax(3 * 1.4826 * sorted[m / 2], FIT_FLOOR_PX);
                 for (int i = 0; i < e->n; i++)
                         e->in[i] = res[i] <= thr;
@@ -339,7 +340,7 @@ static int region_load(const struct cal_image *im, const struct cal_sphere_image
                 }
         if (!n)
                 return -ENOENT;
-        qsort(vals, n, sizeof(*vals), cal_lamps_cmp_double);
+        qsort(vals, n, sizeof(*vals), gn_cmp_double);
         *median = vals[n / 2];
         return 0;
 }

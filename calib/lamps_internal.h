@@ -23,14 +23,6 @@ static inline double cal_lamps_angle(double deg)
         return isnan(deg) ? 0 : deg;
 }
 
-/* qsort comparison of doubles, ascending. */
-static inline int cal_lamps_cmp_double(const void *a, const void *b)
-{
-        double x = *(const double *)a, y = *(const double *)b;
-
-        return (x > y) - (x < y);
-}
-
 /* The centre c of camera cam in the world: -R^T t. */
 static inline void cal_lamps_camera_centre(const struct sec_camera *cam, double c[3])
 {

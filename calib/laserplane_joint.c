@@ -22,6 +22,7 @@
 #include "calib/laserplane.h"
 #include "calib/turntable_geom.h"
 #include "common/cleanup.h"
+#include "common/sortx.h"
 
 #define DEG         (M_PI / 180)
 #define LR_MAX_P    (3 * SEC_MAX_LASERS)
@@ -235,13 +236,6 @@ static long lr_nearest(const struct lr_grid *g, const struct lr_ray *rays, const
         return j;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-        double x = *(const double *)a, y = *(const double *)b;
-
-        return (x > y) - (x < y);
-}
-
 /* Matches every ray with a normal to the nearest ray of each other laser (grids g) within h;
  * keeps the pairs within 3 robust sigmas (and at least 0.01 mm). Returns the number kept. */
 static size_t lr_match(const struct lr_ray *rays, size_t n, const struct lr_grid *g, int lasers,
@@ -268,7 +262,7 @@ static size_t lr_match(const struct lr_ray *rays, size_t n, const struct lr_grid
                 }
         if (np == 0)
                 return 0;
-        qsort(abs_r, np, sizeof(double), cmp_double);
+        qsort(abs_r, np, sizeof(double), gn_cmp_double);
         double lim = fmax(3 * 1.4826 * abs_r[np / 2], 0.01);
         for (size_t k = 0; k < np; k++)
                 if (fabs(pairs[k].r) <= lim)

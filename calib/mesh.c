@@ -8,6 +8,7 @@
 
 #include "common/cleanup.h"
 #include "mesh.h"
+#include "common/sortx.h"
 
 #define DEG      (M_PI / 180)
 #define FOLD_DEG 75 /* a simplified face this far from its corners' normals is a fold */
@@ -41,22 +42,6 @@ static double dist3(const float a[3], const float b[3])
                     (double)(a[2] - b[2]) * (a[2] - b[2]));
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-        double x = *(const double *)a, y = *(const double *)b;
-
-        return (x > y) - (x < y);
-}
-
-/* The median of the n values of v (reordered); 0 when n is 0. */
-static double median(double *v, size_t n)
-{
-        if (!n)
-                return 0;
-        qsort(v, n, sizeof(*v), cmp_double);
-        return n % 2 ? v[n / 2] : (v[n / 2 - 1] + v[n / 2]) / 2;
-}
-
 /* The median distance between points of neighbouring rows in g's lines. */
 static int row_step(struct grid *g)
 {
@@ -72,7 +57,7 @@ static int row_step(struct grid *g)
                         if (c->pts[i + 1].row == c->pts[i].row + 1)
                                 d[n++] = dist3(c->pts[i].x, c->pts[i + 1].x);
         }
-        g->row_step = median(d, n);
+        g->row_step = gn_median(d, n);
         return 0;
 }
 
@@ -181,7 +166,7 @@ static int join_laser(struct grid *g)
                 step[k] = line_deg(g, k + 1) - line_deg(g, k);
                 join(g, g->line[k], g->line[k + 1], step[k]);
         }
-        med = median(step, g->n - 1);
+        med = gn_median(step, g->n - 1);
         wrap = line_deg(g, 0) + 360 - line_deg(g, g->n - 1);
         if (g->n >= 3 && med > 0 && wrap > 0 && wrap <= g->o->seam_step * med) {
                 join(g, g->line[g->n - 1], g->line[0], wrap);

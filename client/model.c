@@ -19,6 +19,7 @@
 #include "common/cleanup.h"
 #include "dataset/ds.h"
 #include "drivers/registry.h"
+#include "common/sortx.h"
 
 #define WHAT "model fit"
 
@@ -133,13 +134,6 @@ static json_t *summary_json(const struct ap_model *m, const char *dir)
                          m->fit_seconds, "notes", m->notes);
 }
 
-static int cmp_float(const void *a, const void *b)
-{
-        float x = *(const float *)a, y = *(const float *)b;
-
-        return (x > y) - (x < y);
-}
-
 /* The summary of BRDF model m written at dir: texels by outcome, the median rms. */
 static json_t *brdf_summary_json(const struct ap_brdf_model *m, const char *dir)
 {
@@ -154,7 +148,7 @@ static json_t *brdf_summary_json(const struct ap_brdf_model *m, const char *dir)
         }
         if (!rms)
                 return NULL;
-        qsort(rms, nr, sizeof(float), cmp_float);
+        qsort(rms, nr, sizeof(float), gn_cmp_float);
         return json_pack("{s:s,s:s,s:b,s:I,s:I,s:I,s:I,s:f,s:f,s:f,s:s}", "model", dir, "name",
                          m->name, "brdf", 1, "texels", (json_int_t)n, "fitted", (json_int_t)k[0],
                          "diffuse_only", (json_int_t)k[1], "masked", (json_int_t)k[2], "median_rms",

@@ -10,41 +10,39 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <unistd.h>
 
 #include "appearance/envmap.h"
 #include "appearance/mesh.h"
 #include "appearance/render.h"
+#include "appearance/spheres.h"
 #include "appearance/views.h"
 #include "client/cmd.h"
 #include "client/model.h"
+#include "client/model_render.h"
 #include "common/cleanup.h"
 #include "common/fileio.h"
+#include "common/pfm.h"
 #include "dataset/ds_png.h"
 #include "drivers/registry.h"
 
 #define MAX_OUTSIDE_DEG 30.0 /* farthest a view may be from the views the model covers */
+#define RENDER_SPHERES  32   /* the sphere set of the BRDF model's shadows */
+#define RENDER_PAIRS    16   /* its representative normal pairs (bench/envlight: 38 dB) */
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_model *, ap_model_free);
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_renderer *, ap_renderer_free);
-
-struct render_opts {
-        const char *model, *out, *envmap;
-        enum ap_light_kind kind;
-        int n_lights;
-        double light[3], az, el, distance, intensity, gain;
-        bool have_view;
-        enum ap_view_mode mode;
-        int width, height;
-};
 
 static int usage_error(const char *fmt, const char *arg)
 {
         fprintf(stderr, "gonioctl: model render: ");
         fprintf(stderr, fmt, arg);
-        fprintf(stderr, "\nusage: gonioctl model render MODEL (--light X,Y,Z | --dir X,Y,Z | "
-                        "--envmap FILE) --view AZ,EL [--distance MM] [--mode pixel|object] "
-                        "[--size WxH] [--intensity I] [--gain G] -o OUT.png\n");
+        fprintf(stderr,
+                "\nusage: gonioctl model render MODEL (--light X,Y,Z | --dir X,Y,Z | "
+                "--envmap FILE) --view AZ,EL [--distance MM] [--mode pixel|object] "
+                "[--size WxH] [--intensity I] [--gain G] [--reflectance sh|brdf] "
+                "[--spheres N] [--pairs N] [--ground MM] [--focal PX] -o OUT.png|OUT.pfm\n");
         return EXIT_USAGE;
 }
 
@@ -73,6 +71,26 @@ static int parse_light(struct render_opts *o, int c, const char *arg)
         o->kind = c == 'l' ? AP_LIGHT_POINT : AP_LIGHT_DIRECTIONAL;
         return parse_list(arg, 3, o->light) ? 0
                                             : usage_error("bad light '%s': expected X,Y,Z", arg);
+}
+
+/* --spheres N (0..AP_SPHERES_MAX, 0: no shadows), --pairs N (1..256) or --ground MM (0:
+ * no ground). */
+static int parse_count(struct render_opts *o, int c, const char *arg)
+{
+        char *end;
+        double v = strtod(arg, &end);
+
+        if (end == arg || *end || !(v >= (c == 'P')) || !isfinite(v) ||
+            (c != 'G' && (v != floor(v) || v > (c == 'S' ? AP_SPHERES_MAX : 256))))
+                return usage_error(c == 'S'   ? "bad sphere count '%s': expected 0 to 1024"
+                                   : c == 'P' ? "bad normal pair count '%s': expected 1 to 256"
+                                              : "bad ground radius '%s': expected 0 or more mm",
+                                   arg);
+        if (c == 'G')
+                o->ground = v;
+        else
+                *(c == 'S' ? &o->spheres : &o->pairs) = (int)v;
+        return 0;
 }
 
 static int parse_option(struct render_opts *o, int c, const char *arg)
@@ -104,11 +122,23 @@ static int parse_option(struct render_opts *o, int c, const char *arg)
         case 'o':
                 o->out = arg;
                 return 0;
+        case 'r':
+                if (strcmp(arg, "sh") && strcmp(arg, "brdf"))
+                        return usage_error("bad reflectance '%s': expected sh or brdf", arg);
+                o->reflectance = arg[0] == 's' ? REFLECTANCE_SH : REFLECTANCE_BRDF;
+                return 0;
+        case 'S':
+        case 'P':
+        case 'G':
+                return parse_count(o, c, arg);
         }
         v[0] = strtod(arg, &end);
         if (end == arg || *end || !(v[0] > 0) || !isfinite(v[0]))
                 return usage_error("bad value '%s': expected a positive number", arg);
-        *(c == 'D' ? &o->distance : c == 'i' ? &o->intensity : &o->gain) = v[0];
+        *(c == 'D'   ? &o->distance
+          : c == 'i' ? &o->intensity
+          : c == 'F' ? &o->focal
+                     : &o->gain) = v[0];
         return 0;
 }
 
@@ -124,10 +154,19 @@ static int parse_args(int argc, char **argv, struct render_opts *o)
                                              {"output", required_argument, NULL, 'o'},
                                              {"intensity", required_argument, NULL, 'i'},
                                              {"gain", required_argument, NULL, 'g'},
+                                             {"reflectance", required_argument, NULL, 'r'},
+                                             {"spheres", required_argument, NULL, 'S'},
+                                             {"pairs", required_argument, NULL, 'P'},
+                                             {"ground", required_argument, NULL, 'G'},
+                                             {"focal", required_argument, NULL, 'F'},
                                              {NULL, 0, NULL, 0}};
         int c, r;
 
-        *o = (struct render_opts){.gain = 1, .mode = AP_VIEW_PIXEL};
+        *o = (struct render_opts){.gain = 1,
+                                  .mode = AP_VIEW_PIXEL,
+                                  .spheres = RENDER_SPHERES,
+                                  .pairs = RENDER_PAIRS,
+                                  .ground = -1};
         optind = 0;
         opterr = 0;
         while ((c = getopt_long(argc, argv, "+o:", opts, NULL)) != -1 || optind < argc) {
@@ -151,18 +190,36 @@ static int parse_args(int argc, char **argv, struct render_opts *o)
         return 0;
 }
 
-/* The output camera: the intrinsics of the sampled view nearest the direction (scaled to
- * --size), at --distance (else that view's) from the mesh centre, looking at it. */
-static int make_camera(const struct render_opts *o, const struct ap_model *m,
-                       const struct ap_renderer *r, struct ap_camera *cam)
+void render_view_dir(const struct render_opts *o, double d[3])
 {
-        double d[3], c[3], eye[3], best = -2, dist = 0, s;
-        const struct ap_view *near = NULL;
-        struct ap_camera intr;
-
         d[0] = cos(o->el * M_PI / 180) * cos(o->az * M_PI / 180);
         d[1] = cos(o->el * M_PI / 180) * sin(o->az * M_PI / 180);
         d[2] = sin(o->el * M_PI / 180);
+}
+
+int render_place_camera(const struct render_opts *o, const double c[3], double dist,
+                        struct ap_camera intr, struct ap_camera *cam)
+{
+        double d[3], eye[3];
+
+        render_view_dir(o, d);
+        intr.cx = intr.width / 2.0 - 0.5;
+        intr.cy = intr.height / 2.0 - 0.5;
+        for (int i = 0; i < 3; i++)
+                eye[i] = c[i] + (o->distance > 0 ? o->distance : dist) * d[i];
+        return ap_camera_look_at(&intr, eye, c, cam) < 0 ? EXIT_INVALID : 0;
+}
+
+/* The SH model's output camera: the intrinsics of the sampled view nearest the direction
+ * (scaled to --size, or --focal), at --distance (else that view's) from the mesh centre. */
+static int make_camera(const struct render_opts *o, const struct ap_model *m,
+                       const struct ap_renderer *r, struct ap_camera *cam)
+{
+        double d[3], c[3], best = -2, dist = 0, s;
+        const struct ap_view *near = NULL;
+        struct ap_camera intr;
+
+        render_view_dir(o, d);
         s = ap_views_outside_angle(ap_renderer_views(r), d) * 180 / M_PI;
         if (s > MAX_OUTSIDE_DEG) {
                 fprintf(stderr,
@@ -185,15 +242,10 @@ static int make_camera(const struct render_opts *o, const struct ap_model *m,
                 dist += e * e;
         }
         s = o->width ? (double)o->width / intr.width : 1;
-        intr = (struct ap_camera){o->width ?: intr.width,
-                                  o->height ?: intr.height,
-                                  intr.fx * s,
-                                  intr.fy * s,
-                                  (o->width ? o->width : intr.width) / 2.0 - 0.5,
-                                  (o->height ? o->height : intr.height) / 2.0 - 0.5};
-        for (int i = 0; i < 3; i++)
-                eye[i] = c[i] + (o->distance > 0 ? o->distance : sqrt(dist)) * d[i];
-        return ap_camera_look_at(&intr, eye, c, cam) < 0 ? EXIT_INVALID : 0;
+        intr = (struct ap_camera){o->width ?: intr.width, o->height ?: intr.height,
+                                  o->focal > 0 ? o->focal : intr.fx * s,
+                                  o->focal > 0 ? o->focal : intr.fy * s};
+        return render_place_camera(o, c, sqrt(dist), intr, cam);
 }
 
 static int make_light(const struct render_opts *o, const struct ap_model *m, struct ap_light *l,
@@ -215,14 +267,23 @@ static int make_light(const struct render_opts *o, const struct ap_model *m, str
         return 0;
 }
 
-/* Writes rgb (linear) times gain as an 8-bit RGB PNG, clamped to [0, 1]. */
-static int write_png(const char *path, const float *rgb, int w, int h, double gain)
+int render_write_image(const char *path, const float *rgb, int w, int h, double gain)
 {
         struct gn_frame f = {0};
         _cleanup_free_ void *buf = NULL;
-        size_t len;
+        _cleanup_free_ float *hdr = NULL;
+        size_t len, n = 3 * (size_t)w * h;
+        const char *dot = strrchr(path, '.');
         int r;
 
+        if (dot && !strcasecmp(dot, ".pfm")) {
+                if (!(hdr = malloc(n * sizeof(float))))
+                        return -ENOMEM;
+                for (size_t i = 0; i < n; i++)
+                        hdr[i] = (float)(rgb[i] * gain);
+                r = gn_pfm_encode(hdr, w, h, &buf, &len);
+                return r < 0 ? r : gn_write_atomic(AT_FDCWD, path, buf, len, NULL);
+        }
         if ((r = gn_frame_alloc(&f, w, h, 3, 8)) < 0)
                 return r;
         for (int y = 0; y < h; y++)
@@ -280,7 +341,7 @@ static int render_to_file(const struct render_opts *o, const struct ap_model *m,
         if (!rgb || !mask)
                 return EXIT_STORAGE;
         if ((e = ap_render(r, &cam, &l, o->mode, 2, rgb, mask)) < 0 ||
-            (e = write_png(o->out, rgb, cam.width, cam.height, o->gain)) < 0) {
+            (e = render_write_image(o->out, rgb, cam.width, cam.height, o->gain)) < 0) {
                 fprintf(stderr, "gonioctl: model render: %s: %s\n", o->out, strerror(-e));
                 return cmd_exit_for_errno(e);
         }
@@ -292,25 +353,70 @@ static int render_to_file(const struct render_opts *o, const struct ap_model *m,
         return EXIT_OK;
 }
 
-int model_render_command(int argc, char **argv)
+static int render_sh(const struct render_opts *o)
 {
         _cleanup_(ap_model_freep) struct ap_model *m = NULL;
         _cleanup_(ap_renderer_freep) struct ap_renderer *r = NULL;
         struct ap_mesh mesh = {0};
-        struct render_opts o;
         char src[PATH_MAX + 64] = "";
         int e;
 
-        if ((e = parse_args(argc, argv, &o)) != 0 || (e = load(&o, &m, &mesh, src, sizeof(src))))
+        if ((e = load(o, &m, &mesh, src, sizeof(src))))
                 return e;
         if ((e = ap_renderer_new(m, &mesh, &r)) < 0) {
-                fprintf(stderr, "gonioctl: model render: %s: cannot render: %s\n", o.model,
+                fprintf(stderr, "gonioctl: model render: %s: cannot render: %s\n", o->model,
                         strerror(-e));
                 ap_mesh_free(&mesh);
                 return cmd_exit_for_errno(e);
         }
-        e = render_to_file(&o, m, r, src);
+        e = render_to_file(o, m, r, src);
         ap_renderer_free(TAKE_PTR(r));
         ap_mesh_free(&mesh);
+        return e;
+}
+
+/* The BRDF model of the folder when o asks for it (or, unless o says sh, under --envmap
+ * when there is one): 1 with it in *ret, 0 for the SH model, or an exit code. */
+static int want_brdf(const struct render_opts *o, struct ap_brdf_model **ret)
+{
+        char err[1024] = "";
+        int r;
+
+        if (o->reflectance == REFLECTANCE_SH ||
+            (o->reflectance == REFLECTANCE_AUTO && o->kind != AP_LIGHT_ENV))
+                return 0;
+        r = ap_brdf_read(o->model, ret, err, sizeof(err));
+        if (r == -ENOENT && o->reflectance == REFLECTANCE_AUTO)
+                return 0;
+        if (r < 0) {
+                fprintf(stderr, "gonioctl: model render: %s: %s\n", o->model,
+                        r == -ENOENT ? "no BRDF model there (gonioctl model fit --brdf)"
+                        : err[0]     ? err
+                                     : strerror(-r));
+                return cmd_exit_for_errno(r == -ENOENT ? -EINVAL : r);
+        }
+        if (o->kind != AP_LIGHT_ENV) {
+                fprintf(stderr, "gonioctl: model render: the BRDF model renders under --envmap; "
+                                "--light and --dir take the SH model (--reflectance sh)\n");
+                *ret = ap_brdf_model_free(*ret);
+                return EXIT_USAGE;
+        }
+        return 1;
+}
+
+int model_render_command(int argc, char **argv)
+{
+        struct ap_brdf_model *bm = NULL;
+        struct render_opts o;
+        int e;
+
+        if ((e = parse_args(argc, argv, &o)) != 0)
+                return e;
+        if ((e = want_brdf(&o, &bm)) == 0)
+                return render_sh(&o);
+        if (e == 1) {
+                e = model_render_brdf(&o, bm);
+                ap_brdf_model_free(bm);
+        }
         return e;
 }

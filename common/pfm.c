@@ -55,3 +55,30 @@ int gn_pfm_decode(const uint8_t *buf, size_t len, int max_side, float **rgb, int
         *h = (int)H;
         return 0;
 }
+
+int gn_pfm_encode(const float *rgb, int w, int h, void **buf, size_t *len)
+{
+        char head[64];
+        int n;
+        size_t row = 3 * (size_t)w * sizeof(float);
+        uint8_t *out;
+
+        if (w < 1 || h < 1)
+                return -EINVAL;
+        n = snprintf(head, sizeof(head), "PF\n%d %d\n-1.0\n", w, h);
+        out = malloc((size_t)n + row * h);
+        if (!out)
+                return -ENOMEM;
+        memcpy(out, head, (size_t)n);
+        for (int y = 0; y < h; y++)
+                for (size_t i = 0; i < 3 * (size_t)w; i++) {
+                        uint8_t *p = out + n + row * (h - 1 - y) + 4 * i;
+                        uint32_t u;
+                        memcpy(&u, &rgb[3 * (size_t)w * y + i], 4);
+                        p[0] = (uint8_t)u, p[1] = (uint8_t)(u >> 8), p[2] = (uint8_t)(u >> 16),
+                        p[3] = (uint8_t)(u >> 24);
+                }
+        *buf = out;
+        *len = (size_t)n + row * h;
+        return 0;
+}

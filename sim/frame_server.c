@@ -11,6 +11,7 @@
  * so a stuck client cannot hold the server. The control module (camera faults), the
  * frame counters and the render log belong to this thread alone. */
 #include <errno.h>
+#include <fcntl.h>
 #include <inttypes.h>
 #include <poll.h>
 #include <pthread.h>
@@ -27,6 +28,7 @@
 
 #include <jansson.h>
 
+#include "common/cleanup.h"
 #include "common/clock.h"
 #include "common/log.h"
 #include "sim/control.h"
@@ -58,7 +60,7 @@ struct sim_frame_server {
         struct fs_client clients[FS_MAX_CLIENTS];
         struct sim_control *ctl;
         double time_scale;
-        FILE *render_log; /* NULL: none */
+        int render_log; /* O_APPEND, -1: none */
         uint64_t seq[RIG_MAX_CAMERAS];
         uint64_t next_start_ns[RIG_MAX_CAMERAS]; /* CLOCK_MONOTONIC: the frame rate's bound */
         atomic_bool stop;
@@ -229,13 +231,17 @@ static json_t *exposure_json(const struct sim_frame_server *fs, const struct exp
                          sim_pose_json(fs->rc, &x->end));
 }
 
-/* Appends x to the render log as one line, flushed; a failed write is logged. */
+/* Appends x to the render log as one line in one write(2), so that a kill of gonio-sim at
+ * any moment leaves whole lines; a failed write is logged. */
 static void log_exposure(struct sim_frame_server *fs, const struct exposure *x)
 {
-        json_t *o = fs->render_log ? exposure_json(fs, x) : NULL;
+        json_t *o = fs->render_log >= 0 ? exposure_json(fs, x) : NULL;
+        _cleanup_free_ char *line = o ? json_dumps(o, JSON_COMPACT) : NULL;
+        size_t n = line ? strlen(line) : 0;
 
-        if (o && (json_dumpf(o, fs->render_log, JSON_COMPACT) < 0 ||
-                  fputc('\n', fs->render_log) == EOF || fflush(fs->render_log) == EOF))
+        if (line)
+                line[n] = '\n'; /* over the NUL: json_dumps gave n + 1 bytes */
+        if (o && (!line || write(fs->render_log, line, n + 1) != (ssize_t)(n + 1)))
                 log_warning("render log: cannot write frame %s#%" PRIu64 ", ignoring",
                             fs->rc->cameras[x->cam].name, x->seq);
         json_decref(o);
@@ -540,8 +546,8 @@ static int apply_options(struct sim_frame_server *fs, const struct sim_fs_option
         fs->time_scale = opt && opt->time_scale > 0.0 ? opt->time_scale : 1.0;
         if (!opt || !opt->render_log)
                 return 0;
-        fs->render_log = fopen(opt->render_log, "ae");
-        if (!fs->render_log)
+        fs->render_log = open(opt->render_log, O_WRONLY | O_APPEND | O_CREAT | O_CLOEXEC, 0644);
+        if (fs->render_log < 0)
                 return log_error_errno(errno, "render log %s: %m", opt->render_log);
         return 0;
 }
@@ -555,7 +561,7 @@ int sim_frame_server_new(struct rig_config *rc, struct sim_scene *scene, struct 
         _cleanup_(sim_frame_server_freep) struct sim_frame_server *fs = calloc(1, sizeof *fs);
         if (!fs)
                 return -ENOMEM;
-        *fs = (struct sim_frame_server){.rc = rc, .scene = scene, .emu = emu};
+        *fs = (struct sim_frame_server){.rc = rc, .scene = scene, .emu = emu, .render_log = -1};
         for (size_t i = 0; i < FS_MAX_CLIENTS; i++)
                 fs->clients[i].fd = -1;
         int r = sim_control_new(rc, scene, emu, &fs->ctl);
@@ -586,8 +592,8 @@ struct sim_frame_server *sim_frame_server_free(struct sim_frame_server *fs)
                 close(fs->listen[i]);
                 (void)unlink(fs->paths[i]);
         }
-        if (fs->render_log)
-                fclose(fs->render_log);
+        if (fs->render_log >= 0)
+                close(fs->render_log);
         sim_control_free(fs->ctl);
         free(fs);
         return NULL;

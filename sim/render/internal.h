@@ -194,6 +194,11 @@ void brdf_cos(const struct surf *s, struct v3 n, struct v3 t, struct v3 l, struc
 /* Anisotropic Beckmann NDF, seed 002 eq. 6, of a half vector with components hn (along
  * n), ht (along t), hb (along n x t). */
 float beckmann_ndf(const struct surf *s, float hn, float ht, float hb);
+/* The rest of the Beckmann lobe's f cos(theta_l) for ks = 1 (the NDF times this): the Smith
+ * term, Schlick's Fresnel and 1 / (4 cos(theta_v)), for unit t, b, l, v, half vector h and
+ * the cosines nl, nv (both positive). */
+float beckmann_gf(const struct surf *s, struct v3 t, struct v3 b, struct v3 l, struct v3 v,
+                  struct v3 h, float nl, float nv);
 /* Weight of the perfect mirror reflection (0 for non-mirrors). */
 float mirror_weight(const struct surf *s, float cos_v);
 void rmat_free(struct rmat *m);

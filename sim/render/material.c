@@ -65,17 +65,22 @@ float beckmann_ndf(const struct surf *s, float hn, float ht, float hb)
                ((float)M_PI * s->ax * s->ay * c2 * c2);
 }
 
+float beckmann_gf(const struct surf *s, struct v3 t, struct v3 b, struct v3 l, struct v3 v,
+                  struct v3 h, float nl, float nv)
+{
+        float g = 1 / (1 + beckmann_lambda(s, nl, v3_dot(l, t), v3_dot(l, b)) +
+                       beckmann_lambda(s, nv, v3_dot(v, t), v3_dot(v, b)));
+
+        return g * schlick(s->f0, v3_dot(l, h)) / (4 * nv); /* times cos(l) already */
+}
+
 static float beckmann(const struct surf *s, struct v3 n, struct v3 t, struct v3 b, struct v3 l,
                       struct v3 v, float nl, float nv)
 {
         struct v3 h = v3_norm(v3_add(l, v));
-        float d = beckmann_ndf(s, v3_dot(h, n), v3_dot(h, t), v3_dot(h, b)), g;
+        float d = beckmann_ndf(s, v3_dot(h, n), v3_dot(h, t), v3_dot(h, b));
 
-        if (d <= 0)
-                return 0;
-        g = 1 / (1 + beckmann_lambda(s, nl, v3_dot(l, t), v3_dot(l, b)) +
-                 beckmann_lambda(s, nv, v3_dot(v, t), v3_dot(v, b)));
-        return d * g * schlick(s->f0, v3_dot(l, h)) / (4 * nv); /* times cos(l) already */
+        return d > 0 ? d * beckmann_gf(s, t, b, l, v, h, nl, nv) : 0;
 }
 
 static float ward(const struct surf *s, struct v3 n, struct v3 t, struct v3 b, struct v3 l,

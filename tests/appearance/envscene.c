@@ -50,8 +50,10 @@ static void texels_fixture(struct ap_brdf_model *m, const struct envscene_opts *
         for (size_t i = 0; i < (size_t)a->width * a->height; i++) {
                 struct ap_brdf_texel *x = &m->texels[i];
                 float p[3], n[3], t[3], l;
-                if (!ap_atlas_point(a, i, p, n))
+                if (!ap_atlas_point(a, i, p, n)) {
+                        x->flags = AP_BRDF_MASKED; /* no triangle's: as the fit leaves it */
                         continue;
+                }
                 for (int q = 0; q < 3; q++)
                         t[q] = (q == 2) - n[2] * n[q];
                 l = sqrtf(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);

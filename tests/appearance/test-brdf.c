@@ -18,6 +18,7 @@
 #include "tests/appearance/apscene.h"
 #include "tests/dataset/ds-util.h"
 #include "tests/test.h"
+#include "common/sortx.h"
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_brdf_model *, ap_brdf_model_free);
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ds *, ds_close);
@@ -261,17 +262,10 @@ static void fitted_close(struct fitted *f)
         free(f->dir);
 }
 
-static int cmp_float(const void *a, const void *b)
-{
-        float x = *(const float *)a, y = *(const float *)b;
-
-        return (x > y) - (x < y);
-}
-
 /* The q-quantile of v[0..n) (sorted in place). */
 static float quantile(float *v, size_t n, double q)
 {
-        qsort(v, n, sizeof(float), cmp_float);
+        qsort(v, n, sizeof(float), gn_cmp_float);
         return n ? v[(size_t)(q * (n - 1))] : NAN;
 }
 

@@ -1,0 +1,42 @@
+/* model_render.h - what the two renderers of gonioctl model render share: the parsed command
+ * line, the output camera's placement and the image writer (client/model_render.c renders
+ * the SH model, client/model_render_brdf.c the BRDF model). */
+#pragma once
+
+#include <stdbool.h>
+
+#include "appearance/brdf.h"
+#include "appearance/render.h"
+
+enum render_reflectance {
+        REFLECTANCE_AUTO, /* the BRDF model under --envmap when the folder has one, else SH */
+        REFLECTANCE_SH,
+        REFLECTANCE_BRDF,
+};
+
+struct render_opts {
+        const char *model, *out, *envmap;
+        enum ap_light_kind kind;
+        enum render_reflectance reflectance;
+        int n_lights;
+        double light[3], az, el, distance, intensity, gain, focal, ground;
+        bool have_view;
+        enum ap_view_mode mode;
+        int width, height, spheres, pairs;
+};
+
+/* The unit view direction of o's --view (azimuth, elevation) in the object frame into d. */
+void render_view_dir(const struct render_opts *o, double d[3]);
+
+/* The output camera: intr's intrinsics with its principal point centred, at distance dist
+ * from centre c along o's view direction, looking at c. Returns 0 or EXIT_INVALID. */
+int render_place_camera(const struct render_opts *o, const double c[3], double dist,
+                        struct ap_camera intr, struct ap_camera *cam);
+
+/* Writes rgb (linear, 3 floats a pixel) times gain to path: a PFM (float) when path ends in
+ * .pfm, else an 8-bit RGB PNG clamped to [0, 1]. Returns 0 or -errno. */
+int render_write_image(const char *path, const float *rgb, int w, int h, double gain);
+
+/* Renders BRDF model m under o's environment map (appearance/render_env.h) into o->out.
+ * Returns an enum gonioctl_exit value, the cause printed to stderr. */
+int model_render_brdf(const struct render_opts *o, const struct ap_brdf_model *m);
