@@ -147,12 +147,17 @@ static int write_spheres(struct web *w, json_t *bm)
         json_t *e = json_object();
 
         json_object_set_new(bm, "spheres", e);
-        if ((r = ap_web_spheres(w->brdf, n, &w->sp)) < 0)
-                return web_fail(w, r, "the BRDF model's sphere set (is its mesh closed?)");
+        r = ap_web_spheres(w->brdf, n, &w->sp);
+        if (r == -EINVAL) { /* not a closed mesh: no shadows, as render_env.h without spheres */
+                ap_spheres_table(&w->sp);
+                json_object_set_new(e, "note", json_string("the mesh is not closed: no shadows"));
+        } else if (r < 0)
+                return web_fail(w, r, "the BRDF model's sphere set");
         sb = (size_t)w->sp.n * 4 * sizeof(float);
         if (!(buf = malloc(sb + tb)))
                 return web_fail(w, -ENOMEM, "spheres");
-        memcpy(buf, w->sp.s, sb);
+        if (sb)
+                memcpy(buf, w->sp.s, sb);
         memcpy(buf + sb, w->sp.vis, tb);
         json_object_set_new(e, "count", json_integer(w->sp.n));
         json_object_set_new(e, "cell", json_real(w->sp.cell));

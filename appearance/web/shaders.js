@@ -5,9 +5,10 @@
 // view direction (views.c), their weights sampled where they see the point, the light term.
 'use strict';
 
-// The sources, with the constants the page shares with the renderer (CUBE, VIEW_TEXELS).
-function gonioShaders({CUBE, VIEW_TEXELS}) {
-  const VS = `#version 300 es
+// The vertex shader of every mesh pass: object frame to an OpenCV pinhole camera's clip space,
+// with decl and body adding a pass's own inputs and outputs.
+function gonioVertexShader(decl = '', body = '') {
+  return `#version 300 es
 layout(location = 0) in vec3 pos;
 uniform mat3 Rm;
 uniform vec3 tv;
@@ -15,14 +16,21 @@ uniform vec4 proj;
 uniform vec2 depthRange;
 out vec3 vPos;
 out float vZ;
+${decl}
 void main() {
   vec3 xc = Rm * pos + tv;
   float n = depthRange.x, f = depthRange.y;
   vPos = pos;
   vZ = xc.z;
+  ${body}
   gl_Position = vec4(proj.x * xc.x + proj.z * xc.z, proj.y * xc.y + proj.w * xc.z,
                      (xc.z * (f + n) - 2.0 * f * n) / (f - n), xc.z);
 }`;
+}
+
+// The sources, with the constants the page shares with the renderer (CUBE, VIEW_TEXELS).
+function gonioShaders({CUBE, VIEW_TEXELS}) {
+  const VS = gonioVertexShader();
 
   const DEPTH_FS = `#version 300 es
 precision highp float;
@@ -245,30 +253,13 @@ void main() {
 // passes a triangle corner's uv and V_d, and the triangle (the mesh is drawn unindexed:
 // gl_VertexID / 3); OBJECT_FS is shade_object, BACK_FS shade_ground or the map itself.
 function gonioBrdfShaders() {
-  const VS = `#version 300 es
-layout(location = 0) in vec3 pos;
-layout(location = 1) in vec2 uvIn;
+  const VS = gonioVertexShader(`layout(location = 1) in vec2 uvIn;
 layout(location = 2) in float vdIn;
-uniform mat3 Rm;
-uniform vec3 tv;
-uniform vec4 proj;
-uniform vec2 depthRange;
-out vec3 vPos;
-out float vZ;
 out vec2 vUv;
 out float vVd;
-flat out int vTri;
-void main() {
-  vec3 xc = Rm * pos + tv;
-  float n = depthRange.x, f = depthRange.y;
-  vPos = pos;
-  vZ = xc.z;
-  vUv = uvIn;
+flat out int vTri;`, `vUv = uvIn;
   vVd = vdIn;
-  vTri = gl_VertexID / 3;
-  gl_Position = vec4(proj.x * xc.x + proj.z * xc.z, proj.y * xc.y + proj.w * xc.z,
-                     (xc.z * (f + n) - 2.0 * f * n) / (f - n), xc.z);
-}`;
+  vTri = gl_VertexID / 3;`);
 
   const FULL_VS = `#version 300 es
 void main() {

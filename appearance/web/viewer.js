@@ -607,19 +607,17 @@ const gonio = (() => {
       uploadTriangulation();
       setupViews();
       const brdfFirst = brdf && params.model === 'brdf' && params.light === 'env';
-      if (brdfFirst) await loadBrdf();
+      if (brdfFirst) {
+        await loadBrdf();
+        firstFrame();
+      }
       const d = azel(params.az, params.el);
       const order = views.map((v, i) => i).sort((a, b) => dot(views[b].dir, d) - dot(views[a].dir, d));
       let n = 0;
       for (const i of order) {
         uploadView(i, await loadChunk(views[i]));
         status('views: ' + ++n + ' of ' + views.length);
-        if (n === Math.min(FIRST_VIEWS, views.length)) {
-          draw();
-          g.firstFrameBytes = downloaded();
-          g.state = 'first';
-          requestAnimationFrame(loop);
-        }
+        if (n === Math.min(FIRST_VIEWS, views.length)) firstFrame();
       }
       if (brdf && !brdfFirst) await loadBrdf();
       draw();
@@ -629,6 +627,15 @@ const gonio = (() => {
     } catch (e) {
       fail(e.message);
     }
+  }
+
+  // The first frame, once: the redraw loop starts.
+  function firstFrame() {
+    if (g.state !== 'loading') return;
+    draw();
+    g.firstFrameBytes = downloaded();
+    g.state = 'first';
+    requestAnimationFrame(loop);
   }
 
   async function loadBrdf() {

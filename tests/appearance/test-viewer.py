@@ -324,6 +324,9 @@ def test_brdf(fx):
         check(mean_diff(sh, page) > 5, 'model=sh shows the SH model')
         b.eval('gonio.set({model: "brdf"})')
         check(b.pixels() == page, 'model=brdf shows the BRDF model again')
+        first, total = b.eval('[gonio.firstFrameBytes, gonio.total]')
+        check(0 < first < total, f'the BRDF frame first, at {first} of {total} bytes')
+        print(f'software GL, BRDF model: {b.eval("gonio.fps(3)"):.1f} frames per second')
         check(not b.errors(), 'no console errors: %s' % b.errors())
     # a damaged BRDF data file: the page names it
     texels = os.path.join(out, 'data', 'brdf_texels.js')
