@@ -2,7 +2,8 @@
  * manifest (data/model.js: the views' cameras and weight quantisation, the views'
  * triangulation, the lights) and the data chunks (data/NAME.js: base64 of gzip) the page
  * loads progressively: the mesh, the PCA basis, then one chunk per view (its mask and its
- * weights, cropped to the mask and quantised to 8 bits per view and component).
+ * weights, cropped to the mask and quantised to 8 bits per view and component); with a BRDF
+ * model beside the SH model, its chunks too (export_web_brdf.c).
  *
  * DESIGN: the page computes what ap_render computes (render.h), so it gets the same data:
  * the views' cameras with their distortion, the triangulation's faces and boundary edges
