@@ -488,7 +488,7 @@ const gonio = (() => {
       params.env = Math.max(0, e);
     }
     if (q.get('mode') === 'object') params.mode = 'object';
-    if (man.brdf) params.model = q.get('model') === 'sh' ? 'sh' : 'brdf';
+    if (brdf) params.model = q.get('model') === 'sh' ? 'sh' : 'brdf';
     const size = (q.get('size') || '').match(/^(\d+)x(\d+)$/);
     if (size) {
       canvas.width = +size[1];
@@ -521,7 +521,7 @@ const gonio = (() => {
     const mode = document.getElementById('mode'), light = document.getElementById('light');
     const gain = document.getElementById('gain'), model = document.getElementById('model');
     document.getElementById('title').textContent = 'gonio: ' + man.name;
-    document.getElementById('modelLabel').hidden = !man.brdf;
+    document.getElementById('modelLabel').hidden = !brdf;
     model.value = params.model;
     model.onchange = () => { params.model = model.value; dirty = true; };
     man.envs.forEach((e, i) => light.add(new Option('environment: ' + e.name, 'env' + i)));
@@ -593,7 +593,11 @@ const gonio = (() => {
                         '(it reads gonio-web 1): export the model again with this gonioctl');
       setupGL();
       g.total = man.mesh.bytes + man.basis.bytes + man.views.reduce((a, v) => a + v.bytes, 0);
-      if (man.brdf) {
+      const maxTex = gl.getParameter(gl.MAX_TEXTURE_SIZE);
+      if (man.brdf && Math.max(man.brdf.atlas.width, man.brdf.atlas.height) > maxTex) {
+        g.note = `the BRDF model is not shown: its atlas (${man.brdf.atlas.width}x${man.brdf.atlas.height} ` +
+          `texels) exceeds this browser's largest texture (${maxTex})`;
+      } else if (man.brdf) {
         brdf = gonioBrdf({gl, compile, cameraUniforms, pinholeUniforms, setNearest, shNorm, depthFS: DEPTH_FS});
         g.total += brdf.bytes(man.brdf);
       }
@@ -623,7 +627,8 @@ const gonio = (() => {
       draw();
       g.state = 'complete';
       status(views.length + ' views, ' + man.mesh.triangles + ' triangles' +
-             (brdf ? ', BRDF model: ' + man.brdf.texels.fitted + ' texels fitted' : ''));
+             (brdf ? ', BRDF model: ' + man.brdf.texels.fitted + ' texels fitted' : '') +
+             (g.note ? '; ' + g.note : ''));
     } catch (e) {
       fail(e.message);
     }
