@@ -66,8 +66,29 @@ static void sensor_and_material(struct brdf_ctx *c, struct ap_brdf_model *m)
         sim_scene_free(s);
 }
 
-/* The mesh and its atlas; each texel's point and normal. */
-static int atlas_setup(struct brdf_ctx *c, char *err, size_t errlen)
+/* A mesh too fine for o->texels (a cell of AP_ATLAS_MIN_CELL texels a side holds two
+ * triangles) simplified to fit them, noted in m. */
+static int fit_mesh_to_texels(const struct brdf_ctx *c, struct ap_mesh *mesh,
+                              struct ap_brdf_model *m)
+{
+        size_t target = MAX(2 * c->o->texels / (AP_ATLAS_MIN_CELL * AP_ATLAS_MIN_CELL), 1),
+               nt = mesh->nt;
+        int r;
+
+        if (nt <= target + target / 2)
+                return 0;
+        if ((r = ap_mesh_simplify(mesh, target)) < 0)
+                return r;
+        note(m->notes, sizeof(m->notes),
+             "mesh simplified from %zu to %zu triangles for an atlas of about %zu texels "
+             "(--texels)",
+             nt, mesh->nt, c->o->texels);
+        return 0;
+}
+
+/* The mesh (simplified to the texels, noted in m) and its atlas; each texel's point and
+ * normal. */
+static int atlas_setup(struct brdf_ctx *c, struct ap_brdf_model *m, char *err, size_t errlen)
 {
         struct ap_mesh mesh;
         char src[512];
@@ -76,6 +97,10 @@ static int atlas_setup(struct brdf_ctx *c, char *err, size_t errlen)
 
         if (r < 0)
                 return r;
+        if ((r = fit_mesh_to_texels(c, &mesh, m)) < 0) {
+                ap_mesh_free(&mesh);
+                return r;
+        }
         r = ap_atlas_build(&mesh, ap_atlas_cell_for(mesh.nt, c->o->texels), &c->atlas);
         ap_mesh_free(&mesh);
         if (r < 0) {
@@ -235,7 +260,7 @@ int ap_brdf_fit(struct ds *d, const struct ap_brdf_fit_opts *o, struct ap_brdf_m
                         c.g->shots[0].row->exposure_us > 0 ? c.g->shots[0].row->exposure_us : 1;
                 c.gain_ref = c.g->shots[0].row->gain > 0 ? c.g->shots[0].row->gain : 1;
                 sensor_and_material(&c, m);
-                r = atlas_setup(&c, err, errlen);
+                r = atlas_setup(&c, m, err, errlen);
         }
         if (r == 0 && (r = brdf_samples_read(&c, &s)) < 0)
                 snprintf(err, errlen, "%s", c.err[0] ? c.err : strerror(-r));

@@ -67,6 +67,31 @@ static int load_pfm(const uint8_t *buf, size_t len, struct ap_envmap *out)
         return gn_pfm_decode(buf, len, AP_ENVMAP_MAX_SIDE, &out->rgb, &out->width, &out->height);
 }
 
+/* A lat-long map holds light: its width twice its height, every texel finite and not
+ * negative, one of them positive. Frees e when not. */
+static int check_light(struct ap_envmap *e, const char *path, char *err, size_t errlen)
+{
+        size_t n = 3 * (size_t)e->width * e->height;
+        float peak = 0;
+        char why[160];
+
+        for (size_t i = 0; i < n; i++)
+                peak = isfinite(e->rgb[i]) && e->rgb[i] >= 0 && peak >= 0 ? fmaxf(peak, e->rgb[i])
+                                                                          : -1;
+        if (e->width == 2 * e->height && peak > 0)
+                return 0;
+        snprintf(why, sizeof(why), "%s",
+                 e->width != 2 * e->height
+                         ? "not a lat-long map (its width must be twice its height)"
+                 : peak < 0 ? "a negative or non-finite texel (radiance is >= 0)"
+                            : "no light: every texel is 0");
+        if (e->width != 2 * e->height)
+                snprintf(why + strlen(why), sizeof(why) - strlen(why), ": %dx%d", e->width,
+                         e->height);
+        ap_envmap_free(e);
+        return bad(err, errlen, path, why, -EBADMSG);
+}
+
 int ap_envmap_load(const char *path, struct ap_envmap *out, char *err, size_t errlen)
 {
         static const uint8_t png_sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
@@ -96,7 +121,8 @@ int ap_envmap_load(const char *path, struct ap_envmap *out, char *err, size_t er
                                             : "malformed or truncated image",
                            r);
         }
-        return 0;
+        out->ldr = buf && !memcmp(buf, png_sig, 8);
+        return check_light(out, path, err, errlen);
 }
 
 void ap_envmap_free(struct ap_envmap *e)

@@ -10,6 +10,7 @@
  * A value of 1 everywhere is one unit of the model's light per steradian. */
 #pragma once
 
+#include <stdbool.h>
 #include <stddef.h>
 
 #define AP_ENVMAP_MAX_SIDE 8192
@@ -18,11 +19,13 @@
 struct ap_envmap {
         int width, height;
         float *rgb; /* 3 * width * height */
+        bool ldr;   /* no HDR range: a PNG, whose white clips brighter light (a fallback) */
 };
 
 /* Reads path (PNG or PFM, told by its first bytes) into *out. Returns 0, -ENOENT or
- * -errno of reading, -EBADMSG (neither format, truncated, a side above AP_ENVMAP_MAX_SIDE)
- * or -EOPNOTSUPP (a PNG with alpha or a palette) with a sentence in err. Free with
+ * -errno of reading, -EBADMSG (neither format, truncated, a side above AP_ENVMAP_MAX_SIDE,
+ * not lat-long: the width not twice the height, a negative or non-finite texel, no light at
+ * all) or -EOPNOTSUPP (a PNG with alpha or a palette) with a sentence in err. Free with
  * ap_envmap_free. */
 int ap_envmap_load(const char *path, struct ap_envmap *out, char *err, size_t errlen);
 

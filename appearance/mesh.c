@@ -2,7 +2,9 @@
  * simulator's mesh reader (one PLY reader in the project), else the scene object of the
  * dataset's simulated rig. */
 #include <errno.h>
+#include <meshoptimizer.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -64,4 +66,41 @@ int ap_mesh_for_dataset(const char *ds_dir, const struct rig_backend *const *bac
                 return r;
         snprintf(src, srclen, "simulator %s", path);
         return 0;
+}
+
+int ap_mesh_simplify(struct ap_mesh *m, size_t target)
+{
+        uint32_t *idx;
+        float *pos, err;
+        size_t n;
+
+        if (!target)
+                return -EINVAL;
+        if (m->nt <= target)
+                return 0;
+        if (m->front < 0) /* wound counter-clockwise from outside, so that winding says out */
+                for (size_t t = 0; t < m->nt; t++) {
+                        uint32_t v = m->idx[3 * t + 1];
+                        m->idx[3 * t + 1] = m->idx[3 * t + 2];
+                        m->idx[3 * t + 2] = v;
+                }
+        idx = malloc(3 * m->nt * sizeof(*idx));
+        pos = malloc(3 * m->nv * sizeof(*pos));
+        if (!idx || !pos) {
+                free(idx);
+                free(pos);
+                return -ENOMEM;
+        }
+        n = meshopt_simplify(idx, m->idx, 3 * m->nt, m->pos, m->nv, 3 * sizeof(float), 3 * target,
+                             1.f, 0, &err);
+        if (n > 6 * target) /* collapses stopped at the mesh's features: drop them too */
+                n = meshopt_simplifySloppy(idx, idx, n, m->pos, m->nv, 3 * sizeof(float),
+                                           3 * target, 1.f, &err);
+        m->nv = meshopt_optimizeVertexFetch(pos, idx, n, m->pos, m->nv, 3 * sizeof(float));
+        free(m->idx);
+        free(m->pos);
+        m->idx = idx;
+        m->pos = pos;
+        m->nt = n / 3;
+        return ap_mesh_orient(m);
 }

@@ -18,3 +18,10 @@
  */
 int ap_mesh_for_dataset(const char *ds_dir, const struct rig_backend *const *backends,
                         struct ap_mesh *out, char *src, size_t srclen, char *err, size_t errlen);
+
+/* Simplifies m to about target triangles (meshoptimizer: edge collapses, then a sloppy pass
+ * if those stop short), its vertices compacted, then oriented again (ap_mesh_orient); a
+ * closed mesh is first wound counter-clockwise from outside, so that its winding still says
+ * out where the simplified one is no longer closed. A mesh of target triangles or fewer is
+ * left as it is. Returns 0, -EINVAL (target 0) or -ENOMEM. */
+int ap_mesh_simplify(struct ap_mesh *m, size_t target);

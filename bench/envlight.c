@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <time.h>
 
+#include "bench/clock.h"
 #include "appearance/render_env.h"
 #include "common/clock.h"
 #include "tests/appearance/envscene.h"
@@ -18,19 +19,6 @@
 #define FRAMES  120
 #define SPHERES 32
 #define THREADS 2
-
-static double now_s(void)
-{
-        return gn_monotonic_ns() * 1e-9;
-}
-
-static double cpu_s(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-        return ts.tv_sec + ts.tv_nsec * 1e-9;
-}
 
 int main(void)
 {
@@ -61,28 +49,28 @@ int main(void)
         envscene_open(&es, &o);
         envscene_reference(&es, ref, &ref_s);
         printf("reference: gonio-sim, %d dome elements, %.2f s a frame\n", o.dome_elements, ref_s);
-        t0 = now_s();
+        t0 = bench_wall_s();
         if (ap_prefilter_build(&es.env, &pp, &pf) < 0)
                 return 1;
-        t_pf = now_s();
+        t_pf = bench_wall_s();
         if (ap_spheres_fit(&es.model->atlas.mesh, SPHERES, 32, &sp) < 0)
                 return 1;
-        t_sp = now_s();
+        t_sp = bench_wall_s();
         struct ap_env_scene sc = {
                 es.model, &es.env, &pf, &sp, ENVSCENE_GROUND, (float)o.ground_radius, 1};
         if (ap_env_renderer_new(&sc, &r) < 0)
                 return 1;
-        t_new = now_s();
+        t_new = bench_wall_s();
         printf("set-up: prefiltering %.2f s (%d normal pairs, %dx%d maps), %d spheres %.2f s, "
                "visibility %.2f s\n",
                t_pf - t0, pp.pairs, pf.width, pf.height, sp.n, t_sp - t_pf, t_new - t_sp);
-        t0 = now_s();
-        cpu0 = cpu_s();
+        t0 = bench_wall_s();
+        cpu0 = bench_cpu_self_s();
         for (int i = 0; i < FRAMES; i++)
                 if (ap_env_render(r, &es.cam, THREADS, img, mask) < 0)
                         return 1;
-        t_frames = (now_s() - t0) / FRAMES;
-        cpu_frames = (cpu_s() - cpu0) / FRAMES;
+        t_frames = (bench_wall_s() - t0) / FRAMES;
+        cpu_frames = (bench_cpu_self_s() - cpu0) / FRAMES;
         for (size_t i = 0; i < n; i++)
                 mask[i] = 1;
         psnr = envscene_psnr(img, ref, mask, n);

@@ -30,6 +30,7 @@
 #include <systemd/sd-event.h>
 #include <unistd.h>
 
+#include "bench/clock.h"
 #include "common/cleanup.h"
 #include "common/clock.h"
 #include "common/rigconf.h"
@@ -81,22 +82,12 @@ static double now(void)
         return (double)gn_monotonic_ns() * 1e-9;
 }
 
-static double cpu_s(void)
-{
-        struct rusage ru;
-
-        if (getrusage(RUSAGE_SELF, &ru) < 0)
-                return 0;
-        return (double)(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
-               (double)(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec) * 1e-6;
-}
-
 /* Adds n items done since time t0 and process CPU time cpu0 to t. */
 static void tally_add(struct tally *t, long n, double t0, double cpu0)
 {
         t->n += n;
         t->secs += now() - t0;
-        t->cpu += cpu_s() - cpu0;
+        t->cpu += bench_cpu_self_s() - cpu0;
 }
 
 static double per_s(const struct tally *t)
@@ -222,7 +213,7 @@ static void dataset_remove(const char *path)
 static int render_block(struct sim_scene *s, double secs, long n, struct gn_frame *keep,
                         struct tally *t)
 {
-        double t0 = now(), cpu0 = cpu_s();
+        double t0 = now(), cpu0 = bench_cpu_self_s();
         long i = 0;
 
         for (; i < n || now() - t0 < secs; i++) {
@@ -269,7 +260,7 @@ static int encode_block(const struct gn_frame *frames, const struct ds_png_codec
         struct encode_stage e = {.frames = frames, .codec = codec};
         pthread_t th[16];
         unsigned n = 0;
-        double t0 = now(), cpu0 = cpu_s();
+        double t0 = now(), cpu0 = bench_cpu_self_s();
 
         e.until = t0 + secs;
         for (; n < threads && n < ELEMENTSOF(th); n++)
@@ -292,7 +283,7 @@ struct encoded {
  * ds_store_png (write, fsync, rename, commit) on this thread. */
 static int write_block(struct ds *d, const struct encoded *enc, double secs, struct tally *t)
 {
-        double t0 = now(), cpu0 = cpu_s();
+        double t0 = now(), cpu0 = bench_cpu_self_s();
         long i = 0;
         int r = 0;
 
@@ -407,7 +398,7 @@ static void run_stop(struct run *p)
 /* Takes captures through render and the pool until target are stored (the pool drained). */
 static int pipeline_block(struct run *p, long target, struct tally *t)
 {
-        double t0 = now(), cpu0 = cpu_s();
+        double t0 = now(), cpu0 = bench_cpu_self_s();
         long stored = p->stored;
         int r = 0;
 

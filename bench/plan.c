@@ -7,18 +7,11 @@
 #include <stdio.h>
 #include <time.h>
 
+#include "bench/clock.h"
 #include "common/rigconf.h"
 #include "common/sessconf.h"
 #include "daemon/plan.h"
 #include "drivers/registry.h"
-
-static double now_s(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return ts.tv_sec + ts.tv_nsec * 1e-9;
-}
 
 static void describe(const char *what, const struct plan *p)
 {
@@ -60,12 +53,12 @@ int main(int argc, char **argv)
                 fprintf(stderr, "%s\n", err);
                 return 1;
         }
-        t0 = now_s();
+        t0 = bench_wall_s();
         if (plan_build(rc, sc, NULL, &p) < 0 || plan_build_naive(rc, sc, NULL, &naive) < 0) {
                 fprintf(stderr, "planning failed\n");
                 return 1;
         }
-        t_plan = now_s() - t0;
+        t_plan = bench_wall_s() - t0;
         printf("session '%s' on rig '%s': planned in %.0f ms\n", sc->name, rc->name, t_plan * 1e3);
         skips(p);
         describe("planned", p);

@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <time.h>
 
+#include "bench/clock.h"
 #include "appearance/model.h"
 #include "appearance/raster.h"
 #include "appearance/render.h"
@@ -19,19 +20,6 @@
 #define K      12
 #define ORDER  6
 #define FRAMES 240
-
-static double clock_s(clockid_t id)
-{
-        struct timespec ts;
-
-        clock_gettime(id, &ts);
-        return ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static double now_s(void)
-{
-        return clock_s(CLOCK_MONOTONIC);
-}
 
 static void sphere(struct ap_mesh *m)
 {
@@ -125,7 +113,7 @@ static struct ap_model *make_model(const struct ap_mesh *mesh)
 static double run(struct ap_renderer *r, enum ap_view_mode mode, float *rgb, uint8_t *mask,
                   size_t *covered, double *cpu_ms)
 {
-        double t0 = now_s(), c0 = clock_s(CLOCK_PROCESS_CPUTIME_ID);
+        double t0 = bench_wall_s(), c0 = bench_cpu_self_s();
 
         for (int f = 0; f < FRAMES; f++) {
                 struct ap_camera cam;
@@ -138,11 +126,11 @@ static double run(struct ap_renderer *r, enum ap_view_mode mode, float *rgb, uin
                 if (ap_render(r, &cam, &l, mode, 2, rgb, mask) < 0)
                         exit(1);
         }
-        *cpu_ms = (clock_s(CLOCK_PROCESS_CPUTIME_ID) - c0) * 1e3 / FRAMES;
+        *cpu_ms = (bench_cpu_self_s() - c0) * 1e3 / FRAMES;
         *covered = 0;
         for (size_t i = 0; i < 640 * 480; i++)
                 *covered += mask[i];
-        return FRAMES / (now_s() - t0);
+        return FRAMES / (bench_wall_s() - t0);
 }
 
 int main(void)
@@ -152,17 +140,17 @@ int main(void)
         _cleanup_free_ uint8_t *mask = malloc(640 * 480);
         struct ap_renderer *r = NULL;
         struct ap_model *m;
-        double t0 = now_s(), fps_px, fps_obj, setup, cpu_px, cpu_obj;
+        double t0 = bench_wall_s(), fps_px, fps_obj, setup, cpu_px, cpu_obj;
         size_t cov;
 
         sphere(&mesh);
         if (ap_mesh_orient(&mesh) < 0)
                 return 1;
         m = make_model(&mesh);
-        t0 = now_s();
+        t0 = bench_wall_s();
         if (!rgb || !mask || ap_renderer_new(m, &mesh, &r) < 0)
                 return 1;
-        setup = now_s() - t0;
+        setup = bench_wall_s() - t0;
         fps_obj = run(r, AP_VIEW_OBJECT, rgb, mask, &cov, &cpu_obj);
         fps_px = run(r, AP_VIEW_PIXEL, rgb, mask, &cov, &cpu_px);
         printf("relight: %zu triangles (%s), %zu views, K=%d, P=%d; renderer setup %.3f s\n",

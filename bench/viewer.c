@@ -16,6 +16,7 @@
 #include <sys/stat.h>
 #include <time.h>
 
+#include "bench/clock.h"
 #include "appearance/mesh.h"
 #include "appearance/render.h"
 #include "common/cleanup.h"
@@ -24,14 +25,6 @@
 
 #define CPU_FRAMES 20
 
-static double now_s(void)
-{
-        struct timespec ts;
-
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        return ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
 /* The cached dataset with its model, made when missing. */
 static void ensure_model(const char *ds, const char *model)
 {
@@ -39,7 +32,7 @@ static void ensure_model(const char *ds, const char *model)
         struct apscene s;
         struct ap_model *m;
         struct stat st;
-        double t0 = now_s();
+        double t0 = bench_wall_s();
 
         if (stat(model, &st) == 0)
                 return;
@@ -51,7 +44,7 @@ static void ensure_model(const char *ds, const char *model)
         aps_fit_dataset(&s, ds, 8, &m);
         ap_model_free(m);
         aps_close(&s);
-        fprintf(stderr, "viewer: generated in %.0f s\n", now_s() - t0);
+        fprintf(stderr, "viewer: generated in %.0f s\n", bench_wall_s() - t0);
 }
 
 /* Bytes of the regular files under dir. */
@@ -99,7 +92,7 @@ static double cpu_fps(const char *ds, const char *model, int w, int h)
         for (int i = 0; i < 3; i++)
                 eye[i] = c[i] + 400 * dir[i];
         ap_camera_look_at(&in, eye, c, &cam);
-        t0 = now_s();
+        t0 = bench_wall_s();
         for (int f = 0; f < CPU_FRAMES; f++) {
                 double a = (40.0 + f) * M_PI / 180;
                 struct ap_light l = {AP_LIGHT_POINT,
@@ -107,7 +100,7 @@ static double cpu_fps(const char *ds, const char *model, int w, int h)
                 if (ap_render(r, &cam, &l, AP_VIEW_PIXEL, 2, rgb, mask) < 0)
                         exit(1);
         }
-        t0 = CPU_FRAMES / (now_s() - t0);
+        t0 = CPU_FRAMES / (bench_wall_s() - t0);
         ap_renderer_free(r);
         ap_mesh_free(&mesh);
         ap_model_free(m);

@@ -248,20 +248,34 @@ static int make_camera(const struct render_opts *o, const struct ap_model *m,
         return render_place_camera(o, c, sqrt(dist), intr, cam);
 }
 
+int render_load_envmap(const struct render_opts *o, struct ap_envmap *e)
+{
+        char err[1024];
+        int r = ap_envmap_load(o->envmap, e, err, sizeof(err));
+
+        if (r < 0) {
+                fprintf(stderr, "gonioctl: model render: %s\n", err);
+                return r == -ENOMEM ? EXIT_STORAGE : EXIT_INVALID;
+        }
+        if (e->ldr)
+                fprintf(stderr,
+                        "gonioctl: model render: note: %s has no HDR range (a PNG): light "
+                        "brighter than its white is clipped; a PFM keeps it\n",
+                        o->envmap);
+        return 0;
+}
+
 static int make_light(const struct render_opts *o, const struct ap_model *m, struct ap_light *l,
                       double *env)
 {
         struct ap_envmap e;
-        char err[1024];
         int r;
 
         *l = (struct ap_light){o->kind, {o->light[0], o->light[1], o->light[2]}, o->intensity, env};
         if (o->kind != AP_LIGHT_ENV)
                 return 0;
-        if ((r = ap_envmap_load(o->envmap, &e, err, sizeof(err))) < 0) {
-                fprintf(stderr, "gonioctl: model render: %s\n", err);
-                return r == -ENOMEM ? EXIT_STORAGE : EXIT_INVALID;
-        }
+        if ((r = render_load_envmap(o, &e)) != 0)
+                return r;
         ap_envmap_project(&e, m->order, env);
         ap_envmap_free(&e);
         return 0;

@@ -6,6 +6,7 @@
 #include <stdbool.h>
 
 #include "appearance/brdf.h"
+#include "appearance/envmap.h"
 #include "appearance/render.h"
 
 enum render_reflectance {
@@ -32,6 +33,10 @@ void render_view_dir(const struct render_opts *o, double d[3]);
  * from centre c along o's view direction, looking at c. Returns 0 or EXIT_INVALID. */
 int render_place_camera(const struct render_opts *o, const double c[3], double dist,
                         struct ap_camera intr, struct ap_camera *cam);
+
+/* Loads o's --envmap into e, saying why it cannot (EXIT_INVALID, EXIT_STORAGE) and noting a
+ * map without HDR range on stderr. Returns 0 or the exit code. */
+int render_load_envmap(const struct render_opts *o, struct ap_envmap *e);
 
 /* Writes rgb (linear, 3 floats a pixel) times gain to path: a PFM (float) when path ends in
  * .pfm, else an 8-bit RGB PNG clamped to [0, 1]. Returns 0 or -errno. */

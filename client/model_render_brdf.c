@@ -54,19 +54,17 @@ static void mesh_bounds(const struct ap_mesh *m, double c[3], double *radius, do
         *zmin = lo[2];
 }
 
-/* Loads the map and builds the prefilter, the sphere set and the scene of m. */
+/* Loads the map and builds the prefilter, the sphere set and the scene of m. Returns 0 or an
+ * exit code, the cause printed. */
 static int scene_build(const struct render_opts *o, const struct ap_brdf_model *m,
                        struct brdf_scene *s)
 {
         struct ap_prefilter_params pp = {.pairs = o->pairs, .width = PF_WIDTH, .threads = THREADS};
-        char err[1024];
         int r;
 
         mesh_bounds(&m->atlas.mesh, s->centre, &s->radius, &s->zmin);
-        if ((r = ap_envmap_load(o->envmap, &s->env, err, sizeof(err))) < 0) {
-                fprintf(stderr, "gonioctl: model render: %s\n", err);
+        if ((r = render_load_envmap(o, &s->env)) != 0)
                 return r;
-        }
         ap_brdf_prefilter_params(m, &pp);
         if ((r = ap_prefilter_build(&s->env, &pp, &s->pf)) < 0 ||
             (o->spheres > 0 &&
@@ -74,7 +72,7 @@ static int scene_build(const struct render_opts *o, const struct ap_brdf_model *
                 fprintf(stderr, "gonioctl: model render: %s: %s\n", o->model,
                         r == -EINVAL ? "the mesh is not closed: no sphere set (--spheres 0)"
                                      : strerror(-r));
-                return r;
+                return r == -ENOMEM ? EXIT_STORAGE : EXIT_INVALID;
         }
         s->sc = (struct ap_env_scene){
                 .m = m,
@@ -133,9 +131,7 @@ int model_render_brdf(const struct render_opts *o, const struct ap_brdf_model *m
         struct ap_camera cam;
         int e;
 
-        if ((e = scene_build(o, m, &s)) < 0)
-                e = e == -ENOMEM ? EXIT_STORAGE : EXIT_INVALID;
-        else if ((e = scene_camera(o, &s, &cam)) == 0) {
+        if ((e = scene_build(o, m, &s)) == 0 && (e = scene_camera(o, &s, &cam)) == 0) {
                 if ((e = ap_env_renderer_new(&s.sc, &r)) < 0) {
                         fprintf(stderr, "gonioctl: model render: %s: cannot render: %s\n", o->model,
                                 strerror(-e));

@@ -1,12 +1,16 @@
 /* test-atlas.c - the per-triangle texture atlas (appearance/atlas.h) on a sphere mesh: every
  * texel lies on its triangle, the triangles' uvs put each texel's point back at its centre,
  * the texels around any texel inside a triangle are of that triangle (bilinear taps never mix
- * two), every triangle has texels, and bad arguments are refused. */
+ * two), every triangle has texels, and bad arguments are refused; a simplified mesh
+ * (mesh.h) keeps its points and its outward normals. */
 #include <errno.h>
 #include <math.h>
+#include <stdbool.h>
+#include <stdio.h>
 #include <stdlib.h>
 
 #include "appearance/atlas.h"
+#include "appearance/mesh.h"
 #include "tests/test.h"
 
 #define ROWS 12
@@ -124,6 +128,44 @@ static void test_layout(int cell)
         ap_atlas_free(&a);
 }
 
+/* A mesh finer than the texels asked (appearance/mesh.h, ap_mesh_simplify, as the BRDF fit
+ * does), wound either way: about the target's triangles, its points on the sphere, the
+ * atlas's normals still outward (but for a fold or two). */
+static void test_simplify(bool flip)
+{
+        struct ap_mesh m;
+        struct ap_atlas a;
+        size_t outward = 0, total = 0;
+
+        sphere(&m);
+        for (size_t t = 0; flip && t < m.nt; t++) {
+                uint32_t v = m.idx[3 * t + 1];
+                m.idx[3 * t + 1] = m.idx[3 * t + 2];
+                m.idx[3 * t + 2] = v;
+        }
+        CHECK_INT(ap_mesh_orient(&m), 0);
+        CHECK_INT(ap_mesh_simplify(&m, 0), -EINVAL);
+        CHECK_INT(ap_mesh_simplify(&m, 150), 0);
+        fprintf(stderr, "simplified%s: %zu triangles, %zu vertices, front %d\n",
+                flip ? " (wound clockwise)" : "", m.nt, m.nv, m.front);
+        CHECK(m.nt >= 75 && m.nt <= 225 && m.nv < (ROWS + 1) * (2 * ROWS + 1));
+        for (size_t v = 0; v < m.nv; v++) /* vertices of the original, on the sphere */
+                CHECK_NEAR(sqrt(m.pos[3 * v] * m.pos[3 * v] + m.pos[3 * v + 1] * m.pos[3 * v + 1] +
+                                m.pos[3 * v + 2] * m.pos[3 * v + 2]),
+                           30, 1e-3);
+        CHECK_INT(ap_atlas_build(&m, AP_ATLAS_MIN_CELL, &a), 0);
+        for (size_t i = 0; i < (size_t)a.width * a.height; i++) {
+                float p[3], n[3];
+                if (!ap_atlas_point(&a, i, p, n) || degenerate(&a.mesh, a.tri[i]))
+                        continue;
+                total++;
+                outward += n[0] * p[0] + n[1] * p[1] + n[2] * p[2] > 0;
+        }
+        fprintf(stderr, "%zu of %zu texels' normals outward\n", outward, total);
+        CHECK(total > 0 && outward >= 0.99 * total); /* a fold or two where the poles were */
+        ap_atlas_free(&a);
+}
+
 int main(void)
 {
         struct ap_mesh m = {0};
@@ -132,6 +174,8 @@ int main(void)
         test_layout(6);
         test_layout(9);
         test_layout(16);
+        test_simplify(false);
+        test_simplify(true);
         CHECK_INT(ap_atlas_build(&m, 8, &a), -EINVAL); /* empty */
         sphere(&m);
         CHECK_INT(ap_atlas_build(&m, 5, &a), -EINVAL);

@@ -229,6 +229,7 @@ static void check_projection(const char *path, const double *a, double scale, do
 
         CHECK_INT(ap_envmap_load(path, &e, err, sizeof(err)), 0);
         CHECK_INT(e.width, ENV_W);
+        CHECK(e.ldr == (strstr(path, ".png") != NULL)); /* no HDR range: noted */
         ap_envmap_project(&e, 6, coef);
         for (int m = 0; m < 36; m++)
                 for (int c = 0; c < 3; c++) {
@@ -260,6 +261,25 @@ static void test_envmap(void)
         tu_rm_rf(dir);
 }
 
+/* A w x h PFM of value v everywhere written as dir/name is refused with a sentence holding
+ * why, nothing left allocated. */
+static void check_refused(const char *dir, const char *name, int w, int h, float v,
+                          const char *why)
+{
+        struct ap_envmap e = {w, h, malloc(3 * sizeof(float) * w * h), false};
+        char path[512], err[512];
+
+        CHECK(e.rgb);
+        for (int i = 0; i < 3 * w * h; i++)
+                e.rgb[i] = v;
+        snprintf(path, sizeof(path), "%s/%s", dir, name);
+        write_pfm(path, &e);
+        ap_envmap_free(&e);
+        CHECK_INT(ap_envmap_load(path, &e, err, sizeof(err)), -EBADMSG);
+        CHECK_STR_CONTAINS(err, why);
+        CHECK(e.rgb == NULL);
+}
+
 static void test_envmap_bad(void)
 {
         _cleanup_free_ char *dir = tu_tmpdir();
@@ -282,6 +302,9 @@ static void test_envmap_bad(void)
         CHECK_INT(gn_write_atomic(AT_FDCWD, path, "\x89PNG\r\n\x1a\n\0\0\0\0", 12, NULL), 0);
         CHECK_INT(ap_envmap_load(path, &e, err, sizeof(err)), -EBADMSG);
         CHECK(e.rgb == NULL);
+        check_refused(dir, "square.pfm", 4, 4, 1, "not a lat-long map");
+        check_refused(dir, "black.pfm", 8, 4, 0, "no light");
+        check_refused(dir, "negative.pfm", 8, 4, -1, "negative");
         tu_rm_rf(dir);
 }
 
