@@ -2,7 +2,8 @@
  * manifest (data/model.js: the views' cameras and weight quantisation, the views'
  * triangulation, the lights) and the data chunks (data/NAME.js: base64 of gzip) the page
  * loads progressively: the mesh, the PCA basis, then one chunk per view (its mask and its
- * weights, cropped to the mask and quantised to 8 bits per view and component).
+ * weights, cropped to the mask and quantised to 8 bits per view and component); with a BRDF
+ * model beside the SH model, its chunks too (export_web_brdf.c).
  *
  * DESIGN: the page computes what ap_render computes (render.h), so it gets the same data:
  * the views' cameras with their distortion, the triangulation's faces and boundary edges
@@ -22,6 +23,7 @@
 #include "appearance/mesh.h"
 #include "appearance/model.h"
 #include "appearance/views.h"
+#include "appearance/web_internal.h"
 #include "appearance/webexport.h"
 #include "common/cleanup.h"
 #include "common/fileio.h"
@@ -32,17 +34,7 @@
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_model *, ap_model_free);
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_views *, ap_views_free);
 
-struct web {
-        const struct ap_web_opts *o;
-        struct ap_model *m;
-        struct ap_mesh mesh;
-        struct ap_views *views;
-        const char *dir; /* the temporary folder being filled */
-        char *err;
-        size_t errlen;
-};
-
-static int fail(struct web *w, int r, const char *what)
+int web_fail(struct web *w, int r, const char *what)
 {
         snprintf(w->err, w->errlen, "%s: %s", what, strerror(-r));
         return r;
@@ -66,8 +58,7 @@ static int gzip(const void *data, size_t len, unsigned char **out, size_t *out_l
         return r == Z_STREAM_END ? 0 : -ENOMEM;
 }
 
-/* Writes data/NAME.js: gonio.chunk("NAME", "base64 of gzip(data)"). */
-static int write_chunk(struct web *w, const char *name, const void *data, size_t len, json_t *entry)
+int web_write_chunk(struct web *w, const char *name, const void *data, size_t len, json_t *entry)
 {
         static const char b64[] =
                 "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -78,10 +69,10 @@ static int write_chunk(struct web *w, const char *name, const void *data, size_t
         int r;
 
         if ((r = gzip(data, len, &z, &zlen)) < 0)
-                return fail(w, r, name);
+                return web_fail(w, r, name);
         text = malloc(zlen / 3 * 4 + 128 + strlen(name));
         if (!text)
-                return fail(w, -ENOMEM, name);
+                return web_fail(w, -ENOMEM, name);
         n = (size_t)sprintf(text, "gonio.chunk(\"%s\", \"", name);
         for (size_t i = 0; i < zlen; i += 3) {
                 uint32_t v = (uint32_t)z[i] << 16 | (i + 1 < zlen ? z[i + 1] << 8 : 0) |
@@ -96,7 +87,7 @@ static int write_chunk(struct web *w, const char *name, const void *data, size_t
         json_object_set_new(entry, "chunk", json_string(name));
         json_object_set_new(entry, "bytes", json_integer((json_int_t)n));
         json_object_set_new(entry, "raw_bytes", json_integer((json_int_t)len));
-        return (r = gn_write_atomic(AT_FDCWD, path, text, n, NULL)) < 0 ? fail(w, r, path) : 0;
+        return (r = gn_write_atomic(AT_FDCWD, path, text, n, NULL)) < 0 ? web_fail(w, r, path) : 0;
 }
 
 /* The mesh: float32 positions (mm, object frame), then uint32 triangle indices. */
@@ -110,7 +101,7 @@ static int write_mesh(struct web *w, json_t *man)
 
         json_object_set_new(man, "mesh", e);
         if (!buf)
-                return fail(w, -ENOMEM, "mesh");
+                return web_fail(w, -ENOMEM, "mesh");
         memcpy(buf, me->pos, pb);
         for (size_t i = 0; i < me->nt * 3; i++) {
                 uint32_t v = (uint32_t)me->idx[i];
@@ -126,7 +117,7 @@ static int write_mesh(struct web *w, json_t *man)
         json_object_set_new(
                 man, "centre",
                 json_pack("[fff]", (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2));
-        return write_chunk(w, "mesh", buf, pb + ib, e);
+        return web_write_chunk(w, "mesh", buf, pb + ib, e);
 }
 
 /* The basis: (K + 1) x 3M float32, row 0 the mean (model.h). */
@@ -139,10 +130,10 @@ static int write_basis(struct web *w, json_t *man)
 
         json_object_set_new(man, "basis", e);
         if (!b)
-                return fail(w, -ENOMEM, "basis");
+                return web_fail(w, -ENOMEM, "basis");
         memcpy(b, m->mean, row * sizeof(float));
         memcpy(b + row, m->basis, (size_t)m->k * row * sizeof(float));
-        return write_chunk(w, "basis", b, (size_t)(m->k + 1) * row * sizeof(float), e);
+        return web_write_chunk(w, "basis", b, (size_t)(m->k + 1) * row * sizeof(float), e);
 }
 
 /* The mask's bounding box grown by one pixel (the bilinear taps' reach): x0 y0 w h. */
@@ -232,7 +223,7 @@ static int write_view(struct web *w, size_t i, json_t *views)
         n = (size_t)crop[2] * crop[3];
         buf = malloc(n + n * 4 * (size_t)((K + 3) / 4));
         if (!buf)
-                return fail(w, -ENOMEM, "view");
+                return web_fail(w, -ENOMEM, "view");
         for (int k = 0; k < K; k++) {
                 quantisation(v, K, k, &scale[k], &offset[k]);
                 json_array_append_new(js, json_real(scale[k]));
@@ -245,7 +236,7 @@ static int write_view(struct web *w, size_t i, json_t *views)
         json_object_set_new(e, "dir", json_pack("[fff]", v->dir[0], v->dir[1], v->dir[2]));
         json_object_set_new(e, "camera", json_string(v->camera));
         snprintf(name, sizeof(name), "view_%03zu", i);
-        return write_chunk(w, name, buf, n + n * 4 * (size_t)((K + 3) / 4), e);
+        return web_write_chunk(w, name, buf, n + n * 4 * (size_t)((K + 3) / 4), e);
 }
 
 /* The views' triangulation (views.h) as the page's shader reads it. */
@@ -317,30 +308,36 @@ static json_t *env_json(const char *name, const struct ap_envmap *e, int order)
         return json_pack("{s:s,s:o}", "name", name, "coef", c);
 }
 
-/* The environment maps' SH projections: the given files, else the built-in sky. */
+/* Environment map i: its SH projection, and the BRDF model's data for it. */
+static int write_env(struct web *w, json_t *envs, const char *name, const struct ap_envmap *e)
+{
+        json_array_append_new(envs, env_json(name, e, w->m->order));
+        return web_brdf_env(w, json_array_size(envs) - 1, name, e);
+}
+
+/* The environment maps: the given files, else the built-in sky. */
 static int write_envs(struct web *w, json_t *man)
 {
         const char *const *files = w->o->envmaps;
         json_t *envs = json_array();
         struct ap_envmap e = {0};
-        int r;
+        int r = 0;
 
         json_object_set_new(man, "envs", envs);
-        for (size_t i = 0; files && files[i]; i++) {
+        for (size_t i = 0; files && files[i] && r >= 0; i++) {
                 const char *slash = strrchr(files[i], '/');
                 if ((r = ap_envmap_load(files[i], &e, w->err, w->errlen)) < 0)
                         return r;
-                json_array_append_new(envs,
-                                      env_json(slash ? slash + 1 : files[i], &e, w->m->order));
+                r = write_env(w, envs, slash ? slash + 1 : files[i], &e);
                 ap_envmap_free(&e);
         }
-        if (json_array_size(envs))
-                return 0;
+        if (r < 0 || json_array_size(envs))
+                return r;
         if ((r = sky(&e)) < 0)
-                return fail(w, r, "sky");
-        json_array_append_new(envs, env_json("sky", &e, w->m->order));
+                return web_fail(w, r, "sky");
+        r = write_env(w, envs, "sky", &e);
         ap_envmap_free(&e);
-        return 0;
+        return r;
 }
 
 static int write_manifest(struct web *w, json_t *man)
@@ -351,10 +348,11 @@ static int write_manifest(struct web *w, json_t *man)
         int r, n;
 
         if (!json || (n = asprintf(&text, "gonio.manifest(%s);\n", json)) < 0)
-                return fail(w, -ENOMEM, "manifest");
+                return web_fail(w, -ENOMEM, "manifest");
         snprintf(path, sizeof(path), "%s/data/model.js", w->dir);
-        return (r = gn_write_atomic(AT_FDCWD, path, text, (size_t)n, NULL)) < 0 ? fail(w, r, path)
-                                                                                : 0;
+        return (r = gn_write_atomic(AT_FDCWD, path, text, (size_t)n, NULL)) < 0
+                       ? web_fail(w, r, path)
+                       : 0;
 }
 
 static int write_assets(struct web *w)
@@ -365,7 +363,7 @@ static int write_assets(struct web *w)
         for (const struct ap_web_asset *a = ap_web_assets; a->name; a++) {
                 snprintf(path, sizeof(path), "%s/%s", w->dir, a->name);
                 if ((r = gn_write_atomic(AT_FDCWD, path, a->data, a->len, NULL)) < 0)
-                        return fail(w, r, path);
+                        return web_fail(w, r, path);
         }
         return 0;
 }
@@ -392,9 +390,10 @@ static int fill(void *ctx, const char *dir, char *err, size_t errlen)
         snprintf(data, sizeof(data), "%s/data", dir);
         json_object_set_new(man, "views", views);
         if (mkdir(data, 0755) < 0)
-                return fail(w, -errno, data);
+                return web_fail(w, -errno, data);
         if ((r = write_assets(w)) < 0 || (r = write_mesh(w, man)) < 0 ||
-            (r = write_basis(w, man)) < 0 || (r = write_envs(w, man)) < 0)
+            (r = write_basis(w, man)) < 0 || (r = web_brdf_write(w, man)) < 0 ||
+            (r = write_envs(w, man)) < 0)
                 return r;
         for (size_t i = 0; i < w->m->n_views; i++)
                 if ((r = write_view(w, i, views)) < 0)
@@ -416,17 +415,19 @@ static int load(struct web *w, const char *model_dir)
                                  r == -ENOENT ? "no model there" : strerror(-r));
                 return r;
         }
+        if ((r = web_brdf_load(w, model_dir)) < 0)
+                return r;
         ap_model_dataset(model_dir, ds, sizeof(ds));
         if ((r = ap_mesh_for_dataset(ds, w->o->backends, &w->mesh, src, sizeof(src), w->err,
                                      w->errlen)) < 0)
                 return r;
         if (!(dirs = malloc(w->m->n_views * sizeof(*dirs))))
-                return fail(w, -ENOMEM, model_dir);
+                return web_fail(w, -ENOMEM, model_dir);
         for (size_t i = 0; i < w->m->n_views; i++)
                 memcpy(dirs[i], w->m->views[i].dir, sizeof(dirs[i]));
         r = ap_views_new((const double(*)[3])dirs, w->m->n_views, &w->views);
         free(dirs);
-        return r < 0 ? fail(w, r, "the views' triangulation") : 0;
+        return r < 0 ? web_fail(w, r, "the views' triangulation") : 0;
 }
 
 int ap_web_export(const char *model_dir, const char *out_dir, const struct ap_web_opts *o,
@@ -442,6 +443,7 @@ int ap_web_export(const char *model_dir, const char *out_dir, const struct ap_we
         if ((r = load(&w, model_dir)) >= 0)
                 r = ap_write_folder(out_dir, fill, &w, err, errlen);
         ap_views_free(w.views);
+        web_brdf_free(&w);
         ap_mesh_free(&w.mesh);
         ap_model_free(w.m);
         return r;

@@ -422,3 +422,13 @@ void ap_brdf_prefilter_params(const struct ap_brdf_model *m, struct ap_prefilter
         p->ay = (float)gn_median(v + n, k);
         p->f0 = (float)gn_median(v + 2 * n, k);
 }
+
+const float *ap_env_renderer_vertex_vis(const struct ap_env_renderer *r)
+{
+        return r->vvis;
+}
+
+const float *ap_env_renderer_ground_vis(const struct ap_env_renderer *r)
+{
+        return r->gvis;
+}

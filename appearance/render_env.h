@@ -57,3 +57,12 @@ struct ap_env_renderer *ap_env_renderer_free(struct ap_env_renderer *r);
  * reentrant on one r. Returns 0, -EINVAL (a bad camera) or -ENOMEM. */
 int ap_env_render(struct ap_env_renderer *r, const struct ap_camera *cam, int threads, float *rgb,
                   uint8_t *mask);
+
+/* The diffuse visibility V_d at each vertex of the model's atlas mesh (atlas.mesh.nv floats),
+ * as ap_env_render interpolates it; valid while r lives. Never fails. */
+const float *ap_env_renderer_vertex_vis(const struct ap_env_renderer *r);
+
+/* V_d on the ground's grid (AP_ENV_GROUND_GRID^2 floats, row j at y = -R + 2 R j / (grid - 1),
+ * column i likewise in x, R the ground radius), or NULL without a ground; valid while r
+ * lives. */
+const float *ap_env_renderer_ground_vis(const struct ap_env_renderer *r);

@@ -1,7 +1,8 @@
 /* model_web.c - gonioctl model export --web DIR MODEL and gonioctl model view MODEL: the
  * relighting viewer (appearance/webexport.h) written as a static folder, or written into a
  * temporary folder and served over HTTP (common/httpd.h), loopback unless told otherwise,
- * until SIGINT or SIGTERM. Offline: never talks to goniod. docs/viewer.md. */
+ * until SIGINT or SIGTERM; with a BRDF model beside the SH model, its environment mode too
+ * (--spheres N: its shadows' sphere set). Offline: never talks to goniod. docs/viewer.md. */
 #include <errno.h>
 #include <getopt.h>
 #include <signal.h>
@@ -28,7 +29,7 @@
 struct web_cli {
         const char *model, *dir, *bind;
         const char *envmaps[MAX_ENVMAPS + 1];
-        int n_envmaps, port;
+        int n_envmaps, port, spheres;
         bool view;
 };
 
@@ -37,8 +38,8 @@ static int web_usage(const struct web_cli *w, const char *fmt, const char *arg)
         fprintf(stderr, "gonioctl: model %s: ", w->view ? "view" : "export");
         fprintf(stderr, fmt, arg);
         fprintf(stderr, "\nusage: gonioctl model %s\n",
-                w->view ? "view MODEL [--bind ADDR] [--port N] [--envmap FILE]..."
-                        : "export --web DIR MODEL [--envmap FILE]...");
+                w->view ? "view MODEL [--bind ADDR] [--port N] [--envmap FILE]... [--spheres N]"
+                        : "export --web DIR MODEL [--envmap FILE]... [--spheres N]");
         return EXIT_USAGE;
 }
 
@@ -63,17 +64,21 @@ static int web_option(struct web_cli *w, int c, const char *arg)
                 return *end || end == arg || w->port < 0 || w->port > 65535
                                ? web_usage(w, "bad port '%s': expected 0 to 65535", arg)
                                : 0;
+        case 's':
+                w->spheres = (int)strtol(arg, &end, 10);
+                return *end || end == arg || w->spheres < 1 || w->spheres > AP_SPHERES_MAX
+                               ? web_usage(w, "bad --spheres '%s': expected 1 to 1024", arg)
+                               : 0;
         }
         return web_usage(w, "bad option '%s'", arg);
 }
 
 static int parse_web(int argc, char **argv, struct web_cli *w)
 {
-        static const struct option opts[] = {{"web", required_argument, NULL, 'w'},
-                                             {"envmap", required_argument, NULL, 'e'},
-                                             {"bind", required_argument, NULL, 'b'},
-                                             {"port", required_argument, NULL, 'p'},
-                                             {NULL, 0, NULL, 0}};
+        static const struct option opts[] = {
+                {"web", required_argument, NULL, 'w'},     {"envmap", required_argument, NULL, 'e'},
+                {"bind", required_argument, NULL, 'b'},    {"port", required_argument, NULL, 'p'},
+                {"spheres", required_argument, NULL, 's'}, {NULL, 0, NULL, 0}};
         int c, r;
 
         *w = (struct web_cli){.view = strcmp(argv[0], "view") == 0, .bind = "127.0.0.1"};
@@ -86,7 +91,7 @@ static int parse_web(int argc, char **argv, struct web_cli *w)
                         w->model = argv[optind++];
                         continue;
                 }
-                if ((c == 'w') == w->view || (!w->view && (c == 'b' || c == 'p')) || c == '?')
+                if ((c == 'w' && w->view) || (!w->view && (c == 'b' || c == 'p')) || c == '?')
                         return web_usage(w, "bad option '%s'", argv[optind - 1]);
                 if ((r = web_option(w, c, optarg)) != 0)
                         return r;
@@ -100,7 +105,7 @@ static int parse_web(int argc, char **argv, struct web_cli *w)
 
 static int export_web(const struct web_cli *w, const char *dir)
 {
-        struct ap_web_opts o = {w->n_envmaps ? w->envmaps : NULL, registry_backends};
+        struct ap_web_opts o = {w->n_envmaps ? w->envmaps : NULL, registry_backends, w->spheres};
         char err[1024] = "";
         int r = ap_web_export(w->model, dir, &o, err, sizeof(err));
 

@@ -5,9 +5,10 @@
 // view direction (views.c), their weights sampled where they see the point, the light term.
 'use strict';
 
-// The sources, with the constants the page shares with the renderer (CUBE, VIEW_TEXELS).
-function gonioShaders({CUBE, VIEW_TEXELS}) {
-  const VS = `#version 300 es
+// The vertex shader of every mesh pass: object frame to an OpenCV pinhole camera's clip space,
+// with decl and body adding a pass's own inputs and outputs.
+function gonioVertexShader(decl = '', body = '') {
+  return `#version 300 es
 layout(location = 0) in vec3 pos;
 uniform mat3 Rm;
 uniform vec3 tv;
@@ -15,14 +16,21 @@ uniform vec4 proj;
 uniform vec2 depthRange;
 out vec3 vPos;
 out float vZ;
+${decl}
 void main() {
   vec3 xc = Rm * pos + tv;
   float n = depthRange.x, f = depthRange.y;
   vPos = pos;
   vZ = xc.z;
+  ${body}
   gl_Position = vec4(proj.x * xc.x + proj.z * xc.z, proj.y * xc.y + proj.w * xc.z,
                      (xc.z * (f + n) - 2.0 * f * n) / (f - n), xc.z);
 }`;
+}
+
+// The sources, with the constants the page shares with the renderer (CUBE, VIEW_TEXELS).
+function gonioShaders({CUBE, VIEW_TEXELS}) {
+  const VS = gonioVertexShader();
 
   const DEPTH_FS = `#version 300 es
 precision highp float;
@@ -239,4 +247,200 @@ void main() {
 }`;
 
   return {VS, DEPTH_FS, MAIN_FS};
+}
+
+// The BRDF model's environment mode (brdf.js): appearance/render_env.c in GLSL. BRDF_VS
+// passes a triangle corner's uv and V_d, and the triangle (the mesh is drawn unindexed:
+// gl_VertexID / 3); OBJECT_FS is shade_object, BACK_FS shade_ground or the map itself.
+function gonioBrdfShaders() {
+  const VS = gonioVertexShader(`layout(location = 1) in vec2 uvIn;
+layout(location = 2) in float vdIn;
+out vec2 vUv;
+out float vVd;
+flat out int vTri;`, `vUv = uvIn;
+  vVd = vdIn;
+  vTri = gl_VertexID / 3;`);
+
+  const FULL_VS = `#version 300 es
+void main() {
+  gl_Position = vec4(float((gl_VertexID & 1) * 4 - 1), float((gl_VertexID & 2) * 2 - 1), 1.0, 1.0);
+}`;
+
+  // What both passes use: SH irradiance (prefilter.c ap_prefilter_irradiance), lat-long
+  // bilinear taps (envmap.c ap_envmap_bilinear: x wraps, y clamps).
+  const COMMON = `#version 300 es
+precision highp float;
+precision highp int;
+precision highp sampler2DArray;
+const float PI = 3.14159265358979;
+uniform vec3 sh[25];
+uniform float shn[25];
+uniform float scale, gain;
+uniform vec3 camC;
+uniform float groundR;
+out vec4 outColor;
+
+vec3 irradiance(vec3 d) {
+  float y[25];
+  float x = d.x, yy = d.y, z = d.z, c = 1.0, s = 0.0;
+  for (int m = 0; m < 5; m++) {
+    float q0 = 1.0, q1 = 0.0;
+    if (m > 0) { float cn = c * x - s * yy; s = c * yy + s * x; c = cn; }
+    for (int l = m; l < 5; l++) {
+      float q = l == m ? 1.0 : l == m + 1 ? float(2 * m + 1) * z : 0.0;
+      if (l > m + 1) q = (float(2 * l - 1) * z * q0 - float(l + m - 1) * q1) / float(l - m);
+      q1 = q0; q0 = q;
+      y[l * l + l + m] = shn[l * l + l + m] * q * c;
+      if (m > 0) y[l * l + l - m] = shn[l * l + l + m] * q * s;
+    }
+  }
+  vec3 e = vec3(0.0);
+  for (int i = 0; i < 25; i++) e += sh[i] * y[i];
+  return max(e, vec3(0.0));
+}
+
+// The four texels of a bilinear tap at (x, y) of a w x h lat-long image (x0, x1, y0, y1)
+// and its fractions.
+ivec4 latLongTap(float x, float y, int w, int h, out vec2 t) {
+  float fx = floor(x), fy = floor(y);
+  t = vec2(x - fx, y - fy);
+  int xi = int(fx), x0 = xi - w * int(floor(float(xi) / float(w)));
+  x0 = clamp(x0, 0, w - 1);
+  return ivec4(x0, (x0 + 1) % w, clamp(int(fy), 0, h - 1), clamp(int(fy) + 1, 0, h - 1));
+}
+vec4 mix4(vec4 a, vec4 b, vec4 c, vec4 d, vec2 t) {
+  return (1.0 - t.y) * ((1.0 - t.x) * a + t.x * b) + t.y * ((1.0 - t.x) * c + t.x * d);
+}
+`;
+
+  // render_env.c shade_object, with spheres.c ap_ssdf and ap_sg_visible, prefilter.c
+  // ap_prefilter_specular and render_env.c texel_at.
+  const OBJECT_FS = COMMON + `
+uniform highp sampler2D albTex, nrmTex, tanTex, pfNTex, sphTex, visTex;
+uniform highp sampler2DArray pfArr;
+uniform ivec2 atlasSize, pfSize;
+uniform int cell, nTri, pairs, nSph, etas, angles;
+uniform float pfA, pfCmin, sphCell;
+in vec3 vPos;
+in float vZ;
+in vec2 vUv;
+in float vVd;
+flat in int vTri;
+
+int texelTri(int x, int y) {
+  int k = (y / cell) * (atlasSize.x / cell) + x / cell, lx = x % cell, ly = y % cell;
+  int t = 2 * k + (lx + ly + 1 > cell ? 1 : 0);
+  return t < nTri ? t : -1;
+}
+
+ivec2 texelAt(int t, vec2 uv) {
+  int x = clamp(int(uv.x * float(atlasSize.x)), 0, atlasSize.x - 1);
+  int y = clamp(int(uv.y * float(atlasSize.y)), 0, atlasSize.y - 1);
+  for (int k = 0; k < 9; k++) {
+    int xx = clamp(x + (k % 3 + 1) % 3 - 1, 0, atlasSize.x - 1);
+    int yy = clamp(y + (k / 3 + 1) % 3 - 1, 0, atlasSize.y - 1);
+    if (texelTri(xx, yy) == t) return ivec2(xx, yy);
+  }
+  return ivec2(x, y);
+}
+
+vec3 specular(vec3 n, vec3 r) {
+  float phi = atan(r.y, r.x), th = acos(clamp(r.z, -1.0, 1.0)), ws = 0.0;
+  float x = phi * (0.5 / PI) * float(pfSize.x) - 0.5, y = th / PI * float(pfSize.y) - 0.5;
+  vec2 t;
+  ivec4 q = latLongTap(x, y, pfSize.x, pfSize.y, t);
+  vec3 o = vec3(0.0);
+  for (int k = 0; k < 256; k++) {
+    if (k >= pairs) break;
+    float c = abs(dot(n, texelFetch(pfNTex, ivec2(k, 0), 0).xyz));
+    if (c < pfCmin) continue;
+    float w = exp(pfA * log(c));
+    vec4 px = mix4(texelFetch(pfArr, ivec3(q.x, q.z, k), 0), texelFetch(pfArr, ivec3(q.y, q.z, k), 0),
+                   texelFetch(pfArr, ivec3(q.x, q.w, k), 0), texelFetch(pfArr, ivec3(q.y, q.w, k), 0), t);
+    o += w * px.rgb * px.a;
+    ws += w;
+  }
+  return ws > 0.0 ? o / ws : o;
+}
+
+float ssdf(vec3 v, vec3 n, vec3 zeta) {
+  float best = PI / 2.0, cb = 0.0, sb = 1.0;
+  for (int j = 0; j < 1024; j++) {
+    if (j >= nSph) break;
+    vec4 c = texelFetch(sphTex, ivec2(j, 0), 0);
+    vec3 d = c.xyz - v;
+    float r = c.w, L = length(d), dn = dot(d, n);
+    if (L <= r || dn + r < 0.0) continue;
+    if (dn < 0.0 && L - r < sphCell) continue;
+    float cz = dot(d, zeta) / L, sbeta = r / L, cbeta = sqrt(1.0 - sbeta * sbeta);
+    if ((sb < 0.0 && sbeta <= -sb) || cz <= cbeta * cb - sbeta * sb) continue;
+    float val = acos(clamp(cz, -1.0, 1.0)) - asin(sbeta);
+    if (val < best) { best = val; cb = cos(best); sb = sin(best); }
+  }
+  return best;
+}
+
+float sgVisible(float td, float eta) {
+  float fe = log(max(eta, 0.5) / 0.5) / log(4e4) * float(etas - 1);
+  float fa = (td + PI / 2.0) / PI * float(angles - 1);
+  fe = clamp(fe, 0.0, float(etas) - 1.001);
+  fa = clamp(fa, 0.0, float(angles) - 1.001);
+  int e = int(fe), a = int(fa);
+  return mix4(texelFetch(visTex, ivec2(a, e), 0), texelFetch(visTex, ivec2(a + 1, e), 0),
+              texelFetch(visTex, ivec2(a, e + 1), 0), texelFetch(visTex, ivec2(a + 1, e + 1), 0),
+              vec2(fa - float(a), fe - float(e))).r;
+}
+
+float planeSsdf(vec3 z) { return groundR > 0.0 ? asin(clamp(z.z, -1.0, 1.0)) : PI / 2.0; }
+
+void main() {
+  ivec2 ti = texelAt(vTri, vUv);
+  vec4 alb = texelFetch(albTex, ti, 0), nx = texelFetch(nrmTex, ti, 0);
+  vec3 n = nx.xyz, v = -normalize(vPos - camC);
+  float ks = alb.a, nv = dot(n, v);
+  vec3 o = (1.0 - ks) * alb.rgb / PI * irradiance(n) * vVd;
+  if (ks > 0.0 && nv > 0.0) {
+    vec3 rr = 2.0 * nv * n - v;
+    float eta = 1.0 / (2.0 * nx.w * texelFetch(tanTex, ti, 0).w);
+    float tp = asin(clamp(dot(rr, n), -1.0, 1.0));
+    float td = min(min(ssdf(vPos, n, rr), planeSsdf(rr)), tp);
+    o += ks * specular(n, rr) * sgVisible(td, eta) / max(sgVisible(tp, eta), 1e-3);
+  }
+  outColor = vec4(clamp(o * scale * gain, 0.0, 1.0), 1.0);
+}`;
+
+  // render_env.c shade_ground, else env_lookup, for the pixel's ray.
+  const BACK_FS = COMMON + `
+uniform highp sampler2D envTex, gvisTex;
+uniform mat3 Rt;
+uniform vec4 intr;
+uniform float height, groundAlbedo;
+uniform ivec2 envSize;
+uniform int grid;
+
+void main() {
+  vec2 px = vec2(gl_FragCoord.x - 0.5, height - gl_FragCoord.y - 0.5);
+  vec3 d = normalize(Rt * vec3((px.x - intr.z) / intr.x, (px.y - intr.w) / intr.y, 1.0)), o;
+  float s = -camC.z / d.z;
+  vec2 g = camC.xy + s * d.xy;
+  if (groundR > 0.0 && d.z < 0.0 && camC.z > 0.0 && dot(g, g) <= groundR * groundR) {
+    float m = float(grid - 1) - 0.001;
+    vec2 f = clamp((g + groundR) / (2.0 * groundR) * float(grid - 1), 0.0, m);
+    ivec2 i = ivec2(f);
+    float v = mix4(texelFetch(gvisTex, i, 0), texelFetch(gvisTex, i + ivec2(1, 0), 0),
+                   texelFetch(gvisTex, i + ivec2(0, 1), 0), texelFetch(gvisTex, i + ivec2(1, 1), 0),
+                   f - vec2(i)).r;
+    o = groundAlbedo / PI * irradiance(vec3(0.0, 0.0, 1.0)) * v;
+  } else {
+    float x = atan(d.y, d.x) * (0.5 / PI) * float(envSize.x) - 0.5;
+    float y = acos(clamp(d.z, -1.0, 1.0)) / PI * float(envSize.y) - 0.5;
+    vec2 t;
+    ivec4 q = latLongTap(x, y, envSize.x, envSize.y, t);
+    o = mix4(texelFetch(envTex, q.xz, 0), texelFetch(envTex, q.yz, 0), texelFetch(envTex, q.xw, 0),
+             texelFetch(envTex, q.yw, 0), t).rgb;
+  }
+  outColor = vec4(clamp(o * scale * gain, 0.0, 1.0), 1.0);
+}`;
+
+  return {VS, FULL_VS, OBJECT_FS, BACK_FS};
 }

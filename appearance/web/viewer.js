@@ -5,7 +5,9 @@
 // where a view's depth map or mask says the view does not see it, the views' weights sampled
 // bilinearly and blended; then the light term from a cube map of L(l, k, c).
 // The data comes from data/*.js (base64 of gzip), loaded progressively: manifest, mesh,
-// basis, then the views nearest the first view direction first.
+// basis, then the views nearest the first view direction first. With a BRDF model in the
+// folder the environment mode can shade with it instead (brdf.js); its data comes first when
+// the page opens in that mode, else after the views.
 'use strict';
 
 const gonio = (() => {
@@ -21,8 +23,8 @@ const gonio = (() => {
   let man = null, gl = null, canvas = null;
   let progs = {}, tex = {}, meshBuf = {}, views = [], lightRows = 0, groups = 0;
   let params = {az: 0, el: 20, distance: 0, mode: 'pixel', light: 'point',
-                lpos: [0, 0, 0], ldir: [0, 0, 1], env: 0, gain: 1, intensity: 0};
-  let basis = null, dirty = true, lastDraw = {end: 0, ms: 0};
+                lpos: [0, 0, 0], ldir: [0, 0, 1], env: 0, gain: 1, intensity: 0, model: 'sh'};
+  let basis = null, dirty = true, lastDraw = {end: 0, ms: 0}, brdf = null;
 
   // ---- data ----
   g.manifest = (m) => { man = m; };
@@ -414,6 +416,13 @@ const gonio = (() => {
     gl.viewport(0, 0, cam.W, cam.H);
     gl.clearColor(0, 0, 0, 0);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+    if (brdfShown()) {
+      const ground = man.brdf.envs[params.env].ground.radius, reach = 2 * meshBuf.radius + ground;
+      brdf.draw(params.env, cam, params.gain, Math.max(1e-3, cam.dist - reach), cam.dist + reach);
+      g.frames++;
+      dirty = false;
+      return;
+    }
     gl.useProgram(pr.p);
     cameraUniforms(u, cam.R, cam.t);
     pinholeUniforms(u, cam.fx, cam.fy, cam.cx, cam.cy, cam.W, cam.H,
@@ -453,6 +462,9 @@ const gonio = (() => {
     gl.colorMask(true, true, true, true);
   }
 
+  // Whether the frame is the BRDF model's: the environment mode with model=brdf, once loaded.
+  const brdfShown = () => params.light === 'env' && params.model === 'brdf' && brdf && brdf.ready();
+
   // ---- the page ----
   function readParams() {
     const q = new URLSearchParams(location.search), nums = (s, n) => {
@@ -476,6 +488,7 @@ const gonio = (() => {
       params.env = Math.max(0, e);
     }
     if (q.get('mode') === 'object') params.mode = 'object';
+    if (brdf) params.model = q.get('model') === 'sh' ? 'sh' : 'brdf';
     const size = (q.get('size') || '').match(/^(\d+)x(\d+)$/);
     if (size) {
       canvas.width = +size[1];
@@ -506,8 +519,11 @@ const gonio = (() => {
 
   function setupUI() {
     const mode = document.getElementById('mode'), light = document.getElementById('light');
-    const gain = document.getElementById('gain');
+    const gain = document.getElementById('gain'), model = document.getElementById('model');
     document.getElementById('title').textContent = 'gonio: ' + man.name;
+    document.getElementById('modelLabel').hidden = !brdf;
+    model.value = params.model;
+    model.onchange = () => { params.model = model.value; dirty = true; };
     man.envs.forEach((e, i) => light.add(new Option('environment: ' + e.name, 'env' + i)));
     mode.value = params.mode;
     light.value = params.light === 'env' ? 'env' + params.env : params.light;
@@ -577,6 +593,14 @@ const gonio = (() => {
                         '(it reads gonio-web 1): export the model again with this gonioctl');
       setupGL();
       g.total = man.mesh.bytes + man.basis.bytes + man.views.reduce((a, v) => a + v.bytes, 0);
+      const maxTex = gl.getParameter(gl.MAX_TEXTURE_SIZE);
+      if (man.brdf && Math.max(man.brdf.atlas.width, man.brdf.atlas.height) > maxTex) {
+        g.note = `the BRDF model is not shown: its atlas (${man.brdf.atlas.width}x${man.brdf.atlas.height} ` +
+          `texels) exceeds this browser's largest texture (${maxTex})`;
+      } else if (man.brdf) {
+        brdf = gonioBrdf({gl, compile, cameraUniforms, pinholeUniforms, setNearest, shNorm, depthFS: DEPTH_FS});
+        g.total += brdf.bytes(man.brdf);
+      }
       readParams();
       setupUI();
       status('loading the mesh and the basis');
@@ -586,29 +610,47 @@ const gonio = (() => {
       uploadLight();
       uploadTriangulation();
       setupViews();
+      const brdfFirst = brdf && params.model === 'brdf' && params.light === 'env';
+      if (brdfFirst) {
+        await loadBrdf();
+        firstFrame();
+      }
       const d = azel(params.az, params.el);
       const order = views.map((v, i) => i).sort((a, b) => dot(views[b].dir, d) - dot(views[a].dir, d));
       let n = 0;
       for (const i of order) {
         uploadView(i, await loadChunk(views[i]));
         status('views: ' + ++n + ' of ' + views.length);
-        if (n === Math.min(FIRST_VIEWS, views.length)) {
-          draw();
-          g.firstFrameBytes = downloaded();
-          g.state = 'first';
-          requestAnimationFrame(loop);
-        }
+        if (n === Math.min(FIRST_VIEWS, views.length)) firstFrame();
       }
+      if (brdf && !brdfFirst) await loadBrdf();
       draw();
       g.state = 'complete';
-      status(views.length + ' views, ' + man.mesh.triangles + ' triangles');
+      status(views.length + ' views, ' + man.mesh.triangles + ' triangles' +
+             (brdf ? ', BRDF model: ' + man.brdf.texels.fitted + ' texels fitted' : '') +
+             (g.note ? '; ' + g.note : ''));
     } catch (e) {
       fail(e.message);
     }
   }
 
+  // The first frame, once: the redraw loop starts.
+  function firstFrame() {
+    if (g.state !== 'loading') return;
+    draw();
+    g.firstFrameBytes = downloaded();
+    g.state = 'first';
+    requestAnimationFrame(loop);
+  }
+
+  async function loadBrdf() {
+    status('loading the BRDF model');
+    await brdf.load(man.brdf, loadChunk);
+  }
+
   // ---- for scripts and tests ----
-  // Changes the view (az, el), light ({light: [x,y,z]} | {dir: [...]} | {env: i}), mode or gain.
+  // Changes the view (az, el), light ({light: [x,y,z]} | {dir: [...]} | {env: i}), mode, gain
+  // or model ('sh' | 'brdf': the environment mode's).
   g.set = (p) => {
     if (p.view) [params.az, params.el] = p.view;
     if (p.light) { params.light = 'point'; params.lpos = p.light; }
@@ -616,7 +658,13 @@ const gonio = (() => {
     if (p.env !== undefined) { params.light = 'env'; params.env = p.env; }
     if (p.mode) params.mode = p.mode;
     if (p.gain) params.gain = p.gain;
+    if (p.model) params.model = p.model;
     draw();
+  };
+  // The frame's camera (OpenCV pinhole: R row-major, t, intrinsics, size).
+  g.camera = () => {
+    const c = frameCamera();
+    return {R: c.R, t: c.t, fx: c.fx, fy: c.fy, cx: c.cx, cy: c.cy, width: c.W, height: c.H};
   };
   // The canvas as base64 RGBA, rows top first.
   g.pixels = () => {

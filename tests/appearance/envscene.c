@@ -77,7 +77,7 @@ static void build_model(struct envscene *es)
         struct ap_brdf_model *m = calloc(1, sizeof(*m));
 
         CHECK(m != NULL);
-        CHECK_INT(sim_object_mesh(es->t.s, 96, &sm), 0);
+        CHECK_INT(sim_object_mesh(es->t.s, es->o.mesh_rows ? es->o.mesh_rows : 96, &sm), 0);
         mesh = (struct ap_mesh){sm.nv, sm.nt, sm.pos, sm.idx, 0};
         CHECK_INT(ap_mesh_orient(&mesh), 0);
         CHECK_INT(ap_atlas_build(&mesh, AP_ATLAS_MIN_CELL, &m->atlas), 0);

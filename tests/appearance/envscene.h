@@ -16,6 +16,7 @@ struct envscene_opts {
         int dome_elements;    /* the reference's cap */
         double ks, ax, ay;    /* the sphere's Beckmann lobe (no Fresnel falloff) */
         double ground_radius; /* the turntable disc's, mm */
+        int mesh_rows;        /* the model's sphere tessellation (sim_object_mesh); 0: 96 */
 };
 
 struct envscene {

@@ -11,6 +11,10 @@ headless Chromium (tests/appearance/browser.py), on the model viewer-fixture wri
   offline  the exported folder opened from file:// draws the same picture, no server
   bad      an export into a non-empty folder, a truncated or newer model, a damaged data file,
            a newer page format, a browser without WebGL2: a clear message each
+  brdf     with a BRDF model beside the SH model: the page's environment frame with it
+           against ap_env_render's of the same camera (viewer-fixture render) to 40 dB over the
+           object and over the ground, away from their outlines; the model toggle; a damaged
+           BRDF data file named by the page, a damaged BRDF model named by the export
 
 Exits 77 (skipped) when Chromium is not installed. Environment: GONIOCTL, VIEWER_FIXTURE."""
 import math
@@ -46,11 +50,13 @@ def gonioctl(*args, ok=True):
 
 
 class Fixture:
-    """The fitted model in a temporary folder, an environment map beside it."""
+    """The fitted model in a temporary folder (with a BRDF model beside it: brdf), an
+    environment map beside it."""
 
-    def __init__(self):
+    def __init__(self, brdf=False):
         self.dir = tempfile.mkdtemp(prefix='gonio-viewer-')
-        subprocess.run([os.environ['VIEWER_FIXTURE'], self.dir], check=True, timeout=120)
+        subprocess.run([os.environ['VIEWER_FIXTURE'], self.dir] + (['brdf'] if brdf else []),
+                       check=True, timeout=120)
         self.model = os.path.join(self.dir, 'ds', 'models', 'default')
         self.env = os.path.join(self.dir, 'sky.pfm')
         w, h = 16, 8  # a bright patch high on one side, a dim sky, a darker ground
@@ -244,15 +250,107 @@ def test_bad(fx):
     check('WebGL2' in page_error(url, ['--disable-webgl2']), 'no WebGL2 is said')
 
 
+def sun_env(path, w=64, h=32):
+    """A lat-long PFM: a sky brighter at the zenith, a dark ground, a sun of 0.2 rad."""
+    s = (math.cos(0.7) * math.cos(2.2), math.cos(0.7) * math.sin(2.2), math.sin(0.7))
+    rows = []
+    for y in range(h):  # top row first
+        th = math.pi * (y + 0.5) / h
+        row = []
+        for x in range(w):
+            ph = 2 * math.pi * (x + 0.5) / w
+            d = (math.sin(th) * math.cos(ph), math.sin(th) * math.sin(ph), math.cos(th))
+            sun = 4.0 if sum(a * b for a, b in zip(d, s)) > math.cos(0.2) else 0.0
+            sky = [0.12, 0.15, 0.22] if d[2] > 0 else [0.04, 0.035, 0.03]
+            row += [v * (0.6 + 0.6 * max(d[2], 0)) + sun for v in sky]
+        rows.append(row)
+    with open(path, 'wb') as f:
+        f.write(f'PF\n{w} {h}\n-1.0\n'.encode())
+        for row in reversed(rows):  # PFM: bottom row first
+            f.write(struct.pack(f'<{len(row)}f', *row))
+
+
+def read_pnm(path):
+    with open(path, 'rb') as f:
+        magic, size, _, data = f.read().split(b'\n', 3)
+    w, h = map(int, size.split())
+    return w, h, data
+
+
+def env_reference(fx, cam, env, spheres, gain):
+    """ap_env_render's frame for the page's camera: (w, h, RGB bytes, mask bytes)."""
+    out = os.path.join(fx.dir, 'ref')
+    args = [str(v) for v in [env, spheres, gain, cam['width'], cam['height'], cam['fx'],
+                             cam['fy'], cam['cx'], cam['cy']] + cam['R'] + cam['t']]
+    subprocess.run([os.environ['VIEWER_FIXTURE'], 'render', fx.dir] + args + [out], check=True,
+                   timeout=60)
+    w, h, rgb = read_pnm(out + '.ppm')
+    return w, h, rgb, read_pnm(out + '.pgm')[2]
+
+
+def env_psnr(page, ref, cls):
+    """PSNR (dB, peak 255) of the page's RGB against the reference over the pixels of mask
+    class cls (1 object, 2 ground) whose 8 neighbours are of that class too."""
+    w, h, px = page
+    _, _, rgb, mask = ref
+    sse, n = 0.0, 0
+    for y in range(1, h - 1):
+        for x in range(1, w - 1):
+            if any(mask[(y + dy) * w + x + dx] != cls for dx in (-1, 0, 1) for dy in (-1, 0, 1)):
+                continue
+            i = y * w + x
+            sse += sum((px[4 * i + c] - rgb[3 * i + c]) ** 2 for c in range(3))
+            n += 3
+    check(n > 3 * 500, f'enough pixels of class {cls} ({n // 3})')
+    return 10 * math.log10(255.0 ** 2 * n / max(sse, 1e-9))
+
+
+def test_brdf(fx):
+    env, spheres, gain = os.path.join(fx.dir, 'sun.pfm'), 16, 2
+    sun_env(env)
+    out = os.path.join(fx.dir, 'web')
+    gonioctl('model', 'export', '--web', out, fx.model, '--envmap', env, '--spheres', str(spheres))
+    url = 'file://' + out + '/index.html?size=%dx%d&view=130,20&env=sun.pfm&gain=%g' % (SIZE + (gain,))
+    with browser.Browser() as b:
+        open_page(b, url)
+        page = b.pixels()
+        ref = env_reference(fx, b.eval('gonio.camera()'), env, spheres, gain)
+        for cls, what in ((1, 'object'), (2, 'ground')):
+            db = env_psnr(page, ref, cls)
+            print(f'BRDF environment frame, {what}: {db:.2f} dB against ap_env_render')
+            check(db >= 40, f'{what}: {db:.2f} dB >= 40')
+        b.eval('gonio.set({model: "sh"})')
+        sh = b.pixels()
+        check(mean_diff(sh, page) > 5, 'model=sh shows the SH model')
+        b.eval('gonio.set({model: "brdf"})')
+        check(b.pixels() == page, 'model=brdf shows the BRDF model again')
+        first, total = b.eval('[gonio.firstFrameBytes, gonio.total]')
+        check(0 < first < total, f'the BRDF frame first, at {first} of {total} bytes')
+        print(f'software GL, BRDF model: {b.eval("gonio.fps(3)"):.1f} frames per second')
+        check(not b.errors(), 'no console errors: %s' % b.errors())
+    # a damaged BRDF data file: the page names it
+    texels = os.path.join(out, 'data', 'brdf_texels.js')
+    text = open(texels).read()
+    open(texels, 'w').write(text[:len(text) // 2] + '");\n')
+    check('brdf_texels' in page_error(url), 'a damaged BRDF chunk is named')
+    # a damaged BRDF model: the export names the file
+    brdf_json = os.path.join(fx.model, 'brdf', 'brdf.json')
+    open(brdf_json, 'w').write('{')
+    r = gonioctl('model', 'export', '--web', os.path.join(fx.dir, 'w3'), fx.model, ok=False)
+    print('gonioctl model export: exit %d: %s' % (r.returncode, r.stderr.strip()))
+    check(r.returncode == 6 and 'brdf.json' in r.stderr, 'a damaged BRDF model is named')
+
+
 def main():
     if not browser.CHROMIUM:
         print('chromium is not installed: skipped', file=sys.stderr)
         sys.exit(77)
-    cases = {'match': test_match, 'drag': test_drag, 'offline': test_offline, 'bad': test_bad}
+    cases = {'match': test_match, 'drag': test_drag, 'offline': test_offline, 'bad': test_bad,
+             'brdf': test_brdf}
     if len(sys.argv) != 2 or sys.argv[1] not in cases:
         print('usage: test-viewer.py ' + '|'.join(cases), file=sys.stderr)
         sys.exit(2)
-    fx = Fixture()
+    fx = Fixture(brdf=sys.argv[1] == 'brdf')
     t0 = time.time()
     try:
         cases[sys.argv[1]](fx)
