@@ -145,7 +145,8 @@ int ap_env_renderer_new(const struct ap_env_scene *sc, struct ap_env_renderer **
         struct ap_env_renderer *r;
         int e;
 
-        if (!sc || !sc->m || !sc->env || !sc->pf || !sc->m->atlas.mesh.nt || !sc->m->texels)
+        if (!sc || !sc->m || (!sc->light && (!sc->env || !sc->pf)) || !sc->m->atlas.mesh.nt ||
+            !sc->m->texels)
                 return -EINVAL;
         r = calloc(1, sizeof(*r));
         if (!r)
@@ -153,10 +154,10 @@ int ap_env_renderer_new(const struct ap_env_scene *sc, struct ap_env_renderer **
         r->sc = *sc;
         ap_spheres_table(&r->none);
         r->sp = sc->sp ? sc->sp : &r->none;
-        e = vertex_visibility(r);
-        if (e >= 0)
+        e = sc->light ? 0 : vertex_visibility(r);
+        if (e >= 0 && !sc->light)
                 e = texel_irradiance(r);
-        if (e >= 0 && sc->ground_radius > 0)
+        if (e >= 0 && sc->ground_radius > 0 && !sc->light)
                 e = ground_visibility(r);
         if (e < 0) {
                 ap_env_renderer_free(r);
@@ -285,6 +286,88 @@ static bool shade_ground(const struct ap_env_renderer *r, const float C[3], cons
         return true;
 }
 
+/* The light's unit direction l from p and the irradiance factor I / r^2 (or I). */
+static float light_at(const struct ap_env_light *L, const float p[3], float l[3])
+{
+        float r2 = 1, len;
+
+        for (int q = 0; q < 3; q++)
+                l[q] = L->point ? L->v[q] - p[q] : L->v[q];
+        len = sqrtf(dot3(l, l));
+        if (L->point)
+                r2 = len * len;
+        for (int q = 0; q < 3; q++)
+                l[q] /= len > 0 ? len : 1;
+        return L->intensity / (r2 > 0 ? r2 : 1);
+}
+
+/* The visible fraction of the light along l at p (normal n): the sphere set and, off the
+ * ground, the plane, relative to the part above p's tangent plane. */
+static float light_vis(const struct ap_env_renderer *r, const float p[3], const float n[3],
+                       const float l[3], bool on_ground)
+{
+        float tp = asinf(CLAMP(dot3(l, n), -1.f, 1.f)), td = fminf(ap_ssdf(r->sp, p, n, l), tp);
+
+        if (!on_ground)
+                td = fminf(td, plane_ssdf(r, l));
+        return ap_sg_visible(r->sp, td, AP_ENV_LIGHT_ETA) /
+               fmaxf(ap_sg_visible(r->sp, tp, AP_ENV_LIGHT_ETA), 1e-3f);
+}
+
+static void shade_object_light(const struct ap_env_renderer *r, int32_t t, const float p[3],
+                               const float d[3], float out[3])
+{
+        const struct ap_brdf_texel *x;
+        float w[3], v[3] = {-d[0], -d[1], -d[2]}, l[3], e, vis;
+
+        bary_of(&r->sc.m->atlas.mesh, t, p, w);
+        x = texel_at(r->sc.m, t, w);
+        e = light_at(r->sc.light, p, l);
+        ap_brdf_eval(x, l, v, out);
+        vis = dot3(l, x->normal) > 0 ? light_vis(r, p, x->normal, l, false) : 0;
+        for (int q = 0; q < 3; q++)
+                out[q] *= e * vis;
+}
+
+static bool shade_ground_light(const struct ap_env_renderer *r, const float C[3],
+                               const float d[3], float out[3])
+{
+        const float up[3] = {0, 0, 1};
+        float R = r->sc.ground_radius, s, p[3], l[3], e;
+
+        if (R <= 0 || d[2] >= 0 || C[2] <= 0)
+                return false;
+        s = -C[2] / d[2];
+        p[0] = C[0] + s * d[0], p[1] = C[1] + s * d[1], p[2] = 0.01f;
+        if (p[0] * p[0] + p[1] * p[1] > R * R)
+                return false;
+        e = light_at(r->sc.light, p, l);
+        e *= l[2] > 0 ? l[2] * light_vis(r, p, up, l, true) : 0;
+        for (int c = 0; c < 3; c++)
+                out[c] = r->sc.ground_albedo[c] * (float)M_1_PI * e;
+        return true;
+}
+
+/* Pixel out at ray C + s d: the object at p (triangle t >= 0), else the ground, else the
+ * background; its mask class. */
+static uint8_t shade(const struct ap_env_renderer *r, int32_t t, const float p[3],
+                     const float C[3], const float d[3], float out[3])
+{
+        bool light = r->sc.light != NULL;
+
+        if (t >= 0) {
+                (light ? shade_object_light : shade_object)(r, t, p, d, out);
+                return 1;
+        }
+        if ((light ? shade_ground_light : shade_ground)(r, C, d, out))
+                return 2;
+        if (light)
+                out[0] = out[1] = out[2] = 0;
+        else
+                env_lookup(r->sc.env, d, out);
+        return 0;
+}
+
 static void *render_band(void *arg)
 {
         struct band *b = arg;
@@ -298,7 +381,7 @@ static void *render_band(void *arg)
                         float dc[3] = {(float)((x - ph->cx) / ph->fx),
                                        (float)((y - ph->cy) / ph->fy), 1};
                         float d[3], p[3], *out = b->rgb + 3 * i, l;
-                        uint8_t mk = 1;
+                        uint8_t mk;
                         for (int q = 0; q < 3; q++)
                                 d[q] = b->Rt[3 * q] * dc[0] + b->Rt[3 * q + 1] * dc[1] +
                                        b->Rt[3 * q + 2];
@@ -309,10 +392,7 @@ static void *render_band(void *arg)
                         l = sqrtf(dot3(d, d));
                         for (int q = 0; q < 3; q++)
                                 d[q] /= l;
-                        if (r->tri[i] >= 0)
-                                shade_object(r, r->tri[i], p, d, out);
-                        else if ((mk = 2, !shade_ground(r, b->C, d, out)))
-                                env_lookup(r->sc.env, d, out), mk = 0;
+                        mk = shade(r, r->tri[i], p, b->C, d, out);
                         for (int q = 0; q < 3; q++)
                                 out[q] *= r->sc.scale;
                         if (b->mask)

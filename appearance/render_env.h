@@ -18,6 +18,7 @@
  * spheres. Elsewhere the map itself. docs/appearance.md, "Environment relighting". */
 #pragma once
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "appearance/brdf.h"
@@ -27,6 +28,17 @@
 
 #define AP_ENV_GROUND_GRID 96 /* visibility samples along each side of the ground's square */
 
+/* A point or directional light instead of the map: f(l, v) cos_l times I / r^2 (point) or
+ * I (directional), shadowed by the sphere set and the ground as a lobe of sharpness
+ * AP_ENV_LIGHT_ETA; the background black. */
+struct ap_env_light {
+        bool point;        /* else directional */
+        float v[3];        /* position (mm, object frame), or the direction towards the light */
+        float intensity;   /* I */
+};
+
+#define AP_ENV_LIGHT_ETA 4000.f /* a light of about a degree: shadows nearly hard */
+
 struct ap_env_scene {
         const struct ap_brdf_model *m; /* borrowed, as the rest: they must outlive the renderer */
         const struct ap_envmap *env;   /* the background */
@@ -35,6 +47,7 @@ struct ap_env_scene {
         float ground_albedo[3];
         float ground_radius; /* mm; 0: no ground */
         float scale;         /* pixel value per unit of radiance */
+        const struct ap_env_light *light; /* not NULL: this light, env and pf unused */
 };
 
 /* The prefilter's material for model m (prefilter.h takes one NDF for the whole map): the
@@ -46,7 +59,7 @@ void ap_brdf_prefilter_params(const struct ap_brdf_model *m, struct ap_prefilter
 struct ap_env_renderer;
 
 /* Prepares the rendering of sc (the per-vertex and ground visibility). Returns 0, -EINVAL (no
- * model, map or prefilter, an empty mesh) or -ENOMEM. */
+ * model, no light and no map or prefilter, an empty mesh) or -ENOMEM. */
 int ap_env_renderer_new(const struct ap_env_scene *sc, struct ap_env_renderer **ret);
 
 /* Frees r; NULL is a no-op. Returns NULL. */
