@@ -180,6 +180,12 @@ def _parse(line):
     return msg
 
 
+def _wanted(ev, methods):
+    """Whether Event ev is one of methods: names, or prefixes ending in '.' (None: all)."""
+    return methods is None or any(
+        ev.method == m or (m.endswith(".") and ev.method.startswith(m)) for m in methods)
+
+
 def _deadline(timeout):
     return time.monotonic() + timeout
 
@@ -380,19 +386,19 @@ class Client:
         """The oldest notification not yet taken (an Event), waiting up to timeout seconds
         (default: the client's) for one. With methods (names or prefixes ending in '.', e.g.
         ("session.", "fault")), only those: others stay queued. Raises Timeout."""
-        deadline = _deadline(self.timeout if timeout is None else timeout)
-
-        def wanted(ev):
-            return methods is None or any(
-                ev.method == m or (m.endswith(".") and ev.method.startswith(m)) for m in methods)
-
+        timeout = self.timeout if timeout is None else timeout
+        deadline = _deadline(timeout)
         for ev in self._events:
-            if wanted(ev):
+            if _wanted(ev, methods):
                 self._events.remove(ev)
                 return ev
         while True:
-            ev = self._receive(deadline)
-            if ev is not None and wanted(ev):
+            try:
+                ev = self._receive(deadline)
+            except Timeout:
+                which = f" ({', '.join(methods)})" if methods else ""
+                raise Timeout(f"no notification{which} from goniod in {timeout:g} s") from None
+            if ev is not None and _wanted(ev, methods):
                 self._events.pop()
                 return ev
 
@@ -402,9 +408,12 @@ class Client:
         while True:
             yield self.next_event(timeout, methods)
 
-    def clear_events(self):
-        """Drops the notifications queued so far."""
-        self._events.clear()
+    def take_events(self, methods=None):
+        """Takes the notifications queued so far (those of methods, as in next_event) without
+        waiting: returns them as a list, oldest first. take_events() empties the queue."""
+        taken = [ev for ev in self._events if _wanted(ev, methods)]
+        self._events = collections.deque(ev for ev in self._events if not _wanted(ev, methods))
+        return taken
 
     def _pump(self, deadline):
         """Queues what arrives until deadline; returns the first notification or None."""
@@ -615,9 +624,7 @@ class Client:
         or paused (code: its cause's, else E_CANCELED); Timeout after timeout seconds (default:
         none; goniod is asked for the status after 10 s without news)."""
         st = self.session_run(file, text)
-        # every session notification queued now came before the answer: older than st
-        self._events = collections.deque(e for e in self._events
-                                         if not e.method.startswith("session."))
+        self.take_events(("session.",))  # they came before the answer: older than st
         return self.follow_session(st, on_progress=on_progress, timeout=timeout)
 
     def follow_session(self, status=None, *, on_progress=None, timeout=None):

@@ -84,16 +84,18 @@ def case_move(argv):
         e = expect_error(gonio.E_RANGE, c.move, "camera_arm", 200)
         check("soft limits" in e.message and e.errno_name == "ERANGE", "past a soft limit", e)
         expect_error(gonio.E_NOT_FOUND, c.move, axis="elevator", position=1)
-        c.clear_events()
+        c.take_events()
         check(c.move("turntable", 30, wait=False)["target"] == 30, "move without waiting")
         done = c.next_event(5, methods=("move.done",))
         check(done.params["axis"] == "turntable" and abs(done.params["position"] - 30) < 0.01,
               "move.done", done)
         check(c.wait_idle(5)["state"] == "idle", "wait_idle")
-        seen = [ev.method for ev in c._events]
+        seen = [ev.method for ev in c.take_events()]
         check("axis.moved" in seen and "state.changed" in seen, "notifications kept", seen)
         reached = c.goto(turntable=90, light_arm=30, camera_arm=-20)
-        check(reached == {"turntable": 90, "light_arm": 30, "camera_arm": -20}, "goto", reached)
+        want = {"turntable": 90, "light_arm": 30, "camera_arm": -20}
+        check(reached.keys() == want.keys()
+              and all(abs(reached[k] - want[k]) < 0.01 for k in want), "goto", reached)
         expect_error(gonio.E_RANGE, c.goto, {"light_arm": 0, "camera_arm": -180})
         check(abs(c.status()["axes"][1]["position"]) < 0.01, "goto waits for every move")
         check(c.set_lamps(["lamp1"]) == ["lamp1"], "set_lamps")
@@ -125,7 +127,7 @@ def case_session(argv):
         check(final["ended"] == "done" and final["captured"] == planned == 8, "session", final)
         captured = [st["captured"] for st in seen if st["state"] == "running"]
         check(captured and captured == sorted(captured), "progress", seen)
-        stored = [ev for ev in c._events if ev.method == "capture.stored"]
+        stored = c.take_events(("capture.stored",))
         check(len(stored) == planned + len(caps), "capture.stored kept", len(stored))
         check(c.dataset_check("ds1")["problems"] == [], "dataset check")
         expect_error(gonio.E_NOT_FOUND, c.session_resume, "ds1")
