@@ -168,7 +168,8 @@ class FakeServer:
         threading.Thread(target=self._serve, daemon=True).start()
 
     def _serve(self):
-        conn, _ = self.lsock.accept()
+        with self.lsock:
+            conn, _ = self.lsock.accept()
         with conn, conn.makefile("rb") as f:
             try:
                 for line in f:
@@ -208,6 +209,7 @@ def broken_servers(gonio, tmp):
         check(isinstance(e, cls) and words in e.message, name, type(e), e.message)
         check(time.monotonic() - t0 < 2, name + ": no hang")
         check(cls is gonio.Timeout or c.closed, name + ": connection closed")
+        c.close()
 
     broken("garbage", lambda req, conn: conn.sendall(b"not json\n"), gonio.ProtocolError,
            "bad message")
@@ -227,9 +229,11 @@ def broken_servers(gonio, tmp):
     e = expect_error(None, client, "v2", None, hello=hello_v2)
     check(isinstance(e, gonio.ProtocolError) and "protocol 2" in e.message, "version", e)
 
-    e = expect_error(gonio.PARSE_ERROR, client("null", lambda req, conn: send(conn, {
-        "id": None, "error": {"code": -32700, "message": "parse error"}})).status)
+    c = client("null", lambda req, conn: send(conn, {
+        "id": None, "error": {"code": -32700, "message": "parse error"}}))
+    e = expect_error(gonio.PARSE_ERROR, c.status)
     check(e.message == "parse error", "id-null error answers the request", e)
+    c.close()
 
     def late(req, conn):  # answers a status late, the one after at once, with notifications
         if req["id"] == 2:
@@ -246,6 +250,7 @@ def broken_servers(gonio, tmp):
     except gonio.Timeout:
         pass
     check(evs == [gonio.Event("state.changed", {"state": "moving"})] * 2, "events", evs)
+    c.close()
 
 
 def case_example(argv):
@@ -261,6 +266,8 @@ def case_example(argv):
         check(any(x.startswith("refused: ") and "soft limits" in x for x in lines), "refused")
         check("20 captures, 0 problems" in lines, "captures", lines[-2:])
         check(lines[-1] == "dataset: " + os.path.join(rig.data, "ex1"), "path", lines[-1])
+    with open(script) as f, open(os.path.join(argv[2], "docs", "python.md")) as doc:
+        check("```python\n" + f.read() + "```\n" in doc.read(), "docs/python.md has the script")
 
 
 if __name__ == "__main__":
