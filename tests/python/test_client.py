@@ -96,8 +96,9 @@ def case_move(argv):
         want = {"turntable": 90, "light_arm": 30, "camera_arm": -20}
         check(reached.keys() == want.keys()
               and all(abs(reached[k] - want[k]) < 0.01 for k in want), "goto", reached)
-        expect_error(gonio.E_RANGE, c.goto, {"light_arm": 0, "camera_arm": -180})
-        check(abs(c.status()["axes"][1]["position"]) < 0.01, "goto waits for every move")
+        expect_error(gonio.E_RANGE, c.goto, {"camera_arm": -180, "light_arm": 210})
+        arm = c.status()["axes"][1]
+        check(abs(arm["position"] - 210) < 0.01 and not arm["moving"], "goto waits", arm)
         check(c.set_lamps(["lamp1"]) == ["lamp1"], "set_lamps")
         check([lamp["on"] for lamp in c.status()["lamps"]] == [False, True], "lamps")
         rid = c.send("move", {"axis": "turntable", "position": 3000, "relative": True})
