@@ -311,8 +311,10 @@ class Client:
             del self._pending[rid]
             self._replies[rid] = msg
         else:
+            err = msg.get("error")
+            said = f" ({err['code']}: {err['message']})" if err else ""
             raise self._fail(ProtocolError(
-                f"bad message from goniod: a reply with id {json.dumps(rid)}, "
+                f"bad message from goniod: a reply with id {json.dumps(rid)}{said}, "
                 f"which answers no request of this connection"))
         return None
 
@@ -362,15 +364,24 @@ class Client:
                     raise ValueError(f"no request {rid} is outstanding")
                 self._receive(deadline)
         except Timeout:
-            self._abandoned.add(rid)
-            self._pending.pop(rid, None)
+            self._abandon([rid])
             raise Timeout(f"no reply to '{method}' from goniod in {timeout:g} s "
                           "(the request goes on in goniod)") from None
+        except KeyboardInterrupt:
+            self._abandon([rid])
+            raise
         msg = self._replies.pop(rid)
         if "error" in msg:
             err = msg["error"]
             raise GonioError(err["code"], err["message"], err.get("data"))
         return msg["result"]
+
+    def _abandon(self, rids):
+        """Gives up waiting for the replies to rids: they will be skipped when they come."""
+        for rid in rids:
+            self._replies.pop(rid, None)
+            if self._pending.pop(rid, None) is not None:
+                self._abandoned.add(rid)
 
     def call(self, method, params=None, timeout=None):
         """Sends method with params (a dict) and waits for its result (a dict) for timeout
@@ -579,11 +590,8 @@ class Client:
         for key, rid in ids.items():
             try:
                 results[key] = self.wait(rid, _left(deadline))
-            except (Timeout, ProtocolError):
-                for other in ids.values():
-                    if other in self._pending:
-                        self._abandoned.add(other)
-                        del self._pending[other]
+            except (Timeout, ProtocolError, KeyboardInterrupt):
+                self._abandon(ids.values())
                 raise
             except GonioError as e:
                 first = first or e
