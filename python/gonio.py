@@ -27,7 +27,9 @@ import time
 
 __version__ = "0.1.0"
 __all__ = ["Client", "Event", "GonioError", "ProtocolError", "ConnectionClosed", "Timeout",
-           "socket_path", "PROTOCOL"]
+           "socket_path", "PROTOCOL", "PARSE_ERROR", "INVALID_REQUEST", "METHOD_NOT_FOUND",
+           "INVALID_PARAMS", "INTERNAL_ERROR", "E_BUSY", "E_RANGE", "E_DEVICE", "E_TIMEOUT",
+           "E_NOT_FOUND", "E_STORAGE", "E_CANCELED", "E_STATE", "E_LINE_TOO_LONG"]
 
 PROTOCOL = 1             # the protocol version this module speaks (hello)
 MAX_LINE = 64 * 1024     # bytes in a message line, its '\n' included (PROTO_MAX_LINE)

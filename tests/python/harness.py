@@ -1,8 +1,8 @@
 """harness.py - runs gonio-sim and goniod on the simulated rig for the Python client's tests
 (tests/python), as tests/e2e/harness.c does for the C ones, and the checks of those tests.
 
-A test is `python3 test_client.py CASE GONIOD GONIO_SIM SOURCE_ROOT`; it exits 0 when it
-passes, 1 when a check fails, 77 to skip."""
+A test is `python3 test_client.py CASE GONIOD GONIO_SIM SOURCE_ROOT` with the module on
+PYTHONPATH; it exits 0 when it passes, 1 when a check fails."""
 
 import os
 import shutil
@@ -41,12 +41,16 @@ class Rig:
         self.env = dict(os.environ, GONIO_SIM_DIR=os.path.join(self.dir, "sim"),
                         GONIO_SOCKET=self.sock)
         self.sim = self.daemon = None
+        self.killed = False  # goniod was killed (its exit status is not checked)
 
     def __enter__(self):
         return self.start()
 
-    def __exit__(self, *exc):
-        self.stop()
+    def __exit__(self, exc_type, *exc):
+        statuses = self.stop()
+        if exc_type is None:  # under ASan a leak makes the status non-zero
+            check(statuses["gonio-sim"] == 0 and (self.killed or statuses["goniod"] == 0),
+                  "exit statuses", statuses, self.logs)
 
     def start(self):
         """Starts gonio-sim and goniod; returns self."""
@@ -87,15 +91,22 @@ class Rig:
         """SIGKILLs goniod, as a crash would."""
         self.daemon.kill()
         self.daemon.wait()
+        self.killed = True
 
     def log(self, prog):
-        """What prog ("goniod", "gonio-sim") wrote on stderr."""
-        with open(os.path.join(self.dir, prog + ".log"), errors="replace") as f:
-            return f.read()
+        """What prog ("goniod", "gonio-sim") wrote on stderr ("" before it started)."""
+        try:
+            with open(os.path.join(self.dir, prog + ".log"), errors="replace") as f:
+                return f.read()
+        except FileNotFoundError:
+            return ""
 
     def stop(self):
-        """SIGTERMs both programs and removes the temp dir."""
-        for p in (self.daemon, self.sim):
+        """SIGTERMs both programs, keeps their logs in self.logs, removes the temp dir and
+        returns their exit statuses by name (negative: the signal that ended one; None: it
+        never started)."""
+        statuses = {}
+        for name, p in (("goniod", self.daemon), ("gonio-sim", self.sim)):
             if p is not None and p.poll() is None:
                 p.send_signal(signal.SIGTERM)
                 try:
@@ -103,9 +114,12 @@ class Rig:
                 except subprocess.TimeoutExpired:
                     p.kill()
                     p.wait()
+            statuses[name] = None if p is None else p.returncode
         if self.sim is not None:
             self.sim.stdout.close()
+        self.logs = self.log("goniod") + self.log("gonio-sim")
         shutil.rmtree(self.dir, ignore_errors=True)
+        return statuses
 
 
 def main(cases):

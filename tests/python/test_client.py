@@ -1,7 +1,7 @@
 """test_client.py - the Python client (python/gonio.py) against goniod on the simulated rig,
 and against a server that breaks the protocol (suite python).
 
-    python3 test_client.py CASE GONIOD GONIO_SIM SOURCE_ROOT
+    PYTHONPATH=SOURCE_ROOT/python python3 test_client.py CASE GONIOD GONIO_SIM SOURCE_ROOT
 
 Cases: hello (hello, describe, status, errors of requests), move (moves and their errors,
 notifications, parallel moves, stop, lamps), session (capture_at, a session run to its end
@@ -18,6 +18,7 @@ import tempfile
 import threading
 import time
 
+import gonio
 from harness import Rig, check, main
 
 SESSION = """\
@@ -33,14 +34,12 @@ skip_glare: false
 
 
 def rig_of(argv, time_scale=10):
-    """The Rig of the test's arguments, with the module importable."""
-    sys.path.insert(0, os.path.join(argv[2], "python"))
+    """The Rig of the test's arguments."""
     return Rig(argv[0], argv[1], time_scale)
 
 
 def expect_error(code, fn, *args, **kw):
     """Calls fn and checks that it raises GonioError with code; returns the error."""
-    import gonio
     try:
         fn(*args, **kw)
     except gonio.GonioError as e:
@@ -51,7 +50,6 @@ def expect_error(code, fn, *args, **kw):
 
 def case_hello(argv):
     with rig_of(argv) as rig:
-        import gonio
         os.environ["GONIO_SOCKET"] = rig.sock
         check(gonio.socket_path() == rig.sock, "socket_path ignores $GONIO_SOCKET")
         with gonio.Client() as c:
@@ -76,7 +74,6 @@ def case_hello(argv):
 
 def case_move(argv):
     with rig_of(argv) as rig:
-        import gonio
         c = gonio.Client(rig.sock)
         check({a["name"] for a in c.home()["axes"]} == {"turntable", "light_arm", "camera_arm"},
               "home")
@@ -110,7 +107,6 @@ def case_move(argv):
 
 def case_session(argv):
     with rig_of(argv) as rig:
-        import gonio
         c = gonio.Client(rig.sock)
         c.home()
         c.dataset_open("manual", create=True)
@@ -137,7 +133,6 @@ def case_session(argv):
 
 def case_closed(argv):
     with rig_of(argv) as rig:
-        import gonio
         c = gonio.Client(rig.sock)
         c.home()
         rid = c.send("move", {"axis": "turntable", "position": 3000, "relative": True})
@@ -187,16 +182,14 @@ def send(conn, msg):
 
 
 def case_broken(argv):
-    sys.path.insert(0, os.path.join(argv[2], "python"))
-    import gonio
     tmp = tempfile.mkdtemp(prefix="gonio-py-")
     try:
-        broken_servers(gonio, tmp)
+        broken_servers(tmp)
     finally:
         shutil.rmtree(tmp)
 
 
-def broken_servers(gonio, tmp):
+def broken_servers(tmp):
     """case_broken's checks, with the fake servers' sockets in tmp."""
 
     def client(name, script, timeout=0.5, hello=hello_v1):
