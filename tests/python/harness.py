@@ -4,6 +4,7 @@
 A test is `python3 test_client.py CASE GONIOD GONIO_SIM SOURCE_ROOT` with the module on
 PYTHONPATH; it exits 0 when it passes, 1 when a check fails."""
 
+import json
 import os
 import shutil
 import signal
@@ -86,6 +87,16 @@ class Rig:
                 if s.connect_ex(self.sock) == 0:
                     return
             time.sleep(0.02)
+
+    def sim_request(self, request):
+        """Sends request (a dict, e.g. a fault injection: docs/sim.md) to gonio-sim's control
+        socket and checks that it answers ok."""
+        with socket.socket(socket.AF_UNIX) as s:
+            s.settimeout(START_TIMEOUT)
+            s.connect(os.path.join(self.env["GONIO_SIM_DIR"], "control.sock"))
+            s.sendall(json.dumps(request).encode() + b"\n")
+            reply = s.makefile("rb").readline()
+        check(json.loads(reply).get("ok") is True, "gonio-sim refused", request, reply)
 
     def kill_daemon(self):
         """SIGKILLs goniod, as a crash would."""

@@ -5,7 +5,7 @@ and against a server that breaks the protocol (suite python).
 
 Cases: hello (hello, describe, status, errors of requests), move (moves and their errors,
 notifications, parallel moves, stop, lamps), session (capture_at, a session run to its end
-with its progress), closed (goniod killed under a pending request), broken (malformed
+with its progress), fault (a device fault, a session paused by another client and resumed), closed (goniod killed under a pending request), broken (malformed
 replies, silence, a late reply: a fake server), example (examples/scripts/capture.py)."""
 
 import json
@@ -129,6 +129,35 @@ def case_session(argv):
         check(c.dataset_check("ds1")["problems"] == [], "dataset check")
         expect_error(gonio.E_NOT_FOUND, c.session_resume, "ds1")
         c.close()
+
+
+def case_fault(argv):
+    with rig_of(argv) as rig:
+        c, other = gonio.Client(rig.sock), gonio.Client(rig.sock)
+        c.home()
+        rig.sim_request({"cmd": "inject", "bus": "drives", "unit": 1, "fault": "stall"})
+        expect_error(gonio.E_DEVICE, c.move, "turntable", 170)
+        e = expect_error(gonio.E_STATE, c.wait_idle, 10)
+        check(e.data["status"]["fault"]["device"] == "turntable", "fault", e.data)
+        fault = c.next_event(5, ("fault",)).params
+        check(fault["device"] == "turntable" and fault["code"] == gonio.E_DEVICE, "note", fault)
+        rig.sim_request({"cmd": "inject", "bus": "drives", "unit": 1, "fault": "none"})
+        c.fault_clear()
+        c.home(["turntable"])
+        path = os.path.join(rig.dir, "s1.yaml")
+        with open(path, "w") as f:
+            f.write(SESSION)
+        paused = []
+
+        def pause_once(st):  # another client pauses the session after its first capture
+            if st.get("captured") and not paused:
+                paused.append(other.session_pause())
+        e = expect_error(gonio.E_CANCELED, c.run_session, path, timeout=20, on_progress=pause_once)
+        check(e.data["status"]["state"] == "paused", "paused", e.data)
+        final = c.follow_session(c.session_resume(), timeout=20)
+        check(final["ended"] == "done" and final["captured"] == 8, "resumed", final)
+        c.close()
+        other.close()
 
 
 def case_closed(argv):
@@ -265,5 +294,5 @@ def case_example(argv):
 
 
 if __name__ == "__main__":
-    main({"hello": case_hello, "move": case_move, "session": case_session, "closed": case_closed,
-          "broken": case_broken, "example": case_example})
+    main({"hello": case_hello, "move": case_move, "session": case_session, "fault": case_fault,
+          "closed": case_closed, "broken": case_broken, "example": case_example})
