@@ -467,7 +467,7 @@ class Client:
         return self.call("move", params, self._long(timeout))
 
     def stop(self, timeout=None):
-        """Stops all motion at once (a session pauses); returns {stopped: [axis names]}."""
+        """Stops all motion at once; returns {stopped: [axis names]}."""
         return self.call("stop", None, timeout)
 
     def lamp_set(self, lamp, on, timeout=None):

@@ -263,6 +263,13 @@ def broken_servers(tmp):
             time.sleep(0.5)
         send(conn, {"method": "state.changed", "params": {"state": "moving"}})
         send(conn, {"id": req["id"], "result": {"n": req["id"]}})
+    c = client("echo", lambda req, conn: send(conn, {"id": req["id"], "result": req["params"]}))
+    check(c.scan_continuous("d1", from_=10, to=20) == {"dataset": "d1", "from": 10, "to": 20}
+          and c.move("turntable", 5) == {"axis": "turntable", "position": 5, "relative": False,
+                                         "wait": True}
+          and c.session_plan(__file__)["text"].startswith('"""test_client.py'), "params")
+    c.close()
+
     c = client("late", late, timeout=0.2)
     expect_error(None, c.status)
     check(c.status(timeout=2) == {"n": 3}, "the late reply is skipped")
