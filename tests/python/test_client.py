@@ -214,19 +214,20 @@ def send(conn, msg):
 
 def case_broken(argv):
     tmp = tempfile.mkdtemp(prefix="gonio-py-")
-    try:
-        broken_servers(tmp)
-    finally:
-        shutil.rmtree(tmp)
-
-
-def broken_servers(tmp):
-    """case_broken's checks, with the fake servers' sockets in tmp."""
 
     def client(name, script, timeout=0.5, hello=hello_v1):
         FakeServer(os.path.join(tmp, name), script, hello)
         return gonio.Client(os.path.join(tmp, name), timeout=timeout)
+    try:
+        bad_replies(client)
+        odd_replies(client)
+        late_reply(client)
+    finally:
+        shutil.rmtree(tmp)
 
+
+def bad_replies(client):
+    """Malformed replies, a closed connection, silence: a clear exception in time each."""
     def broken(name, script, cls, words):
         c = client(name, script)
         t0 = time.monotonic()
@@ -249,6 +250,9 @@ def broken_servers(tmp):
     broken("close", lambda req, conn: False, gonio.ConnectionClosed, "closed the connection")
     broken("silent", lambda req, conn: None, gonio.Timeout, "no reply to 'status'")
 
+
+def odd_replies(client):
+    """Another protocol version, an error with "id": null, and the params the methods send."""
     def hello_v2(req, conn):
         send(conn, {"id": req["id"], "result": {"server": "fake", "protocol": 2}})
     e = expect_error(None, client, "v2", None, hello=hello_v2)
@@ -260,11 +264,6 @@ def broken_servers(tmp):
     check(e.message == "parse error", "id-null error answers the request", e)
     c.close()
 
-    def late(req, conn):  # answers a status late, the one after at once, with notifications
-        if req["id"] == 2:
-            time.sleep(0.5)
-        send(conn, {"method": "state.changed", "params": {"state": "moving"}})
-        send(conn, {"id": req["id"], "result": {"n": req["id"]}})
     c = client("echo", lambda req, conn: send(conn, {"id": req["id"], "result": req["params"]}))
     check(c.scan_continuous("d1", from_=10, to=20) == {"dataset": "d1", "from": 10, "to": 20}
           and c.move("turntable", 5) == {"axis": "turntable", "position": 5, "relative": False,
@@ -272,6 +271,14 @@ def broken_servers(tmp):
           and c.session_plan(__file__)["text"].startswith('"""test_client.py'), "params")
     c.close()
 
+
+def late_reply(client):
+    """A reply that comes after its wait timed out is skipped; notifications stay queued."""
+    def late(req, conn):  # answers a status late, the one after at once, with notifications
+        if req["id"] == 2:
+            time.sleep(0.5)
+        send(conn, {"method": "state.changed", "params": {"state": "moving"}})
+        send(conn, {"id": req["id"], "result": {"n": req["id"]}})
     c = client("late", late, timeout=0.2)
     expect_error(None, c.status)
     check(c.status(timeout=2) == {"n": 3}, "the late reply is skipped")
