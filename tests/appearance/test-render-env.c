@@ -239,9 +239,9 @@ static void test_gonioctl(void)
 }
 
 /* The BRDF model under a lamp instead of the map (render_env.h's ap_env_light) against
- * gonio-sim's rendering of the same lamp: 33 dB or more with the sphere set's shadows (on
- * the ground and on the sphere), better than without; the same through gonioctl model render
- * --reflectance brdf --light. */
+ * gonio-sim's rendering of the same lamp: 43 dB or more with the sphere set's shadows (on
+ * the ground and on the sphere), 3 dB better than without; the same through gonioctl model
+ * render --reflectance brdf --light. (The lamp 30% too bright gives 36.5 dB.) */
 static void test_point_light(void)
 {
         struct envscene_opts o = opts;
@@ -286,7 +286,7 @@ static void test_point_light(void)
         cli = cli_psnr(dir, args, "BRDF model under the point light", ref, n);
         fprintf(stderr, "lamp: PSNR %.2f dB with 16 spheres, %.2f dB without; gonioctl %.2f dB\n",
                 with, without, cli);
-        CHECK(with >= 33 && with > without && cli >= 33);
+        CHECK(with >= 43 && cli >= 43 && with > without + 3); /* measured 48.3, 48.5, 40.5 */
         ap_spheres_free(&sp);
         envscene_close(&es);
         tu_rm_rf(dir);
