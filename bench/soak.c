@@ -143,7 +143,24 @@ static void kill_goniod(struct soak *s)
         CHECK(resume(s));
 }
 
-/* The data tmpfs shrunk to what it holds: the next store fails (ENOSPC), then room again. */
+/* Whether goniod faults on the dataset (the store that found the disk full) within timeout
+ * seconds. */
+static bool dataset_fault(struct soak *s, double timeout)
+{
+        for (double end = now_s() + timeout; now_s() < end; usleep(100000)) {
+                json_t *st = ctl_ok(&s->e, "status", NULL);
+                const char *dev =
+                        json_string_value(json_object_get(json_object_get(st, "fault"), "device"));
+                bool f = dev && !strcmp(dev, "dataset");
+                json_decref(st);
+                if (f)
+                        return true;
+        }
+        return false;
+}
+
+/* The data tmpfs shrunk to what it holds: the next store fails (ENOSPC) and goniod faults;
+ * then room again. */
 static void fill_disk(struct soak *s)
 {
         char cmd[600];
@@ -152,10 +169,10 @@ static void fill_disk(struct soak *s)
         if (!s->tmpfs)
                 return;
         snprintf(cmd, sizeof(cmd),
-                 "mount -o remount,size=$(du -sk %s | cut -f1)k %s 2>/dev/null || true", s->e.data,
-                 s->e.data);
+                 "mount -o remount,size=$(df --output=used -k %s | tail -1 | tr -d ' ')k %s",
+                 s->e.data, s->e.data);
         CHECK(system(cmd) == 0);
-        sleep(2);
+        CHECK(dataset_fault(s, 20));
         snprintf(cmd, sizeof(cmd), "mount -o remount,size=4g %s", s->e.data);
         CHECK(system(cmd) == 0);
         s->faults++;
