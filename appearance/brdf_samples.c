@@ -412,13 +412,9 @@ static int shot_samples(const struct brdf_ctx *c, const struct ap_shot *sh, cons
 /* The centre and radius of a sphere holding the mesh (its bounding box's). */
 static void bounds(const struct ap_mesh *m, double centre[3], double *radius)
 {
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        double lo[3], hi[3];
 
-        for (size_t i = 0; i < m->nv; i++)
-                for (int k = 0; k < 3; k++) {
-                        lo[k] = fmin(lo[k], m->pos[3 * i + k]);
-                        hi[k] = fmax(hi[k], m->pos[3 * i + k]);
-                }
+        ap_mesh_bounds(m, lo, hi);
         for (int k = 0; k < 3; k++)
                 centre[k] = (lo[k] + hi[k]) / 2;
         *radius = 0.5 * sqrt(pow(hi[0] - lo[0], 2) + pow(hi[1] - lo[1], 2) + pow(hi[2] - lo[2], 2));

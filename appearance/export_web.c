@@ -97,7 +97,7 @@ static int write_mesh(struct web *w, json_t *man)
         size_t pb = me->nv * 3 * sizeof(float), ib = me->nt * 3 * sizeof(uint32_t);
         _cleanup_free_ unsigned char *buf = malloc(pb + ib);
         json_t *e = json_object();
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        double lo[3], hi[3];
 
         json_object_set_new(man, "mesh", e);
         if (!buf)
@@ -107,11 +107,7 @@ static int write_mesh(struct web *w, json_t *man)
                 uint32_t v = (uint32_t)me->idx[i];
                 memcpy(buf + pb + 4 * i, &v, 4);
         }
-        for (size_t i = 0; i < me->nv; i++)
-                for (int j = 0; j < 3; j++) {
-                        lo[j] = fmin(lo[j], me->pos[3 * i + j]);
-                        hi[j] = fmax(hi[j], me->pos[3 * i + j]);
-                }
+        ap_mesh_bounds(me, lo, hi);
         json_object_set_new(e, "vertices", json_integer((json_int_t)me->nv));
         json_object_set_new(e, "triangles", json_integer((json_int_t)me->nt));
         json_object_set_new(

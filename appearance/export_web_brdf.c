@@ -17,30 +17,14 @@ DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_env_renderer *, ap_env_renderer_free);
 
 int ap_web_spheres(const struct ap_brdf_model *m, int n, struct ap_spheres *out)
 {
-        return ap_spheres_fit(&m->atlas.mesh, n, AP_WEB_SPHERES_GRID, out);
-}
-
-/* The ground's radius for mesh m: AP_WEB_GROUND_RADII times its bounding radius when it
- * stands on z = 0 (its lowest point within AP_WEB_GROUND_TOUCH), else none (model render's). */
-static float ground_radius(const struct ap_mesh *m)
-{
-        float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-
-        for (size_t i = 0; i < 3 * m->nv; i++) {
-                lo[i % 3] = fminf(lo[i % 3], m->pos[i]);
-                hi[i % 3] = fmaxf(hi[i % 3], m->pos[i]);
-        }
-        if (!(fabsf(lo[2]) <= AP_WEB_GROUND_TOUCH))
-                return 0;
-        return AP_WEB_GROUND_RADII * 0.5f *
-               sqrtf(powf(hi[0] - lo[0], 2) + powf(hi[1] - lo[1], 2) + powf(hi[2] - lo[2], 2));
+        return ap_spheres_fit(&m->atlas.mesh, n, AP_ENV_SPHERE_GRID, out);
 }
 
 int ap_web_env_scene(const struct ap_brdf_model *m, const struct ap_envmap *env,
                      const struct ap_spheres *sp, struct ap_prefilter *pf, struct ap_env_scene *sc)
 {
         struct ap_prefilter_params p = {
-                .pairs = AP_WEB_PF_PAIRS, .width = AP_WEB_PF_WIDTH, .threads = 2};
+                .pairs = AP_ENV_PAIRS, .width = AP_WEB_PF_WIDTH, .threads = 2};
 
         ap_brdf_prefilter_params(m, &p);
         *sc = (struct ap_env_scene){
@@ -48,8 +32,8 @@ int ap_web_env_scene(const struct ap_brdf_model *m, const struct ap_envmap *env,
                 .env = env,
                 .pf = pf,
                 .sp = sp,
-                .ground_albedo = {AP_WEB_GROUND_ALBEDO, AP_WEB_GROUND_ALBEDO, AP_WEB_GROUND_ALBEDO},
-                .ground_radius = ground_radius(&m->atlas.mesh),
+                .ground_albedo = {AP_ENV_GROUND_ALBEDO, AP_ENV_GROUND_ALBEDO, AP_ENV_GROUND_ALBEDO},
+                .ground_radius = ap_env_default_ground(&m->atlas.mesh),
                 .scale = (float)m->response};
         return ap_prefilter_build(env, &p, pf);
 }
@@ -141,7 +125,7 @@ static int write_texels(struct web *w, json_t *bm)
 /* The sphere set: 4 float32 a sphere, then ap_sg_visible's table (float32). */
 static int write_spheres(struct web *w, json_t *bm)
 {
-        int n = w->o->spheres > 0 ? w->o->spheres : AP_WEB_SPHERES, r;
+        int n = w->o->spheres > 0 ? w->o->spheres : AP_ENV_SPHERES, r;
         size_t sb, tb = sizeof(w->sp.vis);
         _cleanup_free_ unsigned char *buf = NULL;
         json_t *e = json_object();

@@ -75,6 +75,17 @@ static bool edges_paired(const uint64_t *e, size_t n)
         return true;
 }
 
+void ap_mesh_bounds(const struct ap_mesh *m, double lo[3], double hi[3])
+{
+        for (int j = 0; j < 3; j++)
+                lo[j] = INFINITY, hi[j] = -INFINITY;
+        for (size_t i = 0; i < m->nv; i++)
+                for (int j = 0; j < 3; j++) {
+                        lo[j] = fmin(lo[j], m->pos[3 * i + j]);
+                        hi[j] = fmax(hi[j], m->pos[3 * i + j]);
+                }
+}
+
 int ap_mesh_orient(struct ap_mesh *m)
 {
         _cleanup_free_ uint32_t *weld = malloc((m->nv + 1) * sizeof(uint32_t));

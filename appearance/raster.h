@@ -29,6 +29,9 @@ struct ap_pinhole {
 /* Frees m's arrays and zeroes it. Safe on a zeroed mesh. */
 void ap_mesh_free(struct ap_mesh *m);
 
+/* The corners lo and hi of m's bounding box (object frame, mm); empty: +inf and -inf. */
+void ap_mesh_bounds(const struct ap_mesh *m, double lo[3], double hi[3]);
+
 /* Sets m->front to 1 or -1 when m is a closed surface (its vertices welded where their
  * positions agree to AP_MESH_WELD, collapsed faces ignored, every edge run by exactly two
  * faces in opposite directions) enclosing a positive or negative volume, else to 0: a camera

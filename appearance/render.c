@@ -67,7 +67,7 @@ static int build_light_cube(struct ap_renderer *r)
 static int build_planes(struct ap_renderer *r)
 {
         const struct ap_mesh *me = r->mesh;
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        double lo[3], hi[3];
 
         r->planes = malloc(4 * me->nt * sizeof(float));
         if (!r->planes)
@@ -88,11 +88,7 @@ static int build_planes(struct ap_renderer *r)
                         r->planes[4 * t + j] = (float)(n[j] / len);
                 r->planes[4 * t + 3] = (float)((n[0] * a[0] + n[1] * a[1] + n[2] * a[2]) / len);
         }
-        for (size_t i = 0; i < me->nv; i++)
-                for (int j = 0; j < 3; j++) {
-                        lo[j] = fmin(lo[j], me->pos[3 * i + j]);
-                        hi[j] = fmax(hi[j], me->pos[3 * i + j]);
-                }
+        ap_mesh_bounds(me, lo, hi);
         for (int j = 0; j < 3; j++)
                 r->centre[j] = (lo[j] + hi[j]) / 2;
         return 0;

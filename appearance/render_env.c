@@ -478,6 +478,17 @@ static void principal_axis(const double S[9], float v[3])
                 v[i] = (float)x[i];
 }
 
+float ap_env_default_ground(const struct ap_mesh *m)
+{
+        double lo[3], hi[3];
+
+        ap_mesh_bounds(m, lo, hi);
+        if (!(fabs(lo[2]) <= AP_ENV_GROUND_TOUCH))
+                return 0;
+        return (float)(AP_ENV_GROUND_RADII * 0.5 *
+                       sqrt(pow(hi[0] - lo[0], 2) + pow(hi[1] - lo[1], 2) + pow(hi[2] - lo[2], 2)));
+}
+
 void ap_brdf_prefilter_params(const struct ap_brdf_model *m, struct ap_prefilter_params *p)
 {
         size_t n = (size_t)m->atlas.width * m->atlas.height, k = 0;

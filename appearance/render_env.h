@@ -27,6 +27,14 @@
 #include "appearance/spheres.h"
 
 #define AP_ENV_GROUND_GRID 96 /* visibility samples along each side of the ground's square */
+/* The defaults of the renderer's users (gonioctl model render, the web export): */
+#define AP_ENV_SPHERES       32   /* spheres of the shadows */
+#define AP_ENV_SPHERE_GRID   32   /* ap_spheres_fit's grid */
+#define AP_ENV_PAIRS         16   /* representative normal pairs (bench/envlight: 38 dB) */
+#define AP_ENV_GROUND_ALBEDO 0.5f /* a grey turntable */
+#define AP_ENV_GROUND_TOUCH  2.0  /* mm: a mesh stands on z = 0 when its lowest point is this near \
+                                   */
+#define AP_ENV_GROUND_RADII 3.0   /* the default ground's radius in the mesh's bounding radii */
 
 /* A point or directional light instead of the map: f(l, v) cos_l times I / r^2 (point) or
  * I (directional), shadowed by the sphere set and the ground as a lobe of sharpness
@@ -55,6 +63,10 @@ struct ap_env_scene {
  * of their tangents; pairs, width and threads left as p has them. A model without a fitted
  * texel gives ax = ay = 0.3, f0 0.04 and the axis +z. */
 void ap_brdf_prefilter_params(const struct ap_brdf_model *m, struct ap_prefilter_params *p);
+
+/* The default ground's radius for mesh m: AP_ENV_GROUND_RADII times its bounding radius
+ * when it stands on z = 0 (its lowest point within AP_ENV_GROUND_TOUCH), else 0 (none). */
+float ap_env_default_ground(const struct ap_mesh *m);
 
 struct ap_env_renderer;
 

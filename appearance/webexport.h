@@ -30,17 +30,10 @@ struct ap_web_opts {
         const char *const *envmaps; /* lat-long maps (envmap.h) for the environment mode,
                                      * NULL-terminated; NULL or empty: a built-in sky */
         const struct rig_backend *const *backends; /* to find the mesh (mesh.h) */
-        int spheres; /* the BRDF model's sphere set (1..AP_SPHERES_MAX); 0: AP_WEB_SPHERES */
+        int spheres; /* the BRDF model's sphere set (1..AP_SPHERES_MAX); 0: AP_ENV_SPHERES */
 };
 
-#define AP_WEB_SPHERES       32 /* spheres of the BRDF model's shadows by default */
-#define AP_WEB_SPHERES_GRID  32 /* ap_spheres_fit's grid */
-#define AP_WEB_PF_PAIRS      16 /* the prefilter's representative normal pairs */
-#define AP_WEB_PF_WIDTH      48 /* and its maps' width (model render: 96; here the page's data) */
-#define AP_WEB_GROUND_ALBEDO 0.5f
-#define AP_WEB_GROUND_TOUCH                                                                        \
-        2.0f /* mm: the mesh stands on z = 0 when its lowest point is this near */
-#define AP_WEB_GROUND_RADII  3.0f /* the ground's radius in the mesh's bounding radii */
+#define AP_WEB_PF_WIDTH      48   /* and its maps' width (model render: 96; here the page's data) */
 #define AP_WEB_ENV_MAX_WIDTH 1024 /* wider maps are halved (box) for the page's background */
 
 /* The sphere set of the BRDF model m's shadows, n spheres (ap_spheres_fit on its atlas mesh).
@@ -48,7 +41,7 @@ struct ap_web_opts {
 int ap_web_spheres(const struct ap_brdf_model *m, int n, struct ap_spheres *out);
 
 /* The scene the page shows the BRDF model m in under env: env prefiltered into *pf (free with
- * ap_prefilter_free) with ap_brdf_prefilter_params, AP_WEB_PF_PAIRS and AP_WEB_PF_WIDTH; sp's
+ * ap_prefilter_free) with ap_brdf_prefilter_params, AP_ENV_PAIRS and AP_WEB_PF_WIDTH; sp's
  * shadows; a ground disc as gonioctl model render's (AP_WEB_GROUND_*: none when the mesh does
  * not stand on z = 0); the model's response as the scale. sc borrows m, env, pf and sp. Returns
  * as ap_prefilter_build. */

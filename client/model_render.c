@@ -16,6 +16,7 @@
 #include "appearance/envmap.h"
 #include "appearance/mesh.h"
 #include "appearance/render.h"
+#include "appearance/render_env.h"
 #include "appearance/spheres.h"
 #include "appearance/views.h"
 #include "client/cmd.h"
@@ -28,8 +29,6 @@
 #include "drivers/registry.h"
 
 #define MAX_OUTSIDE_DEG 30.0 /* farthest a view may be from the views the model covers */
-#define RENDER_SPHERES  32   /* the sphere set of the BRDF model's shadows */
-#define RENDER_PAIRS    16   /* its representative normal pairs (bench/envlight: 38 dB) */
 
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_model *, ap_model_free);
 DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_renderer *, ap_renderer_free);
@@ -164,8 +163,8 @@ static int parse_args(int argc, char **argv, struct render_opts *o)
 
         *o = (struct render_opts){.gain = 1,
                                   .mode = AP_VIEW_PIXEL,
-                                  .spheres = RENDER_SPHERES,
-                                  .pairs = RENDER_PAIRS,
+                                  .spheres = AP_ENV_SPHERES,
+                                  .pairs = AP_ENV_PAIRS,
                                   .ground = -1};
         optind = 0;
         opterr = 0;

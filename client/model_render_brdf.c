@@ -17,12 +17,8 @@
 #include "client/model_render.h"
 #include "common/cleanup.h"
 
-#define PF_WIDTH      96   /* each prefiltered map's width */
-#define SPHERE_GRID   32   /* cells along the mesh's longest side for the sphere fit */
-#define GROUND_ALBEDO 0.5f /* the ground disc's (a grey turntable) */
-#define GROUND_TOUCH  2.0  /* mm: the mesh stands on z = 0 when its lowest point is this near */
-#define GROUND_RADII  3.0  /* the default ground's radius, in the mesh's bounding radii */
-#define THREADS       2
+#define PF_WIDTH 96 /* each prefiltered map's width */
+#define THREADS  2
 
 struct brdf_scene {
         struct ap_envmap env;
@@ -30,7 +26,7 @@ struct brdf_scene {
         struct ap_spheres sp;
         struct ap_env_light light;
         struct ap_env_scene sc;
-        double centre[3], radius, zmin;
+        double centre[3], radius;
 };
 
 static void scene_free(struct brdf_scene *s)
@@ -40,20 +36,15 @@ static void scene_free(struct brdf_scene *s)
         ap_envmap_free(&s->env);
 }
 
-/* The centre and radius of the mesh's bounding box, and its lowest z. */
-static void mesh_bounds(const struct ap_mesh *m, double c[3], double *radius, double *zmin)
+/* The centre and radius of the mesh's bounding box. */
+static void mesh_bounds(const struct ap_mesh *m, double c[3], double *radius)
 {
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        double lo[3], hi[3];
 
-        for (size_t v = 0; v < m->nv; v++)
-                for (int i = 0; i < 3; i++) {
-                        lo[i] = fmin(lo[i], m->pos[3 * v + i]);
-                        hi[i] = fmax(hi[i], m->pos[3 * v + i]);
-                }
+        ap_mesh_bounds(m, lo, hi);
         for (int i = 0; i < 3; i++)
                 c[i] = (lo[i] + hi[i]) / 2;
         *radius = hypot(hypot(hi[0] - lo[0], hi[1] - lo[1]), hi[2] - lo[2]) / 2;
-        *zmin = lo[2];
 }
 
 /* Loads the map and builds the prefilter, the sphere set and the scene of m. Returns 0 or an
@@ -64,13 +55,13 @@ static int scene_build(const struct render_opts *o, const struct ap_brdf_model *
         struct ap_prefilter_params pp = {.pairs = o->pairs, .width = PF_WIDTH, .threads = THREADS};
         int r;
 
-        mesh_bounds(&m->atlas.mesh, s->centre, &s->radius, &s->zmin);
+        mesh_bounds(&m->atlas.mesh, s->centre, &s->radius);
         if (o->kind == AP_LIGHT_ENV && (r = render_load_envmap(o, &s->env)) != 0)
                 return r;
         ap_brdf_prefilter_params(m, &pp);
         if ((o->kind == AP_LIGHT_ENV && (r = ap_prefilter_build(&s->env, &pp, &s->pf)) < 0) ||
             (o->spheres > 0 &&
-             (r = ap_spheres_fit(&m->atlas.mesh, o->spheres, SPHERE_GRID, &s->sp)) < 0)) {
+             (r = ap_spheres_fit(&m->atlas.mesh, o->spheres, AP_ENV_SPHERE_GRID, &s->sp)) < 0)) {
                 fprintf(stderr, "gonioctl: model render: %s: %s\n", o->model,
                         r == -EINVAL ? "the mesh is not closed: no sphere set (--spheres 0)"
                                      : strerror(-r));
@@ -86,10 +77,9 @@ static int scene_build(const struct render_opts *o, const struct ap_brdf_model *
                 .pf = &s->pf,
                 .light = o->kind == AP_LIGHT_ENV ? NULL : &s->light,
                 .sp = o->spheres > 0 ? &s->sp : NULL,
-                .ground_albedo = {GROUND_ALBEDO, GROUND_ALBEDO, GROUND_ALBEDO},
-                .ground_radius = (float)(o->ground >= 0                  ? o->ground
-                                         : fabs(s->zmin) <= GROUND_TOUCH ? GROUND_RADII * s->radius
-                                                                         : 0),
+                .ground_albedo = {AP_ENV_GROUND_ALBEDO, AP_ENV_GROUND_ALBEDO, AP_ENV_GROUND_ALBEDO},
+                .ground_radius =
+                        o->ground >= 0 ? (float)o->ground : ap_env_default_ground(&m->atlas.mesh),
                 .scale = (float)(m->response *
                                  (o->kind == AP_LIGHT_ENV && o->intensity > 0 ? o->intensity : 1)),
         };
