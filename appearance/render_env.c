@@ -228,24 +228,95 @@ static const struct ap_brdf_texel *texel_at(const struct ap_brdf_model *m, int32
         return &m->texels[(size_t)y * a->width + x];
 }
 
+/* Up to four texels of triangle t around its point of barycentric w, bilinear weights
+ * summing to 1; masked texels and other triangles' left out (texel_at's alone when none is
+ * left). */
+struct taps {
+        size_t i[4];
+        float w[4];
+        int n;
+};
+
+static void texel_taps(const struct ap_brdf_model *m, int32_t t, const float w[3], struct taps *tp)
+{
+        const struct ap_atlas *a = &m->atlas;
+        const float *uv = a->uv + 6 * t;
+        float u = (w[0] * uv[0] + w[1] * uv[2] + w[2] * uv[4]) * a->width - 0.5f;
+        float v = (w[0] * uv[1] + w[1] * uv[3] + w[2] * uv[5]) * a->height - 0.5f, sum = 0;
+        int x0 = (int)floorf(u), y0 = (int)floorf(v);
+
+        tp->n = 0;
+        for (int k = 0; k < 4; k++) {
+                int x = x0 + (k & 1), y = y0 + (k >> 1);
+                float wk = (k & 1 ? u - x0 : 1 - (u - x0)) * (k >> 1 ? v - y0 : 1 - (v - y0));
+                size_t i = (size_t)y * a->width + x;
+                if (x < 0 || y < 0 || x >= a->width || y >= a->height || a->tri[i] != t ||
+                    m->texels[i].flags & AP_BRDF_MASKED || !(wk > 0))
+                        continue;
+                tp->i[tp->n] = i, tp->w[tp->n++] = wk, sum += wk;
+        }
+        for (int k = 0; k < tp->n; k++)
+                tp->w[k] /= sum;
+        if (!tp->n)
+                *tp = (struct taps){{(size_t)(texel_at(m, t, w) - m->texels)}, {1}, 1};
+}
+
+/* The texels of tp blended into out: parameters weighted, the normal and the tangent made
+ * unit and orthogonal again. */
+static void texel_blend(const struct ap_brdf_model *m, const struct taps *tp,
+                        struct ap_brdf_texel *out)
+{
+        float l, tn;
+
+        *out = m->texels[tp->i[0]];
+        if (tp->n == 1)
+                return;
+        memset(out->albedo, 0, sizeof(out->albedo));
+        memset(out->normal, 0, sizeof(out->normal));
+        memset(out->tangent, 0, sizeof(out->tangent));
+        out->ks = out->ax = out->ay = 0;
+        for (int k = 0; k < tp->n; k++) {
+                const struct ap_brdf_texel *x = &m->texels[tp->i[k]];
+                float wk = tp->w[k];
+                out->ks += wk * x->ks, out->ax += wk * x->ax, out->ay += wk * x->ay;
+                for (int q = 0; q < 3; q++) {
+                        out->albedo[q] += wk * x->albedo[q];
+                        out->normal[q] += wk * x->normal[q];
+                        out->tangent[q] += wk * x->tangent[q];
+                }
+        }
+        l = sqrtf(dot3(out->normal, out->normal));
+        for (int q = 0; q < 3 && l > 0; q++)
+                out->normal[q] /= l;
+        tn = dot3(out->tangent, out->normal);
+        for (int q = 0; q < 3; q++)
+                out->tangent[q] -= tn * out->normal[q];
+        l = sqrtf(dot3(out->tangent, out->tangent));
+        for (int q = 0; q < 3 && l > 0; q++)
+                out->tangent[q] /= l;
+}
+
 static void shade_object(const struct ap_env_renderer *r, int32_t t, const float p[3],
                          const float d[3], float out[3])
 {
         const struct ap_mesh *m = &r->sc.m->atlas.mesh;
-        const struct ap_brdf_texel *x;
-        float w[3], v[3], rr[3], s[3], vd, vs, nv, td;
-        const float *e;
+        struct ap_brdf_texel xb, *x = &xb;
+        struct taps tps;
+        float w[3], v[3], rr[3], s[3], vd, vs, nv, td, e[3] = {0};
         const float *n;
 
         bary_of(m, t, p, w);
-        x = texel_at(r->sc.m, t, w);
+        texel_taps(r->sc.m, t, w, &tps);
+        texel_blend(r->sc.m, &tps, x);
+        for (int k = 0; k < tps.n; k++)
+                for (int q = 0; q < 3; q++)
+                        e[q] += tps.w[k] * r->tex_e[3 * tps.i[k] + q];
         n = x->normal;
         for (int q = 0; q < 3; q++)
                 v[q] = -d[q];
         nv = dot3(n, v);
         vd = w[0] * r->vvis[m->idx[3 * t]] + w[1] * r->vvis[m->idx[3 * t + 1]] +
              w[2] * r->vvis[m->idx[3 * t + 2]];
-        e = r->tex_e + 3 * (x - r->sc.m->texels);
         for (int q = 0; q < 3; q++)
                 out[q] = (1 - x->ks) * x->albedo[q] * (float)M_1_PI * e[q] * vd;
         if (x->ks <= 0 || nv <= 0)
@@ -317,11 +388,13 @@ static float light_vis(const struct ap_env_renderer *r, const float p[3], const 
 static void shade_object_light(const struct ap_env_renderer *r, int32_t t, const float p[3],
                                const float d[3], float out[3])
 {
-        const struct ap_brdf_texel *x;
+        struct ap_brdf_texel xb, *x = &xb;
+        struct taps tps;
         float w[3], v[3] = {-d[0], -d[1], -d[2]}, l[3], e, vis;
 
         bary_of(&r->sc.m->atlas.mesh, t, p, w);
-        x = texel_at(r->sc.m, t, w);
+        texel_taps(r->sc.m, t, w, &tps);
+        texel_blend(r->sc.m, &tps, x);
         e = light_at(r->sc.light, p, l);
         ap_brdf_eval(x, l, v, out);
         vis = dot3(l, x->normal) > 0 ? light_vis(r, p, x->normal, l, false) : 0;

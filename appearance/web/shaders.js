@@ -344,6 +344,31 @@ ivec2 texelAt(int t, vec2 uv) {
   return ivec2(x, y);
 }
 
+// render_env.c texel_taps + texel_blend: up to four texels of triangle t around uv, bilinear,
+// masked ones (zero normal) and other triangles' left out; texelAt's alone when none is left.
+void texelBlend(int t, vec2 uv, out vec4 alb, out vec4 nx, out float ay) {
+  vec2 f = uv * vec2(atlasSize) - 0.5, b = floor(f), fr = f - b;
+  float sum = 0.0;
+  alb = vec4(0.0); nx = vec4(0.0); ay = 0.0;
+  for (int k = 0; k < 4; k++) {
+    ivec2 q = ivec2(b) + ivec2(k & 1, k >> 1);
+    float w = ((k & 1) == 1 ? fr.x : 1.0 - fr.x) * ((k >> 1) == 1 ? fr.y : 1.0 - fr.y);
+    if (q.x < 0 || q.y < 0 || q.x >= atlasSize.x || q.y >= atlasSize.y || w <= 0.0 ||
+        texelTri(q.x, q.y) != t) continue;
+    vec4 n4 = texelFetch(nrmTex, q, 0);
+    if (dot(n4.xyz, n4.xyz) < 0.25) continue;
+    alb += w * texelFetch(albTex, q, 0); nx += w * n4; ay += w * texelFetch(tanTex, q, 0).w;
+    sum += w;
+  }
+  if (sum > 0.0) {
+    alb /= sum; nx /= sum; ay /= sum;
+  } else {
+    ivec2 ti = texelAt(t, uv);
+    alb = texelFetch(albTex, ti, 0); nx = texelFetch(nrmTex, ti, 0); ay = texelFetch(tanTex, ti, 0).w;
+  }
+  nx.xyz = normalize(nx.xyz);
+}
+
 vec3 specular(vec3 n, vec3 r) {
   float phi = atan(r.y, r.x), th = acos(clamp(r.z, -1.0, 1.0)), ws = 0.0;
   float x = phi * (0.5 / PI) * float(pfSize.x) - 0.5, y = th / PI * float(pfSize.y) - 0.5;
@@ -394,14 +419,15 @@ float sgVisible(float td, float eta) {
 float planeSsdf(vec3 z) { return groundR > 0.0 ? asin(clamp(z.z, -1.0, 1.0)) : PI / 2.0; }
 
 void main() {
-  ivec2 ti = texelAt(vTri, vUv);
-  vec4 alb = texelFetch(albTex, ti, 0), nx = texelFetch(nrmTex, ti, 0);
+  vec4 alb, nx;
+  float ay;
+  texelBlend(vTri, vUv, alb, nx, ay);
   vec3 n = nx.xyz, v = -normalize(vPos - camC);
   float ks = alb.a, nv = dot(n, v);
   vec3 o = (1.0 - ks) * alb.rgb / PI * irradiance(n) * vVd;
   if (ks > 0.0 && nv > 0.0) {
     vec3 rr = 2.0 * nv * n - v;
-    float eta = 1.0 / (2.0 * nx.w * texelFetch(tanTex, ti, 0).w);
+    float eta = 1.0 / (2.0 * nx.w * ay);
     float tp = asin(clamp(dot(rr, n), -1.0, 1.0));
     float td = min(min(ssdf(vPos, n, rr), planeSsdf(rr)), tp);
     o += ks * specular(n, rr) * sgVisible(td, eta) / max(sgVisible(tp, eta), 1e-3);
