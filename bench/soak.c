@@ -24,7 +24,7 @@
 
 #define TIME_SCALE 20
 #define WATCHERS   100
-#define ARM_STEPS  7
+#define STALL_S    60 /* running without a capture this long: stalled */
 
 struct soak {
         struct rigenv e;
@@ -203,6 +203,26 @@ static void setup(struct soak *s, double scale)
         close(sess_start_raw(&s->e, s->file));
 }
 
+/* Fails the soak, goniod's status and the session's printed, when the session has not
+ * captured anything for STALL_S while running (its directory kept, goniod's log in it). */
+static void check_stalled(struct soak *s, int64_t n, const char *state)
+{
+        static int64_t last = -1;
+        static double since;
+
+        if (n != last || strcmp(state, "running")) {
+                last = n, since = now_s();
+                return;
+        }
+        if (now_s() - since < STALL_S)
+                return;
+        print_json("goniod status", ctl_ok(&s->e, "status", NULL));
+        print_json("session status", ctl_ok(&s->e, "session", "status", NULL));
+        fprintf(stderr, "soak: the session stalled at %lld captures (goniod's log: %s)\n",
+                (long long)n, s->e.dir);
+        CHECK(!"the session stalled");
+}
+
 /* Runs the session to its end, faults at random moments. */
 static void soak_run(struct soak *s)
 {
@@ -216,6 +236,7 @@ static void soak_run(struct soak *s)
                 n = progress(s, state, sizeof(state));
                 if (!strcmp(state, "none"))
                         break;
+                check_stalled(s, n, state);
                 if (!s->rss_start && n >= (s->killed ? s->planned / 10 + 1000 : 1000))
                         s->rss_start = goniod_rss_mb(s);
                 printf("  %lld of %lld captures, %s\n", (long long)n, (long long)s->planned, state);
