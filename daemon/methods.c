@@ -402,7 +402,9 @@ static int m_fault_override(struct srv_req *req, json_t *params, void *userdata)
         int r = srv_params_check(req, params, KEYS(NULL));
 
         if (r >= 0 && (r = rig_override_fault(m->rig)) == -EBUSY)
-                return srv_req_errmsg(req, r, "a fault clear is running");
+                return srv_req_errmsg(req, r,
+                                      "the rig is still reaching its safe state or clearing the "
+                                      "fault; retry");
         if (r < 0)
                 return r;
         srv_reply(req, NULL);

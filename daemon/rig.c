@@ -965,10 +965,10 @@ int rig_override_fault(struct rig *rig)
 {
         if (rig->closing)
                 return -ESHUTDOWN;
-        if (rig->clear_done)
-                return -EBUSY;
         if (!rig->fault)
                 return 0;
+        if (rig->clear_done || rig->pending)
+                return -EBUSY;
         log_warning("fault on %s overridden by an admin (%s); devices that failed stay out of "
                     "service",
                     rig->fault_device, rig->fault_msg);
