@@ -485,6 +485,9 @@ static void test_roles(const char *dir, const char *path)
                  admin);
         CHECK_INT(json_integer_value(json_object_get(json_object_get(r, "error"), "code")), -32008);
         CHECK_STR(json_string_value(json_object_get(json_object_get(r, "error"), "message")), want);
+        CHECK_STR(json_string_value(json_object_get(
+                          json_object_get(json_object_get(r, "error"), "data"), "errno")),
+                  "EPERM");
         json_decref(r);
         call_ok(a, "secret");
         call_ok(a, "status");
