@@ -13,12 +13,17 @@
 static void usage(FILE *f)
 {
         fprintf(f,
-                "Usage: goniod --rig FILE [--socket PATH] [--data DIR] [--verbose]\n"
+                "Usage: goniod --rig FILE [--socket PATH] [--admin-socket PATH] [--data DIR]\n"
+                "              [--verbose]\n"
                 "\n"
                 "  --rig FILE     rig file (YAML) describing the devices\n"
                 "  --socket PATH  control socket (default $GONIO_SOCKET, else\n"
                 "                 $XDG_RUNTIME_DIR/gonio/goniod.sock, else "
                 "/run/gonio/goniod.sock)\n"
+                "  --admin-socket PATH\n"
+                "                 admin socket, mode 0600 (default admin.sock beside the\n"
+                "                 control socket)\n"
+                "                 (both taken from systemd instead when socket-activated)\n"
                 "  --data DIR     directory of datasets (default $GONIO_DATA or /var/lib/gonio)\n"
                 "  --verbose      debug logging\n");
 }
@@ -37,26 +42,41 @@ static void default_socket(char *out, size_t len)
         }
 }
 
+/* The admin socket beside the control socket sock: "DIR/admin.sock". */
+static void default_admin(const char *sock, char *out, size_t len)
+{
+        const char *slash = strrchr(sock, '/');
+
+        snprintf(out, len, "%.*sadmin.sock", slash ? (int)(slash - sock + 1) : 0, sock);
+}
+
 int main(int argc, char **argv)
 {
         static const struct option opts[] = {
-                {"rig", required_argument, NULL, 'r'},  {"socket", required_argument, NULL, 's'},
-                {"data", required_argument, NULL, 'd'}, {"verbose", no_argument, NULL, 'v'},
-                {"help", no_argument, NULL, 'h'},       {},
+                {"rig", required_argument, NULL, 'r'},
+                {"socket", required_argument, NULL, 's'},
+                {"admin-socket", required_argument, NULL, 'a'},
+                {"data", required_argument, NULL, 'd'},
+                {"verbose", no_argument, NULL, 'v'},
+                {"help", no_argument, NULL, 'h'},
+                {},
         };
         const char *rig = NULL, *data = getenv("GONIO_DATA");
-        char sock[PATH_MAX] = "";
+        char sock[PATH_MAX] = "", admin[PATH_MAX] = "";
         struct manager *m = NULL;
         int c, r;
 
         gn_log_set_ident("goniod");
-        while ((c = getopt_long(argc, argv, "r:s:d:vh", opts, NULL)) >= 0) {
+        while ((c = getopt_long(argc, argv, "r:s:a:d:vh", opts, NULL)) >= 0) {
                 switch (c) {
                 case 'r':
                         rig = optarg;
                         break;
                 case 's':
                         snprintf(sock, sizeof(sock), "%s", optarg);
+                        break;
+                case 'a':
+                        snprintf(admin, sizeof(admin), "%s", optarg);
                         break;
                 case 'd':
                         data = optarg;
@@ -78,7 +98,9 @@ int main(int argc, char **argv)
         }
         if (!sock[0])
                 default_socket(sock, sizeof(sock));
-        r = manager_new(rig, sock, data && *data ? data : "/var/lib/gonio", &m);
+        if (!admin[0])
+                default_admin(sock, admin, sizeof(admin));
+        r = manager_new(rig, sock, admin, data && *data ? data : "/var/lib/gonio", &m);
         if (r < 0) {
                 log_error_errno(r, "cannot start: %m");
                 return 1;

@@ -15,12 +15,52 @@
 #include "manager.h"
 #include "protocol/proto.h"
 
+/* What goniod does, for systemd's STATUS= (systemctl status): the shutdown, a fault, a
+ * session's progress, a scan, else the rig's state ("idle", "moving"...). */
+static void status_line(struct manager *m, char *buf, size_t len)
+{
+        const char *state = rig_state(m->rig);
+        json_t *ss;
+
+        if (m->shutdown_deadline)
+                snprintf(buf, len, "stopping: bringing the rig to its safe state");
+        else if (strcmp(state, "fault") == 0)
+                snprintf(buf, len, "fault: %s", rig_last_error(m->rig));
+        else if (session_active(m->session) && (ss = session_status(m->session))) {
+                snprintf(buf, len, "session '%s' %s: %lld/%lld captures (rig %s)",
+                         json_string_value(json_object_get(ss, "name")),
+                         json_string_value(json_object_get(ss, "state")),
+                         (long long)json_integer_value(json_object_get(ss, "captured")),
+                         (long long)json_integer_value(json_object_get(ss, "planned")), state);
+                json_decref(ss);
+        } else if (scan_active(m->scan))
+                snprintf(buf, len, "continuous scan (rig %s)", state);
+        else
+                snprintf(buf, len, "%s", state);
+}
+
+/* Sends STATUS= to systemd when what goniod does has changed (and READY=1 or STOPPING=1 with
+ * it when extra says so). */
+static void update_status(struct manager *m, const char *extra)
+{
+        char line[sizeof(m->status)];
+
+        if (!m->notify)
+                return;
+        status_line(m, line, sizeof(line));
+        if (!extra && strcmp(line, m->status) == 0)
+                return;
+        snprintf(m->status, sizeof(m->status), "%s", line);
+        (void)sd_notifyf(false, "%sSTATUS=%s", extra ? extra : "", line);
+}
+
 void manager_notify_json(struct manager *m, const char *method, json_t *params)
 {
         if (m->server)
                 server_broadcast(m->server, method, params);
         else
                 json_decref(params);
+        update_status(m, NULL);
 }
 
 /* The protocol edge of rig events: the notifications of docs/protocol.md. */
@@ -87,9 +127,9 @@ static int on_signal(sd_event_source *s, const struct signalfd_siginfo *si, void
         if (m->shutdown_deadline)
                 return 0;
         log_info("shutting down: bringing the rig to its safe state");
-        (void)sd_notify(false, "STOPPING=1");
         sd_event_now(m->event, CLOCK_MONOTONIC, &m->shutdown_deadline);
         m->shutdown_deadline += 5 * 1000 * 1000ULL;
+        update_status(m, "STOPPING=1\n");
         rig_shutdown(m->rig); /* no new motion or light from a session, a scan or a client */
         if (sd_event_add_time_relative(m->event, &tick, CLOCK_MONOTONIC, 0, 0, on_shutdown_tick,
                                        m) < 0)
@@ -99,8 +139,19 @@ static int on_signal(sd_event_source *s, const struct signalfd_siginfo *si, void
         return 0;
 }
 
-int manager_new(const char *rig_path, const char *socket_path, const char *data_dir,
-                struct manager **ret)
+/* Listens on the sockets systemd passed, else binds the operator and admin sockets. */
+static int listen_sockets(struct manager *m, const char *socket_path, const char *admin_path)
+{
+        int r = server_listen_systemd(m->server);
+
+        if (r != 0)
+                return r;
+        r = server_listen(m->server, socket_path, SRV_OPERATOR);
+        return r < 0 ? r : server_listen(m->server, admin_path, SRV_ADMIN);
+}
+
+int manager_new(const char *rig_path, const char *socket_path, const char *admin_path,
+                const char *data_dir, struct manager **ret)
 {
         struct manager *m = calloc(1, sizeof(*m));
         char err[512];
@@ -126,7 +177,9 @@ int manager_new(const char *rig_path, const char *socket_path, const char *data_
             (r = sd_event_set_watchdog(m->event, true)) < 0)
                 goto fail;
         /* Claim the socket first: a second goniod must not touch the rig. */
-        r = server_new(m->event, socket_path, manager_methods, m, &m->server);
+        r = server_new(m->event, manager_methods, m, &m->server);
+        if (r >= 0)
+                r = listen_sockets(m, socket_path, admin_path);
         if (r < 0)
                 goto fail;
         server_on_close(m->server, manager_client_gone, m);
@@ -164,10 +217,12 @@ int manager_run(struct manager *m)
             (r = sd_event_add_signal(m->event, NULL, SIGINT | SD_EVENT_SIGNAL_PROCMASK, on_signal,
                                      m)) < 0)
                 return r;
-        (void)sd_notify(false, "READY=1\nSTATUS=serving");
+        m->notify = getenv("NOTIFY_SOCKET") != NULL; /* from here on everything is built */
+        update_status(m, "READY=1\n");
         log_info("rig '%s' ready (%s)", m->rc->name, rig_state(m->rig));
         ds_forbid_thread(true); /* no dataset I/O on the loop while it serves */
         r = sd_event_loop(m->event);
+        m->notify = false; /* the teardown's events are not news for systemd */
         ds_forbid_thread(false);
         return r;
 }

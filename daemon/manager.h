@@ -26,17 +26,22 @@ struct manager {
         struct workq *ds_worker;        /* runs dataset.* off the loop (datasets.c) */
         bool ds_busy;                   /* a dataset.open or close is running */
         uint64_t shutdown_deadline;     /* set once SIGTERM/SIGINT arrived */
+        bool notify;      /* serving under systemd (NOTIFY_SOCKET): STATUS= kept current */
+        char status[256]; /* the last STATUS= sent */
         /* the client (srv_req_client) that switched each switch on outside a session, 0 none:
          * switch i (rig.h: lamp i >= 0, laser k at RIG_SW_LASER(k)) at [RIG_MAX_LASERS + i] */
         uint64_t switch_owner[RIG_MAX_LASERS + RIG_MAX_LAMPS];
 };
 
-/* Loads the rig file, opens the rig, listens on socket_path. On a rig-file error the
+/* Loads the rig file, opens the rig, listens on the sockets systemd passed (socket
+ * activation), else on socket_path (operator) and admin_path (admin). On a rig-file error the
  * message (file, line, key) is logged. Returns 0 or -errno. */
-int manager_new(const char *rig_path, const char *socket_path, const char *data_dir,
-                struct manager **ret);
+int manager_new(const char *rig_path, const char *socket_path, const char *admin_path,
+                const char *data_dir, struct manager **ret);
 
-/* Runs the loop until SIGTERM/SIGINT; sends READY=1 and watchdog pings under systemd. */
+/* Runs the loop until SIGTERM/SIGINT. Under systemd it sends READY=1 once serving,
+ * WATCHDOG=1 from the loop (sd-event: between 1/2 and 3/4 of WATCHDOG_USEC), STATUS= when
+ * what goniod does changes, and STOPPING=1 at the signal. */
 int manager_run(struct manager *m);
 
 /* Safe state, closes everything. NULL is a no-op; returns NULL. */

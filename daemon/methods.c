@@ -396,6 +396,21 @@ static int m_fault_clear(struct srv_req *req, json_t *params, void *userdata)
         return 0;
 }
 
+static int m_fault_override(struct srv_req *req, json_t *params, void *userdata)
+{
+        struct manager *m = userdata;
+        int r = srv_params_check(req, params, KEYS(NULL));
+
+        if (r >= 0 && (r = rig_override_fault(m->rig)) == -EBUSY)
+                return srv_req_errmsg(req, r,
+                                      "the rig is still reaching its safe state or clearing the "
+                                      "fault; retry");
+        if (r < 0)
+                return r;
+        srv_reply(req, NULL);
+        return 0;
+}
+
 /* Answers a capture: every row stored, or an error whose data lists what was stored and
  * what failed, so that a client retries only the cameras that failed. */
 static void on_captured(struct capture *cp, const struct capture_result *res, void *userdata)
@@ -680,6 +695,7 @@ const struct srv_method manager_methods[] = {
         {"dataset.info", datasets_info},
         {"dataset.check", datasets_check},
         {"fault.clear", m_fault_clear},
+        {"fault.override", m_fault_override, .admin = true},
         {"session.plan", m_session_plan},
         {"session.run", m_session_run},
         {"session.resume", m_session_resume},

@@ -961,6 +961,23 @@ int rig_clear_fault(struct rig *rig, rig_done_fn done, void *userdata)
         return 0;
 }
 
+int rig_override_fault(struct rig *rig)
+{
+        if (rig->closing)
+                return -ESHUTDOWN;
+        if (!rig->fault)
+                return 0;
+        if (rig->clear_done || rig->pending)
+                return -EBUSY;
+        log_warning("fault on %s overridden by an admin (%s); devices that failed stay out of "
+                    "service",
+                    rig->fault_device, rig->fault_msg);
+        rig->fault = false;
+        rig->fault_msg[0] = rig->fault_device[0] = 0;
+        rig_update_state(rig);
+        return 0;
+}
+
 /* Reads idle drives back, so status is true and uncommanded motion is seen. */
 static int on_idle_poll(sd_event_source *s, uint64_t usec, void *userdata)
 {

@@ -193,6 +193,13 @@ const char *rig_last_error(const struct rig *rig);
  * a clear is running. */
 int rig_clear_fault(struct rig *rig, rig_done_fn done, void *userdata);
 
+/* Lifts a latched fault without resetting or reopening anything (an admin's override): the
+ * devices that stopped answering stay out of service (-ENODEV), the rest of the rig may be
+ * used; a drive that still reports a fault latches it again at its next read-back. Returns 0
+ * (also when no fault is latched), -EBUSY while a clear runs or device jobs are in flight (the
+ * safe state is being reached), -ESHUTDOWN at shutdown. */
+int rig_override_fault(struct rig *rig);
+
 /* "idle", "homing", "moving", "stopping", "capturing" or "fault". */
 const char *rig_state(const struct rig *rig);
 

@@ -10,6 +10,12 @@
  * One daemon per socket: "<path>.lock" is flock'ed for the server's lifetime and
  * a connect() probe refuses a path something still serves; only a stale socket
  * is removed, and on exit the path is unlinked only if it is still our socket.
+ * Sockets passed by systemd (socket activation) are used as they are: no lock, no
+ * unlink, systemd owns them.
+ *
+ * Listeners have a role: a connection accepted on an admin listener may call every
+ * method, one accepted on an operator listener every method but the admin ones
+ * (struct srv_method.admin), which it is refused with -EPERM naming the admin socket.
  *
  * Connections: accepted in a loop (SOMAXCONN backlog) up to max_clients. When
  * the table is full a new connection evicts the oldest client that never said
@@ -28,6 +34,7 @@
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
+#include <systemd/sd-daemon.h>
 #include <systemd/sd-event.h>
 #include <unistd.h>
 
@@ -49,19 +56,30 @@ struct client {
         char *out;
         size_t out_len, out_cap;
         bool hello;           /* answered a successful hello */
+        enum srv_role role;   /* of the listener it came on */
         uint64_t number;      /* srv_req_client */
         uint64_t last_active; /* CLOCK_MONOTONIC usec of its last request, or of accept */
         struct client *next;  /* the list is newest first */
 };
 
-struct server {
-        sd_event *event;
-        int fd, lock_fd, spare_fd;
-        char *path;
+/* A listening socket and the role of the connections it accepts. */
+struct listener {
+        struct server *server;
+        int fd, lock_fd; /* lock_fd: "<path>.lock", for the sockets we bound */
+        enum srv_role role;
+        char path[sizeof(((struct sockaddr_un *)0)->sun_path)];
         bool bound; /* path is the socket we bound, identified by dev/ino */
         dev_t dev;
         ino_t ino;
-        sd_event_source *listen;
+        sd_event_source *src;
+};
+
+struct server {
+        sd_event *event;
+        int spare_fd;
+        struct listener listeners[SRV_MAX_LISTENERS];
+        unsigned n_listeners;
+        bool started;
         const struct srv_method *methods;
         void *userdata;
         struct client *clients;
@@ -292,6 +310,15 @@ static const struct srv_method *find_method(struct server *s, const char *name)
         return NULL;
 }
 
+/* The path of the first listener of role, or NULL when there is none. */
+static const char *role_path(const struct server *s, enum srv_role role)
+{
+        for (unsigned i = 0; i < s->n_listeners; i++)
+                if (s->listeners[i].role == role)
+                        return s->listeners[i].path;
+        return NULL;
+}
+
 /* Runs one request. A notification from the client (no id) runs too, unanswered. */
 static void dispatch(struct client *c, struct proto_msg *msg)
 {
@@ -319,6 +346,12 @@ static void dispatch(struct client *c, struct proto_msg *msg)
         req->method = m->name;
         if (params && !json_is_object(params)) {
                 srv_fail(req, -EINVAL, "params must be an object");
+                return;
+        }
+        if (m->admin && c->role != SRV_ADMIN) {
+                const char *admin = role_path(c->server, SRV_ADMIN);
+                srv_fail(req, -EPERM, "method '%s' is allowed only on the admin socket (%s)",
+                         m->name, admin ? admin : "goniod has none");
                 return;
         }
         params = params ? json_incref(params) : json_object();
@@ -465,8 +498,8 @@ static bool evict(struct server *s, uint64_t now)
         return true;
 }
 
-/* Serves a new connection (cfd is taken). */
-static void client_add(struct server *s, int cfd, uint64_t now)
+/* Serves a new connection of role (cfd is taken). */
+static void client_add(struct server *s, int cfd, enum srv_role role, uint64_t now)
 {
         _cleanup_close_ int fd = cfd;
         struct client *c = calloc(1, sizeof(*c));
@@ -476,6 +509,7 @@ static void client_add(struct server *s, int cfd, uint64_t now)
                 return;
         c->server = s;
         c->ref = 1;
+        c->role = role;
         c->last_active = now;
         c->number = ++s->last_number;
         r = sd_event_add_io(s->event, &c->io, fd, EPOLLIN, on_client_io, c);
@@ -492,27 +526,28 @@ static void client_add(struct server *s, int cfd, uint64_t now)
         log_debug("client %p connected", (void *)c);
 }
 
-/* Takes a new connection, evicting a client when the table is full, or refuses it. */
-static void admit(struct server *s, int cfd)
+/* Takes a new connection from l, evicting a client when the table is full, or refuses it. */
+static void admit(struct listener *l, int cfd)
 {
         _cleanup_close_ int fd = cfd;
+        struct server *s = l->server;
         uint64_t now = loop_now(s);
 
         if (s->n_clients >= s->max_clients && !evict(s, now)) {
                 refuse(s, fd, "");
                 return;
         }
-        client_add(s, TAKE_FD(fd), now);
+        client_add(s, TAKE_FD(fd), l->role, now);
 }
 
 /* Out of descriptors: frees the spare one to accept and refuse one pending connection, so
  * the listening socket does not stay readable forever. Returns 0, or -errno of accept. */
-static int refuse_without_fd(struct server *s)
+static int refuse_without_fd(struct server *s, int lfd)
 {
         int cfd, r = 0;
 
         s->spare_fd = safe_close(s->spare_fd);
-        cfd = accept4(s->fd, NULL, NULL, SOCK_CLOEXEC | SOCK_NONBLOCK);
+        cfd = accept4(lfd, NULL, NULL, SOCK_CLOEXEC | SOCK_NONBLOCK);
         if (cfd >= 0) {
                 refuse(s, cfd, " and out of file descriptors");
                 close(cfd);
@@ -524,16 +559,16 @@ static int refuse_without_fd(struct server *s)
 
 static int on_accept(sd_event_source *es, int fd, uint32_t revents, void *userdata)
 {
-        struct server *s = userdata;
+        struct listener *l = userdata;
 
         for (unsigned i = 0; i < SRV_ACCEPT_BATCH; i++) {
                 int cfd = accept4(fd, NULL, NULL, SOCK_CLOEXEC | SOCK_NONBLOCK);
                 int err = cfd < 0 ? errno : 0;
 
                 if (err == EMFILE || err == ENFILE)
-                        err = -refuse_without_fd(s);
+                        err = -refuse_without_fd(l->server, fd);
                 if (cfd >= 0)
-                        admit(s, cfd);
+                        admit(l, cfd);
                 else if (err == EAGAIN)
                         break;
                 else if (err != 0 && err != EINTR && err != ECONNABORTED)
@@ -630,85 +665,202 @@ static int clear_path(const char *path, bool locked)
         return r < 0 ? log_error_errno(r, "Cannot probe %s: %m", path) : 0;
 }
 
-/* Locks, clears, binds (mode 0660) and listens on path. Returns the fd or -errno (logged). */
-static int listen_unix(struct server *s, const char *path)
+/* Locks, clears, binds and listens on l->path with mode. Returns the fd or -errno (logged). */
+static int listen_unix(struct listener *l, mode_t mode)
 {
         struct sockaddr_un sa;
-        _cleanup_close_ int fd = proto_unix_socket(path, &sa);
+        _cleanup_close_ int fd = proto_unix_socket(l->path, &sa);
         struct stat st;
         int r;
 
         if (fd < 0)
-                return log_error_errno(fd, "Cannot listen on %s: %m", path);
-        s->lock_fd = lock_path(path);
-        if (s->lock_fd < 0 && s->lock_fd != -EADDRINUSE)
-                return s->lock_fd;
-        r = clear_path(path, s->lock_fd >= 0);
+                return log_error_errno(fd, "Cannot listen on %s: %m", l->path);
+        l->lock_fd = lock_path(l->path);
+        if (l->lock_fd < 0 && l->lock_fd != -EADDRINUSE)
+                return l->lock_fd;
+        r = clear_path(l->path, l->lock_fd >= 0);
         if (r < 0)
                 return r;
-        if (bind(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0 || lstat(path, &st) < 0)
-                return log_error_errno(errno, "Cannot bind %s: %m", path);
-        s->bound = true;
-        s->dev = st.st_dev;
-        s->ino = st.st_ino;
-        if (chmod(path, 0660) < 0 || listen(fd, SOMAXCONN) < 0)
-                return log_error_errno(errno, "Cannot listen on %s: %m", path);
+        if (bind(fd, (struct sockaddr *)&sa, sizeof(sa)) < 0 || lstat(l->path, &st) < 0)
+                return log_error_errno(errno, "Cannot bind %s: %m", l->path);
+        l->bound = true;
+        l->dev = st.st_dev;
+        l->ino = st.st_ino;
+        if (chmod(l->path, mode) < 0 || listen(fd, SOMAXCONN) < 0)
+                return log_error_errno(errno, "Cannot listen on %s: %m", l->path);
         return TAKE_FD(fd);
 }
 
-int server_new(sd_event *event, const char *path, const struct srv_method *methods, void *userdata,
+/* Whether l's path is still the socket we bound (another process may have replaced it). */
+static bool own_socket(const struct listener *l)
+{
+        struct stat st;
+
+        return l->bound && lstat(l->path, &st) == 0 && S_ISSOCK(st.st_mode) &&
+               st.st_dev == l->dev && st.st_ino == l->ino;
+}
+
+/* Stops listening on l; unlinks its path if it is still the socket we bound. */
+static void listener_close(struct listener *l)
+{
+        l->src = sd_event_source_disable_unref(l->src);
+        l->fd = safe_close(l->fd);
+        if (own_socket(l))
+                (void)unlink(l->path);
+        l->lock_fd = safe_close(l->lock_fd); /* after the unlink: the next daemon may take over */
+}
+
+/* Takes the next listener slot of s for role and path. Returns it, or NULL with *err set
+ * (-ENOBUFS: all slots taken, -ENAMETOOLONG; logged). */
+static struct listener *listener_new(struct server *s, enum srv_role role, const char *path,
+                                     int *err)
+{
+        struct listener *l = &s->listeners[s->n_listeners];
+
+        if (s->n_listeners == SRV_MAX_LISTENERS) {
+                *err = log_error_errno(ENOBUFS, "goniod listens on %d sockets at most",
+                                       SRV_MAX_LISTENERS);
+                return NULL;
+        }
+        *l = (struct listener){.server = s, .fd = -EBADF, .lock_fd = -EBADF, .role = role};
+        if (snprintf(l->path, sizeof(l->path), "%s", path) >= (int)sizeof(l->path)) {
+                *err = log_error_errno(ENAMETOOLONG, "Socket path too long: %s", path);
+                return NULL;
+        }
+        s->n_listeners++;
+        return l;
+}
+
+/* Watches fd (taken; r < 0: the error that left none) for the newest listener l, enabled
+ * once the server is started. Returns 0, or -errno after undoing l. */
+static int listener_add(struct listener *l, int fd)
+{
+        struct server *s = l->server;
+        int r = fd;
+
+        l->fd = fd;
+        if (r >= 0)
+                r = sd_event_add_io(s->event, &l->src, fd, EPOLLIN, on_accept, l);
+        if (r >= 0)
+                r = sd_event_source_set_enabled(l->src, s->started ? SD_EVENT_ON : SD_EVENT_OFF);
+        if (r < 0) {
+                listener_close(l);
+                s->n_listeners--;
+                return r;
+        }
+        (void)sd_event_source_set_description(l->src, l->role == SRV_ADMIN ? "admin-socket"
+                                                                           : "control-socket");
+        log_debug("listening on %s (%s)", l->path, l->role == SRV_ADMIN ? "admin" : "operator");
+        return 0;
+}
+
+int server_new(sd_event *event, const struct srv_method *methods, void *userdata,
                struct server **ret)
 {
         struct server *s = calloc(1, sizeof(*s));
-        int r;
 
         if (!s)
                 return -ENOMEM;
         s->event = event;
         s->methods = methods;
         s->userdata = userdata;
-        s->lock_fd = -EBADF;
         s->max_clients = s->budget = client_budget();
         s->idle_usec = SRV_IDLE_TIMEOUT_USEC;
         s->spare_fd = open("/dev/null", O_RDONLY | O_CLOEXEC);
-        r = s->spare_fd < 0 ? -errno : 0;
-        s->path = strdup(path);
-        if (r >= 0 && !s->path)
-                r = -ENOMEM;
-        s->fd = r < 0 ? r : listen_unix(s, path);
-        if (s->fd < 0)
-                r = s->fd;
-        if (r >= 0)
-                r = sd_event_add_io(event, &s->listen, s->fd, EPOLLIN, on_accept, s);
-        if (r >= 0)
-                r = sd_event_source_set_enabled(s->listen, SD_EVENT_OFF);
-        if (r < 0) {
-                server_free(s);
+        if (s->spare_fd < 0) {
+                int r = -errno;
+                free(s);
                 return r;
         }
-        sd_event_source_set_description(s->listen, "control-socket");
         *ret = s;
         return 0;
 }
 
+int server_listen(struct server *s, const char *path, enum srv_role role)
+{
+        int r;
+        struct listener *l = listener_new(s, role, path, &r);
+
+        if (!l)
+                return r;
+        return listener_add(l, listen_unix(l, role == SRV_ADMIN ? 0600 : 0660));
+}
+
+int server_listen_fd(struct server *s, int fd, enum srv_role role)
+{
+        _cleanup_close_ int owned = fd;
+        struct sockaddr_un sa = {0};
+        socklen_t len = sizeof(sa);
+        struct listener *l;
+        int r = sd_is_socket_unix(fd, SOCK_STREAM, 1, NULL, 0), flags;
+
+        if (r <= 0)
+                return log_error_errno(r < 0 ? r : ENOTSOCK,
+                                       "descriptor %d is not a listening AF_UNIX stream socket",
+                                       fd);
+        if (getsockname(fd, (struct sockaddr *)&sa, &len) < 0 || (flags = fcntl(fd, F_GETFL)) < 0 ||
+            fcntl(fd, F_SETFL, flags | O_NONBLOCK) < 0)
+                return log_error_errno(errno, "Cannot use descriptor %d: %m", fd);
+        l = listener_new(s, role, sa.sun_path[0] ? sa.sun_path : "(abstract socket)", &r);
+        if (!l)
+                return r;
+        return listener_add(l, TAKE_FD(owned));
+}
+
+/* The role of a socket systemd passed, by its FileDescriptorName=; -EINVAL (logged) for
+ * another name. "unknown" is what a socket without a name gets. */
+static int role_of(const char *name)
+{
+        if (strcmp(name, "admin") == 0)
+                return SRV_ADMIN;
+        if (strcmp(name, "operator") == 0 || strcmp(name, "unknown") == 0)
+                return SRV_OPERATOR;
+        return log_error_errno(EINVAL,
+                               "systemd passed a socket named '%s'; goniod takes 'operator' "
+                               "and 'admin' (FileDescriptorName=)",
+                               name);
+}
+
+int server_listen_systemd(struct server *s)
+{
+        char **names = NULL;
+        int n = sd_listen_fds_with_names(true, &names), r = 0;
+
+        if (n < 0)
+                return log_error_errno(n, "Cannot take the sockets systemd passed: %m");
+        for (int i = 0; i < n; i++) {
+                int fd = SD_LISTEN_FDS_START + i, role = r < 0 ? r : role_of(names[i]);
+
+                if (role < 0) {
+                        r = role;
+                        close(fd);
+                } else
+                        r = server_listen_fd(s, fd, role);
+                free(names[i]);
+        }
+        free(names);
+        if (r >= 0 && n > 0 && !role_path(s, SRV_OPERATOR))
+                r = log_error_errno(EINVAL, "systemd passed no operator socket "
+                                            "(FileDescriptorName=operator)");
+        if (r >= 0 && n > 0 && !role_path(s, SRV_ADMIN))
+                log_notice("systemd passed no admin socket: admin methods are refused");
+        return r < 0 ? r : n;
+}
+
 int server_start(struct server *s)
 {
-        return sd_event_source_set_enabled(s->listen, SD_EVENT_ON);
+        int r = 0;
+
+        s->started = true;
+        for (unsigned i = 0; i < s->n_listeners && r >= 0; i++)
+                r = sd_event_source_set_enabled(s->listeners[i].src, SD_EVENT_ON);
+        return r;
 }
 
 void server_set_limits(struct server *s, unsigned max_clients, uint64_t idle_usec)
 {
         s->max_clients = CLAMP(max_clients, 1u, s->budget);
         s->idle_usec = idle_usec;
-}
-
-/* Whether path is still the socket we bound (another process may have replaced it). */
-static bool own_socket(const struct server *s)
-{
-        struct stat st;
-
-        return s->bound && lstat(s->path, &st) == 0 && S_ISSOCK(st.st_mode) &&
-               st.st_dev == s->dev && st.st_ino == s->ino;
 }
 
 struct server *server_free(struct server *s)
@@ -718,13 +870,9 @@ struct server *server_free(struct server *s)
         s->on_close = NULL;
         while (s->clients)
                 client_close(s->clients);
-        sd_event_source_disable_unref(s->listen);
-        safe_close(s->fd);
-        if (own_socket(s))
-                (void)unlink(s->path);
-        safe_close(s->lock_fd); /* after the unlink: the next daemon may take over */
+        for (unsigned i = 0; i < s->n_listeners; i++)
+                listener_close(&s->listeners[i]);
         safe_close(s->spare_fd);
-        free(s->path);
         free(s);
         return NULL;
 }

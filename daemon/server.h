@@ -8,7 +8,11 @@
  *
  * The server remembers which clients said hello (a successful reply to the method
  * named "hello", whatever its handler), so that when the table is full it evicts
- * clients that never did before any that did. */
+ * clients that never did before any that did.
+ *
+ * It listens on one or more sockets, each with a role: an operator socket serves every
+ * method but the admin ones (struct srv_method.admin), an admin socket serves them all.
+ * Sockets are bound by path (server_listen) or taken from systemd (server_listen_systemd). */
 #pragma once
 
 #include <jansson.h>
@@ -22,6 +26,14 @@ typedef struct sd_event sd_event;
 /* A client that said hello and sent no request for this long may be evicted for a new one
  * when the table is full; below it, it is kept (e.g. one listening to notifications). */
 #define SRV_IDLE_TIMEOUT_USEC (60 * 1000000ULL)
+/* Listening sockets of one server. */
+#define SRV_MAX_LISTENERS 4
+
+/* What the connections accepted on a listening socket may call. */
+enum srv_role {
+        SRV_OPERATOR, /* every method but the admin ones, refused with -EPERM */
+        SRV_ADMIN,    /* every method */
+};
 
 struct server;
 struct srv_req;
@@ -34,24 +46,39 @@ typedef int (*srv_method_fn)(struct srv_req *req, json_t *params, void *userdata
 struct srv_method {
         const char *name;
         srv_method_fn fn;
+        bool admin; /* reconfigures the rig or overrides a fault: admin sockets only */
 };
 
-/* Listens on path (mode 0660, backlog SOMAXCONN) to serve methods (a table ending in
- * {NULL}) with userdata once server_start is called; connections wait in the backlog
- * until then, so the socket can be claimed before the devices are opened. Holds an flock on
- * "<path>.lock" until server_free. Refuses with -EADDRINUSE when something accepts connections on
- * path or another process holds the lock, with -EEXIST when path is not a socket (never removed); a
- * stale socket is removed. Raises the soft RLIMIT_NOFILE to fit SRV_MAX_CLIENTS if needed. Returns
- * 0 or -errno; failures are logged with the path. */
-int server_new(sd_event *event, const char *path, const struct srv_method *methods, void *userdata,
+/* Creates a server of methods (a table ending in {NULL}) with userdata, listening nowhere
+ * yet. Raises the soft RLIMIT_NOFILE to fit SRV_MAX_CLIENTS if needed. Returns 0 or -errno. */
+int server_new(sd_event *event, const struct srv_method *methods, void *userdata,
                struct server **ret);
+
+/* Listens on path for role (mode 0660 operator, 0600 admin; backlog SOMAXCONN), accepting once
+ * server_start is called: connections wait in the backlog until then, so the socket can be
+ * claimed before the devices are opened. Holds an flock on "<path>.lock" until server_free.
+ * Refuses with -EADDRINUSE when something accepts connections on path or another process holds
+ * the lock, with -EEXIST when path is not a socket (never removed); a stale socket is removed.
+ * -ENOBUFS past SRV_MAX_LISTENERS. Returns 0 or -errno; failures are logged with the path. */
+int server_listen(struct server *s, const char *path, enum srv_role role);
+
+/* Listens on fd for role, as server_listen does; fd (taken, closed on failure) must be a
+ * listening AF_UNIX stream socket (-ENOTSOCK otherwise) and is made non-blocking. Its path
+ * is never unlinked (its owner, e.g. systemd, keeps it). Returns 0 or -errno (logged). */
+int server_listen_fd(struct server *s, int fd, enum srv_role role);
+
+/* Takes the sockets systemd passed (sd_listen_fds_with_names; LISTEN_* are unset), each by its
+ * FileDescriptorName=: "operator" (or none, "unknown") or "admin". Returns how many (0: not
+ * socket-activated), or -EINVAL for another name or when none is an operator socket, or -errno
+ * of server_listen_fd (logged). Every passed descriptor is taken, also on failure. */
+int server_listen_systemd(struct server *s);
 
 /* Starts accepting connections. Returns 0 or -errno. */
 int server_start(struct server *s);
 
-/* Closes every connection and the socket, unlinks the path if it is still the socket
- * server_new bound, releases the lock. Pending requests get no answer. NULL is a no-op;
- * returns NULL. */
+/* Closes every connection and socket, unlinks each path server_listen bound if it is still
+ * that socket, releases the locks. Pending requests get no answer. NULL is a no-op; returns
+ * NULL. */
 struct server *server_free(struct server *s);
 
 /* Has fn(client, ud) called when the connection numbered client (srv_req_client) closes,

@@ -9,7 +9,10 @@
  *           one idle longest (not one with a request pending); when nobody qualifies
  *           the new connection gets one error line;
  *   nofd    out of descriptors, a connection still gets its error line, and the
- *           server accepts again once a client leaves. */
+ *           server accepts again once a client leaves;
+ *   roles   an admin method is refused (-EPERM, naming the admin socket) on an operator
+ *           socket and served on an admin socket taken as a descriptor (as from systemd),
+ *           which must be a listening AF_UNIX stream socket and is never unlinked. */
 #include <errno.h>
 #include <fcntl.h>
 #include <poll.h>
@@ -87,7 +90,8 @@ static int m_quit(struct srv_req *req, json_t *params, void *userdata)
 
 static const struct srv_method methods[] = {
         {"hello", m_ok},  {"status", m_ok},       {"blob", m_blob}, {"clients", m_clients},
-        {"hold", m_hold}, {"release", m_release}, {"quit", m_quit}, {NULL, NULL},
+        {"hold", m_hold}, {"release", m_release}, {"quit", m_quit}, {"secret", m_ok, .admin = true},
+        {NULL, NULL},
 };
 
 static pid_t server_pid; /* killed if a check fails */
@@ -114,9 +118,21 @@ static void leave_fds(unsigned n)
         CHECK(setrlimit(RLIMIT_NOFILE, &rl) == 0);
 }
 
+/* A server of methods listening on path (operator): 0, or the -errno of server_listen. */
+static int server_at(sd_event *ev, const char *path, void *userdata, struct server **ret)
+{
+        int r = server_new(ev, methods, userdata, ret);
+
+        if (r >= 0 && (r = server_listen(*ret, path, SRV_OPERATOR)) < 0)
+                *ret = server_free(*ret);
+        return r;
+}
+
 /* Forks a server on path with the given limits (free_fds: descriptors left to the
- * server after start, 0 for no limit); returns its pid once it listens. */
-static pid_t serve(const char *path, unsigned max_clients, uint64_t idle_usec, unsigned free_fds)
+ * server after start, 0 for no limit; admin_fd: a listening socket it serves as admin,
+ * or -1); returns its pid once it listens. */
+static pid_t serve(const char *path, unsigned max_clients, uint64_t idle_usec, unsigned free_fds,
+                   int admin_fd)
 {
         struct child ch = {0};
         int p[2];
@@ -128,6 +144,8 @@ static pid_t serve(const char *path, unsigned max_clients, uint64_t idle_usec, u
         CHECK(pid >= 0);
         if (pid > 0) {
                 close(p[1]);
+                if (admin_fd >= 0)
+                        close(admin_fd);
                 server_pid = pid;
                 atexit(kill_server);
                 CHECK(read(p[0], &c, 1) == 1);
@@ -136,7 +154,9 @@ static pid_t serve(const char *path, unsigned max_clients, uint64_t idle_usec, u
         }
         close(p[0]);
         CHECK(sd_event_new(&ch.event) >= 0);
-        CHECK_INT(server_new(ch.event, path, methods, &ch, &ch.server), 0);
+        CHECK_INT(server_at(ch.event, path, &ch, &ch.server), 0);
+        if (admin_fd >= 0)
+                CHECK_INT(server_listen_fd(ch.server, admin_fd, SRV_ADMIN), 0);
         server_set_limits(ch.server, max_clients, idle_usec);
         CHECK_INT(server_start(ch.server), 0);
         if (free_fds)
@@ -289,8 +309,8 @@ static void test_socket(const char *dir)
         snprintf(moved, sizeof(moved), "%s.moved", path);
         CHECK(sd_event_new(&ev) >= 0);
         /* live: refused, the first keeps its socket */
-        CHECK_INT(server_new(ev, path, methods, NULL, &a), 0);
-        CHECK_INT(server_new(ev, path, methods, NULL, &b), -EADDRINUSE);
+        CHECK_INT(server_at(ev, path, NULL, &a), 0);
+        CHECK_INT(server_at(ev, path, NULL, &b), -EADDRINUSE);
         CHECK((fd = test_unix_connect(path)) >= 0);
         close(fd);
         /* on exit the path is unlinked only while it is still our socket */
@@ -299,7 +319,7 @@ static void test_socket(const char *dir)
         a = server_free(a);
         CHECK(access(path, F_OK) == 0);
         /* stale: replaced, and unlinked on exit */
-        CHECK_INT(server_new(ev, path, methods, NULL, &a), 0);
+        CHECK_INT(server_at(ev, path, NULL, &a), 0);
         CHECK((fd = test_unix_connect(path)) >= 0);
         close(fd);
         a = server_free(a);
@@ -307,12 +327,12 @@ static void test_socket(const char *dir)
         /* a lock held by someone else (a daemon starting): refused, path untouched */
         CHECK((fd = open(lock, O_RDWR | O_CLOEXEC)) >= 0);
         CHECK(flock(fd, LOCK_EX | LOCK_NB) == 0);
-        CHECK_INT(server_new(ev, path, methods, NULL, &a), -EADDRINUSE);
+        CHECK_INT(server_at(ev, path, NULL, &a), -EADDRINUSE);
         CHECK(access(path, F_OK) < 0);
         close(fd);
         /* a regular file: refused and kept */
         CHECK((f = fopen(path, "we")) && fputs("keep", f) >= 0 && fclose(f) == 0);
-        CHECK_INT(server_new(ev, path, methods, NULL, &a), -EEXIST);
+        CHECK_INT(server_at(ev, path, NULL, &a), -EEXIST);
         CHECK((f = fopen(path, "re")) && fgets(buf, sizeof(buf), f) && fclose(f) == 0);
         CHECK_STR(buf, "keep");
         sd_event_unref(ev);
@@ -320,7 +340,7 @@ static void test_socket(const char *dir)
 
 static void test_churn(const char *path)
 {
-        pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 0);
+        pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 0, -1);
         int watch = test_unix_connect(path);
 
         CHECK(watch >= 0);
@@ -339,7 +359,7 @@ static void test_churn(const char *path)
 
 static void test_noread(const char *path)
 {
-        pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 0);
+        pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 0, -1);
         int watch = test_unix_connect(path), rude = test_unix_connect(path), sent = 0;
         double end = now_s() + 30;
 
@@ -371,7 +391,7 @@ static void test_noread(const char *path)
 
 static void test_evict(const char *path)
 {
-        pid_t pid = serve(path, EVICT_MAX, EVICT_IDLE_US, 0);
+        pid_t pid = serve(path, EVICT_MAX, EVICT_IDLE_US, 0, -1);
         int a = test_unix_connect(path), b = test_unix_connect(path), c = test_unix_connect(path),
             d = test_unix_connect(path), e, f, g, h;
 
@@ -407,7 +427,7 @@ static void test_evict(const char *path)
 
 static void test_nofd(const char *path)
 {
-        pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 2);
+        pid_t pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 2, -1);
         int a = test_unix_connect(path), b = test_unix_connect(path), c;
 
         call_ok(a, "hello");
@@ -423,6 +443,58 @@ static void test_nofd(const char *path)
         wait_clients(a, 2);
         close(c);
         stop(pid, a);
+}
+
+/* A socket bound at path, listening (or not). Returns the fd. */
+static int bound_socket(const char *path, bool listening)
+{
+        struct sockaddr_un sa = {.sun_family = AF_UNIX};
+        int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+
+        snprintf(sa.sun_path, sizeof(sa.sun_path), "%s", path);
+        CHECK(fd >= 0 && bind(fd, (struct sockaddr *)&sa, sizeof(sa)) == 0);
+        CHECK(!listening || listen(fd, 16) == 0);
+        return fd;
+}
+
+static void test_roles(const char *dir, const char *path)
+{
+        char admin[300], other[300], want[400];
+        struct server *s = NULL;
+        sd_event *ev;
+        json_t *r;
+        pid_t pid;
+        int a, op;
+
+        snprintf(admin, sizeof(admin), "%s/admin.sock", dir);
+        snprintf(other, sizeof(other), "%s/other.sock", dir);
+        /* what a descriptor must be: not a datagram socket, not a socket that does not listen */
+        CHECK(sd_event_new(&ev) >= 0);
+        CHECK_INT(server_new(ev, methods, NULL, &s), 0);
+        CHECK_INT(server_listen_fd(s, socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0), SRV_ADMIN),
+                  -ENOTSOCK);
+        CHECK_INT(server_listen_fd(s, bound_socket(other, false), SRV_ADMIN), -ENOTSOCK);
+        s = server_free(s);
+        sd_event_unref(ev);
+        pid = serve(path, SRV_MAX_CLIENTS, SRV_IDLE_TIMEOUT_USEC, 0, bound_socket(admin, true));
+        op = test_unix_connect(path);
+        a = test_unix_connect(admin);
+        CHECK(op >= 0 && a >= 0);
+        r = call(op, "secret");
+        snprintf(want, sizeof(want), "method 'secret' is allowed only on the admin socket (%s)",
+                 admin);
+        CHECK_INT(json_integer_value(json_object_get(json_object_get(r, "error"), "code")), -32008);
+        CHECK_STR(json_string_value(json_object_get(json_object_get(r, "error"), "message")), want);
+        CHECK_STR(json_string_value(json_object_get(
+                          json_object_get(json_object_get(r, "error"), "data"), "errno")),
+                  "EPERM");
+        json_decref(r);
+        call_ok(a, "secret");
+        call_ok(a, "status");
+        call_ok(op, "status");
+        close(op);
+        stop(pid, a);
+        CHECK(access(admin, F_OK) == 0); /* its owner's, not the server's */
 }
 
 int main(int argc, char **argv)
@@ -443,6 +515,8 @@ int main(int argc, char **argv)
                 test_evict(path);
         else if (strcmp(argv[1], "nofd") == 0)
                 test_nofd(path);
+        else if (strcmp(argv[1], "roles") == 0)
+                test_roles(dir, path);
         else
                 CHECK(!"unknown case");
         snprintf(cmd, sizeof(cmd), "rm -rf '%s'", dir);

@@ -278,6 +278,33 @@ void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const ch
         start_daemon(e);
 }
 
+void rigenv_start_sim(struct rigenv *e, char **argv, double time_scale)
+{
+        init(e, argv, time_scale, NULL);
+        start_sim(e);
+}
+
+void rigenv_spawn_daemon(struct rigenv *e, const char *socket, void (*setup)(void *ud), void *ud)
+{
+        char log[320];
+        pid_t pid;
+
+        snprintf(log, sizeof(log), "%s/goniod.log", e->dir);
+        pid = fork();
+        CHECK(pid >= 0);
+        if (pid == 0) {
+                int fd = open(log, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+                if (fd < 0 || dup2(fd, STDERR_FILENO) < 0)
+                        _exit(127);
+                setup(ud);
+                execv(e->goniod, (char *[]){(char *)e->goniod, "--rig", e->rig, "--socket",
+                                            (char *)socket, "--data", e->data, NULL});
+                _exit(127);
+        }
+        remember_child(pid);
+        e->daemon = pid;
+}
+
 void rigenv_start_logged(struct rigenv *e, char **argv, double time_scale)
 {
         init(e, argv, time_scale, NULL);

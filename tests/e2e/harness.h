@@ -33,6 +33,14 @@ char *rig_insert(const char *rig, const char *after, const char *text);
  * for this start and every restart. */
 void rigenv_start_logged(struct rigenv *e, char **argv, double time_scale);
 
+/* Like rigenv_start without goniod: the test starts it (rigenv_spawn_daemon). */
+void rigenv_start_sim(struct rigenv *e, char **argv, double time_scale);
+
+/* Forks goniod on e's rig and data with --socket socket, its stderr appended to DIR/goniod.log,
+ * after setup(ud) ran in the child (environment, descriptors: as systemd would); sets
+ * e->daemon (stopped by rigenv_stop) and does not wait for it. */
+void rigenv_spawn_daemon(struct rigenv *e, const char *socket, void (*setup)(void *ud), void *ud);
+
 /* Kills goniod with SIGKILL (as a crash would) and starts it again on the same rig,
  * socket and data. */
 void rigenv_crash_daemon(struct rigenv *e);
