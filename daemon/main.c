@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 
 #include "common/log.h"
+#include "gonio_version.h"
 #include "manager.h"
 #include "protocol/proto.h"
 
@@ -20,7 +21,8 @@ static void usage(FILE *f)
                 "                 $XDG_RUNTIME_DIR/gonio/goniod.sock, else "
                 "/run/gonio/goniod.sock)\n"
                 "  --data DIR     directory of datasets (default $GONIO_DATA or /var/lib/gonio)\n"
-                "  --verbose      debug logging\n");
+                "  --verbose      debug logging\n"
+                "  --version      print the version and exit\n");
 }
 
 /* Picks the default socket path (protocol/proto.h) and creates its directory. */
@@ -40,9 +42,13 @@ static void default_socket(char *out, size_t len)
 int main(int argc, char **argv)
 {
         static const struct option opts[] = {
-                {"rig", required_argument, NULL, 'r'},  {"socket", required_argument, NULL, 's'},
-                {"data", required_argument, NULL, 'd'}, {"verbose", no_argument, NULL, 'v'},
-                {"help", no_argument, NULL, 'h'},       {},
+                {"rig", required_argument, NULL, 'r'},
+                {"socket", required_argument, NULL, 's'},
+                {"data", required_argument, NULL, 'd'},
+                {"verbose", no_argument, NULL, 'v'},
+                {"help", no_argument, NULL, 'h'},
+                {"version", no_argument, NULL, 'V'},
+                {},
         };
         const char *rig = NULL, *data = getenv("GONIO_DATA");
         char sock[PATH_MAX] = "";
@@ -50,7 +56,7 @@ int main(int argc, char **argv)
         int c, r;
 
         gn_log_set_ident("goniod");
-        while ((c = getopt_long(argc, argv, "r:s:d:vh", opts, NULL)) >= 0) {
+        while ((c = getopt_long(argc, argv, "r:s:d:vhV", opts, NULL)) >= 0) {
                 switch (c) {
                 case 'r':
                         rig = optarg;
@@ -66,6 +72,9 @@ int main(int argc, char **argv)
                         break;
                 case 'h':
                         usage(stdout);
+                        return 0;
+                case 'V':
+                        printf("goniod %s (protocol %d)\n", GONIO_VERSION, PROTO_VERSION);
                         return 0;
                 default:
                         usage(stderr);
