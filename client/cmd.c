@@ -782,29 +782,30 @@ static int run_command(const struct args *a, struct out *o)
         return run_method(c, a, o, conn, c->method ?: a->words[used], params);
 }
 
-/* The name of an exit code in error objects: "usage", "invalid"... */
-static const char *exit_name(int code)
-{
-        static const char *const names[] = {
-                [EXIT_USAGE] = "usage",
-                [EXIT_CONNECT] = "connect",
-                [EXIT_PROTOCOL] = "protocol",
-                [EXIT_DEVICE] = "device",
-                [EXIT_INVALID] = "invalid",
-                [EXIT_STORAGE] = "storage",
-                [EXIT_CANCELED] = "canceled",
-                [EXIT_BUSY] = "busy",
-                [EXIT_INTERRUPTED] = "interrupted",
-        };
-
-        return code > 0 && code < (int)ELEMENTSOF(names) && names[code] ? names[code] : "error";
-}
-
-/* Prints the error object of a failed command (--json) and returns code. */
+/* Prints the error object of a failed command (--json) and returns code: its "code" names
+ * the exit code; its message is the first one printed, else this table's. */
 static int failed(struct out *o, int code)
 {
+        static const struct {
+                const char *name, *text;
+        } exits[] = {
+                [EXIT_USAGE] = {"usage", "usage error"},
+                [EXIT_CONNECT] = {"connect", "cannot connect to goniod"},
+                [EXIT_PROTOCOL] = {"protocol", "protocol error"},
+                [EXIT_DEVICE] = {"device", "device fault"},
+                [EXIT_INVALID] = {"invalid", "invalid request or input"},
+                [EXIT_STORAGE] = {"storage", "storage error"},
+                [EXIT_CANCELED] = {"canceled", "canceled"},
+                [EXIT_BUSY] = {"busy", "busy or wrong state"},
+                [EXIT_INTERRUPTED] = {"interrupted", "interrupted"},
+        };
+        bool known = code > 0 && code < (int)ELEMENTSOF(exits) && exits[code].name;
+
         if (code != EXIT_OK)
-                out_error_object(o, exit_name(code), code, args_last_error());
+                out_error_object(o, known ? exits[code].name : "error", code,
+                                 args_last_error()
+                                         ?: known ? exits[code].text
+                                                  : "failed");
         out_done(o);
         return code;
 }
