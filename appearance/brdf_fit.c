@@ -67,7 +67,8 @@ static void sensor_and_material(struct brdf_ctx *c, struct ap_brdf_model *m)
 }
 
 /* A mesh too fine for o->texels (a cell of AP_ATLAS_MIN_CELL texels a side holds two
- * triangles) simplified to fit them, noted in m. */
+ * triangles: its atlas would hold more than 4 times the texels asked) simplified to fit
+ * them, noted in m. */
 static int fit_mesh_to_texels(const struct brdf_ctx *c, struct ap_mesh *mesh,
                               struct ap_brdf_model *m)
 {
@@ -75,7 +76,7 @@ static int fit_mesh_to_texels(const struct brdf_ctx *c, struct ap_mesh *mesh,
                nt = mesh->nt;
         int r;
 
-        if (nt <= target + target / 2)
+        if (nt <= 4 * target) /* the atlas at most 4x the texels asked: left as it is */
                 return 0;
         if ((r = ap_mesh_simplify(mesh, target)) < 0)
                 return r;

@@ -17,6 +17,10 @@
 #define AP_BRDF_MIN_SAMPLES    48   /* usable samples a texel needs, else masked */
 #define AP_BRDF_NEAR_TAN       0.35 /* a sample is near a highlight: tan(h, n) below this */
 #define AP_BRDF_MIN_NEAR       3    /* samples near a highlight for the lobe, else diffuse only */
+#define AP_BRDF_MAX_SAMPLES                                                                        \
+        768 /* a texel's samples fitted at most: all near a highlight                              \
+             * (up to half, more if the rest are fewer), a stride of                               \
+             * the rest */
 
 struct ap_brdf_fit_opts {
         const char *name;        /* the model's name (models/<name>), default "default" */

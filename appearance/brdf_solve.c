@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "appearance/brdf_internal.h"
+#include "common/cleanup.h"
 #include "common/sortx.h"
 
 #define NP           5 /* log ax, log ay, tangent angle, normal tilt (2) */
@@ -208,19 +209,48 @@ static void finish(struct problem *q, const double *p, struct ap_brdf_texel *x)
                 x->ax = x->ay = 1;
 }
 
+/* Whether sample s is near a highlight of normal n: tan(h, n) below AP_BRDF_NEAR_TAN. */
+static bool is_near(const struct brdf_sample *s, const float n[3])
+{
+        const float *l = s->l, *v = s->v;
+        float h[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]}, c, hl;
+
+        hl = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+        c = hl > 0 ? (h[0] * n[0] + h[1] * n[1] + h[2] * n[2]) / hl : 0;
+        return c > 0 && sqrtf(fmaxf(1 - c * c, 0)) < AP_BRDF_NEAR_TAN * c;
+}
+
 /* Samples near a highlight of the base normal. */
 static size_t near_highlight(const struct problem *q)
 {
         size_t k = 0;
 
-        for (size_t i = 0; i < q->n; i++) {
-                const float *l = q->s[i].l, *v = q->s[i].v;
-                float h[3] = {l[0] + v[0], l[1] + v[1], l[2] + v[2]}, c, hl;
-                hl = sqrtf(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
-                c = hl > 0 ? (h[0] * q->n0[0] + h[1] * q->n0[1] + h[2] * q->n0[2]) / hl : 0;
-                k += c > 0 && sqrtf(fmaxf(1 - c * c, 0)) < AP_BRDF_NEAR_TAN * c;
-        }
+        for (size_t i = 0; i < q->n; i++)
+                k += is_near(&q->s[i], q->n0);
         return k;
+}
+
+/* At most AP_BRDF_MAX_SAMPLES of the n samples s into out: every one near a highlight of
+ * normal n0 (the lobe's), an even stride of the others (the diffuse part); each group
+ * strided down if it alone is over the cap. Returns how many. */
+static size_t thin_samples(const struct brdf_sample *s, size_t n, const float n0[3],
+                           struct brdf_sample *out)
+{
+        size_t near = 0, m = 0, cap = AP_BRDF_MAX_SAMPLES, keep_near, keep_far, seen[2] = {0};
+
+        for (size_t i = 0; i < n; i++)
+                near += is_near(&s[i], n0);
+        keep_near = MIN(near, cap / 2 + (n - near < cap / 2 ? cap / 2 - (n - near) : 0));
+        keep_far = cap - keep_near;
+        for (size_t i = 0; i < n; i++) {
+                bool k = is_near(&s[i], n0);
+                size_t have = k ? near : n - near, want = k ? keep_near : keep_far;
+                /* the j-th of its group is kept when it crosses a multiple of have / want */
+                if (want && (seen[k] * want) / have != ((seen[k] + 1) * want) / have)
+                        out[m++] = s[i];
+                seen[k]++;
+        }
+        return m;
 }
 
 /* The fit proper: Levenberg-Marquardt from each start, the best reweighted and minimised
@@ -259,9 +289,19 @@ static double fit(struct problem *q, double *p, float *w, double *tmp)
 
 void brdf_solve_texel(const struct brdf_sample *s, size_t n, struct ap_brdf_texel *x)
 {
-        struct problem q = {.s = s, .n = n, .f0 = x->f0};
-        double p[NP] = {0}, *tmp = malloc(3 * (n + 1) * sizeof(double));
-        float *w = malloc((n + 1) * sizeof(float));
+        _cleanup_free_ struct brdf_sample *few =
+                n > AP_BRDF_MAX_SAMPLES ? malloc(AP_BRDF_MAX_SAMPLES * sizeof(*few)) : NULL;
+        struct problem q;
+        double p[NP] = {0}, *tmp;
+        float *w;
+
+        if (few) {
+                n = thin_samples(s, n, x->normal, few);
+                s = few;
+        }
+        q = (struct problem){.s = s, .n = n, .f0 = x->f0};
+        tmp = malloc(3 * (n + 1) * sizeof(double));
+        w = malloc((n + 1) * sizeof(float));
 
         memcpy(q.n0, x->normal, sizeof(q.n0));
         memcpy(q.t0, x->tangent, sizeof(q.t0));

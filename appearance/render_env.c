@@ -329,8 +329,8 @@ static void shade_object_light(const struct ap_env_renderer *r, int32_t t, const
                 out[q] *= e * vis;
 }
 
-static bool shade_ground_light(const struct ap_env_renderer *r, const float C[3],
-                               const float d[3], float out[3])
+static bool shade_ground_light(const struct ap_env_renderer *r, const float C[3], const float d[3],
+                               float out[3])
 {
         const float up[3] = {0, 0, 1};
         float R = r->sc.ground_radius, s, p[3], l[3], e;
@@ -350,8 +350,8 @@ static bool shade_ground_light(const struct ap_env_renderer *r, const float C[3]
 
 /* Pixel out at ray C + s d: the object at p (triangle t >= 0), else the ground, else the
  * background; its mask class. */
-static uint8_t shade(const struct ap_env_renderer *r, int32_t t, const float p[3],
-                     const float C[3], const float d[3], float out[3])
+static uint8_t shade(const struct ap_env_renderer *r, int32_t t, const float p[3], const float C[3],
+                     const float d[3], float out[3])
 {
         bool light = r->sc.light != NULL;
 

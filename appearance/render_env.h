@@ -32,9 +32,9 @@
  * I (directional), shadowed by the sphere set and the ground as a lobe of sharpness
  * AP_ENV_LIGHT_ETA; the background black. */
 struct ap_env_light {
-        bool point;        /* else directional */
-        float v[3];        /* position (mm, object frame), or the direction towards the light */
-        float intensity;   /* I */
+        bool point;      /* else directional */
+        float v[3];      /* position (mm, object frame), or the direction towards the light */
+        float intensity; /* I */
 };
 
 #define AP_ENV_LIGHT_ETA 4000.f /* a light of about a degree: shadows nearly hard */
@@ -45,8 +45,8 @@ struct ap_env_scene {
         const struct ap_prefilter *pf;
         const struct ap_spheres *sp; /* NULL: no shadows */
         float ground_albedo[3];
-        float ground_radius; /* mm; 0: no ground */
-        float scale;         /* pixel value per unit of radiance */
+        float ground_radius;              /* mm; 0: no ground */
+        float scale;                      /* pixel value per unit of radiance */
         const struct ap_env_light *light; /* not NULL: this light, env and pf unused */
 };
 

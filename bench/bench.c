@@ -190,3 +190,58 @@ const char *bench_session(struct rigenv *e, const char *name, bool big_moves, ch
         snprintf(file, sizeof(file), "%s.yaml", name);
         return sess_write(e, file, text, path, len);
 }
+
+static void count_stored(json_t *msg, void *ud)
+{
+        const char *m = json_string_value(json_object_get(msg, "method"));
+
+        if (m && strcmp(m, "capture.stored") == 0)
+                (*(long *)ud)++;
+}
+
+static void *watch_loop(void *ud)
+{
+        struct bench_watchers *w = ud;
+        struct pollfd *p = calloc(w->n, sizeof(*p));
+
+        CHECK(p);
+        for (int i = 0; i < w->n; i++)
+                p[i] = (struct pollfd){.fd = w->lines[i].fd, .events = POLLIN};
+        while (!atomic_load(&w->quit)) {
+                if (poll(p, w->n, 50) <= 0)
+                        continue;
+                for (int i = 0; i < w->n; i++)
+                        if (p[i].revents &&
+                            bench_lines_read(&w->lines[i], false, count_stored, &w->stored[i]) == 0)
+                                p[i].fd = -1; /* goniod closed it: its count falls short */
+        }
+        free(p);
+        return NULL;
+}
+
+void bench_watchers_start(struct bench_watchers *w, struct rigenv *e, int n)
+{
+        *w = (struct bench_watchers){.n = n};
+        w->lines = calloc(n, sizeof(*w->lines));
+        w->stored = calloc(n, sizeof(*w->stored));
+        CHECK(w->lines && w->stored);
+        for (int i = 0; i < n; i++)
+                w->lines[i].fd = bench_client(e, "bench-watcher");
+        CHECK(pthread_create(&w->thread, NULL, watch_loop, w) == 0);
+}
+
+long bench_watchers_stop(struct bench_watchers *w)
+{
+        long least = -1;
+
+        atomic_store(&w->quit, true);
+        CHECK(pthread_join(w->thread, NULL) == 0);
+        for (int i = 0; i < w->n; i++) {
+                close(w->lines[i].fd);
+                if (least < 0 || w->stored[i] < least)
+                        least = w->stored[i];
+        }
+        free(w->lines);
+        free(w->stored);
+        return least;
+}

@@ -4,6 +4,8 @@
 #pragma once
 
 #include <jansson.h>
+#include <pthread.h>
+#include <stdatomic.h>
 #include <stdbool.h>
 #include <stddef.h>
 
@@ -64,3 +66,18 @@ double bench_sim_angle(struct rigenv *e, int *fd, int role);
  * captures). Returns its path in path. */
 const char *bench_session(struct rigenv *e, const char *name, bool big_moves, char *path,
                           size_t len);
+
+/* Clients that said hello and read every notification, one thread reading them all. */
+struct bench_watchers {
+        int n;
+        struct bench_lines *lines;
+        long *stored; /* capture.stored each has read */
+        atomic_bool quit;
+        pthread_t thread;
+};
+
+/* Connects n watchers (hello'd) and starts their reader thread. */
+void bench_watchers_start(struct bench_watchers *w, struct rigenv *e, int n);
+
+/* Stops the reader and closes the watchers; returns the fewest capture.stored one read. */
+long bench_watchers_stop(struct bench_watchers *w);

@@ -1,130 +1,269 @@
-/* soak.c - the kill -9 soak of sessions (issue 8): N seeded runs, each a fresh goniod and
- * gonio-sim (--time-scale 10, the e2e rig) running a session of 288 captures
- * (bench_session: some seconds, so that most kills land in it), killed with SIGKILL 1 to 3
- * times at random moments (session_run_killing: 0.1-1.3 s apart): goniod, gonio-sim or
- * both, each time resumed with session.resume until the session ends; then the dataset
- * must hold every planned capture exactly once, rows matching what gonio-sim rendered, and
- * ds_check must find nothing wrong (check_complete, as tests/e2e/test-session.c's kill
- * cases, with 2 kills of one kind). Each run is a child process in its own process group: a
- * failed check fails the run, not the soak, and a run stuck for RUN_TIMEOUT_S is killed
- * with its goniod and gonio-sim. A failed run keeps its directory (goniod's log in it).
- * Options: --runs N (30), --seed S (1: run i uses seed S + i).
- * Last line: {"bench":"soak","runs":N,"failures":F,"kills":K,"kills_daemon":..,
- * "kills_sim":..,"kills_both":..,"seconds":..}. */
+/* soak.c - the reliability soak of issue 13: one session of 10,080 captures on the e2e rig
+ * (gonio-sim at --time-scale 20: 360 turntable x 7 light-arm positions x 2 lamps x 2
+ * cameras) watched by 100 clients, with faults injected at random moments 1 to 3 s apart:
+ * a drive that stops answering, relay replies with bad CRCs, a camera frame dropped; once
+ * goniod killed with SIGKILL (after a tenth of the captures) and once the data disk full
+ * (after half: the tmpfs under the data root shrunk to what it holds). After each, the bench
+ * does what an operator would: clears the injected fault, `fault clear`, `session resume`.
+ * At the end every planned capture must be there exactly once, rows matching what gonio-sim
+ * rendered (sess_check_complete: dataset check clean), and goniod's resident set is reported
+ * after the first thousand captures of its last start and at the end. Needs root for the
+ * tmpfs (else no disk-full fault, said). Options: --seed S (1), --captures-scale F (1: the
+ * full session; 0.1 for a short run: fewer turntable positions). Last line:
+ * {"bench":"soak","captures":..,"faults":..,"kills":..,"lost":0,"duplicated":0,
+ * "rss_start_mb":..,"rss_end_mb":..}. */
 #include <getopt.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include "bench.h"
+#include "dataset/ds.h"
 #include "tests/test.h"
 
-#define TIME_SCALE    10
-#define RUN_TIMEOUT_S 300
-#define MAX_KILLS     3
+#define TIME_SCALE 20
+#define WATCHERS   100
+#define ARM_STEPS  7
 
-static const char *const victims[] = {"d", "s", "ds"}; /* goniod, gonio-sim, both */
-
-/* One run's kills, drawn from its seed. */
-struct plan {
-        unsigned seed;
-        int kills;
-        int who[MAX_KILLS]; /* index into victims */
+struct soak {
+        struct rigenv e;
+        struct bench_watchers w;
+        char file[400];
+        int64_t planned;
+        int faults, kills, rig_faults;
+        bool killed, filled, tmpfs;
+        double rss_start, rss_end;
 };
 
-static struct plan draw(unsigned seed)
+/* goniod's resident set in MB (/proc). */
+static double goniod_rss_mb(struct soak *s)
 {
-        struct plan p = {.seed = seed};
+        char path[64], line[256];
+        double kb = 0;
+        FILE *f;
 
-        srand(seed);
-        p.kills = 1 + rand() % MAX_KILLS;
-        for (int k = 0; k < p.kills; k++)
-                p.who[k] = rand() % 3;
-        return p;
+        snprintf(path, sizeof(path), "/proc/%d/status", (int)s->e.daemon);
+        if (!(f = fopen(path, "re")))
+                return 0;
+        while (fgets(line, sizeof(line), f))
+                if (sscanf(line, "VmRSS: %lf kB", &kb) == 1)
+                        break;
+        fclose(f);
+        return kb / 1024;
 }
 
-/* The child: runs the session with p's kills and checks it. Exits 0 when complete. */
-static void run_child(const struct plan *p)
+/* The session's captures so far and its state into state. */
+static int64_t progress(struct soak *s, char *state, size_t len)
 {
-        const char *who[MAX_KILLS];
-        struct rigenv e;
-        char file[400];
+        json_t *st = ctl_ok(&s->e, "session", "status", NULL);
+        int64_t n = json_integer_value(json_object_get(st, "captured"));
+
+        snprintf(state, len, "%s", json_string_value(json_object_get(st, "state")) ?: "none");
+        json_decref(st);
+        return n;
+}
+
+/* Fault kind (0: drive `unit` stops answering, 1: relay CRCs, 2: camera `unit` drops a frame)
+ * on or cleared. */
+static void inject(struct soak *s, int kind, int unit, bool on)
+{
+        char req[200];
+
+        if (kind == 0)
+                snprintf(req, sizeof(req),
+                         "{\"cmd\":\"inject\",\"bus\":\"drives\",\"unit\":%d,\"fault\":\"%s\"}\n",
+                         1 + unit, on ? "timeout" : "none");
+        else if (kind == 1)
+                snprintf(req, sizeof(req),
+                         "{\"cmd\":\"inject\",\"bus\":\"relays\",\"unit\":10,\"fault\":\"%s\"}\n",
+                         on ? "crc" : "none");
+        else
+                snprintf(req, sizeof(req),
+                         "{\"cmd\":\"inject\",\"camera\":\"cam%d\",\"fault\":\"%s\",\"count\":1}\n",
+                         unit, on ? "drop" : "none");
+        sim_request(&s->e, req);
+}
+
+/* session.resume over a connection of its own, answered at once (gonioctl session resume
+ * follows the session to its end); whether it was taken. */
+static bool resume(struct soak *s)
+{
+        int fd = raw_connect(&s->e);
+        json_t *r = raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"session.resume\"}\n");
+        bool ok = json_object_get(r, "result") != NULL;
+
+        json_decref(r);
+        close(fd);
+        return ok;
+}
+
+/* What an operator does after a fault: the cause gone, fault clear, session resume. */
+static void recover(struct soak *s)
+{
+        char state[32];
+
+        for (double end = now_s() + 30; now_s() < end; usleep(100000)) {
+                json_t *st = ctl_ok(&s->e, "status", NULL);
+                bool fault =
+                        !strcmp(json_string_value(json_object_get(st, "state")) ?: "", "fault");
+                json_decref(st);
+                if (fault && ctl(&s->e, NULL, "fault", "clear", NULL) != 0)
+                        continue;
+                s->rig_faults += fault;
+                progress(s, state, sizeof(state));
+                if (!strcmp(state, "paused") && !resume(s))
+                        continue;
+                if (strcmp(state, "paused"))
+                        return;
+        }
+        CHECK(!"the session did not resume within 30 s");
+}
+
+/* A random device fault, on for 1 to 2 s (a camera drop is one frame). */
+static void device_fault(struct soak *s)
+{
+        int kind = rand() % 3, unit = rand() % 2;
+
+        inject(s, kind, unit, true);
+        usleep(1000000 + rand() % 1000000);
+        inject(s, kind, unit, false);
+        s->faults++;
+        recover(s);
+}
+
+static void kill_goniod(struct soak *s)
+{
+        bench_watchers_stop(&s->w);
+        rigenv_crash_daemon(&s->e);
+        bench_watchers_start(&s->w, &s->e, WATCHERS);
+        s->kills++;
+        s->killed = true;
+        s->rss_start = 0;
+        CHECK(resume(s));
+}
+
+/* Whether goniod faults on the dataset (the store that found the disk full) within timeout
+ * seconds. */
+static bool dataset_fault(struct soak *s, double timeout)
+{
+        for (double end = now_s() + timeout; now_s() < end; usleep(100000)) {
+                json_t *st = ctl_ok(&s->e, "status", NULL);
+                const char *dev =
+                        json_string_value(json_object_get(json_object_get(st, "fault"), "device"));
+                bool f = dev && !strcmp(dev, "dataset");
+                json_decref(st);
+                if (f)
+                        return true;
+        }
+        return false;
+}
+
+/* The data tmpfs shrunk to what it holds: the next store fails (ENOSPC) and goniod faults;
+ * then room again. */
+static void fill_disk(struct soak *s)
+{
+        char cmd[600];
+
+        s->filled = true;
+        if (!s->tmpfs)
+                return;
+        snprintf(cmd, sizeof(cmd),
+                 "mount -o remount,size=$(df --output=used -k %s | tail -1 | tr -d ' ')k %s",
+                 s->e.data, s->e.data);
+        CHECK(system(cmd) == 0);
+        CHECK(dataset_fault(s, 20));
+        snprintf(cmd, sizeof(cmd), "mount -o remount,size=4g %s", s->e.data);
+        CHECK(system(cmd) == 0);
+        s->faults++;
+        recover(s);
+}
+
+static void setup(struct soak *s, double scale)
+{
+        char text[1024], cmd[600];
+        int steps = (int)(360 * scale) < 2 ? 2 : (int)(360 * scale);
+
+        bench_start(&s->e, TIME_SCALE, true);
+        snprintf(cmd, sizeof(cmd), "mkdir -p %s && mount -t tmpfs -o size=4g tmpfs %s 2>/dev/null",
+                 s->e.data, s->e.data);
+        s->tmpfs = system(cmd) == 0;
+        if (!s->tmpfs)
+                printf("no tmpfs (not root?): no disk-full fault\n");
+        snprintf(text, sizeof(text),
+                 "name: soak\ndataset: soak\nsweep:\n"
+                 "  turntable: { from: 0, to: %g, step: %g }\n"
+                 "  light_arm: { from: 0, to: 300, step: 50 }\n"
+                 "cameras: [cam0, cam1]\nlamps: [lamp0, lamp1]\nlaser: false\n"
+                 "skip_occluded: false\nskip_glare: false\n",
+                 360.0 - 360.0 / steps, 360.0 / steps);
+        sess_write(&s->e, "soak.yaml", text, s->file, sizeof(s->file));
+        s->planned = sess_planned(&s->e, s->file, NULL);
+        bench_watchers_start(&s->w, &s->e, WATCHERS);
+        close(sess_start_raw(&s->e, s->file));
+}
+
+/* Runs the session to its end, faults at random moments. */
+static void soak_run(struct soak *s)
+{
+        char state[32];
         int64_t n;
 
-        for (int k = 0; k < p->kills; k++)
-                who[k] = victims[p->who[k]];
-        bench_start(&e, TIME_SCALE, true);
-        printf("  seed %u: %s\n", p->seed, e.dir);
-        fflush(stdout);
-        srand(p->seed * 7919u + 1); /* the moments of the kills */
-        bench_session(&e, "soak", false, file, sizeof(file));
-        n = sess_planned(&e, file, NULL);
-        sess_run_killing(&e, file, who, p->kills);
-        sess_check_complete(&e, "soak", "soak", n);
-        rigenv_stop(&e);
-        exit(0);
-}
-
-/* Runs p in a child; returns whether it passed. */
-static bool run(const struct plan *p)
-{
-        pid_t pid;
-        int status = 0;
-
-        fflush(stdout);
-        pid = fork();
-        CHECK(pid >= 0);
-        if (pid == 0) {
-                setpgid(0, 0);
-                run_child(p);
+        for (;;) {
+                double next = now_s() + 1 + rand() % 3;
+                while (now_s() < next)
+                        usleep(200000);
+                n = progress(s, state, sizeof(state));
+                if (!strcmp(state, "none"))
+                        break;
+                if (!s->rss_start && n >= (s->killed ? s->planned / 10 + 1000 : 1000))
+                        s->rss_start = goniod_rss_mb(s);
+                printf("  %lld of %lld captures, %s\n", (long long)n, (long long)s->planned, state);
+                fflush(stdout);
+                if (!s->killed && n >= s->planned / 10)
+                        kill_goniod(s);
+                else if (!s->filled && n >= s->planned / 2)
+                        fill_disk(s);
+                else
+                        device_fault(s);
         }
-        for (int t = 0; t < RUN_TIMEOUT_S * 10; t++) {
-                if (waitpid(pid, &status, WNOHANG) == pid)
-                        return WIFEXITED(status) && WEXITSTATUS(status) == 0;
-                usleep(100000);
-        }
-        printf("  seed %u: no end within %d s, killed\n", p->seed, RUN_TIMEOUT_S);
-        kill(-pid, SIGKILL); /* the run with its goniod, gonio-sim and gonioctl */
-        waitpid(pid, &status, 0);
-        return false;
+        s->rss_end = goniod_rss_mb(s);
 }
 
 int main(int argc, char **argv)
 {
-        static const struct option opts[] = {
-                {"runs", required_argument, NULL, 'r'}, {"seed", required_argument, NULL, 's'}, {}};
-        int runs = 30, seed = 1, c, failures = 0, kills[3] = {0};
-        double t0 = bench_now_ms();
+        static const struct option opts[] = {{"seed", required_argument, NULL, 's'},
+                                             {"captures-scale", required_argument, NULL, 'c'},
+                                             {}};
+        struct soak s = {0};
+        double scale = 1, t0 = bench_now_ms();
+        int c;
 
-        while ((c = getopt_long(argc, argv, "r:s:", opts, NULL)) >= 0) {
-                CHECK(c == 'r' || c == 's');
-                *(c == 'r' ? &runs : &seed) = atoi(optarg);
+        srand(1);
+        while ((c = getopt_long(argc, argv, "", opts, NULL)) >= 0) {
+                CHECK(c == 's' || c == 'c');
+                if (c == 's')
+                        srand((unsigned)atoi(optarg));
+                else
+                        scale = atof(optarg);
         }
-        CHECK(runs > 0);
-        for (int i = 0; i < runs; i++) {
-                struct plan p = draw((unsigned)(seed + i));
-                bool ok;
-
-                printf("run %d (seed %u): kill", i + 1, p.seed);
-                for (int k = 0; k < p.kills; k++) {
-                        printf(" %s", (const char *[]){"goniod", "gonio-sim", "both"}[p.who[k]]);
-                        kills[p.who[k]]++;
-                }
-                printf("\n");
-                ok = run(&p);
-                failures += !ok;
-                printf("run %d (seed %u): %s\n", i + 1, p.seed,
-                       ok ? "complete, exactly once" : "FAILED");
+        CHECK(scale > 0 && scale <= 1);
+        setup(&s, scale);
+        soak_run(&s);
+        bench_watchers_stop(&s.w);
+        sess_check_complete(&s.e, "soak", "soak", s.planned); /* exactly once, rows match */
+        printf("%lld captures, %d faults injected (%d rig faults), %d kill -9 of goniod, disk "
+               "full %s; goniod RSS %.1f MB after 1000 captures, %.1f MB at the end; %.0f s\n",
+               (long long)s.planned, s.faults, s.rig_faults, s.kills, s.tmpfs ? "once" : "skipped",
+               s.rss_start, s.rss_end, (bench_now_ms() - t0) / 1e3);
+        if (s.tmpfs) {
+                char cmd[600];
+                snprintf(cmd, sizeof(cmd), "umount %s", s.e.data);
+                (void)!system(cmd);
         }
-        printf("%d runs, %d failed, %d kills (goniod %d, gonio-sim %d, both %d), %.0f s\n", runs,
-               failures, kills[0] + kills[1] + kills[2], kills[0], kills[1], kills[2],
-               (bench_now_ms() - t0) / 1e3);
-        printf("{\"bench\":\"soak\",\"runs\":%d,\"failures\":%d,\"kills\":%d,\"kills_daemon\":%d,"
-               "\"kills_sim\":%d,\"kills_both\":%d,\"seconds\":%.0f}\n",
-               runs, failures, kills[0] + kills[1] + kills[2], kills[0], kills[1], kills[2],
-               (bench_now_ms() - t0) / 1e3);
+        rigenv_stop(&s.e);
+        printf("{\"bench\":\"soak\",\"captures\":%lld,\"faults\":%d,\"kills\":%d,\"lost\":0,"
+               "\"duplicated\":0,\"rss_start_mb\":%.1f,\"rss_end_mb\":%.1f}\n",
+               (long long)s.planned, s.faults, s.kills, s.rss_start, s.rss_end);
         return 0;
 }

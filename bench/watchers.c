@@ -33,15 +33,6 @@
 #define TIME_SCALE  20
 #define FLOOD_BURST 10 /* describe requests the never-reading client sends a millisecond */
 
-/* The watching clients: one thread reads them all. */
-struct watchers {
-        int n;
-        struct bench_lines *lines;
-        long *stored; /* capture.stored each has read */
-        atomic_bool quit;
-        pthread_t thread;
-};
-
 /* The client that never reads. */
 struct sink {
         int fd;
@@ -59,34 +50,6 @@ struct run {
         char how[16]; /* "ended" of the last session.state */
 };
 
-static void count_stored(json_t *msg, void *ud)
-{
-        const char *m = json_string_value(json_object_get(msg, "method"));
-
-        if (m && strcmp(m, "capture.stored") == 0)
-                (*(long *)ud)++;
-}
-
-static void *watch_loop(void *ud)
-{
-        struct watchers *w = ud;
-        struct pollfd *p = calloc(w->n, sizeof(*p));
-
-        CHECK(p);
-        for (int i = 0; i < w->n; i++)
-                p[i] = (struct pollfd){.fd = w->lines[i].fd, .events = POLLIN};
-        while (!atomic_load(&w->quit)) {
-                if (poll(p, w->n, 50) <= 0)
-                        continue;
-                for (int i = 0; i < w->n; i++)
-                        if (p[i].revents &&
-                            bench_lines_read(&w->lines[i], false, count_stored, &w->stored[i]) == 0)
-                                p[i].fd = -1; /* goniod closed it: its count falls short */
-        }
-        free(p);
-        return NULL;
-}
-
 static void *flood_loop(void *ud)
 {
         static const char req[] = "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"describe\"}\n";
@@ -102,35 +65,6 @@ static void *flood_loop(void *ud)
                 usleep(1000);
         }
         return NULL;
-}
-
-/* Connects n watchers (hello'd) and starts their reader thread. */
-static void watchers_start(struct watchers *w, struct rigenv *e, int n)
-{
-        *w = (struct watchers){.n = n};
-        w->lines = calloc(n, sizeof(*w->lines));
-        w->stored = calloc(n, sizeof(*w->stored));
-        CHECK(w->lines && w->stored);
-        for (int i = 0; i < n; i++)
-                w->lines[i].fd = bench_client(e, "bench-watcher");
-        CHECK(pthread_create(&w->thread, NULL, watch_loop, w) == 0);
-}
-
-/* Stops the reader and closes the watchers; returns the fewest capture.stored one read. */
-static long watchers_stop(struct watchers *w)
-{
-        long least = -1;
-
-        atomic_store(&w->quit, true);
-        CHECK(pthread_join(w->thread, NULL) == 0);
-        for (int i = 0; i < w->n; i++) {
-                close(w->lines[i].fd);
-                if (least < 0 || w->stored[i] < least)
-                        least = w->stored[i];
-        }
-        free(w->lines);
-        free(w->stored);
-        return least;
 }
 
 static void on_control(json_t *msg, void *ud)
@@ -195,13 +129,13 @@ static bool log_says_dropped(struct rigenv *e)
 static double run_watched(struct rigenv *e, const char *name, int n, struct sink *s, bool slow,
                           double *cpu_ms)
 {
-        struct watchers w;
+        struct bench_watchers w;
         double rate;
         int64_t planned;
         long least;
 
         *s = (struct sink){.fd = slow ? bench_client(e, "bench-never-reads") : -1};
-        watchers_start(&w, e, n);
+        bench_watchers_start(&w, e, n);
         if (slow)
                 CHECK(pthread_create(&s->thread, NULL, flood_loop, s) == 0);
         rate = run_session(e, name, &planned, cpu_ms);
@@ -210,7 +144,7 @@ static double run_watched(struct rigenv *e, const char *name, int n, struct sink
                 CHECK(pthread_join(s->thread, NULL) == 0);
                 close(s->fd);
         }
-        least = watchers_stop(&w);
+        least = bench_watchers_stop(&w);
         printf("%s: %d watchers, each read at least %ld capture.stored of %lld", name, n, least,
                (long long)planned);
         if (slow)

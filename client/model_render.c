@@ -390,7 +390,8 @@ static int render_sh(const struct render_opts *o)
 }
 
 /* The BRDF model of the folder when o asks for it (or, unless o says sh, under --envmap
- * when there is one): 1 with it in *ret, 0 for the SH model, or an exit code. */
+ * when there is one; --light and --dir take the SH model unless asked): 1 with it in *ret,
+ * 0 for the SH model, or an exit code. */
 static int want_brdf(const struct render_opts *o, struct ap_brdf_model **ret)
 {
         char err[1024] = "";
@@ -408,12 +409,6 @@ static int want_brdf(const struct render_opts *o, struct ap_brdf_model **ret)
                         : err[0]     ? err
                                      : strerror(-r));
                 return cmd_exit_for_errno(r == -ENOENT ? -EINVAL : r);
-        }
-        if (o->kind != AP_LIGHT_ENV) {
-                fprintf(stderr, "gonioctl: model render: the BRDF model renders under --envmap; "
-                                "--light and --dir take the SH model (--reflectance sh)\n");
-                *ret = ap_brdf_model_free(*ret);
-                return EXIT_USAGE;
         }
         return 1;
 }

@@ -42,6 +42,7 @@ int render_load_envmap(const struct render_opts *o, struct ap_envmap *e);
  * .pfm, else an 8-bit RGB PNG clamped to [0, 1]. Returns 0 or -errno. */
 int render_write_image(const char *path, const float *rgb, int w, int h, double gain);
 
-/* Renders BRDF model m under o's environment map (appearance/render_env.h) into o->out.
+/* Renders BRDF model m under o's environment map or light (appearance/render_env.h) into
+ * o->out.
  * Returns an enum gonioctl_exit value, the cause printed to stderr. */
 int model_render_brdf(const struct render_opts *o, const struct ap_brdf_model *m);

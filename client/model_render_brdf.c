@@ -2,8 +2,9 @@
  * environment map, as appearance/render_env.h relights it: the map prefiltered per
  * representative normal with the model's NDF, soft shadows from a sphere set fitted to its
  * mesh, on the object and on a ground disc at z = 0 (docs/appearance.md, "Environment
- * relighting"). The camera looks at the mesh's centre from --view at --distance (default four
- * bounding radii) with --focal (default: the bounding sphere fills 80% of the shorter side). */
+ * relighting"); or under a point or directional light, the same shadows. The camera looks at the
+ * mesh's centre from --view at --distance (default four bounding radii) with --focal (default: the
+ * bounding sphere fills 80% of the shorter side). */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -27,6 +28,7 @@ struct brdf_scene {
         struct ap_envmap env;
         struct ap_prefilter pf;
         struct ap_spheres sp;
+        struct ap_env_light light;
         struct ap_env_scene sc;
         double centre[3], radius, zmin;
 };
@@ -63,10 +65,10 @@ static int scene_build(const struct render_opts *o, const struct ap_brdf_model *
         int r;
 
         mesh_bounds(&m->atlas.mesh, s->centre, &s->radius, &s->zmin);
-        if ((r = render_load_envmap(o, &s->env)) != 0)
+        if (o->kind == AP_LIGHT_ENV && (r = render_load_envmap(o, &s->env)) != 0)
                 return r;
         ap_brdf_prefilter_params(m, &pp);
-        if ((r = ap_prefilter_build(&s->env, &pp, &s->pf)) < 0 ||
+        if ((o->kind == AP_LIGHT_ENV && (r = ap_prefilter_build(&s->env, &pp, &s->pf)) < 0) ||
             (o->spheres > 0 &&
              (r = ap_spheres_fit(&m->atlas.mesh, o->spheres, SPHERE_GRID, &s->sp)) < 0)) {
                 fprintf(stderr, "gonioctl: model render: %s: %s\n", o->model,
@@ -74,16 +76,22 @@ static int scene_build(const struct render_opts *o, const struct ap_brdf_model *
                                      : strerror(-r));
                 return r == -ENOMEM ? EXIT_STORAGE : EXIT_INVALID;
         }
+        s->light =
+                (struct ap_env_light){o->kind == AP_LIGHT_POINT,
+                                      {(float)o->light[0], (float)o->light[1], (float)o->light[2]},
+                                      (float)(o->intensity > 0 ? o->intensity : 1)};
         s->sc = (struct ap_env_scene){
                 .m = m,
                 .env = &s->env,
                 .pf = &s->pf,
+                .light = o->kind == AP_LIGHT_ENV ? NULL : &s->light,
                 .sp = o->spheres > 0 ? &s->sp : NULL,
                 .ground_albedo = {GROUND_ALBEDO, GROUND_ALBEDO, GROUND_ALBEDO},
                 .ground_radius = (float)(o->ground >= 0                  ? o->ground
                                          : fabs(s->zmin) <= GROUND_TOUCH ? GROUND_RADII * s->radius
                                                                          : 0),
-                .scale = (float)(m->response * (o->intensity > 0 ? o->intensity : 1)),
+                .scale = (float)(m->response *
+                                 (o->kind == AP_LIGHT_ENV && o->intensity > 0 ? o->intensity : 1)),
         };
         return 0;
 }
@@ -117,10 +125,16 @@ static int render(const struct render_opts *o, const struct brdf_scene *s,
         }
         for (size_t i = 0; i < n; i++)
                 count[mask[i]]++;
-        printf("rendered %s: %dx%d, %zu pixels of the object, %zu of the ground, view %g,%g; "
-               "BRDF model under %s: %d normal pairs prefiltered at ax %.3f ay %.3f, %d spheres\n",
-               o->out, cam->width, cam->height, count[1], count[2], o->az, o->el, o->envmap,
-               s->pf.p.pairs, s->pf.p.ax, s->pf.p.ay, s->sc.sp ? s->sp.n : 0);
+        printf("rendered %s: %dx%d, %zu pixels of the object, %zu of the ground, view %g,%g; ",
+               o->out, cam->width, cam->height, count[1], count[2], o->az, o->el);
+        if (o->kind == AP_LIGHT_ENV)
+                printf("BRDF model under %s: %d normal pairs prefiltered at ax %.3f ay %.3f",
+                       o->envmap, s->pf.p.pairs, s->pf.p.ax, s->pf.p.ay);
+        else
+                printf("BRDF model under the %s light %g,%g,%g",
+                       o->kind == AP_LIGHT_POINT ? "point" : "directional", o->light[0],
+                       o->light[1], o->light[2]);
+        printf(", %d spheres\n", s->sc.sp ? s->sp.n : 0);
         return EXIT_OK;
 }
 

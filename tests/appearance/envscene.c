@@ -100,7 +100,7 @@ static void camera_of(struct envscene *es)
 
 void envscene_open(struct envscene *es, const struct envscene_opts *o)
 {
-        char cams[512], scene[1024], err[256];
+        char cams[512], scene[1024], lamps[256], err[256];
         int fd;
 
         memset(es, 0, sizeof(*es));
@@ -121,11 +121,19 @@ void envscene_open(struct envscene *es, const struct envscene_opts *o)
                  "scene:\n  object: { shape: sphere, size: 60, material: { albedo: [%g, %g, %g], "
                  "specular: { model: beckmann, ks: %g, alpha_x: %g, alpha_y: %g, ior: 0 } } }\n"
                  "  turntable: { radius: %g, albedo: 0.5 }\n"
-                 "  dome: { envmap: %s, threshold: 0.00001, max_elements: %d }\n"
+                 "  %s: { envmap: %s, threshold: 0.00001, max_elements: %d }\n"
                  "  sensor: { response: %g, full_well: %g, read_noise: 0, black_level: 0 }\n",
-                 0.55, 0.35, 0.25, o->ks, o->ax, o->ay, o->ground_radius, es->env_path,
-                 o->dome_elements, RESPONSE, FULL_WELL);
-        rt_open(&es->t, "", "", cams, scene);
+                 0.55, 0.35, 0.25, o->ks, o->ax, o->ay, o->ground_radius, o->lamp ? "#" : "dome",
+                 es->env_path, o->dome_elements, RESPONSE, FULL_WELL);
+        snprintf(lamps, sizeof(lamps),
+                 "lamps:\n  - { name: l0, modbus-coil: { bus: relays, coil: 0 }, elevation: 45, "
+                 "radius: 300, azimuth: 60, intensity: %g }\n",
+                 ENVSCENE_LAMP_I);
+        rt_open(&es->t, o->lamp ? lamps : "", "", cams, scene);
+        if (o->lamp)
+                CHECK_INT(
+                        sim_lamp_position(es->t.s, &(struct gn_pose){.lamps = 1}, 0, es->lamp_pos),
+                        0);
         build_model(es);
         camera_of(es);
 }
@@ -145,7 +153,7 @@ void envscene_close(struct envscene *es)
 void envscene_reference(struct envscene *es, float *rgb, double *seconds)
 {
         static const struct sim_expose ideal16 = {.bits = 16, .no_noise = true};
-        struct gn_pose st = {0};
+        struct gn_pose st = {.lamps = es->o.lamp};
         struct gn_frame f;
         struct timespec t0, t1;
         double k = FULL_WELL / (RESPONSE * EXPOSURE * 65535);

@@ -5,6 +5,8 @@
  * texel the material with the mesh's interpolated normal), as the fit would give it. */
 #pragma once
 
+#include <stdbool.h>
+
 #include "appearance/brdf.h"
 #include "appearance/envmap.h"
 #include "tests/render/rtest.h"
@@ -17,7 +19,10 @@ struct envscene_opts {
         double ks, ax, ay;    /* the sphere's Beckmann lobe (no Fresnel falloff) */
         double ground_radius; /* the turntable disc's, mm */
         int mesh_rows;        /* the model's sphere tessellation (sim_object_mesh); 0: 96 */
+        bool lamp;            /* a lamp (ENVSCENE_LAMP_I) lit instead of the map's dome */
 };
+
+#define ENVSCENE_LAMP_I 2.0e4 /* the lamp's intensity: 300 mm away, 45 deg up, azimuth 60 */
 
 struct envscene {
         struct envscene_opts o;
@@ -26,6 +31,7 @@ struct envscene {
         struct ap_envmap env;
         struct ap_brdf_model *model;
         struct ap_camera cam;
+        double lamp_pos[3]; /* with o.lamp: its position (object frame, mm) */
 };
 
 #define ENVSCENE_ALBEDO                                                                            \
@@ -43,7 +49,8 @@ void envscene_open(struct envscene *es, const struct envscene_opts *o);
 
 void envscene_close(struct envscene *es);
 
-/* gonio-sim's picture in radiance (3 floats a pixel); its wall-clock time into *seconds. */
+/* gonio-sim's picture (lit by the dome, or by the lamp with o.lamp) in radiance (3 floats a pixel);
+ * its wall-clock time into *seconds. */
 void envscene_reference(struct envscene *es, float *rgb, double *seconds);
 
 /* PSNR (dB) of a against the reference b over the pixels where mask is non-zero (NULL: all),

@@ -263,8 +263,7 @@ static void test_envmap(void)
 
 /* A w x h PFM of value v everywhere written as dir/name is refused with a sentence holding
  * why, nothing left allocated. */
-static void check_refused(const char *dir, const char *name, int w, int h, float v,
-                          const char *why)
+static void check_refused(const char *dir, const char *name, int w, int h, float v, const char *why)
 {
         struct ap_envmap e = {w, h, malloc(3 * sizeof(float) * w * h), false};
         char path[512], err[512];
