@@ -44,8 +44,10 @@ static json_t *error_detail(const char *kind, const char *err)
         if (json_object_set_new(d, "file", json_stringn(err, (size_t)(colon - err))) < 0 ||
             json_object_set_new(d, "line", json_integer(strtol(colon + 1, NULL, 10))) < 0 ||
             json_object_set_new(d, "key", json_stringn(k + 7, (size_t)(kend - k - 7))) < 0 ||
-            json_object_set_new(d, "reason", json_string(kend + 3)) < 0)
-                return json_decref(d), NULL;
+            json_object_set_new(d, "reason", json_string(kend + 3)) < 0) {
+                json_decref(d);
+                return NULL;
+        }
         return d;
 }
 
