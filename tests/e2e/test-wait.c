@@ -1,8 +1,9 @@
 /* test-wait.c - gonioctl wait against goniod on gonio-sim: returns at once in the state,
  * follows a move through moving to idle, ends with exit 10 at --timeout, exit 5 when a fault
  * latches while waiting for idle, and 0 waiting for that fault; goniod's errors under --json
- * as error objects with the JSON-RPC code (issue 13).
- * Usage: test-e2e-wait GONIOD GONIOCTL GONIO_SIM */
+ * as error objects with the JSON-RPC code; the bash completion's device names from goniod's
+ * describe (issue 13).
+ * Usage: test-e2e-wait GONIOD GONIOCTL GONIO_SIM COMPLETION */
 #include <jansson.h>
 
 #include "tests/e2e/harness.h"
@@ -86,12 +87,49 @@ static void test_fault(struct rigenv *e)
         wait_for(e, 0, "idle", "10");
 }
 
+/* What the bash completion (client/gonioctl.bash) offers after "gonioctl --socket S WORDS",
+ * with the gonioctl under test first in PATH. Returns the words, malloc'ed. */
+static char *complete(struct rigenv *e, const char *completion, const char *words)
+{
+        char cmd[2048], *out = calloc(1, 1024);
+        const char *slash = strrchr(e->gonioctl, '/');
+        FILE *p;
+
+        CHECK(out && slash);
+        snprintf(cmd, sizeof(cmd),
+                 "PATH='%.*s':\"$PATH\" bash -c 'source %s; COMP_WORDS=(gonioctl --socket %s %s);"
+                 " COMP_CWORD=$((${#COMP_WORDS[@]} - 1)); _gonioctl; echo \"${COMPREPLY[*]}\"'",
+                 (int)(slash - e->gonioctl), e->gonioctl, completion, e->sock, words);
+        p = popen(cmd, "r");
+        CHECK(p);
+        CHECK(fgets(out, 1024, p));
+        CHECK_INT(pclose(p), 0);
+        return out;
+}
+
+/* The completion's device names come from goniod: axes after move, lamps after lamp. */
+static void test_completion(struct rigenv *e, const char *completion)
+{
+        char *axes = complete(e, completion, "move \"\""),
+             *lamps = complete(e, completion, "lamp l");
+        char *cams = complete(e, completion, "capture --camera \"\"");
+
+        CHECK_STR(axes, "turntable light_arm camera_arm\n");
+        CHECK_STR_CONTAINS(lamps, "lamp0");
+        CHECK(!strstr(lamps, "laser") && !strstr(lamps, "turntable"));
+        CHECK_STR_CONTAINS(cams, "cam");
+        free(axes);
+        free(lamps);
+        free(cams);
+}
+
 int main(int argc, char **argv)
 {
         struct rigenv e;
 
-        CHECK(argc == 4);
+        CHECK(argc == 5);
         rigenv_start(&e, argv, 5);
+        test_completion(&e, argv[4]);
         test_move(&e);
         test_rpc_error(&e);
         test_fault(&e);
