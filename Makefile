@@ -7,7 +7,7 @@ MESON_OPTS ?=
 # (those that compare rig time with wall time run alone: tests/e2e/meson.build).
 TEST_JOBS  ?= 3
 
-.PHONY: all deps build demo test test-fast test-asan bench format clean
+.PHONY: all deps build install demo test test-fast test-asan bench format clean
 
 all: build
 
@@ -22,6 +22,12 @@ $(ASAN_BUILD)/build.ninja:
 
 build: deps $(BUILD)/build.ninja
 	ninja -C $(BUILD)
+
+# Install the programs, man pages, bash completion, systemd units and docs (docs/install.md)
+# under the prefix meson was configured with (MESON_OPTS=-Dprefix=/usr for a system, default
+# /usr/local), below DESTDIR when given: make install DESTDIR=/tmp/stage
+install: build
+	meson install -C $(BUILD) --no-rebuild $(if $(DESTDIR),--destdir "$(DESTDIR)")
 
 # Start gonio-sim and goniod on the simulated rig, capture a 4-DOF set with gonioctl.
 demo: build

@@ -40,54 +40,83 @@ enum opt_id {
         O_SPHERE,
         O_LAMP_RADIUS,
         O_NOMINAL,
+        O_RIG,
+        O_STATE,
 };
 
 static const struct {
         const char *name;
         enum opt_id id;
-        bool has_arg;
-        unsigned bit; /* enum arg_opt for command options, 0 for global ones */
+        const char *arg; /* the value's name in --help, NULL: a flag */
+        unsigned bit;    /* enum arg_opt for command options, 0 for global ones */
+        const char *help;
 } options[] = {
-        {"socket", O_SOCKET, true, 0},
-        {"json", O_JSON, false, 0},
-        {"timeout", O_TIMEOUT, true, 0},
-        {"quiet", O_QUIET, false, 0},
-        {"help", O_HELP, false, 0},
-        {"version", O_VERSION, false, 0},
-        {"relative", O_RELATIVE, false, ARG_RELATIVE},
-        {"no-wait", O_NO_WAIT, false, ARG_NO_WAIT},
-        {"camera", O_CAMERA, true, ARG_CAMERA},
-        {"exposure", O_EXPOSURE, true, ARG_EXPOSURE},
-        {"gain", O_GAIN, true, ARG_GAIN},
-        {"bits", O_BITS, true, ARG_BITS},
-        {"count", O_COUNT, true, ARG_COUNT},
-        {"from", O_FROM, true, ARG_FROM},
-        {"board", O_BOARD, true, ARG_BOARD},
-        {"force", O_FORCE, false, ARG_FORCE},
-        {"no-mesh", O_NO_MESH, false, ARG_NO_MESH},
-        {"triangles", O_TRIANGLES, true, ARG_TRIANGLES},
-        {"laser", O_LASER, true, ARG_LASER},
-        {"calibration", O_CALIBRATION, true, ARG_CALIBRATION},
-        {"start", O_START, true, ARG_START},
-        {"end", O_END, true, ARG_END},
-        {"step", O_STEP, true, ARG_STEP},
-        {"mode", O_MODE, true, ARG_MODE},
-        {"lamps", O_LAMPS, true, ARG_LAMPS},
-        {"sphere", O_SPHERE, true, ARG_SPHERE},
-        {"lamp-radius", O_LAMP_RADIUS, true, ARG_LAMP_RADIUS},
-        {"nominal", O_NOMINAL, false, ARG_NOMINAL},
+        {"socket", O_SOCKET, "PATH", 0, "goniod's socket"},
+        {"json", O_JSON, NULL, 0, "results and errors as JSON on stdout"},
+        {"timeout", O_TIMEOUT, "SEC", 0, "reply timeout"},
+        {"quiet", O_QUIET, NULL, 0, "print nothing on success"},
+        {"help", O_HELP, NULL, 0, "usage"},
+        {"version", O_VERSION, NULL, 0, "version"},
+        {"relative", O_RELATIVE, NULL, ARG_RELATIVE, "DEG is relative to the position"},
+        {"no-wait", O_NO_WAIT, NULL, ARG_NO_WAIT, "return once goniod accepted the move"},
+        {"camera", O_CAMERA, "NAME", ARG_CAMERA, "the camera (default: every one, or the only)"},
+        {"exposure", O_EXPOSURE, "US", ARG_EXPOSURE, "exposure in microseconds"},
+        {"gain", O_GAIN, "G", ARG_GAIN, "analogue gain"},
+        {"bits", O_BITS, "8|16", ARG_BITS, "bits per sample"},
+        {"count", O_COUNT, "N", ARG_COUNT, "stop after N notifications"},
+        {"from", O_FROM, "DIR", ARG_FROM, "work on the dataset at DIR, without goniod"},
+        {"board", O_BOARD, "SPEC", ARG_BOARD,
+         "chessboard:COLSxROWS:MM or charuco:COLSxROWS:MM:MARKER_MM"},
+        {"force", O_FORCE, NULL, ARG_FORCE, "replace a better or existing result"},
+        {"no-mesh", O_NO_MESH, NULL, ARG_NO_MESH, "the point cloud only"},
+        {"triangles", O_TRIANGLES, "N", ARG_TRIANGLES, "the mesh's target triangle count"},
+        {"laser", O_LASER, "NAME", ARG_LASER, "the laser (default: every one)"},
+        {"calibration", O_CALIBRATION, "FILE", ARG_CALIBRATION, "the calibration file"},
+        {"start", O_START, "DEG", ARG_START, "first turntable angle"},
+        {"end", O_END, "DEG", ARG_END, "last turntable angle"},
+        {"step", O_STEP, "DEG", ARG_STEP, "turntable step"},
+        {"mode", O_MODE, "MODE", ARG_MODE, "continuous or stop"},
+        {"lamps", O_LAMPS, "A,B", ARG_LAMPS, "lamps lit (comma-separated names)"},
+        {"sphere", O_SPHERE, "MM", ARG_SPHERE, "the mirror sphere's diameter"},
+        {"lamp-radius", O_LAMP_RADIUS, "MM", ARG_LAMP_RADIUS, "the lamps' radius"},
+        {"nominal", O_NOMINAL, NULL, ARG_NOMINAL, "the rig file's lamp positions"},
+        {"rig", O_RIG, "RIG-FILE", ARG_RIG, "the rig a session file runs on"},
+        {"state", O_STATE, "STATE", ARG_STATE,
+         "idle (default), homing, moving, stopping, capturing, storing or fault"},
 };
+
+static char last_error[256]; /* the first usage error, for --json (args_last_error) */
 
 int args_usage_error(const char *what, const char *fmt, ...)
 {
+        char msg[200];
         va_list ap;
 
-        fprintf(stderr, "gonioctl: %s: ", what);
         va_start(ap, fmt);
-        vfprintf(stderr, fmt, ap);
+        vsnprintf(msg, sizeof(msg), fmt, ap);
         va_end(ap);
-        fprintf(stderr, "\nTry 'gonioctl --help'.\n");
+        fprintf(stderr, "gonioctl: %s: %s\nTry 'gonioctl --help'.\n", what, msg);
+        if (!last_error[0])
+                snprintf(last_error, sizeof(last_error), "%s: %s", what, msg);
         return -EINVAL;
+}
+
+const char *args_last_error(void)
+{
+        return last_error[0] ? last_error : NULL;
+}
+
+void args_print_options(FILE *f, unsigned opts)
+{
+        for (size_t k = 0; k < ELEMENTSOF(options); k++) {
+                char left[40];
+
+                if (!(options[k].bit & opts))
+                        continue;
+                snprintf(left, sizeof(left), "--%s%s%s", options[k].name, options[k].arg ? " " : "",
+                         options[k].arg ?: "");
+                fprintf(f, "  %-22s %s\n", left, options[k].help);
+        }
 }
 
 const char *args_opt_name(unsigned bit)
@@ -182,6 +211,12 @@ static int set_value(struct args *a, enum opt_id id, const char *v)
         case O_LAMPS:
                 a->lamps = v;
                 return 0;
+        case O_RIG:
+                a->rig = v;
+                return 0;
+        case O_STATE:
+                a->state = v;
+                return 0;
         case O_SPHERE:
                 if (args_parse_double(v, &a->sphere_mm) < 0 || a->sphere_mm <= 0)
                         break;
@@ -216,7 +251,7 @@ static int parse_option(struct args *a, int argc, char **argv, int *i)
                 if (strlen(options[k].name) != n || strncmp(options[k].name, arg, n) != 0)
                         continue;
                 a->given |= options[k].bit;
-                if (!options[k].has_arg) {
+                if (!options[k].arg) {
                         if (eq)
                                 return args_usage_error(argv[*i], "takes no value");
                         set_flag(a, options[k].id);
@@ -241,7 +276,7 @@ static bool is_option(const char *s)
 
 int args_parse(int argc, char **argv, struct args *a)
 {
-        bool options_done = false;
+        bool options_done = false, own_options = false;
 
         *a = (struct args){};
         a->words = calloc((size_t)MAX(argc, 1), sizeof(char *));
@@ -251,13 +286,18 @@ int args_parse(int argc, char **argv, struct args *a)
                 const char *s = argv[i];
                 int r;
 
-                if (options_done || !is_option(s)) {
+                if (own_options && !options_done &&
+                    (strcmp(s, "--help") == 0 || strcmp(s, "-h") == 0)) {
+                        a->help = true;
+                        continue;
+                }
+                if (options_done || own_options || !is_option(s)) {
                         a->words[a->nwords++] = argv[i];
                         /* `model` subcommands and `dataset export` parse their own
-                         * options (client/model.h, client/export.h) */
-                        options_done |= (a->nwords == 1 && strcmp(s, "model") == 0) ||
-                                        (a->nwords == 2 && strcmp(s, "export") == 0 &&
-                                         strcmp(a->words[0], "dataset") == 0);
+                         * options (client/model.h, client/export.h), all but --help */
+                        own_options |= (a->nwords == 1 && strcmp(s, "model") == 0) ||
+                                       (a->nwords == 2 && strcmp(s, "export") == 0 &&
+                                        strcmp(a->words[0], "dataset") == 0);
                         continue;
                 }
                 if (strcmp(s, "--") == 0) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <stdbool.h>
+#include <stdio.h>
 
 /* Options that only some commands accept (struct cmd lists which). */
 enum arg_opt {
@@ -29,6 +30,8 @@ enum arg_opt {
         ARG_SPHERE = 1 << 19,
         ARG_LAMP_RADIUS = 1 << 20,
         ARG_NOMINAL = 1 << 21,
+        ARG_RIG = 1 << 22,
+        ARG_STATE = 1 << 23,
 };
 
 struct args {
@@ -51,6 +54,8 @@ struct args {
         const char *lamps;       /* --lamps: comma-separated names (scan) */
         double sphere_mm;        /* --sphere: the mirror sphere's diameter (calibrate lamps) */
         double lamp_radius_mm;   /* --lamp-radius (calibrate lamps) */
+        const char *rig;         /* --rig: a rig file (validate) */
+        const char *state;       /* --state: a rig state (wait) */
         char **words;            /* positional words (command first); borrowed from argv */
         int nwords;
 };
@@ -62,8 +67,16 @@ int args_parse(int argc, char **argv, struct args *a);
 /* Frees what args_parse allocated. */
 void args_done(struct args *a);
 
-/* Prints "gonioctl: <what>: <message>" and a hint to stderr; returns -EINVAL. */
+/* Prints "gonioctl: <what>: <message>" and a hint to stderr; returns -EINVAL. The first
+ * such message of the process is kept for args_last_error(). */
 int args_usage_error(const char *what, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+/* The first usage error printed ("<what>: <message>"), or NULL. Valid until exit. */
+const char *args_last_error(void);
+
+/* Prints one line per option of the enum arg_opt bits in opts ("  --camera NAME  the camera")
+ * to f, for a command's --help. */
+void args_print_options(FILE *f, unsigned opts);
 
 /* The long name of an enum arg_opt bit ("relative"), or NULL. */
 const char *args_opt_name(unsigned bit);

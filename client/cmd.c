@@ -19,8 +19,11 @@
 #include "client/scan.h"
 #include "client/export.h"
 #include "client/session.h"
+#include "client/validate.h"
+#include "client/wait.h"
 #include "common/cleanup.h"
 #include "protocol/proto.h"
+#include "gonio_version.h"
 
 #define TIMEOUT_S      30  /* connect, hello and quick requests */
 #define TIMEOUT_LONG_S 120 /* home, move, capture */
@@ -47,7 +50,8 @@ struct cmd {
         params_fn params;   /* NULL: {} */
         out_print_fn print; /* human output */
         const char *done;   /* human output when print is NULL */
-        bool watch;
+        /* runs instead of a method once connected (watch, wait); returns an exit code */
+        int (*run)(const struct args *a, struct out *o, struct conn *conn);
         bool stops;   /* waits for motion: an interrupted wait stops the rig (not --no-wait) */
         bool follows; /* follows the session its result describes until it ends or pauses */
         /* runs here, without goniod: fills its result (printed) or prints its error with
@@ -196,6 +200,15 @@ static int p_call(const struct cmd *c, const struct args *a, char **argv, int ar
         return 0;
 }
 
+static int p_wait(const struct cmd *c, const struct args *a, char **argv, int argc, json_t **ret)
+{
+        if (a->state && !wait_state_known(a->state))
+                return usage_error(c, "unknown state '%s'", a->state);
+        return 0;
+}
+
+static int run_watch(const struct args *a, struct out *o, struct conn *conn);
+
 /* The devices of this machine, from $GONIO_SYSFS (for tests) or /sys. */
 static int discover_here(const struct args *a, struct out *o, json_t **ret)
 {
@@ -261,7 +274,13 @@ static const struct cmd commands[] = {
         {"session", "watch", "", "follow the session until it ends or pauses", "session.status", 0,
          0, 0, TIMEOUT_S, NULL, NULL, .follows = true},
         {NULL, "watch", "[--count N]", "print notifications until interrupted", NULL, 0, 0,
-         ARG_COUNT, TIMEOUT_S, NULL, NULL, NULL, true},
+         ARG_COUNT, TIMEOUT_S, NULL, NULL, .run = run_watch},
+        {NULL, "wait", "[--state STATE]",
+         "wait until the rig is in STATE (default idle); --timeout SEC: exit 10 after SEC", NULL, 0,
+         0, ARG_STATE, TIMEOUT_S, p_wait, NULL, .run = wait_command},
+        {NULL, "validate", "FILE [--rig RIG-FILE]",
+         "check a rig file, or a session file against its rig file (no goniod)", NULL, 1, 1,
+         ARG_RIG, TIMEOUT_S, NULL, validate_print, .local = validate_command},
         {NULL, "devices", "", "serial ports, V4L2 nodes, gpiochips, USB devices here (no goniod)",
          NULL, 0, 0, 0, TIMEOUT_S, NULL, out_print_devices, .local = discover_here},
         {NULL, "scan",
@@ -304,32 +323,73 @@ static const struct cmd commands[] = {
          TIMEOUT_S, p_call, out_print_pretty},
 };
 
+/* One line of the command list: "  move AXIS DEG ...   move an axis (degrees)". */
+static void usage_line(FILE *f, const struct cmd *c)
+{
+        char t[64], line[128];
+
+        snprintf(line, sizeof(line), "%s %s", cmd_title(c, t, sizeof(t)), c->args);
+        if (strlen(line) > USAGE_COL)
+                fprintf(f, "  %s\n  %-*s %s\n", line, USAGE_COL, "", c->help);
+        else
+                fprintf(f, "  %-*s %s\n", USAGE_COL, line, c->help);
+}
+
+static const char global_options[] =
+        "  --socket PATH   goniod's socket (default $GONIO_SOCKET, else\n"
+        "                  $XDG_RUNTIME_DIR/gonio/goniod.sock, else /run/gonio/goniod.sock)\n"
+        "  --json          results, and errors as {\"error\":{...}}, as one line of JSON\n"
+        "  --timeout SEC   reply timeout (default 30, home/move/capture 120)\n"
+        "  --quiet         print nothing on success\n";
+
 void cmd_usage(FILE *f)
 {
         fprintf(f, "Usage: gonioctl [--socket PATH] [--json] [--timeout SEC] [--quiet] COMMAND "
                    "[ARGS]\n\nCommands:\n");
-        for (size_t i = 0; i < ELEMENTSOF(commands); i++) {
-                const struct cmd *c = &commands[i];
-                char t[64], line[128];
+        for (size_t i = 0; i < ELEMENTSOF(commands); i++)
+                usage_line(f, &commands[i]);
+        fprintf(f,
+                "\nOptions:\n%s"
+                "  CALIBRATE-OPTS  [--camera NAME] [--calibration FILE] [--force]\n"
+                "  --help, --version   (COMMAND --help: that command's usage)\n"
+                "\nExit codes: 0 ok, 2 usage, 3 cannot connect, 4 protocol error or timeout,\n"
+                "5 device fault, 6 invalid/not found/out of range, 7 storage, 8 canceled,\n"
+                "9 busy or wrong state, 10 interrupted (move/home stopped, wait timed out).\n"
+                "See gonioctl(1).\n",
+                global_options);
+}
 
-                snprintf(line, sizeof(line), "%s %s", cmd_title(c, t, sizeof(t)), c->args);
-                if (strlen(line) > USAGE_COL)
-                        fprintf(f, "  %s\n  %-*s %s\n", line, USAGE_COL, "", c->help);
-                else
-                        fprintf(f, "  %-*s %s\n", USAGE_COL, line, c->help);
+/* The usage of one command: synopsis, what it does, its options. */
+static void command_help(FILE *f, const struct cmd *c)
+{
+        char t[64];
+
+        fprintf(f, "Usage: gonioctl [OPTIONS] %s %s\n\n%s\n", cmd_title(c, t, sizeof(t)), c->args,
+                c->help);
+        if (c->opts) {
+                fprintf(f, "\nOptions of %s:\n", t);
+                args_print_options(f, c->opts);
         }
-        fprintf(f, "\nOptions:\n"
-                   "  --socket PATH   goniod's socket (default $GONIO_SOCKET, else\n"
-                   "                  $XDG_RUNTIME_DIR/gonio/goniod.sock, else "
-                   "/run/gonio/goniod.sock)\n"
-                   "  --json          print results as one line of JSON\n"
-                   "  --timeout SEC   reply timeout (default 30, home/move/capture 120)\n"
-                   "  --quiet         print nothing on success\n"
-                   "  CALIBRATE-OPTS  [--camera NAME] [--calibration FILE] [--force]\n"
-                   "  --help, --version\n"
-                   "\nExit codes: 0 ok, 2 usage, 3 cannot connect, 4 protocol error or timeout,\n"
-                   "5 device fault, 6 invalid/not found/out of range, 7 storage, 8 canceled,\n"
-                   "9 busy or wrong state, 10 interrupted (move/home stopped). See gonioctl(1).\n");
+        fprintf(f, "\nOPTIONS:\n%s\nSee gonioctl(1) for the exit codes.\n", global_options);
+}
+
+/* The commands of group (dataset, session...) when it names one: returns true. */
+static bool group_help(FILE *f, const char *group)
+{
+        bool found = false;
+
+        for (size_t i = 0; i < ELEMENTSOF(commands); i++) {
+                if (!commands[i].group || strcmp(commands[i].group, group) != 0)
+                        continue;
+                if (!found)
+                        fprintf(f, "Usage: gonioctl [OPTIONS] %s COMMAND [ARGS]\n\nCommands:\n",
+                                group);
+                found = true;
+                usage_line(f, &commands[i]);
+        }
+        if (found)
+                fprintf(f, "\nOPTIONS:\n%s", global_options);
+        return found;
 }
 
 /* Finds the command named by words; *used gets the number of words naming it. */
@@ -409,6 +469,7 @@ int cmd_exit_for_code(int code)
 int cmd_call_failed(struct out *o, const char *method, int r, const struct conn_error *e)
 {
         if (r == -EREMOTEIO) {
+                o->rpc_code = e->code;
                 out_error(o, method, "%s", e->message);
                 return cmd_exit_for_code(e->code);
         }
@@ -458,7 +519,7 @@ int cmd_connect(const struct args *a, struct out *o, struct conn **ret)
                 out_error(o, "connect", "%s: %s", path, strerror(-r));
                 return EXIT_CONNECT;
         }
-        params = json_pack("{s:s,s:i}", "client", "gonioctl/" GONIOCTL_VERSION, "protocol",
+        params = json_pack("{s:s,s:i}", "client", "gonioctl/" GONIO_VERSION, "protocol",
                            PROTO_VERSION);
         r = conn_call(*ret, "hello", params, deadline, -1, NULL, NULL, &res, &e);
         if (r < 0)
@@ -605,8 +666,10 @@ static void report_stopped(struct out *o, const char *method, json_t *params, js
         out_error(o, method, "%s", msg ?: "interrupted: stopped the rig");
         j = json_pack("{s:{s:s,s:s?,s:s,s:o}}", "error", "code", "interrupted", "message", msg,
                       "cause", why->code, "stopped", list);
-        if (o->json && j)
+        if (o->json && j) {
                 out_result(o, NULL, NULL, j);
+                o->error_printed = true;
+        }
         json_decref(j);
 }
 
@@ -686,12 +749,11 @@ static int run_local(const struct cmd *c, const struct args *a, struct out *o, j
         return EXIT_OK;
 }
 
-int cmd_run(const struct args *a)
+static int run_command(const struct args *a, struct out *o)
 {
         _cleanup_(conn_freep) struct conn *conn = NULL;
         const struct cmd *c;
         json_t *params = NULL;
-        struct out o;
         int used, r;
 
         if (a->nwords == 0) {
@@ -706,17 +768,78 @@ int cmd_run(const struct args *a)
                 json_decref(params);
                 return r == -EINVAL ? EXIT_USAGE : EXIT_PROTOCOL;
         }
-        out_init(&o, a->json, a->quiet);
         if (c->local)
-                return run_local(c, a, &o, params);
-        r = cmd_connect(a, &o, &conn);
+                return run_local(c, a, o, params);
+        r = cmd_connect(a, o, &conn);
         if (r != EXIT_OK) {
                 json_decref(params);
                 return r;
         }
-        if (c->watch) {
+        if (c->run) {
                 json_decref(params);
-                return run_watch(a, &o, conn);
+                return c->run(a, o, conn);
         }
-        return run_method(c, a, &o, conn, c->method ?: a->words[used], params);
+        return run_method(c, a, o, conn, c->method ?: a->words[used], params);
+}
+
+/* Prints the error object of a failed command (--json) and returns code: its "code" names
+ * the exit code; its message is the first one printed, else this table's. */
+static int failed(struct out *o, int code)
+{
+        static const struct {
+                const char *name, *text;
+        } exits[] = {
+                [EXIT_USAGE] = {"usage", "usage error"},
+                [EXIT_CONNECT] = {"connect", "cannot connect to goniod"},
+                [EXIT_PROTOCOL] = {"protocol", "protocol error"},
+                [EXIT_DEVICE] = {"device", "device fault"},
+                [EXIT_INVALID] = {"invalid", "invalid request or input"},
+                [EXIT_STORAGE] = {"storage", "storage error"},
+                [EXIT_CANCELED] = {"canceled", "canceled"},
+                [EXIT_BUSY] = {"busy", "busy or wrong state"},
+                [EXIT_INTERRUPTED] = {"interrupted", "interrupted"},
+        };
+        bool known = code > 0 && code < (int)ELEMENTSOF(exits) && exits[code].name;
+
+        if (code != EXIT_OK)
+                out_error_object(o, known ? exits[code].name : "error", code,
+                                 args_last_error()
+                                         ?: known ? exits[code].text
+                                                  : "failed");
+        out_done(o);
+        return code;
+}
+
+int cmd_run(const struct args *a)
+{
+        struct out o;
+
+        out_init(&o, a->json, a->quiet);
+        return failed(&o, run_command(a, &o));
+}
+
+int cmd_usage_failed(const struct args *a)
+{
+        struct out o;
+
+        out_init(&o, a->json, a->quiet);
+        return failed(&o, EXIT_USAGE);
+}
+
+int cmd_help(const struct args *a)
+{
+        const struct cmd *c;
+        int used;
+
+        if (a->nwords == 0) {
+                cmd_usage(stdout);
+                return EXIT_OK;
+        }
+        if (a->nwords == 1 && group_help(stdout, a->words[0]))
+                return EXIT_OK;
+        c = find_cmd(a->words, a->nwords, &used);
+        if (!c)
+                return cmd_usage_failed(a);
+        command_help(stdout, c);
+        return EXIT_OK;
 }

@@ -21,7 +21,8 @@ enum gonioctl_exit {
         EXIT_CANCELED = 8,     /* canceled by stop (-32007) */
         EXIT_BUSY = 9,         /* busy or wrong state (-32001, -32008) */
         EXIT_INTERRUPTED = 10, /* Ctrl-C, SIGTERM or --timeout while waiting for move/home:
-                                * gonioctl sent stop and goniod confirmed it */
+                                * gonioctl sent stop and goniod confirmed it; or wait ended
+                                * by --timeout or a signal */
 };
 
 /* The exit code for a JSON-RPC error code from the server. */
@@ -33,8 +34,17 @@ int cmd_exit_for_code(int code);
 int cmd_exit_for_errno(int r);
 
 /* Runs the command named by a->words. Returns an enum gonioctl_exit value; errors are
- * printed to stderr as "gonioctl: <method>: <message>". */
+ * printed to stderr as "gonioctl: <method>: <message>", and with --json as an error object
+ * {"error":{"code","exit","message",...}} on stdout. */
 int cmd_run(const struct args *a);
+
+/* After args_parse failed: prints the error object of the usage error (--json). Returns
+ * EXIT_USAGE. */
+int cmd_usage_failed(const struct args *a);
+
+/* --help: the usage of gonioctl, of the command a->words name, or of a group of commands.
+ * Returns EXIT_OK, or EXIT_USAGE for an unknown command (error printed). */
+int cmd_help(const struct args *a);
 
 struct conn;
 struct out;

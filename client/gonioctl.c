@@ -4,6 +4,7 @@
 
 #include "client/args.h"
 #include "client/cmd.h"
+#include "gonio_version.h"
 #include "protocol/proto.h"
 
 int main(int argc, char **argv)
@@ -13,11 +14,11 @@ int main(int argc, char **argv)
 
         r = args_parse(argc, argv, &a);
         if (r < 0)
-                r = EXIT_USAGE;
+                r = cmd_usage_failed(&a);
         else if (a.help)
-                cmd_usage(stdout);
+                r = cmd_help(&a);
         else if (a.version)
-                printf("gonioctl %s (protocol %d)\n", GONIOCTL_VERSION, PROTO_VERSION);
+                printf("gonioctl %s (protocol %d)\n", GONIO_VERSION, PROTO_VERSION);
         else
                 r = cmd_run(&a);
         args_done(&a);

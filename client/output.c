@@ -165,14 +165,49 @@ void out_result(struct out *o, out_print_fn human, const char *text, json_t *res
 
 void out_error(struct out *o, const char *what, const char *fmt, ...)
 {
+        char msg[sizeof(o->error)];
         va_list ap;
 
         out_progress_end(o);
-        fprintf(stderr, "gonioctl: %s: ", what);
         va_start(ap, fmt);
-        vfprintf(stderr, fmt, ap);
+        vsnprintf(msg, sizeof(msg), fmt, ap);
         va_end(ap);
-        fputc('\n', stderr);
+        if (what)
+                fprintf(stderr, "gonioctl: %s: %s\n", what, msg);
+        else
+                fprintf(stderr, "%s\n", msg);
+        if (!o->error[0])
+                snprintf(o->error, sizeof(o->error), "%s%s%s", what ?: "", what ? ": " : "", msg);
+}
+
+void out_error_object(struct out *o, const char *code, int exit_code, const char *fallback)
+{
+        const char *msg = o->error[0] ? o->error : fallback;
+        json_t *e, *j;
+
+        if (!o->json || o->error_printed)
+                return;
+        e = json_pack("{s:s,s:i,s:s?}", "code", code, "exit", exit_code, "message", msg);
+        if (e && o->rpc_code)
+                json_object_set_new(e, "rpc_code", json_integer(o->rpc_code));
+        if (e && o->error_detail)
+                json_object_update_missing(e, o->error_detail);
+        j = e ? json_pack("{s:o}", "error", e) : NULL;
+        if (j) {
+                bool quiet = o->quiet;
+
+                o->quiet = false; /* --quiet silences results, not errors */
+                out_result(o, NULL, NULL, j);
+                o->quiet = quiet;
+        }
+        json_decref(j);
+        o->error_printed = true;
+}
+
+void out_done(struct out *o)
+{
+        json_decref(o->error_detail);
+        o->error_detail = NULL;
 }
 
 /* "method key=value ..." with reals to 3 decimals, into f. */

@@ -12,6 +12,11 @@ struct out {
         bool quiet;          /* --quiet: no result output, no progress */
         bool progress;       /* show a progress line (stderr is a terminal, human output) */
         bool progress_shown; /* a progress line is on screen */
+        /* for the error object of --json (out_error_object) */
+        bool error_printed;   /* an error object is on stdout already */
+        int rpc_code;         /* goniod's JSON-RPC error code of the failure, 0: none */
+        char error[512];      /* the first message out_error printed, "" if none */
+        json_t *error_detail; /* more members of the error object (owned), or NULL */
 };
 
 /* Prints a result in human form; result is borrowed. */
@@ -25,9 +30,18 @@ void out_init(struct out *o, bool json, bool quiet);
  * progress line first. */
 void out_result(struct out *o, out_print_fn human, const char *text, json_t *result);
 
-/* Prints "gonioctl: <what>: <message>" to stderr (after clearing the progress line). */
+/* Prints "gonioctl: <what>: <message>" (only "<message>" when what is NULL) to stderr, after
+ * clearing the progress line; the first message is kept for out_error_object. */
 void out_error(struct out *o, const char *what, const char *fmt, ...)
         __attribute__((format(printf, 3, 4)));
+
+/* With --json, unless one was printed already, prints {"error":{"code":code,"exit":exit_code,
+ * "message":...}} on stdout: the message the first out_error printed (else fallback, may be
+ * NULL), "rpc_code" when goniod reported the error, and the members of o->error_detail. */
+void out_error_object(struct out *o, const char *code, int exit_code, const char *fallback);
+
+/* Frees what o holds (o->error_detail). */
+void out_done(struct out *o);
 
 /* Shows a notification on the progress line (terminal only); params may be NULL. */
 void out_progress(struct out *o, const char *method, json_t *params);

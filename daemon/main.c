@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 
 #include "common/log.h"
+#include "gonio_version.h"
 #include "manager.h"
 #include "protocol/proto.h"
 
@@ -25,7 +26,8 @@ static void usage(FILE *f)
                 "                 control socket)\n"
                 "                 (both taken from systemd instead when socket-activated)\n"
                 "  --data DIR     directory of datasets (default $GONIO_DATA or /var/lib/gonio)\n"
-                "  --verbose      debug logging\n");
+                "  --verbose      debug logging\n"
+                "  --version      print the version and exit\n");
 }
 
 /* Picks the default socket path (protocol/proto.h) and creates its directory. */
@@ -59,6 +61,7 @@ int main(int argc, char **argv)
                 {"data", required_argument, NULL, 'd'},
                 {"verbose", no_argument, NULL, 'v'},
                 {"help", no_argument, NULL, 'h'},
+                {"version", no_argument, NULL, 'V'},
                 {},
         };
         const char *rig = NULL, *data = getenv("GONIO_DATA");
@@ -67,7 +70,7 @@ int main(int argc, char **argv)
         int c, r;
 
         gn_log_set_ident("goniod");
-        while ((c = getopt_long(argc, argv, "r:s:a:d:vh", opts, NULL)) >= 0) {
+        while ((c = getopt_long(argc, argv, "r:s:a:d:vhV", opts, NULL)) >= 0) {
                 switch (c) {
                 case 'r':
                         rig = optarg;
@@ -86,6 +89,9 @@ int main(int argc, char **argv)
                         break;
                 case 'h':
                         usage(stdout);
+                        return 0;
+                case 'V':
+                        printf("goniod %s (protocol %d)\n", GONIO_VERSION, PROTO_VERSION);
                         return 0;
                 default:
                         usage(stderr);

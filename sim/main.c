@@ -18,6 +18,7 @@
 #include "common/rigconf.h"
 #include "common/sigroute.h"
 #include "drivers/registry.h"
+#include "gonio_version.h"
 #include "sim/frame_server.h"
 #include "sim/modbus_emu.h"
 #include "sim/render/render.h"
@@ -42,11 +43,12 @@ static void usage(FILE *f)
               "  --ports-file FILE  write the ports (JSON) to FILE as well\n"
               "  --render-log FILE  append one JSON line per rendered frame to FILE\n"
               "  --control PATH     control socket (state, geometry, inject); default\n"
-              "                     DIR/control.sock with --dir, else none\n",
+              "                     DIR/control.sock with --dir, else none\n"
+              "  --version          print the version and exit\n",
               f);
 }
 
-/* Returns 1 to run, 0 after --help, or -EINVAL after a usage error (printed). */
+/* Returns 1 to run, 0 after --help or --version, or -EINVAL after a usage error (printed). */
 static int parse_args(int argc, char **argv, struct args *a)
 {
         static const struct option opts[] = {
@@ -57,13 +59,14 @@ static int parse_args(int argc, char **argv, struct args *a)
                 {"render-log", required_argument, NULL, 'l'},
                 {"control", required_argument, NULL, 'c'},
                 {"help", no_argument, NULL, 'h'},
+                {"version", no_argument, NULL, 'V'},
                 {},
         };
         char *end;
         int c;
 
         *a = (struct args){.time_scale = 1.0};
-        while ((c = getopt_long(argc, argv, "r:d:t:p:l:c:h", opts, NULL)) >= 0) {
+        while ((c = getopt_long(argc, argv, "r:d:t:p:l:c:hV", opts, NULL)) >= 0) {
                 switch (c) {
                 case 'r':
                         a->rig = optarg;
@@ -89,6 +92,9 @@ static int parse_args(int argc, char **argv, struct args *a)
                         break;
                 case 'h':
                         usage(stdout);
+                        return 0;
+                case 'V':
+                        printf("gonio-sim %s\n", GONIO_VERSION);
                         return 0;
                 default:
                         usage(stderr);
