@@ -62,10 +62,45 @@ static json_t *opts_json(const struct opt_desc *opts, int n)
 }
 
 static json_t *device_json(const char *cls, const char *name, const char *backend, const char *bus,
-                           const struct opt_desc *opts, int n)
+                           const struct opt_desc *opts, int n, json_t *config)
 {
-        return json_pack("{ssssssssso}", "class", cls, "name", name, "backend", backend, "bus", bus,
-                         "options", opts_json(opts, n));
+        return json_pack("{sssssssssoso}", "class", cls, "name", name, "backend", backend, "bus",
+                         bus, "options", opts_json(opts, n), "config", config);
+}
+
+/* What the rig file sets for axis c (its limits, speeds and motion semantics, defaults
+ * filled in). */
+static json_t *axis_config(const struct rig_axis_conf *c)
+{
+        return json_pack("{ss?sbsfsfsfsfsisfsfsisbsisi}", "role",
+                         c->role >= 0 ? gn_role_name(c->role) : NULL, "continuous", c->continuous,
+                         "min", c->min_deg, "max", c->max_deg, "max_speed", c->max_speed, "accel",
+                         c->accel, "settle_ms", c->settle_ms, "backlash", c->backlash_deg,
+                         "deadband", c->deadband_deg, "move_retries", c->move_retries,
+                         "absolute_encoder", c->absolute_encoder, "direction", c->direction,
+                         "move_timeout_ms", c->move_timeout_ms);
+}
+
+static json_t *switch_config(const struct rig_switch_conf *c)
+{
+        json_t *o = json_pack("{sisfsb}", "warmup_ms", c->warmup_ms, "max_on_s", c->max_on_s,
+                              "off_on_disconnect", c->off_on_disconnect);
+
+        if (c->kind == RIG_SWITCH_LAMP)
+                json_object_update_new(o, json_pack("{sfsfsfsf}", "elevation", c->elevation_deg,
+                                                    "radius", c->radius_mm, "azimuth",
+                                                    c->azimuth_deg, "intensity", c->intensity));
+        else
+                json_object_update_new(o, json_pack("{sfsf}", "azimuth", c->laser_azimuth_deg,
+                                                    "width", c->laser_width_mm));
+        return o;
+}
+
+static json_t *camera_config(const struct rig_camera_conf *c)
+{
+        return json_pack("{sisisisfsisfsfsfsfsf}", "width", c->width, "height", c->height, "bits",
+                         c->bits, "gain", c->gain, "exposure_us", c->exposure_us, "frame_rate",
+                         c->frame_rate, "fx", c->fx, "fy", c->fy, "cx", c->cx, "cy", c->cy);
 }
 
 json_t *rig_describe(const struct rig *rig)
@@ -77,22 +112,25 @@ json_t *rig_describe(const struct rig *rig)
                 const struct axis *ax = rig->axes[i].ax;
                 json_array_append_new(devs,
                                       device_json("axis", rc->axes[i].name, ax->ops->name,
-                                                  rc->axes[i].bus, ax->ops->opts, ax->ops->n_opts));
+                                                  rc->axes[i].bus, ax->ops->opts, ax->ops->n_opts,
+                                                  axis_config(&rc->axes[i])));
         }
         for (size_t i = 0; i < rc->n_lamps + rc->n_lasers; i++) {
                 const struct sw *s =
                         i < rc->n_lamps ? rig->lamps[i].sw : rig->lasers[i - rc->n_lamps].sw;
-                json_array_append_new(devs, device_json(i < rc->n_lamps ? "lamp" : "laser",
-                                                        s->conf->name, s->ops->name, s->conf->bus,
-                                                        s->ops->opts, s->ops->n_opts));
+                json_array_append_new(devs,
+                                      device_json(i < rc->n_lamps ? "lamp" : "laser", s->conf->name,
+                                                  s->ops->name, s->conf->bus, s->ops->opts,
+                                                  s->ops->n_opts, switch_config(s->conf)));
         }
         for (size_t i = 0; i < rc->n_cameras; i++) {
                 const struct cam *c = rig->cams[i];
                 int n;
                 const struct opt_desc *opts = cam_opts(c, &n);
 
-                json_array_append_new(devs, device_json("camera", c->conf->name, c->ops->name,
-                                                        c->conf->bus, opts, n));
+                json_array_append_new(devs,
+                                      device_json("camera", c->conf->name, c->ops->name,
+                                                  c->conf->bus, opts, n, camera_config(c->conf)));
         }
         return json_pack("{ssso}", "rig", rc->name, "devices", devs);
 }

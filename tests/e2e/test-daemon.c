@@ -152,12 +152,54 @@ static void test_captures(struct rigenv *e)
         ds_close(d);
 }
 
+/* The config object describe gives device name, or fails. */
+static json_t *device_config(json_t *desc, const char *name)
+{
+        json_t *d;
+        size_t i;
+
+        json_array_foreach(json_object_get(desc, "devices"), i,
+                           d) if (strcmp(json_string_value(json_object_get(d, "name")), name) ==
+                                  0) return json_object_get(d, "config");
+        CHECK(!"no such device in describe");
+        return NULL;
+}
+
+static double num(json_t *o, const char *key)
+{
+        CHECK(json_is_number(json_object_get(o, key)));
+        return json_number_value(json_object_get(o, key));
+}
+
+/* describe holds what the rig file sets (harness.c's test rig), and the defaults of what it
+ * does not: speeds, limits, motion semantics, lamp geometry and safety limits, camera
+ * formats. */
+static void test_describe(struct rigenv *e)
+{
+        json_t *d = ctl_ok(e, "describe", NULL), *c;
+
+        c = device_config(d, "turntable");
+        CHECK(json_is_true(json_object_get(c, "continuous")));
+        CHECK(num(c, "max_speed") == 90 && num(c, "accel") == 180 && num(c, "settle_ms") == 20);
+        CHECK_STR(json_string_value(json_object_get(c, "role")), "turntable");
+        c = device_config(d, "camera_arm");
+        CHECK(num(c, "min") == -170 && num(c, "max") == 170 && num(c, "max_speed") == 30);
+        c = device_config(d, "lamp1");
+        CHECK(num(c, "elevation") == 60 && num(c, "radius") == 450 && num(c, "max_on_s") == 3600);
+        c = device_config(d, "laser");
+        CHECK(num(c, "max_on_s") == 120 && json_is_false(json_object_get(c, "off_on_disconnect")));
+        c = device_config(d, "cam1");
+        CHECK(num(c, "bits") == 16 && num(c, "width") == 160 && num(c, "exposure_us") == 20000);
+        json_decref(d);
+}
+
 int main(int argc, char **argv)
 {
         struct rigenv e;
 
         CHECK(argc == 4);
         rigenv_start(&e, argv, 10);
+        test_describe(&e);
         test_motion_and_switches(&e);
         test_captures(&e);
         rigenv_stop(&e);
