@@ -54,6 +54,7 @@ struct cmd {
         int (*run)(const struct args *a, struct out *o, struct conn *conn);
         bool stops;   /* waits for motion: an interrupted wait stops the rig (not --no-wait) */
         bool follows; /* follows the session its result describes until it ends or pauses */
+        bool admin;   /* an admin method: over the admin socket (admin_socket) */
         /* runs here, without goniod: fills its result (printed) or prints its error with
          * out_error; returns an enum gonioctl_exit value */
         int (*local)(const struct args *a, struct out *o, json_t **ret);
@@ -258,6 +259,9 @@ static const struct cmd commands[] = {
          NULL, NULL, "dataset closed"},
         {"fault", "clear", "", "clear a latched fault", "fault.clear", 0, 0, 0, TIMEOUT_S, NULL,
          NULL, "fault cleared"},
+        {"fault", "override", "",
+         "lift a latched fault without rechecking the devices (admin socket: root)",
+         "fault.override", 0, 0, 0, TIMEOUT_S, NULL, NULL, "fault overridden", .admin = true},
         {"session", "plan", "FILE", "what a session file will do and how long it takes",
          "session.plan", 1, 1, 0, TIMEOUT_S, p_session_file, out_print_session_plan},
         {"session", "run", "FILE", "run a session file (Ctrl-C pauses it)", "session.run", 1, 1, 0,
@@ -497,6 +501,29 @@ static void on_watch(const char *method, json_t *params, void *userdata)
 static int64_t deadline_after(double timeout_s)
 {
         return conn_now_ms() + (int64_t)(timeout_s * 1000);
+}
+
+/* cmd_connect to the admin socket: $GONIO_ADMIN_SOCKET, else admin.sock beside the control
+ * socket (--socket or the default path), as goniod places it. */
+static int admin_connect(const struct args *a, struct out *o, struct conn **ret)
+{
+        char ctl[108], path[108];
+        const char *env = getenv("GONIO_ADMIN_SOCKET"), *slash;
+        struct args b = *a;
+
+        if (env && *env)
+                snprintf(path, sizeof(path), "%s", env);
+        else {
+                if (a->socket)
+                        snprintf(ctl, sizeof(ctl), "%s", a->socket);
+                else
+                        (void)proto_socket_path(ctl, sizeof(ctl));
+                slash = strrchr(ctl, '/');
+                snprintf(path, sizeof(path), "%.*sadmin.sock", slash ? (int)(slash - ctl + 1) : 0,
+                         ctl);
+        }
+        b.socket = path;
+        return cmd_connect(&b, o, ret);
 }
 
 int cmd_connect(const struct args *a, struct out *o, struct conn **ret)
@@ -770,7 +797,7 @@ static int run_command(const struct args *a, struct out *o)
         }
         if (c->local)
                 return run_local(c, a, o, params);
-        r = cmd_connect(a, o, &conn);
+        r = c->admin ? admin_connect(a, o, &conn) : cmd_connect(a, o, &conn);
         if (r != EXIT_OK) {
                 json_decref(params);
                 return r;

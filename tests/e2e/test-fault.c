@@ -70,8 +70,14 @@ static void test_relay_timeout(struct rigenv *e)
         CHECK_STR(json_string_value(json_object_get(json_object_get(st, "fault"), "device")),
                   "lamp1");
         json_decref(st);
-        /* the fault persists while the module is silent */
+        /* the fault persists while the module is silent; only the admin socket can lift it
+         * (gonioctl fault override finds it beside the control socket) */
         CHECK(ctl(e, NULL, "fault", "clear", NULL) != 0);
+        setenv("GONIO_ADMIN_SOCKET", e->sock, 1); /* the operator socket: refused */
+        CHECK_INT(ctl(e, NULL, "fault", "override", NULL), 9);
+        unsetenv("GONIO_ADMIN_SOCKET");
+        json_decref(ctl_ok(e, "fault", "override", NULL));
+        json_decref(wait_state(e, "idle", 5));
         sim_request(e, "{\"cmd\":\"inject\",\"bus\":\"relays\",\"unit\":10,\"fault\":\"none\"}\n");
         json_decref(ctl_ok(e, "fault", "clear", NULL));
         json_decref(ctl_ok(e, "lamp", "lamp1", "on", NULL));
