@@ -14,6 +14,7 @@
 #include "client/scan_capture.h"
 #include "client/cmd.h"
 #include "client/conn.h"
+#include "client/doctor.h"
 #include "client/model.h"
 #include "client/output.h"
 #include "client/scan.h"
@@ -285,6 +286,9 @@ static const struct cmd commands[] = {
         {NULL, "validate", "FILE [--rig RIG-FILE]",
          "check a rig file, or a session file against its rig file (no goniod)", NULL, 1, 1,
          ARG_RIG, TIMEOUT_S, NULL, validate_print, .local = validate_command},
+        {NULL, "doctor", "[SESSION-FILE]",
+         "check the socket, goniod, the fault, every device and the room a session needs", NULL, 0,
+         1, 0, TIMEOUT_S, NULL, doctor_print, .local = doctor_command},
         {NULL, "devices", "", "serial ports, V4L2 nodes, gpiochips, USB devices here (no goniod)",
          NULL, 0, 0, 0, TIMEOUT_S, NULL, out_print_devices, .local = discover_here},
         {NULL, "scan",

@@ -4,6 +4,7 @@
 #include <errno.h>
 #include <math.h>
 #include <string.h>
+#include <sys/statvfs.h>
 
 #include "common/clock.h"
 #include "common/log.h"
@@ -135,6 +136,18 @@ static int m_hello(struct srv_req *req, json_t *params, void *userdata)
         return 0;
 }
 
+/* The data root and the room on its filesystem (statvfs; null sizes when it fails). */
+static json_t *storage_json(const char *root)
+{
+        struct statvfs v;
+
+        if (statvfs(root, &v) < 0)
+                return json_pack("{sssnsn}", "root", root, "free_bytes", "total_bytes");
+        return json_pack("{sssIsI}", "root", root, "free_bytes",
+                         (json_int_t)((uint64_t)v.f_bavail * v.f_frsize), "total_bytes",
+                         (json_int_t)((uint64_t)v.f_blocks * v.f_frsize));
+}
+
 static int m_status(struct srv_req *req, json_t *params, void *userdata)
 {
         struct manager *m = userdata;
@@ -150,6 +163,7 @@ static int m_status(struct srv_req *req, json_t *params, void *userdata)
                                           capture_dataset_name(m->capture), "count",
                                           (json_int_t)capture_dataset_count(m->capture))
                               : json_null());
+        json_object_set_new(st, "storage", storage_json(m->data_dir));
         srv_reply(req, st);
         return 0;
 }

@@ -193,6 +193,45 @@ static void test_describe(struct rigenv *e)
         json_decref(d);
 }
 
+/* The check of doctor's result (or error) named name. */
+static json_t *doctor_check(json_t *r, const char *name)
+{
+        json_t *c, *list = json_object_get(r, "checks");
+        size_t i;
+
+        if (!list)
+                list = json_object_get(json_object_get(r, "error"), "checks");
+        json_array_foreach(list, i, c) if (!strcmp(json_string_value(json_object_get(c, "name")),
+                                                   name)) return c;
+        CHECK(!"doctor has no such check");
+        return NULL;
+}
+
+/* gonioctl doctor on the homed, idle rig: every check ok, the room a session needs counted
+ * from its plan and the cameras' frames; no socket: exit 3 with the hint to start goniod. */
+static void test_doctor(struct rigenv *e)
+{
+        char file[400], sock[500];
+        json_t *r = ctl_ok(e, "doctor", NULL);
+        const char *detail;
+
+        CHECK(json_is_true(json_object_get(r, "ok")));
+        CHECK_STR(json_string_value(json_object_get(doctor_check(r, "camera_arm"), "status")),
+                  "ok");
+        CHECK_STR(json_string_value(json_object_get(doctor_check(r, "cam1"), "status")), "ok");
+        json_decref(r);
+        sess_write(e, "doctor.yaml", e2e_session_text, file, sizeof(file));
+        r = ctl_ok(e, "doctor", file, NULL);
+        detail = json_string_value(json_object_get(doctor_check(r, "storage"), "detail"));
+        fprintf(stderr, "doctor: %s\n", detail);
+        CHECK_STR_CONTAINS(detail, "captures need about");
+        json_decref(r);
+        snprintf(sock, sizeof(sock), "--socket=%s/none.sock", e->dir);
+        CHECK_INT(ctl(e, &r, sock, "doctor", NULL), 3);
+        CHECK_STR(json_string_value(json_object_get(doctor_check(r, "socket"), "status")), "fail");
+        json_decref(r);
+}
+
 int main(int argc, char **argv)
 {
         struct rigenv e;
@@ -201,6 +240,7 @@ int main(int argc, char **argv)
         rigenv_start(&e, argv, 10);
         test_describe(&e);
         test_motion_and_switches(&e);
+        test_doctor(&e);
         test_captures(&e);
         rigenv_stop(&e);
         return 0;

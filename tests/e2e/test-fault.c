@@ -62,6 +62,7 @@ static void test_stall(struct rigenv *e)
 static void test_relay_timeout(struct rigenv *e)
 {
         json_t *st;
+        char *text;
 
         sim_request(e,
                     "{\"cmd\":\"inject\",\"bus\":\"relays\",\"unit\":10,\"fault\":\"timeout\"}\n");
@@ -69,6 +70,11 @@ static void test_relay_timeout(struct rigenv *e)
         st = wait_state(e, "fault", 10);
         CHECK_STR(json_string_value(json_object_get(json_object_get(st, "fault"), "device")),
                   "lamp1");
+        json_decref(st);
+        CHECK_INT(ctl(e, &st, "doctor", NULL), 5); /* gonioctl doctor names the fault */
+        text = json_dumps(st, 0);
+        CHECK_STR_CONTAINS(text, "fault on lamp1");
+        free(text);
         json_decref(st);
         /* the fault persists while the module is silent; only the admin socket can lift it
          * (gonioctl fault override finds it beside the control socket) */
