@@ -26,6 +26,10 @@ static void usage(FILE *f)
                 "                 control socket)\n"
                 "                 (both taken from systemd instead when socket-activated)\n"
                 "  --data DIR     directory of datasets (default $GONIO_DATA or /var/lib/gonio)\n"
+                "  --listen-tcp HOST:PORT\n"
+                "                 also listen on TCP (loopback only; $GONIO_LISTEN_TCP)\n"
+                "  --token-file FILE\n"
+                "                 the token a TCP client gives in hello ($GONIO_TOKEN_FILE)\n"
                 "  --verbose      debug logging\n"
                 "  --version      print the version and exit\n");
 }
@@ -52,6 +56,26 @@ static void default_admin(const char *sock, char *out, size_t len)
         snprintf(out, len, "%.*sadmin.sock", slash ? (int)(slash - sock + 1) : 0, sock);
 }
 
+/* The TCP listener at addr with the token of token_file (its first line). Returns 0 or
+ * -errno (logged). */
+static int listen_tcp(struct manager *m, const char *addr, const char *token_file)
+{
+        char token[256] = "";
+        FILE *f = token_file && *token_file ? fopen(token_file, "re") : NULL;
+
+        if (!token_file || !*token_file)
+                return log_error_errno(EINVAL, "TCP listener %s needs a token: --token-file FILE",
+                                       addr);
+        if (!f)
+                return log_error_errno(errno, "TCP listener %s: token file %s: %m", addr,
+                                       token_file);
+        if (!fgets(token, sizeof(token), f))
+                token[0] = 0;
+        fclose(f);
+        token[strcspn(token, "\r\n")] = 0;
+        return server_listen_tcp(m->server, addr, token);
+}
+
 int main(int argc, char **argv)
 {
         static const struct option opts[] = {
@@ -62,15 +86,18 @@ int main(int argc, char **argv)
                 {"verbose", no_argument, NULL, 'v'},
                 {"help", no_argument, NULL, 'h'},
                 {"version", no_argument, NULL, 'V'},
+                {"listen-tcp", required_argument, NULL, 't'},
+                {"token-file", required_argument, NULL, 'k'},
                 {},
         };
-        const char *rig = NULL, *data = getenv("GONIO_DATA");
+        const char *rig = NULL, *data = getenv("GONIO_DATA"), *tcp = getenv("GONIO_LISTEN_TCP"),
+                   *token_file = getenv("GONIO_TOKEN_FILE");
         char sock[PATH_MAX] = "", admin[PATH_MAX] = "";
         struct manager *m = NULL;
         int c, r;
 
         gn_log_set_ident("goniod");
-        while ((c = getopt_long(argc, argv, "r:s:a:d:vhV", opts, NULL)) >= 0) {
+        while ((c = getopt_long(argc, argv, "r:s:a:d:vhVt:k:", opts, NULL)) >= 0) {
                 switch (c) {
                 case 'r':
                         rig = optarg;
@@ -83,6 +110,12 @@ int main(int argc, char **argv)
                         break;
                 case 'd':
                         data = optarg;
+                        break;
+                case 't':
+                        tcp = optarg;
+                        break;
+                case 'k':
+                        token_file = optarg;
                         break;
                 case 'v':
                         gn_log_set_level(GN_LOG_DEBUG);
@@ -109,6 +142,10 @@ int main(int argc, char **argv)
         r = manager_new(rig, sock, admin, data && *data ? data : "/var/lib/gonio", &m);
         if (r < 0) {
                 log_error_errno(r, "cannot start: %m");
+                return 1;
+        }
+        if (tcp && *tcp && (r = listen_tcp(m, tcp, token_file)) < 0) {
+                manager_free(m);
                 return 1;
         }
         r = manager_run(m);

@@ -124,7 +124,7 @@ static int m_hello(struct srv_req *req, json_t *params, void *userdata)
         long proto = PROTO_VERSION;
         int r;
 
-        if ((r = srv_params_check(req, params, KEYS("client", "protocol"))) < 0 ||
+        if ((r = srv_params_check(req, params, KEYS("client", "protocol", "token"))) < 0 ||
             (r = srv_param_int(req, params, "protocol", 0, 1000, &proto)) < 0)
                 return r;
         if (proto != PROTO_VERSION)

@@ -24,8 +24,11 @@
  * connection gets one error line and is closed, so an operator is never locked
  * out by connections that do nothing. A spare descriptor lets the server
  * refuse a connection even when the process is out of descriptors. */
+#include <arpa/inet.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <netdb.h>
+#include <netinet/in.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
@@ -44,8 +47,11 @@
 #include "server.h"
 
 #define SRV_MAX_OUTPUT   (16u * PROTO_MAX_LINE) /* 1 MiB: a client's unsent output */
-#define SRV_FD_RESERVE   64   /* descriptors left for devices, datasets and the loop */
-#define SRV_ACCEPT_BATCH 1024 /* per wake-up, so a connection flood cannot starve clients */
+#define SRV_FD_RESERVE   64 /* descriptors left for devices, datasets and the loop */
+#define SRV_ACCEPT_BATCH 1024
+#define MAX_BAD_TOKENS                                                                             \
+        3 /* wrong tokens before a TCP connection is closed */ /* per wake-up, so a connection     \
+                                                                  flood cannot starve clients */
 
 struct client {
         struct server *server;
@@ -55,8 +61,10 @@ struct client {
         struct proto_lines in;
         char *out;
         size_t out_len, out_cap;
-        bool hello;           /* answered a successful hello */
-        enum srv_role role;   /* of the listener it came on */
+        bool hello;         /* answered a successful hello */
+        enum srv_role role; /* of the listener it came on */
+        const char *token;  /* the listener's: hello must give it first, NULL: none */
+        int bad_tokens;
         uint64_t number;      /* srv_req_client */
         uint64_t last_active; /* CLOCK_MONOTONIC usec of its last request, or of accept */
         struct client *next;  /* the list is newest first */
@@ -68,7 +76,8 @@ struct listener {
         int fd, lock_fd; /* lock_fd: "<path>.lock", for the sockets we bound */
         enum srv_role role;
         char path[sizeof(((struct sockaddr_un *)0)->sun_path)];
-        bool bound; /* path is the socket we bound, identified by dev/ino */
+        char token[128]; /* TCP: what hello must give, "" none */
+        bool bound;      /* path is the socket we bound, identified by dev/ino */
         dev_t dev;
         ino_t ino;
         sd_event_source *src;
@@ -319,6 +328,29 @@ static const char *role_path(const struct server *s, enum srv_role role)
         return NULL;
 }
 
+/* Whether a and b are the same string, in a time that does not tell where they differ. */
+static bool same_secret(const char *a, const char *b)
+{
+        size_t la = strlen(a), lb = strlen(b);
+        unsigned char d = la != lb;
+
+        for (size_t i = 0; i < la; i++)
+                d |= (unsigned char)a[i] ^ (unsigned char)b[i % (lb ? lb : 1)];
+        return d == 0;
+}
+
+/* On a connection that needs the token: whether this is the hello that gives it (the
+ * connection is then free). */
+static bool token_given(struct client *c, const struct srv_method *m, json_t *params)
+{
+        const char *t = json_string_value(json_object_get(params, "token"));
+
+        if (strcmp(m->name, "hello") || !t || !same_secret(t, c->token))
+                return false;
+        c->token = NULL;
+        return true;
+}
+
 /* Runs one request. A notification from the client (no id) runs too, unanswered. */
 static void dispatch(struct client *c, struct proto_msg *msg)
 {
@@ -346,6 +378,16 @@ static void dispatch(struct client *c, struct proto_msg *msg)
         req->method = m->name;
         if (params && !json_is_object(params)) {
                 srv_fail(req, -EINVAL, "params must be an object");
+                return;
+        }
+        if (c->token && !token_given(c, m, params)) {
+                srv_fail(req, -EACCES, "%s",
+                         strcmp(m->name, "hello") ? "say hello with the token first"
+                                                  : "wrong or missing token");
+                if (++c->bad_tokens >= MAX_BAD_TOKENS) {
+                        (void)client_flush(c); /* the error, if it fits, then the close */
+                        client_close(c);
+                }
                 return;
         }
         if (m->admin && c->role != SRV_ADMIN) {
@@ -498,10 +540,11 @@ static bool evict(struct server *s, uint64_t now)
         return true;
 }
 
-/* Serves a new connection of role (cfd is taken). */
-static void client_add(struct server *s, int cfd, enum srv_role role, uint64_t now)
+/* Serves a new connection of listener l (cfd is taken). */
+static void client_add(struct listener *l, int cfd, uint64_t now)
 {
         _cleanup_close_ int fd = cfd;
+        struct server *s = l->server;
         struct client *c = calloc(1, sizeof(*c));
         int r;
 
@@ -509,7 +552,8 @@ static void client_add(struct server *s, int cfd, enum srv_role role, uint64_t n
                 return;
         c->server = s;
         c->ref = 1;
-        c->role = role;
+        c->role = l->role;
+        c->token = l->token[0] ? l->token : NULL;
         c->last_active = now;
         c->number = ++s->last_number;
         r = sd_event_add_io(s->event, &c->io, fd, EPOLLIN, on_client_io, c);
@@ -537,7 +581,7 @@ static void admit(struct listener *l, int cfd)
                 refuse(s, fd, "");
                 return;
         }
-        client_add(s, TAKE_FD(fd), l->role, now);
+        client_add(l, TAKE_FD(fd), now);
 }
 
 /* Out of descriptors: frees the spare one to accept and refuse one pending connection, so
@@ -784,6 +828,65 @@ int server_listen(struct server *s, const char *path, enum srv_role role)
         if (!l)
                 return r;
         return listener_add(l, listen_unix(l, role == SRV_ADMIN ? 0600 : 0660));
+}
+
+/* The loopback address of addr ("HOST:PORT", HOST numeric, [::1] bracketed) into sa.
+ * Returns 0, -EINVAL or -EPERM (not loopback). */
+static int tcp_address(const char *addr, struct sockaddr_storage *sa, socklen_t *len)
+{
+        struct addrinfo hints = {.ai_family = AF_UNSPEC,
+                                 .ai_socktype = SOCK_STREAM,
+                                 .ai_flags = AI_NUMERICHOST | AI_NUMERICSERV | AI_PASSIVE},
+                        *res = NULL;
+        char host[64];
+        const char *colon = strrchr(addr, ':');
+        bool loop;
+
+        if (!colon || colon == addr || (size_t)(colon - addr) >= sizeof(host))
+                return -EINVAL;
+        snprintf(host, sizeof(host), "%.*s", (int)(colon - addr), addr);
+        if (host[0] == '[' && host[strlen(host) - 1] == ']')
+                memmove(host, host + 1, strlen(host)), host[strlen(host) - 1] = 0;
+        if (getaddrinfo(host, colon + 1, &hints, &res) != 0 || !res)
+                return -EINVAL;
+        memcpy(sa, res->ai_addr, res->ai_addrlen);
+        *len = res->ai_addrlen;
+        freeaddrinfo(res);
+        loop = sa->ss_family == AF_INET
+                       ? (ntohl(((struct sockaddr_in *)sa)->sin_addr.s_addr) >> 24) == 127
+                       : IN6_IS_ADDR_LOOPBACK(&((struct sockaddr_in6 *)sa)->sin6_addr);
+        return loop ? 0 : -EPERM;
+}
+
+int server_listen_tcp(struct server *s, const char *addr, const char *token)
+{
+        struct sockaddr_storage sa;
+        socklen_t len = 0;
+        struct listener *l;
+        int r = tcp_address(addr, &sa, &len), fd, one = 1;
+
+        if (r == -EPERM)
+                return log_error_errno(EPERM,
+                                       "TCP listener %s: not a loopback address: beyond "
+                                       "loopback the protocol needs TLS, which goniod does not "
+                                       "have yet",
+                                       addr);
+        if (r < 0 || !token || strlen(token) < 16 || strlen(token) >= sizeof(l->token))
+                return log_error_errno(EINVAL, "TCP listener %s: %s", addr,
+                                       r < 0 ? "expected HOST:PORT, HOST a numeric loopback "
+                                               "address (127.0.0.1, [::1])"
+                                             : "the token must be 16 to 127 characters");
+        if (!(l = listener_new(s, SRV_OPERATOR, addr, &r)))
+                return r;
+        snprintf(l->token, sizeof(l->token), "%s", token);
+        fd = socket(sa.ss_family, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+        if (fd < 0 || setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof(one)) < 0 ||
+            bind(fd, (struct sockaddr *)&sa, len) < 0 || listen(fd, SOMAXCONN) < 0) {
+                r = log_error_errno(errno, "Cannot listen on TCP %s: %m", addr);
+                safe_close(fd);
+                fd = r;
+        }
+        return listener_add(l, fd);
 }
 
 int server_listen_fd(struct server *s, int fd, enum srv_role role)

@@ -73,6 +73,13 @@ int server_listen_fd(struct server *s, int fd, enum srv_role role);
  * of server_listen_fd (logged). Every passed descriptor is taken, also on failure. */
 int server_listen_systemd(struct server *s);
 
+/* Listens on TCP at addr ("127.0.0.1:PORT", "[::1]:PORT"; numeric, loopback only: beyond it
+ * the protocol would need TLS, which goniod does not have) for operator connections that
+ * must say hello with params.token equal to token (16 characters at least) before anything
+ * else; three wrong tokens close the connection. Returns 0, -EINVAL (a bad address or a
+ * short token), -EPERM (not loopback) or -errno of bind/listen (logged). */
+int server_listen_tcp(struct server *s, const char *addr, const char *token);
+
 /* Starts accepting connections. Returns 0 or -errno. */
 int server_start(struct server *s);
 
