@@ -32,9 +32,10 @@
 #define AP_ENV_SPHERE_GRID   32   /* ap_spheres_fit's grid */
 #define AP_ENV_PAIRS         16   /* representative normal pairs (bench/envlight: 38 dB) */
 #define AP_ENV_GROUND_ALBEDO 0.5f /* a grey turntable */
-#define AP_ENV_GROUND_TOUCH  2.0  /* mm: a mesh stands on z = 0 when its lowest point is this near \
-                                   */
-#define AP_ENV_GROUND_RADII 3.0   /* the default ground's radius in the mesh's bounding radii */
+#define AP_ENV_GROUND_TOUCH                                                                        \
+        2.0                     /* mm: a mesh stands on z = 0 when its lowest point is this near   \
+                                 */
+#define AP_ENV_GROUND_RADII 3.0 /* the default ground's radius in the mesh's bounding radii */
 
 /* A point or directional light instead of the map: f(l, v) cos_l times I / r^2 (point) or
  * I (directional), shadowed by the sphere set and the ground as a lobe of sharpness
