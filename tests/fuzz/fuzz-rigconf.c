@@ -8,8 +8,6 @@
 #include "drivers/registry.h"
 #include "fuzz.h"
 
-int LLVMFuzzerInitialize(int *argc, char ***argv);
-
 int LLVMFuzzerInitialize(int *argc, char ***argv)
 {
         setenv("GONIO_FUZZ", "/dev/null", 1);

@@ -19,8 +19,6 @@ static void free_rigs(void)
                 rigs[i] = rigconf_free(rigs[i]);
 }
 
-int LLVMFuzzerInitialize(int *argc, char ***argv);
-
 /* Loads the example rigs; one whose backends this build lacks (lab.yaml without libgpiod) is
  * left out. */
 int LLVMFuzzerInitialize(int *argc, char ***argv)

@@ -9,6 +9,9 @@
 /* libFuzzer's entry point, defined by each fuzz-NAME.c. */
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
+/* libFuzzer's optional set-up, run once before the first input (fuzz-rigconf, fuzz-sessconf). */
+int LLVMFuzzerInitialize(int *argc, char ***argv);
+
 /* A malloc'ed copy of data with a NUL appended (free it); data's own NULs stay. */
 char *fuzz_cstr(const uint8_t *data, size_t size);
 
