@@ -73,9 +73,9 @@ int cal_yaml_read_board(struct yconf *yc, struct fy_node *m, struct cal_board *b
                 return yconf_error(yc, yconf_get(bm, "type"), "board.type",
                                    "expected chessboard or charuco");
         for (int i = 0; i < 2; i++) /* whole and within an int: a cast beyond is undefined */
-                if (!(sq[i] >= 1 && sq[i] <= 1000) || sq[i] != floor(sq[i]))
+                if (!(sq[i] >= 0 && sq[i] <= 1000) || sq[i] != floor(sq[i]))
                         return yconf_error(yc, yconf_get(bm, "squares"), "board.squares",
-                                           "expected two whole numbers from 1 to 1000");
+                                           "expected two whole numbers from 0 to 1000");
         b->type = !strcmp(type, "charuco") ? CAL_BOARD_CHARUCO : CAL_BOARD_CHESSBOARD;
         b->squares_x = (int)sq[0];
         b->squares_y = (int)sq[1];
