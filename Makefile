@@ -2,12 +2,14 @@
 # (scripts/install-deps, idempotent), configures build/ and compiles.
 BUILD      ?= build
 ASAN_BUILD ?= build-asan
+# the libFuzzer targets (tests/fuzz, docs/fuzzing.md): clang, -Dfuzzing=true
+FUZZ_BUILD ?= build-fuzz
 MESON_OPTS ?=
 # Tests at once: most end-to-end tests wait on the simulated rig, so three keep 2 cores busy
 # (those that compare rig time with wall time run alone: tests/e2e/meson.build).
 TEST_JOBS  ?= 3
 
-.PHONY: all deps build install demo test test-fast test-asan bench format clean
+.PHONY: all deps build install demo test test-fast test-asan test-fuzz bench format clean
 
 all: build
 
@@ -19,6 +21,9 @@ $(BUILD)/build.ninja:
 
 $(ASAN_BUILD)/build.ninja:
 	meson setup $(ASAN_BUILD) -Dbuildtype=debug -Doptimization=1 -Db_sanitize=address,undefined $(MESON_OPTS)
+
+$(FUZZ_BUILD)/build.ninja:
+	CC=clang CXX=clang++ meson setup $(FUZZ_BUILD) -Dfuzzing=true -Dkernel_lane=false $(MESON_OPTS)
 
 build: deps $(BUILD)/build.ninja
 	ninja -C $(BUILD)
@@ -33,9 +38,10 @@ install: build
 demo: build
 	scripts/demo $(BUILD)
 
-# The whole suite, then once more under AddressSanitizer + UndefinedBehaviorSanitizer.
-test: test-fast test-asan
-	@scripts/test-summary $(BUILD) $(ASAN_BUILD)
+# The whole suite, then once more under AddressSanitizer + UndefinedBehaviorSanitizer, then a
+# few seconds of each fuzz target over its corpus.
+test: test-fast test-asan test-fuzz
+	@scripts/test-summary $(BUILD) $(ASAN_BUILD) $(FUZZ_BUILD)
 
 test-fast: build
 	meson test -C $(BUILD) --print-errorlogs --num-processes $(TEST_JOBS)
@@ -45,6 +51,11 @@ test-asan: deps $(ASAN_BUILD)/build.ninja
 	ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
 		meson test -C $(ASAN_BUILD) --print-errorlogs --timeout-multiplier 3 --num-processes $(TEST_JOBS)
 
+# Builds only the fuzz targets and what they link (ninja's alias 'fuzz'), then runs suite 'fuzz'.
+test-fuzz: deps $(FUZZ_BUILD)/build.ninja
+	ninja -C $(FUZZ_BUILD) fuzz
+	meson test -C $(FUZZ_BUILD) --no-rebuild --suite fuzz --print-errorlogs --num-processes 2
+
 bench: build
 	scripts/bench $(BUILD)
 
@@ -52,4 +63,4 @@ format:
 	clang-format -i $$(git ls-files '*.c' '*.h' '*.cpp')
 
 clean:
-	rm -rf $(BUILD) $(ASAN_BUILD)
+	rm -rf $(BUILD) $(ASAN_BUILD) $(FUZZ_BUILD)

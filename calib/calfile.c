@@ -5,6 +5,8 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <libfyaml.h>
+#include <limits.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -70,6 +72,10 @@ int cal_yaml_read_board(struct yconf *yc, struct fy_node *m, struct cal_board *b
         if (strcmp(type, "charuco") != 0 && strcmp(type, "chessboard") != 0)
                 return yconf_error(yc, yconf_get(bm, "type"), "board.type",
                                    "expected chessboard or charuco");
+        for (int i = 0; i < 2; i++) /* whole and within an int: a cast beyond is undefined */
+                if (!(sq[i] >= 0 && sq[i] <= 1000) || sq[i] != floor(sq[i]))
+                        return yconf_error(yc, yconf_get(bm, "squares"), "board.squares",
+                                           "expected two whole numbers from 0 to 1000");
         b->type = !strcmp(type, "charuco") ? CAL_BOARD_CHARUCO : CAL_BOARD_CHESSBOARD;
         b->squares_x = (int)sq[0];
         b->squares_y = (int)sq[1];
@@ -99,7 +105,7 @@ static int need_vec(struct yconf *yc, struct fy_node *m, const char *key, double
 /* An integer, required. */
 static int need_int(struct yconf *yc, struct fy_node *m, const char *key, long *v)
 {
-        int r = yconf_int(yc, m, key, 0, 1L << 40, v);
+        int r = yconf_int(yc, m, key, 0, INT_MAX, v); /* counts: each fits an int */
 
         return r == 0 ? yconf_error(yc, m, key, "missing") : r < 0 ? r : 0;
 }
@@ -375,13 +381,11 @@ int cal_laser_write(const char *path, const char *name, const char *camera,
 static int laser_from_yaml(struct yconf *yc, struct fy_node *m, const char *name,
                            struct cal_file_laser *out)
 {
-        static const char *const keys[] = {"d",           "rms_mm",         "spread_mm",
-                                           "points",      "inliers",        "views_used",
-                                           "views_given", "axis_angle_deg", "axis_dist_mm"};
-        double points = 0, inliers = 0, used = 0, given = 0;
-        double *const v[] = {&out->plane.d,     &out->rms_mm, &out->spread_mm, &points,
-                             &inliers,          &used,        &given,          &out->axis_angle_deg,
+        static const char *const keys[] = {"d", "rms_mm", "spread_mm", "axis_angle_deg",
+                                           "axis_dist_mm"};
+        double *const v[] = {&out->plane.d, &out->rms_mm, &out->spread_mm, &out->axis_angle_deg,
                              &out->axis_dist_mm};
+        long used = 0, given = 0;
         int r;
 
         snprintf(out->name, sizeof(out->name), "%s", name);
@@ -389,10 +393,12 @@ static int laser_from_yaml(struct yconf *yc, struct fy_node *m, const char *name
             (r = yconf_str(yc, m, "dataset", out->dataset, sizeof(out->dataset))) < 0 ||
             (r = yconf_str_req(yc, m, "camera", out->camera, sizeof(out->camera))) < 0 ||
             (r = need_vec(yc, m, "n", out->plane.n, 3)) < 0 ||
-            (r = cal_yaml_numbers(yc, m, keys, v, ELEMENTSOF(keys))) < 0)
+            (r = cal_yaml_numbers(yc, m, keys, v, ELEMENTSOF(keys))) < 0 ||
+            (r = need_int(yc, m, "points", &out->points)) < 0 ||
+            (r = need_int(yc, m, "inliers", &out->inliers)) < 0 ||
+            (r = need_int(yc, m, "views_used", &used)) < 0 ||
+            (r = need_int(yc, m, "views_given", &given)) < 0)
                 return r;
-        out->points = (long)points;
-        out->inliers = (long)inliers;
         out->n_used = (int)used;
         out->n_views = (int)given;
         return 0;

@@ -902,8 +902,12 @@ static int read_text(const char *path, char **ret)
 
         if (!f)
                 return -errno;
-        if (getdelim(&buf, &len, '\0', f) < 0 && !feof(f))
-                return -errno;
+        if (getdelim(&buf, &len, '\0', f) < 0) {
+                if (!feof(f))
+                        return -errno;
+                if (buf) /* an empty file: getdelim allocated but wrote nothing */
+                        buf[0] = '\0';
+        }
         if (!buf && !(buf = strdup("")))
                 return -ENOMEM;
         *ret = TAKE_PTR(buf);

@@ -3,6 +3,7 @@
  * Every error message has the form "FILE:LINE: key 'KEY': reason" and only the
  * first error of a load is kept, so that the operator sees the root cause. */
 #include <errno.h>
+#include <fcntl.h>
 #include <libfyaml.h>
 #include <math.h>
 #include <stdarg.h>
@@ -10,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "fileio.h"
 #include "log.h"
 #include "yconf.h"
 
@@ -60,12 +62,53 @@ static int parse_failed(struct yconf *ctx)
         return -EINVAL;
 }
 
+/* Length of the UTF-8 sequence at s (1 to 4), or 0 when it is not well-formed (overlong,
+ * surrogate, beyond U+10FFFF, truncated, a stray continuation byte). */
+static size_t utf8_seq(const unsigned char *s)
+{
+        unsigned c = s[0];
+        size_t n = c < 0x80                 ? 1
+                   : c >= 0xc2 && c <= 0xdf ? 2
+                   : c >= 0xe0 && c <= 0xef ? 3
+                   : c >= 0xf0 && c <= 0xf4 ? 4
+                                            : 0;
+
+        for (size_t i = 1; i < n; i++)
+                if ((s[i] & 0xc0) != 0x80)
+                        return 0;
+        if ((c == 0xe0 && s[1] < 0xa0) || (c == 0xed && s[1] > 0x9f) ||
+            (c == 0xf0 && s[1] < 0x90) || (c == 0xf4 && s[1] > 0x8f))
+                return 0;
+        return n;
+}
+
+/* YAML is Unicode text; libfyaml 0.7 loops forever on some malformed UTF-8 (a directive
+ * line "%\x83"), so malformed text is refused before it gets there, at its line. */
+static int check_utf8(struct yconf *ctx, const char *text)
+{
+        const unsigned char *p = (const unsigned char *)text;
+        int line = 1;
+        size_t n;
+
+        for (; *p; p += n) {
+                if (!(n = utf8_seq(p))) {
+                        if (ctx->err)
+                                snprintf(ctx->err, ctx->errlen,
+                                         "%s:%d: not UTF-8 text (byte 0x%02x)", ctx->path, line,
+                                         *p);
+                        return -EINVAL;
+                }
+                line += *p == '\n';
+        }
+        return 0;
+}
+
 static int open_common(struct yconf *ctx, const char *path, const char *text, char *err,
                        size_t errlen)
 {
         struct fy_parse_cfg cfg = {.flags = FYPCF_QUIET | FYPCF_DEFAULT_PARSE};
         struct fy_diag *diag;
-        int r = 0;
+        int r;
 
         memset(ctx, 0, sizeof(*ctx));
         ctx->path = path;
@@ -73,12 +116,11 @@ static int open_common(struct yconf *ctx, const char *path, const char *text, ch
         ctx->errlen = errlen;
         if (err && errlen)
                 err[0] = 0;
+        if ((r = check_utf8(ctx, text)) < 0)
+                return r;
         diag = capturing_diag(ctx);
         cfg.diag = diag;
-        if (text)
-                ctx->doc = fy_document_build_from_string(&cfg, text, FY_NT);
-        else
-                ctx->doc = fy_document_build_from_file(&cfg, path);
+        ctx->doc = fy_document_build_from_string(&cfg, text, FY_NT);
         if (!ctx->doc)
                 r = parse_failed(ctx);
         if (diag)
@@ -88,16 +130,21 @@ static int open_common(struct yconf *ctx, const char *path, const char *text, ch
 
 int yconf_open(struct yconf *ctx, const char *path, char *err, size_t errlen)
 {
-        FILE *f = fopen(path, "re");
+        void *text = NULL;
+        size_t len;
+        int r = gn_read_file_at(AT_FDCWD, path, YCONF_FILE_MAX, &text, &len);
 
-        if (!f) {
-                int r = -errno;
+        if (r < 0) {
                 memset(ctx, 0, sizeof(*ctx));
                 snprintf(err, errlen, "%s: %s", path, strerror(-r));
                 return r;
         }
-        fclose(f);
-        return open_common(ctx, path, NULL, err, errlen);
+        r = open_common(ctx, path, text, err, errlen);
+        if (r < 0)
+                free(text);
+        else
+                ctx->text = text;
+        return r;
 }
 
 int yconf_open_string(struct yconf *ctx, const char *name, const char *text, char *err,
@@ -111,6 +158,8 @@ void yconf_close(struct yconf *ctx)
         if (ctx->doc)
                 fy_document_destroy(ctx->doc);
         ctx->doc = NULL;
+        free(ctx->text);
+        ctx->text = NULL;
 }
 
 struct fy_node *yconf_root(struct yconf *ctx)

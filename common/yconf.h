@@ -22,9 +22,14 @@ struct yconf {
         /* ${VAR} unset or empty is kept as written instead of an error: for a file stored
          * with a dataset and read elsewhere, where the variables of its ports do not matter */
         bool keep_unset_vars;
+        char *text; /* the file's bytes when opened by yconf_open (owned), else NULL */
 };
 
-/* Parses the YAML file at path into ctx->doc. Returns 0 or -errno (message in ctx->err). */
+/* Largest YAML file yconf_open reads (a rig, session or calibration file is a few KiB). */
+#define YCONF_FILE_MAX (16 << 20)
+
+/* Parses the YAML file at path into ctx->doc. Returns 0, -EINVAL (not UTF-8 or not YAML),
+ * -EFBIG (over YCONF_FILE_MAX), -EBADMSG (not a regular file) or -errno (message in ctx->err). */
 int yconf_open(struct yconf *ctx, const char *path, char *err, size_t errlen);
 
 /* Parses YAML text held in memory; name is used in messages. */

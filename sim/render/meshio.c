@@ -347,7 +347,7 @@ static int ply_faces(FILE *f, const struct ply *p, const struct ply_elem *e, str
                         if (pr->count_type &&
                             (r = ply_read_value(f, p->fmt, pr->count_type, &cnt)) < 0)
                                 return r;
-                        if (cnt < 0 || cnt > 64)
+                        if (!(cnt >= 0 && cnt <= 64)) /* NaN too: (int)NaN is undefined */
                                 return -EBADMSG;
                         for (int j = 0; j < (int)cnt; j++) {
                                 if ((r = ply_read_value(f, p->fmt, pr->type, &v)) < 0)
@@ -379,7 +379,7 @@ static int ply_to_mesh(const struct fbuf *vals, const struct fbuf *idx, struct m
                         memcpy(m->uv + 2 * i, vals->v + 8 * i + 6, 2 * sizeof(float));
         }
         for (size_t i = 0; i < idx->n; i++) {
-                if (idx->v[i] < 0 || (size_t)idx->v[i] >= nv)
+                if (!(idx->v[i] >= 0 && idx->v[i] < (float)nv)) /* NaN, huge: no cast */
                         return -ERANGE;
                 m->idx[i] = (uint32_t)idx->v[i];
         }

@@ -551,6 +551,29 @@ static void case_lasers(void)
                   6, "lasers", "at most 8 entries");
 }
 
+/* Text the YAML parser must not see: an empty file (getdelim leaves its buffer unwritten)
+ * and bytes that are not UTF-8 (libfyaml 0.7 loops for ever on "%\x83"), refused at their
+ * line; UTF-8 text loads. */
+static void case_text(void)
+{
+        struct rig_config *rc = NULL;
+        char err[512], path[32], want[96];
+
+        CHECK_INT(load_text("", &rc, err, sizeof(err), path), -EINVAL);
+        CHECK(rc == NULL);
+        CHECK_INT(load_text("rig: t\n%\x83\n", &rc, err, sizeof(err), path), -EINVAL);
+        snprintf(want, sizeof(want), "%s:2: not UTF-8 text (byte 0x83)", path);
+        CHECK_STR(err, want);
+        CHECK_INT(load_text("rig: \xc3(\n", &rc, err, sizeof(err), path), -EINVAL);
+        snprintf(want, sizeof(want), "%s:1: not UTF-8 text (byte 0xc3)", path);
+        CHECK_STR(err, want);
+        CHECK_INT(load_text("rig: \xed\xa0\x80\n", &rc, err, sizeof(err), path), -EINVAL);
+        CHECK(rc == NULL);
+        rc = expect_ok("rig: t\xc3\xa9\xe2\x82\xac\xf0\x9f\x98\x80\n");
+        CHECK_STR(rc->name, "t\xc3\xa9\xe2\x82\xac\xf0\x9f\x98\x80");
+        rigconf_free(rc);
+}
+
 static const struct {
         const char *name;
         void (*fn)(void);
@@ -565,6 +588,7 @@ static const struct {
         {"camera-ranges", case_camera_ranges},
         {"backend-maps", case_backend_maps},
         {"lasers", case_lasers},
+        {"text", case_text},
 };
 
 int main(int argc, char **argv)
