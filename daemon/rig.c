@@ -245,14 +245,19 @@ int rig_submit_new(struct rig *rig, enum job_kind kind, int idx, double arg, boo
         return rig_submit(j, urgent);
 }
 
-static void switch_submit(struct rig *rig, struct job *j, bool urgent)
+/* Queues switch job j (freed on failure). 0, or -errno: the job is dropped and its done will
+ * never be called, so the caller must report the failure. */
+static int switch_submit(struct rig *rig, struct job *j, bool urgent)
 {
         struct rig_switch *s = rig_switch_slot(rig, j->idx);
+        int r;
 
         s->changing++;
         j->gen = atomic_load(&s->gen);
-        if (rig_submit(j, urgent) < 0)
+        r = rig_submit(j, urgent);
+        if (r < 0)
                 s->changing--;
+        return r;
 }
 
 static void axis_finish(struct rig_axis *a, int result, const char *msg);
@@ -277,7 +282,7 @@ void rig_safe_state(struct rig *rig)
                 if (!rig_switch_slot(rig, i)->open || !(j = calloc(1, sizeof(*j))))
                         continue;
                 *j = (struct job){.rig = rig, .kind = J_SWITCH, .idx = i, .on = false};
-                switch_submit(rig, j, true);
+                (void)switch_submit(rig, j, true);
         }
 }
 
@@ -362,6 +367,16 @@ static void arm(struct rig_axis *a, uint64_t usec)
         sd_event_source_set_enabled(a->timer, SD_EVENT_ONESHOT);
 }
 
+/* Faults the rig on axis a and ends a's operation. rig_fault ends it when it latches the
+ * fault, but not when the rig is in fault already (a stop followed during the safe state):
+ * the operation would then wait forever for a poll nobody queues. */
+static void axis_fault(struct rig_axis *a, int err, const char *msg)
+{
+        rig_fault(a->rig, a->ax->conf->name, err, "%s", msg);
+        if (a->op != AX_IDLE)
+                axis_finish(a, err, msg);
+}
+
 static uint64_t now_usec(struct rig *rig)
 {
         uint64_t t = 0;
@@ -392,13 +407,14 @@ static int submit_motion(struct rig_axis *a, enum job_kind kind, double leg, dou
 
         if (!j)
                 return -ENOMEM;
+        a->motions++;
         *j = (struct job){.rig = a->rig,
                           .kind = kind,
                           .idx = a->idx,
                           .arg = leg,
                           .speed = speed,
-                          .gen = atomic_load(&a->gen)};
-        a->motions++;
+                          .gen = atomic_load(&a->gen),
+                          .motions = a->motions};
         return rig_submit(j, false);
 }
 
@@ -420,6 +436,7 @@ static void submit_leg(struct rig_axis *a, double leg)
 static void retry_or_miss(struct rig_axis *a, const char *why)
 {
         const struct rig_axis_conf *c = a->ax->conf;
+        char msg[256];
 
         if (a->retries_left > 0) {
                 a->retries_left--;
@@ -428,10 +445,11 @@ static void retry_or_miss(struct rig_axis *a, const char *why)
                 return submit_leg(a, axis_takeup_target(c, a->st.position_deg, a->target));
         }
         a->missed = true;
-        rig_fault(a->rig, c->name, -EIO,
-                  "axis '%s' missed its target %.3f deg: %s at %.3f deg after %d retries "
-                  "(deadband %g deg)",
-                  c->name, a->target, why, a->st.position_deg, c->move_retries, c->deadband_deg);
+        snprintf(msg, sizeof(msg),
+                 "axis '%s' missed its target %.3f deg: %s at %.3f deg after %d retries "
+                 "(deadband %g deg)",
+                 c->name, a->target, why, a->st.position_deg, c->move_retries, c->deadband_deg);
+        axis_fault(a, -EIO, msg);
 }
 
 /* A leg of a move is in position and settled: the next leg, a retry, or done. */
@@ -455,11 +473,13 @@ static void axis_progress(struct rig_axis *a)
         bool arrived = !a->st.moving && a->st.in_position && (a->op != AX_HOMING || a->st.homed);
         const char *name = a->ax->conf->name;
         uint64_t now = now_usec(rig);
+        char msg[256];
 
-        if (a->st.fault)
-                return rig_fault(rig, name, -EIO,
-                                 "axis '%s': drive reports fault code %d at %.3f deg", name,
-                                 a->st.fault_code, a->st.position_deg);
+        if (a->st.fault) {
+                snprintf(msg, sizeof(msg), "axis '%s': drive reports fault code %d at %.3f deg",
+                         name, a->st.fault_code, a->st.position_deg);
+                return axis_fault(a, -EIO, msg);
+        }
         if (now - a->last_notify >= NOTIFY_USEC) {
                 a->last_notify = now;
                 notify_axis(a, RIG_EVENT_AXIS_MOVED);
@@ -474,11 +494,13 @@ static void axis_progress(struct rig_axis *a)
             now - a->started > SHORT_GRACE_USEC &&
             gn_angle_distance(a->st.position_deg, a->leg) > SHORT_DEADBAND_DEG)
                 return retry_or_miss(a, "stopped short, not in position");
-        if (now > a->deadline)
-                return rig_fault(rig, name, -ETIMEDOUT,
-                                 "axis '%s': %s did not complete within %.1f s (at %.3f deg)", name,
-                                 a->op == AX_STOPPING ? "stop" : "move", (now - a->started) / 1e6,
-                                 a->st.position_deg);
+        if (now > a->deadline) {
+                snprintf(msg, sizeof(msg),
+                         "axis '%s': %s did not complete within %.1f s (at %.3f deg)", name,
+                         a->op == AX_STOPPING ? "stop" : "move", (now - a->started) / 1e6,
+                         a->st.position_deg);
+                return axis_fault(a, -ETIMEDOUT, msg);
+        }
         arm(a, POLL_USEC);
 }
 
@@ -523,9 +545,26 @@ static void axis_job_failed(struct job *j, struct rig_axis *a, int result)
                 log_debug("%s (rig in fault state)", msg); /* idle polls: no log every second */
                 return;
         }
-        rig_fault(j->rig, a->ax->conf->name, result, "%s", msg);
-        if (a->op != AX_IDLE)
-                axis_finish(a, result, msg);
+        axis_fault(a, result, msg);
+}
+
+/* A move or homing the worker dropped (a stop bumped the generation after it was queued):
+ * when it is the motion still running, nothing else would ever end it. */
+static void motion_dropped(const struct job *j, struct rig_axis *a)
+{
+        if ((j->kind == J_MOVE || j->kind == J_HOME) && j->motions == a->motions &&
+            (a->op == AX_MOVING || a->op == AX_HOMING))
+                axis_finish(a, -ECANCELED, "canceled: a stop came before the drive took it");
+}
+
+/* A poll of a's running operation came back stale: makes sure another one follows, unless
+ * the timer is armed already (the next poll or the settle time). */
+static void keep_following(struct rig_axis *a)
+{
+        int on = SD_EVENT_OFF;
+
+        if (sd_event_source_get_enabled(a->timer, &on) >= 0 && on == SD_EVENT_OFF)
+                arm(a, POLL_USEC);
 }
 
 static void axis_job_done(struct job *j, int result)
@@ -539,16 +578,18 @@ static void axis_job_done(struct job *j, int result)
                 rig->track_fn(rig->track_ud, j->idx, j->st.position_deg, j->t_ns, j->rtt_ns);
         if (j->kind == J_OPEN_AXIS)
                 a->open = result >= 0;
-        if (j->kind == J_POLL && !j->exp && a->op == AX_IDLE)
+        if (j->kind == J_POLL && !j->exp)
                 a->polling = false;
         if (result == -ECANCELED)
-                return;
+                return motion_dropped(j, a);
         if (result < 0)
                 return axis_job_failed(j, a, result);
         if (j->kind == J_HOME || j->kind == J_MOVE || j->kind == J_STOP)
                 arm(a, POLL_USEC);
         else if (j->kind == J_POLL && a->op != AX_IDLE && j->motions == a->motions)
-                axis_progress(a); /* an older poll saw the drive before its command */
+                axis_progress(a);
+        else if (j->kind == J_POLL && a->op != AX_IDLE)
+                keep_following(a); /* an older poll saw the drive before its command */
         else if (a->op == AX_IDLE)
                 idle_poll_done(a); /* also after open and reset */
 }
@@ -608,7 +649,7 @@ static void laser_found_on(struct rig *rig, int i)
         if (!j)
                 return;
         *j = (struct job){.rig = rig, .kind = J_SWITCH, .idx = i, .on = false};
-        switch_submit(rig, j, true);
+        (void)switch_submit(rig, j, true);
 }
 
 struct limit {
@@ -629,7 +670,7 @@ static int on_limit(sd_event_source *src, uint64_t usec, void *userdata)
         s->limit = sd_event_source_disable_unref(s->limit); /* frees l */
         if (j) {
                 *j = (struct job){.rig = rig, .kind = J_SWITCH, .idx = i, .on = false};
-                switch_submit(rig, j, true);
+                (void)switch_submit(rig, j, true);
         }
         return 0;
 }
@@ -864,8 +905,7 @@ int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata
                 return -ENOMEM;
         *j = (struct job){
                 .rig = rig, .kind = J_SWITCH, .idx = i, .on = on, .done = done, .ud = userdata};
-        switch_submit(rig, j, false);
-        return 0;
+        return switch_submit(rig, j, false);
 }
 
 int rig_check_camera_request(const struct rig *rig, int i, const struct cam_request *req, char *msg,

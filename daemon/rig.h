@@ -139,7 +139,9 @@ size_t rig_stop(struct rig *rig, int *stopped);
 /* The rig-file entry of switch index i. */
 const struct rig_switch_conf *rig_switch_conf_of(const struct rig_config *rc, int i);
 
-/* Switches lamp i (or a laser, RIG_SW_LASER(k)) and waits for its warm-up. */
+/* Switches lamp i (or a laser, RIG_SW_LASER(k)) and waits for its warm-up. Returns 0 (done
+ * follows), -ENOENT, -ESHUTDOWN, -ESTALE (switching on while faulted), -EBUSY (an exposure
+ * runs), -ENODEV, -ENOMEM, or -EAGAIN when the bus queue is full (done is not called). */
 int rig_switch(struct rig *rig, int i, bool on, rig_done_fn done, void *userdata);
 
 /* Exposes cams[0..n) (camera indices) with req: reads every axis back from its drive,

@@ -47,6 +47,7 @@
 #define RETRY_USEC     (5 * 1000000ULL) /* a session paused by a fault tries again this often */
 #define STILL_POLL_MS  20 /* preparing: how often to look whether stopping axes stand still */
 #define SPACE_MARGIN   4  /* a full disk must have room for this many uncompressed shots */
+#define AGAIN_MS       20 /* a capture refused with nothing in flight to call back: retry */
 
 static const char *const state_names[] = {"none",    "starting", "preparing", "running",
                                           "pausing", "paused",   "ending"};
@@ -273,7 +274,8 @@ static int on_settled(sd_event_source *es, uint64_t usec, void *userdata)
         return 0;
 }
 
-/* Waits the session's extra settle time of the axes just moved, as one more operation. */
+/* Waits ms as one more operation: the session's extra settle time of the axes just moved, the
+ * rest of stopping axes, or a pause before trying a refused capture again. */
 static void settle(struct session_runner *s, int ms)
 {
         int r = sd_event_add_time_relative(s->m->event, &s->settle_timer, CLOCK_MONOTONIC,
@@ -448,7 +450,9 @@ static void expose(struct session_runner *s)
         s->exposing = false;
         s->takes--;
         s->ref_takes -= dark || flat;
-        if (r != -EAGAIN) /* -EAGAIN: the storage queue is full; a store's answer calls back */
+        if (r == -EAGAIN && s->takes == 0) /* a device queue is full and no store calls back */
+                settle(s, AGAIN_MS);
+        else if (r != -EAGAIN) /* -EAGAIN: the storage queue is full; a store's answer calls back */
                 session_set_error(s, r, "capture refused: %s",
                                   r == -EBUSY ? rig_busy_reason(s->m->rig) : strerror(-r));
 }

@@ -5,8 +5,9 @@
  * stops motion and leaves a consistent dataset; a paused session survives kill -9 of goniod;
  * sessions aborted the moment they run, many times, each end recorded (run-abort); SIGTERM
  * at any moment of a session, many times, ends goniod with status 0 and the laser and the
- * lamps off (sigterm), and as soon as it answers, while it starts (sigterm-start). One case per
- * run: goniod gonioctl gonio-sim CASE. */
+ * lamps off (sigterm), and as soon as it answers, while it starts (sigterm-start); drive faults
+ * cleared and resumed at once, again and again, never leave the session waiting for nothing
+ * (fault-resume). One case per run: goniod gonioctl gonio-sim CASE. */
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -596,6 +597,112 @@ static void test_sigterm_start(struct rigenv *e)
         rigenv_term_starting(e, 60, 0.002);
 }
 
+/* ---- fault-resume ---- */
+
+/* 12 turntable x 2 light-arm positions x 2 lamps, one camera: 48 shots. */
+static const char *const resume_text = "sweep:\n"
+                                       "  turntable: { from: 0, to: 330, step: 30 }\n"
+                                       "  light_arm: [0, 10]\n"
+                                       "cameras: [cam0]\n"
+                                       "lamps: [lamp0, lamp1]\n"
+                                       "skip_occluded: false\n"
+                                       "skip_glare: false\n";
+
+#define RESUME_CYCLES 8
+#define STALL_S       10 /* seconds without a capture after a resume: stalled */
+
+static const char resume_req[] = "{\"jsonrpc\":\"2.0\",\"id\":10,\"method\":\"session.resume\"}\n";
+
+/* The session's state and capture count over fd. */
+static int64_t raw_progress(int fd, char *state, size_t len)
+{
+        json_t *r = raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":7,\"method\":\"session.status\"}\n");
+        json_t *st = json_object_get(r, "result");
+        int64_t n = json_integer_value(json_object_get(st, "captured"));
+
+        snprintf(state, len, "%s", json_string_value(json_object_get(st, "state")) ?: "");
+        json_decref(r);
+        return n;
+}
+
+/* Waits until the session has more than *got captures (or has ended), resuming it whenever it
+ * is paused (a timeout under load); fails the test when nothing is captured for STALL_S s. */
+static void wait_capture(int fd, int64_t *got, char *state, size_t len)
+{
+        for (double end = now_s() + STALL_S;; usleep(20000)) {
+                int64_t n = raw_progress(fd, state, len);
+
+                if (n > *got || strcmp(state, "none") == 0) {
+                        *got = n;
+                        return;
+                }
+                if (strcmp(state, "paused") == 0)
+                        json_decref(raw_call(fd, resume_req));
+                if (now_s() > end)
+                        fprintf(stderr, "stalled: %s for %d s at %lld captures\n", state, STALL_S,
+                                (long long)n);
+                CHECK(now_s() <= end);
+        }
+}
+
+/* Drive unit stops answering until goniod faults and answers again delay_us later, while the
+ * safe state's stop of it may still be retried; fault.clear and session.resume go out at once
+ * on one connection, the resume not waiting for the clear's answer. */
+static void fault_and_resume(struct rigenv *e, int fd, int unit, int delay_us)
+{
+        static const char clear_req[] =
+                "{\"jsonrpc\":\"2.0\",\"id\":9,\"method\":\"fault.clear\"}\n";
+        char req[200], state[32] = "";
+        json_t *r;
+
+        for (int on = 1; on >= 0; on--) {
+                snprintf(req, sizeof(req),
+                         "{\"cmd\":\"inject\",\"bus\":\"drives\",\"unit\":%d,\"fault\":\"%s\"}\n",
+                         unit, on ? "timeout" : "none");
+                sim_request(e, req);
+                for (double end = now_s() + 10; on && strcmp(state, "fault") != 0; usleep(5000)) {
+                        r = raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":8,\"method\":\"status\"}\n");
+                        snprintf(state, sizeof(state), "%s",
+                                 json_string_value(
+                                         json_object_get(json_object_get(r, "result"), "state"))
+                                         ?: "");
+                        json_decref(r);
+                        CHECK(now_s() < end);
+                }
+                usleep(on ? delay_us : 0);
+        }
+        CHECK(write(fd, clear_req, strlen(clear_req)) == (ssize_t)strlen(clear_req));
+        json_decref(raw_call(fd, resume_req)); /* the clear's answer, then the resume's */
+        json_decref(raw_call(fd, ""));
+}
+
+/* A drive times out again and again during a session (the soak's faults, closer together):
+ * each time the injection ends while the safe state's stop of that drive is retried, and
+ * fault.clear and session.resume follow at once. The session captures again after every
+ * resume (no wait without an end: it never stays running with nothing happening) and ends
+ * with every capture once. */
+static void test_fault_resume(struct rigenv *e)
+{
+        char file[400], state[32];
+        int64_t n, got = 0;
+        int fd, i;
+
+        write_session(e, "fr", "fr", resume_text, file, sizeof(file));
+        n = sess_planned(e, file, NULL);
+        fd = sess_start_raw(e, file);
+        for (i = 0; i < RESUME_CYCLES; i++) {
+                wait_capture(fd, &got, state, sizeof(state));
+                if (strcmp(state, "none") == 0)
+                        break;
+                fault_and_resume(e, fd, 1 + i % 2, (i * 7 % 6) * 60000);
+        }
+        fprintf(stderr, "%d drive faults cleared and resumed at once\n", i);
+        while (strcmp(state, "none") != 0)
+                wait_capture(fd, &got, state, sizeof(state));
+        close(fd);
+        sess_check_complete(e, "fr", "fr", n);
+}
+
 int main(int argc, char **argv)
 {
         const char *c = argc == 5 ? argv[4] : "";
@@ -606,10 +713,15 @@ int main(int argc, char **argv)
         CHECK(argc == 5);
         /* estimate and abort at the simulator's real speed; noread at 2 so that motion, not
          * the CPU, sets the pace */
-        rigenv_start(&e, argv,
-                     strcmp(c, "estimate") == 0 || strcmp(c, "abort") == 0 ? 1
-                     : strcmp(c, "noread") == 0                            ? 2
-                                                                           : 10);
+        if (strcmp(c, "fault-resume") == 0) { /* one retry: a drive fault is found sooner */
+                char *rig = rig_insert(NULL, "/drives\", ", "retries: 1, ");
+                rigenv_start_rig(&e, argv, 10, rig);
+                free(rig);
+        } else
+                rigenv_start(&e, argv,
+                             strcmp(c, "estimate") == 0 || strcmp(c, "abort") == 0 ? 1
+                             : strcmp(c, "noread") == 0                            ? 2
+                                                                                   : 10);
         if (strcmp(c, "enospc") == 0)
                 r = test_enospc(&e);
         else if (strcmp(c, "estimate") == 0)
@@ -626,6 +738,8 @@ int main(int argc, char **argv)
                 test_sigterm(&e);
         else if (strcmp(c, "sigterm-start") == 0)
                 test_sigterm_start(&e);
+        else if (strcmp(c, "fault-resume") == 0)
+                test_fault_resume(&e);
         else
                 CHECK(!"unknown case");
         rigenv_stop(&e);
