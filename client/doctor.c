@@ -149,14 +149,16 @@ static double frame_bytes(struct conn *conn, int64_t deadline)
 static bool check_storage(const struct args *a, json_t *checks, struct conn *conn, json_t *st,
                           int64_t deadline)
 {
-        json_t *s = json_object_get(st, "storage"), *plan = NULL, *params = json_object();
+        json_t *s = json_object_get(st, "storage"), *plan = NULL;
+        _cleanup_(json_decrefp) json_t *params = json_object();
         double free_b = json_number_value(json_object_get(s, "free_bytes")), need;
         const char *root = json_string_value(json_object_get(s, "root")) ?: "?";
         struct conn_error e;
         int64_t captures;
 
         if (a->nwords < 2 || csession_file_params(a->words[1], params) < 0 ||
-            conn_call(conn, "session.plan", params, deadline, -1, NULL, NULL, &plan, &e) < 0) {
+            conn_call(conn, "session.plan", json_incref(params), deadline, -1, NULL, NULL, &plan,
+                      &e) < 0) {
                 if (a->nwords >= 2)
                         add(checks, "session", "fail", "gonioctl validate FILE --rig RIG says why",
                             "%s: goniod cannot plan it", a->words[1]);

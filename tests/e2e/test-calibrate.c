@@ -221,12 +221,15 @@ static void test_rig(struct rigenv *e)
         CHECK(mkdir(cal, 0755) == 0);
         snprintf(cal, sizeof(cal), "%s/cal/rig-calibration.yaml", e->dir);
         CHECK_INT(calibrate(e, "turntable", &res), 6);
+        json_decref(res); /* each failure's error object */
         CHECK_INT(ctl(e, &res, "calibrate", "laser", "--board", "chessboard:9x6:16", "--laser",
                       "nosuch", NULL),
                   6);
+        json_decref(res);
         CHECK_INT(ctl(e, &res, "calibrate", "camera", "--board", "chessboard:9x6:16", "--camera",
                       "c9", NULL),
                   6);
+        json_decref(res);
         list = ctl_ok(e, "dataset", "list", NULL);
         CHECK_INT(json_array_size(json_object_get(list, "datasets")), 0); /* nothing captured */
         json_decref(list);
@@ -246,6 +249,7 @@ static void test_rig(struct rigenv *e)
         CHECK_INT(gn_read_file_at(AT_FDCWD, cal, 1 << 20, &before, &n1), 0);
         CHECK_STR_CONTAINS((const char *)before, "turntables:");
         CHECK_INT(calibrate(e, "laser", &res), 6);
+        json_decref(res);
         CHECK_INT(gn_read_file_at(AT_FDCWD, cal, 1 << 20, &after, &n2), 0);
         CHECK(n1 == n2 && memcmp(before, after, n1) == 0);
 }
@@ -309,8 +313,10 @@ static void test_lamps(struct rigenv *e)
         CHECK(mkdir(cal, 0755) == 0);
         snprintf(cal, sizeof(cal), "%s/cal/rig-calibration.yaml", e->dir);
         CHECK_INT(ctl(e, &res, "calibrate", "lamps", "--sphere", "100", NULL), 6);
+        json_decref(res);
         write_file(cal, "format: gonio-calibration 1\n");
         CHECK_INT(ctl(e, &res, "calibrate", "lamps", "--sphere", "100", NULL), 6);
+        json_decref(res);
         list = ctl_ok(e, "dataset", "list", NULL);
         CHECK_INT(json_array_size(json_object_get(list, "datasets")), 0); /* nothing captured */
         json_decref(list);
