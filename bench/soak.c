@@ -12,10 +12,14 @@
  * full session; 0.1 for a short run: fewer turntable positions). Last line:
  * {"bench":"soak","captures":..,"faults":..,"kills":..,"lost":0,"duplicated":0,
  * "rss_start_mb":..,"rss_end_mb":..}. */
+#include <errno.h>
 #include <getopt.h>
+#include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mount.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "bench.h"
@@ -181,13 +185,16 @@ static void fill_disk(struct soak *s)
 
 static void setup(struct soak *s, double scale)
 {
-        char text[1024], cmd[600];
+        char text[1024];
         int steps = (int)(360 * scale) < 2 ? 2 : (int)(360 * scale);
 
+        /* in a mount namespace of the bench's own, the tmpfs goes away with the bench and its
+         * children however they end (killed, stopped at a CHECK) */
+        s->tmpfs =
+                unshare(CLONE_NEWNS) == 0 && mount(NULL, "/", NULL, MS_REC | MS_PRIVATE, NULL) == 0;
         bench_start(&s->e, TIME_SCALE, true);
-        snprintf(cmd, sizeof(cmd), "mkdir -p %s && mount -t tmpfs -o size=4g tmpfs %s 2>/dev/null",
-                 s->e.data, s->e.data);
-        s->tmpfs = system(cmd) == 0;
+        s->tmpfs = s->tmpfs && (mkdir(s->e.data, 0755) == 0 || errno == EEXIST) &&
+                   mount("tmpfs", s->e.data, "tmpfs", 0, "size=4g") == 0;
         if (!s->tmpfs)
                 printf("no tmpfs (not root?): no disk-full fault\n");
         snprintf(text, sizeof(text),
@@ -277,11 +284,8 @@ int main(int argc, char **argv)
                "full %s; goniod RSS %.1f MB after 1000 captures, %.1f MB at the end; %.0f s\n",
                (long long)s.planned, s.faults, s.rig_faults, s.kills, s.tmpfs ? "once" : "skipped",
                s.rss_start, s.rss_end, (bench_now_ms() - t0) / 1e3);
-        if (s.tmpfs) {
-                char cmd[600];
-                snprintf(cmd, sizeof(cmd), "umount %s", s.e.data);
-                (void)!system(cmd);
-        }
+        if (s.tmpfs)
+                (void)umount2(s.e.data, MNT_DETACH);
         rigenv_stop(&s.e);
         printf("{\"bench\":\"soak\",\"captures\":%lld,\"faults\":%d,\"kills\":%d,\"lost\":0,"
                "\"duplicated\":0,\"rss_start_mb\":%.1f,\"rss_end_mb\":%.1f}\n",
