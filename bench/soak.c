@@ -20,6 +20,7 @@
 #include <string.h>
 #include <sys/mount.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include "bench.h"
@@ -163,22 +164,36 @@ static bool dataset_fault(struct soak *s, double timeout)
         return false;
 }
 
+/* Shrinks the tmpfs at dir to what it holds. goniod may store more between the reading and
+ * the remount (then EINVAL): read again. Returns 0 or -errno. */
+static int shrink_to_used(const char *dir)
+{
+        for (int i = 0; i < 100; i++) {
+                struct statvfs v;
+                char opts[64];
+
+                if (statvfs(dir, &v) < 0)
+                        return -errno;
+                snprintf(opts, sizeof(opts), "size=%llu",
+                         (unsigned long long)(v.f_blocks - v.f_bfree) * v.f_frsize);
+                if (mount(NULL, dir, NULL, MS_REMOUNT, opts) == 0)
+                        return 0;
+                if (errno != EINVAL)
+                        return -errno;
+        }
+        return -EBUSY;
+}
+
 /* The data tmpfs shrunk to what it holds: the next store fails (ENOSPC) and goniod faults;
  * then room again. */
 static void fill_disk(struct soak *s)
 {
-        char cmd[600];
-
         s->filled = true;
         if (!s->tmpfs)
                 return;
-        snprintf(cmd, sizeof(cmd),
-                 "mount -o remount,size=$(df --output=used -k %s | tail -1 | tr -d ' ')k %s",
-                 s->e.data, s->e.data);
-        CHECK(system(cmd) == 0);
+        CHECK_INT(shrink_to_used(s->e.data), 0);
         CHECK(dataset_fault(s, 20));
-        snprintf(cmd, sizeof(cmd), "mount -o remount,size=4g %s", s->e.data);
-        CHECK(system(cmd) == 0);
+        CHECK(mount(NULL, s->e.data, NULL, MS_REMOUNT, "size=4g") == 0);
         s->faults++;
         recover(s);
 }
