@@ -14,6 +14,7 @@
 #include "appearance/render.h"
 #include "common/cleanup.h"
 #include "common/fileio.h"
+#include "common/pfm.h"
 #include "drivers/registry.h"
 #include "sim/render/internal.h"
 #include "tests/appearance/apscene.h"
@@ -709,6 +710,124 @@ static void test_view(void)
         fitted_close(&f);
 }
 
+/* The pixels of view-kind model m by outcome: fitted (k[0]; of them isotropic k[3], given the
+ * view's lobe shape k[4]), diffuse only, masked; every pixel not masked valid. */
+static void view_outcomes(const struct ap_brdf_model *m, size_t k[5])
+{
+        memset(k, 0, 5 * sizeof(size_t));
+        for (size_t i = 0; i < m->n_views; i++)
+                for (size_t p = 0; p < (size_t)m->views[i].cam.width * m->views[i].cam.height;
+                     p++) {
+                        const struct ap_brdf_texel *x = &m->views[i].px[p];
+                        k[x->flags & AP_BRDF_FITTED         ? 0
+                          : x->flags & AP_BRDF_DIFFUSE_ONLY ? 1
+                                                            : 2]++;
+                        k[3] += (x->flags & AP_BRDF_ISOTROPIC) != 0;
+                        k[4] += (x->flags & AP_BRDF_LOBE_VIEW) != 0;
+                        CHECK(x->flags & AP_BRDF_MASKED || ap_brdf_texel_valid(x));
+                }
+}
+
+/* Bad input of the view kind takes the documented fallbacks, stated in the notes: six lights
+ * a view masks every pixel; 24 give pixels, but too few with enough samples near their
+ * highlight for the view's lobe shape: those fitted get one roughness (isotropic). Without
+ * --per-view the simulator's mesh makes the texel kind. */
+static void test_view_fallbacks(void)
+{
+        struct fitted f = {0};
+        struct aps_opts ao;
+        size_t k[5];
+
+        aps_opts_default(&ao, APS_SHARP);
+        ao.width = 64, ao.height = 48, ao.mesh = false, ao.noise = true;
+        ao.arm_angles = 2, ao.n_lamps = 3;
+        fit_scene_kind(&f, &ao, 1000, AP_BRDF_FIT_VIEW);
+        view_outcomes(f.m, k);
+        CHECK(k[0] == 0 && k[1] == 0 && k[2] == 2 * 64 * 48);
+        CHECK_STR_CONTAINS(f.m->notes, "masked (background, or fewer than 12 lit");
+        fitted_close(&f);
+
+        aps_opts_default(&ao, APS_SHARP);
+        ao.width = 64, ao.height = 48, ao.mesh = false, ao.noise = true;
+        ao.arm_angles = 4;
+        fit_scene_kind(&f, &ao, 1000, AP_BRDF_FIT_AUTO); /* the sim's mesh is no scan... */
+        CHECK(f.m->kind == AP_BRDF_KIND_TEXEL);          /* ...but a mesh: the texel kind */
+        fitted_close(&f);
+        fit_scene_kind(&f, &ao, 1000, AP_BRDF_FIT_VIEW);
+        view_outcomes(f.m, k);
+        fprintf(stderr, "%zu fitted (%zu isotropic, %zu the view's shape), %zu diffuse only\n",
+                k[0], k[3], k[4], k[1]);
+        CHECK(k[0] + k[1] > 500 && k[3] > 0 && k[4] == 0);
+        CHECK(f.m->views[0].ax == 0 && f.m->views[1].ax == 0);
+        CHECK_STR_CONTAINS(f.m->notes, "(0 views had one)");
+        fitted_close(&f);
+}
+
+/* gonioctl model fit --brdf --per-view, then model render of it: at a captured view's
+ * direction exactly ap_brdf_view_render of that view's camera; at another direction the views
+ * blended; under an environment map refused. */
+static void test_view_gonioctl(void)
+{
+        _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *m = NULL;
+        _cleanup_(ap_views_freep) struct ap_views *vs = NULL;
+        _cleanup_free_ float *rgb = NULL, *want = NULL;
+        _cleanup_free_ uint8_t *mask = NULL;
+        _cleanup_free_ void *buf = NULL;
+        struct fitted f = {0};
+        struct aps_opts ao;
+        char args[1400], out[8192], dir[600], err[512];
+        const double *d;
+        size_t len, np;
+        int w, h;
+
+        if (!getenv("GONIOCTL"))
+                exit(TEST_SKIP);
+        aps_opts_default(&ao, APS_SHARP);
+        ao.width = 64, ao.height = 48, ao.mesh = false, ao.arm_angles = 6;
+        aps_open(&f.s, &ao);
+        f.dir = tu_tmpdir();
+        snprintf(f.ds, sizeof(f.ds), "%s/ds", f.dir);
+        ds_close(aps_make_dataset(&f.s, f.ds));
+        snprintf(args, sizeof(args), "model fit %s --brdf --per-view --name v", f.ds);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
+        CHECK_STR_CONTAINS(out, "pixels of the views (no mesh)");
+        CHECK_STR_CONTAINS(out, "per pixel of 2 views");
+        snprintf(dir, sizeof(dir), "%s/models/v", f.ds);
+        CHECK_INT(ap_brdf_read(dir, &m, err, sizeof(err)), 0);
+        CHECK(m->kind == AP_BRDF_KIND_VIEW);
+        d = m->views[1].dir;
+        snprintf(args, sizeof(args),
+                 "model render %s --reflectance brdf --light 300,-200,250 --intensity %g "
+                 "--view %.9f,%.9f -o %s/out.pfm",
+                 dir, ao.intensity, atan2(d[1], d[0]) / DEG, asin(d[2]) / DEG, f.dir);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
+        CHECK_STR_CONTAINS(out, "captured view 1");
+        snprintf(dir, sizeof(dir), "%s/out.pfm", f.dir);
+        CHECK_INT(gn_read_file_at(AT_FDCWD, dir, 1 << 24, &buf, &len), 0);
+        CHECK_INT(gn_pfm_decode(buf, len, 4096, &rgb, &w, &h), 0);
+        CHECK(w == 64 && h == 48);
+        np = (size_t)w * h;
+        CHECK((want = malloc(3 * np * sizeof(float))) && (mask = malloc(np)));
+        struct ap_env_light L = {true, {300, -200, 250}, (float)ao.intensity};
+        CHECK_INT(ap_brdf_views_new(m, &vs), 0);
+        CHECK_INT(ap_brdf_view_render(m, vs, &m->views[1].cam, &L, want, mask), 0);
+        for (size_t i = 0; i < 3 * np; i++)
+                CHECK(fabsf(rgb[i] - want[i]) <= 1e-6f * fmaxf(1, want[i]));
+        snprintf(args, sizeof(args),
+                 "model render %s/models/v --reflectance brdf --light 300,-200,250 --view "
+                 "%.3f,%.3f -o %s/novel.png",
+                 f.ds, atan2(d[1], d[0]) / DEG, asin(d[2]) / DEG + 20, f.dir);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
+        CHECK_STR_CONTAINS(out, "the captured views around it blended");
+        snprintf(args, sizeof(args),
+                 "model render %s/models/v --reflectance brdf --envmap %s/none.pfm --view 0,20 "
+                 "-o %s/env.png",
+                 f.ds, f.dir, f.dir);
+        CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 6);
+        CHECK_STR_CONTAINS(out, "of the view kind (fitted without a mesh)");
+        fitted_close(&f);
+}
+
 /* The texels of m by outcome: fitted, diffuse only, masked. */
 static void outcomes(const struct ap_brdf_model *m, size_t k[3])
 {
@@ -805,6 +924,8 @@ int main(int argc, char **argv)
                 {"fallbacks", test_fallbacks},
                 {"gonioctl", test_gonioctl},
                 {"view", test_view},
+                {"view-fallbacks", test_view_fallbacks},
+                {"view-gonioctl", test_view_gonioctl},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);
