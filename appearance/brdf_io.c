@@ -82,10 +82,11 @@ static int put_view(int dfd, const struct ap_brdf_model *m, size_t i, json_t *a)
         if ((r = put_texels(dfd, f[0], f[1], v->px, n)) < 0 ||
             (r = ap_io_put_file(dfd, f[2], v->points, 3 * n * sizeof(float))) < 0)
                 return r;
-        return json_array_append_new(a, json_pack("{s:o,s:o,s:s,s:s,s:s}", "dir",
+        return json_array_append_new(a, json_pack("{s:o,s:o,s:{s:f,s:f},s:s,s:s,s:s}", "dir",
                                                   ap_io_json_vec(v->dir, 3), "geometry",
-                                                  ap_io_camera_json(&v->cam), "texels", f[0],
-                                                  "counts", f[1], "points", f[2])) < 0
+                                                  ap_io_camera_json(&v->cam), "lobe", "ax",
+                                                  (double)v->ax, "ay", (double)v->ay, "texels",
+                                                  f[0], "counts", f[1], "points", f[2])) < 0
                        ? -ENOMEM
                        : 0;
 }
@@ -314,11 +315,18 @@ static int read_view(const struct ap_io_rd *rd, json_t *o, struct ap_brdf_view *
         snprintf(f[0], sizeof(f[0]), "views/%03zu.f32", i);
         snprintf(f[1], sizeof(f[1]), "views/%03zu.u32", i);
         snprintf(f[2], sizeof(f[2]), "views/%03zu_points.f32", i);
+        double lobe[2] = {0, 0};
+        json_error_t e;
+
         r = ap_io_get_vec(rd, o, "dir", v->dir, 3, where);
         if (r == 0)
                 r = ap_io_get_camera(rd, json_object_get(o, "geometry"), &v->cam, where);
         if (r < 0)
                 return r;
+        if (json_unpack_ex(o, &e, 0, "{s:{s:F,s:F}}", "lobe", "ax", &lobe[0], "ay", &lobe[1]) < 0 ||
+            !(lobe[0] >= 0 && lobe[1] >= 0 && lobe[0] <= 1 && lobe[1] <= 1))
+                return ap_io_bad(rd, "brdf.json", "%s: no lobe of ax, ay within 0..1", where);
+        v->ax = (float)lobe[0], v->ay = (float)lobe[1];
         n = (size_t)v->cam.width * v->cam.height;
         r = read_texels(rd, f[0], f[1], n, &v->px);
         if (r == 0)

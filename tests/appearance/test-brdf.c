@@ -700,6 +700,9 @@ static void test_view(void)
         CHECK_INT(ap_brdf_read(src, &back, err, sizeof(err)), 0);
         CHECK(back->kind == AP_BRDF_KIND_VIEW && back->n_views == 2);
         for (size_t i = 0; i < 2; i++) {
+                CHECK(back->views[i].ax == f.m->views[i].ax &&
+                      back->views[i].ay == f.m->views[i].ay);
+                CHECK(f.m->views[i].ax > 0);
                 size_t np = (size_t)back->views[i].cam.width * back->views[i].cam.height;
                 CHECK(memcmp(back->views[i].px, f.m->views[i].px,
                              np * sizeof(*back->views[i].px)) == 0);
