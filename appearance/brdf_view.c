@@ -112,8 +112,7 @@ static double ps_fit(const struct brdf_sample *s, size_t n, double *tmp, float n
                                 k++;
                 if (k < 3)
                         return INFINITY;
-                qsort(tmp, k, sizeof(double), gn_cmp_double);
-                cut = fmax(PS_CUT * 1.4826 * tmp[k / 2], PS_MIN_VALUE);
+                cut = fmax(PS_CUT * 1.4826 * gn_median(tmp, k), PS_MIN_VALUE);
         }
         len = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
         for (int p = 0; p < 3 && len > 0; p++)
