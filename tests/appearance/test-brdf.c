@@ -239,17 +239,22 @@ struct fitted {
 };
 
 /* fit_scene of the model kind `kind` (ap_brdf_fit_opts). */
+/* The scene of ao and its dataset in a new folder (f->dir, f->ds), open. */
+static struct ds *scene_dataset(struct fitted *f, const struct aps_opts *ao)
+{
+        aps_open(&f->s, ao);
+        f->dir = tu_tmpdir();
+        snprintf(f->ds, sizeof(f->ds), "%s/ds", f->dir);
+        return aps_make_dataset(&f->s, f->ds);
+}
+
 static void fit_scene_kind(struct fitted *f, const struct aps_opts *ao, size_t texels,
                            enum ap_brdf_fit_kind kind)
 {
         struct ap_brdf_fit_opts o;
-        _cleanup_(ds_closep) struct ds *d = NULL;
+        _cleanup_(ds_closep) struct ds *d = scene_dataset(f, ao);
         char err[512];
 
-        aps_open(&f->s, ao);
-        f->dir = tu_tmpdir();
-        snprintf(f->ds, sizeof(f->ds), "%s/ds", f->dir);
-        d = aps_make_dataset(&f->s, f->ds);
         ap_brdf_fit_opts_default(&o);
         o.backends = registry_backends;
         o.texels = texels;
@@ -501,6 +506,25 @@ DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_model *, ap_model_free);
  * average, the SH model's figure (P 6, K 12) printed beside it. */
 static const double heldout_elev[] = {-27, -2, 22, 47, 72};
 
+/* The SH model (P 6, K 12, tiles of 4) of f's dataset into *sh, the dataset's mesh (the scan,
+ * else the simulator's) and the renderer of the two. */
+static void sh_model(struct fitted *f, struct ap_model **sh, struct ap_mesh *mesh,
+                     struct ap_renderer **r)
+{
+        _cleanup_(ds_closep) struct ds *d = NULL;
+        struct ap_fit_opts o;
+        char err[512], src[512];
+
+        CHECK_INT(ds_open(f->ds, &d), 0);
+        ap_fit_opts_default(&o);
+        o.backends = registry_backends, o.tile = 4;
+        CHECK_INT(ap_fit(d, &o, sh, err, sizeof(err)), 0);
+        CHECK_INT(ap_mesh_for_dataset(f->ds, registry_backends, mesh, src, sizeof(src), err,
+                                      sizeof(err)),
+                  0);
+        CHECK_INT(ap_renderer_new(*sh, mesh, r), 0);
+}
+
 /* Held-out light i (0..2) of elevation e (heldout_elev): between the fitted arm angles and lamp
  * elevations, 500 mm from the turntable's centre, at world position Pw. */
 static void heldout_light(size_t e, int i, double Pw[3])
@@ -514,27 +538,17 @@ static void test_relight(void)
 {
         _cleanup_(ap_model_freep) struct ap_model *sh = NULL; /* after r, which refers to it */
         _cleanup_(ap_renderer_freep) struct ap_renderer *r = NULL;
-        _cleanup_(ds_closep) struct ds *d = NULL;
         struct ap_mesh mesh;
         struct fitted f = {0};
         struct aps_opts ao;
-        struct ap_fit_opts o;
         double bsum = 0, ssum = 0, worst = INFINITY;
-        char err[512], src[512];
         int n = 0;
 
         aps_opts_default(&ao, APS_SHARP);
         ao.noise = true, ao.mesh_rings = 12;
         ao.n_cameras = 2, ao.turntable_angles = 4, ao.arm_angles = 12;
         fit_scene(&f, &ao, 3000);
-        CHECK_INT(ds_open(f.ds, &d), 0);
-        ap_fit_opts_default(&o);
-        o.backends = registry_backends, o.tile = 4;
-        CHECK_INT(ap_fit(d, &o, &sh, err, sizeof(err)), 0);
-        CHECK_INT(ap_mesh_for_dataset(f.ds, registry_backends, &mesh, src, sizeof(src), err,
-                                      sizeof(err)),
-                  0);
-        CHECK_INT(ap_renderer_new(sh, &mesh, &r), 0);
+        sh_model(&f, &sh, &mesh, &r);
         for (int v = 0; v < 2; v++)
                 for (size_t e = 0; e < ELEMENTSOF(heldout_elev); e++)
                         for (int i = 0; i < 3; i++, n++) {
@@ -654,10 +668,8 @@ static void test_view(void)
         _cleanup_(ap_renderer_freep) struct ap_renderer *r = NULL;
         _cleanup_(ap_views_freep) struct ap_views *vs = NULL;
         _cleanup_(ap_brdf_model_freep) struct ap_brdf_model *back = NULL;
-        _cleanup_(ds_closep) struct ds *d = NULL;
         struct fitted f = {0};
         struct aps_opts ao;
-        struct ap_fit_opts o;
         struct ap_mesh mesh;
         double bsum = 0, ssum = 0, worst = INFINITY;
         char err[512], src[512];
@@ -672,14 +684,7 @@ static void test_view(void)
         CHECK(f.m->kind == AP_BRDF_KIND_VIEW && f.m->n_views == 2);
         CHECK_STR_CONTAINS(f.m->notes, "per pixel of 2 views");
         CHECK_INT(ap_brdf_views_new(f.m, &vs), 0);
-        CHECK_INT(ds_open(f.ds, &d), 0);
-        ap_fit_opts_default(&o);
-        o.backends = registry_backends, o.tile = 4;
-        CHECK_INT(ap_fit(d, &o, &sh, err, sizeof(err)), 0);
-        CHECK_INT(ap_mesh_for_dataset(f.ds, registry_backends, &mesh, src, sizeof(src), err,
-                                      sizeof(err)),
-                  0);
-        CHECK_INT(ap_renderer_new(sh, &mesh, &r), 0);
+        sh_model(&f, &sh, &mesh, &r);
         for (int v = 0; v < 2; v++)
                 for (size_t e = 0; e < ELEMENTSOF(heldout_elev); e++)
                         for (int i = 0; i < 3; i += 2, n++) {
@@ -787,10 +792,7 @@ static void test_view_gonioctl(void)
                 exit(TEST_SKIP);
         aps_opts_default(&ao, APS_SHARP);
         ao.width = 64, ao.height = 48, ao.mesh = false, ao.arm_angles = 6;
-        aps_open(&f.s, &ao);
-        f.dir = tu_tmpdir();
-        snprintf(f.ds, sizeof(f.ds), "%s/ds", f.dir);
-        ds_close(aps_make_dataset(&f.s, f.ds));
+        ds_close(scene_dataset(&f, &ao));
         snprintf(args, sizeof(args), "model fit %s --brdf --per-view --name v", f.ds);
         CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
         CHECK_STR_CONTAINS(out, "pixels of the views (no mesh)");
@@ -893,10 +895,7 @@ static void test_gonioctl(void)
         aps_opts_default(&ao, APS_SHARP);
         ao.width = 64, ao.height = 48, ao.mesh_rings = 8;
         ao.turntable_angles = 1, ao.arm_angles = 2, ao.n_lamps = 3;
-        aps_open(&f.s, &ao);
-        f.dir = tu_tmpdir();
-        snprintf(f.ds, sizeof(f.ds), "%s/ds", f.dir);
-        ds_close(aps_make_dataset(&f.s, f.ds));
+        ds_close(scene_dataset(&f, &ao));
         snprintf(args, sizeof(args), "model fit %s --brdf --texels 500 --name b", f.ds);
         CHECK_INT(test_run_gonioctl(args, out, sizeof(out)), 0);
         CHECK_STR_CONTAINS(out, "BRDF model ");
