@@ -425,7 +425,7 @@ int brdf_view_fit(struct brdf_ctx *c, struct ap_brdf_model *m)
         if (!m->views)
                 return -ENOMEM;
         for (size_t k = 0, j; r == 0 && k < c->g->n_shots; k = j) { /* shots grouped by view */
-                double c0[3];
+                double c0[3] = {0};
                 for (j = k + 1; j < c->g->n_shots && c->g->shots[j].view == c->g->shots[k].view;)
                         j++;
                 r = fit_one(c, c->g->shots[k].view, k, j, &m->views[m->n_views++], c0, &tot);

@@ -406,8 +406,8 @@ static int render_sh(const struct render_opts *o)
 }
 
 /* The BRDF model of the folder when o asks for it (or, unless o says sh, under --envmap
- * when there is one; --light and --dir take the SH model unless asked): 1 with it in *ret,
- * 0 for the SH model, or an exit code. */
+ * when there is one of the texel kind; --light and --dir take the SH model unless asked): 1
+ * with it in *ret, 0 for the SH model, or an exit code. */
 static int want_brdf(const struct render_opts *o, struct ap_brdf_model **ret)
 {
         char err[1024] = "";
@@ -417,6 +417,10 @@ static int want_brdf(const struct render_opts *o, struct ap_brdf_model **ret)
             (o->reflectance == REFLECTANCE_AUTO && o->kind != AP_LIGHT_ENV))
                 return 0;
         r = ap_brdf_read(o->model, ret, err, sizeof(err));
+        if (r == 0 && (*ret)->kind == AP_BRDF_KIND_VIEW && o->reflectance == REFLECTANCE_AUTO) {
+                *ret = ap_brdf_model_free(*ret); /* no mesh: no environment lighting */
+                return 0;
+        }
         if (r == -ENOENT && o->reflectance == REFLECTANCE_AUTO)
                 return 0;
         if (r < 0) {
