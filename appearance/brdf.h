@@ -1,6 +1,7 @@
 /* brdf.h - the reflectance model of issue 12 (docs/appearance.md, "The BRDF model"): per
- * texel of a texture atlas on the object's mesh (atlas.h), the parameters of the material
- * gonio-sim renders (sim/render/material.c, SPEC_BECKMANN):
+ * texel of a texture atlas on the object's mesh (atlas.h), or where there is no mesh per pixel
+ * of each captured view (the view kind, "The view-kind BRDF model"), the parameters of the
+ * material gonio-sim renders (sim/render/material.c, SPEC_BECKMANN):
  *
  *     f(l, v) cos_l = (1 - ks) albedo / pi cos_l + ks D(h) G(l, v) F(l . h) / (4 cos_v)
  *

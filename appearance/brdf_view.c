@@ -1,12 +1,15 @@
 /* brdf_view.c - the BRDF model without a mesh (brdf_internal.h; docs/appearance.md, "The
  * view-kind BRDF model"): per view, its lamp-lit images read once (brdf_image_read), the
- * object where some image is above the background; per pixel of it, the surface point its
- * lights are placed from is the point of its ray nearest the object's centre (as the SH fit's
- * tiles without a mesh: fit_nominal_point), its samples that pixel under every lamp of the
- * view (one view direction), a base normal by photometric stereo (a Lambertian fit that
- * leaves out the highlights and the unlit), then the texels' solver (brdf_solve.c) with the
- * view kind's limits: with one view direction the highlight is sampled along the lights'
- * paths only, so a pixel with few samples near it gets one roughness (AP_BRDF_ISOTROPIC). */
+ * object where some image is above the background; per pixel of it, its samples that pixel
+ * under every lamp of the view (one view direction), the lights placed from its surface point:
+ * the depth on its ray, about the point nearest the object's centre (fit_nominal_point, where
+ * the SH fit puts its tiles without a mesh), that a Lambertian fit explains best; a base normal
+ * by photometric stereo (that fit, without the highlights and the unlit); then the texels'
+ * solver (brdf_solve.c) with the view kind's limits. With one view direction the highlight is
+ * sampled only where the lamps put it: the pixels with enough samples near it are fitted in
+ * full first, and the medians of their roughnesses (the view's lobe shape) are given to the
+ * others (AP_BRDF_LOBE_VIEW), or, where a view has too few such pixels, one roughness is fitted
+ * (AP_BRDF_ISOTROPIC). */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>

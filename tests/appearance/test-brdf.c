@@ -661,7 +661,7 @@ DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_views *, ap_views_free);
  * under 8 arm angles of 6 lamps: relit at held-out lights at the captured views, the view-kind
  * model at 35 dB or more on average over the object's pixels (the SH model's figure printed
  * beside it); the median albedo error of the pixels fitted from 24 samples or more within
- * 3%; the model written and read back the same. */
+ * 3%; the model written and read back the same, a malformed view file refused by name. */
 static void test_view(void)
 {
         _cleanup_(ap_model_freep) struct ap_model *sh = NULL; /* after r, which refers to it */
@@ -714,6 +714,11 @@ static void test_view(void)
                 CHECK(memcmp(back->views[i].points, f.m->views[i].points, 3 * np * sizeof(float)) ==
                       0);
         }
+        back = ap_brdf_model_free(back);
+        snprintf(err, sizeof(err), "%s/models/default/brdf/views", f.ds);
+        put(err, "001.u32", "1234", 4); /* a malformed view refused by name */
+        CHECK_INT(ap_brdf_read(src, &back, err, sizeof(err)), -EBADMSG);
+        CHECK_STR_CONTAINS(err, "brdf/views/001.u32: 4 bytes");
         ap_mesh_free(&mesh);
         fitted_close(&f);
 }
