@@ -57,11 +57,16 @@ static void normalize3(float v[3])
  * alone). */
 static void texel_at(const struct problem *q, const double *pp, struct ap_brdf_texel *x)
 {
-        const double iso[NP] = {pp[0], pp[0], 0, pp[1], pp[2]},
-                     fixed[NP] = {q->la, q->lb, 0, pp[0], pp[1]};
-        const double *p = q->shape == ISO ? iso : q->shape == FIXED ? fixed : pp;
-        float c = (float)cos(p[2]), s = (float)sin(p[2]), t[3], b[3], tn;
+        double full[NP] = {0}; /* NP values from pp's q->np: read no further */
+        const double *p = q->shape == FREE ? pp : full;
+        float c, s, t[3], b[3], tn;
 
+        if (q->shape == ISO)
+                full[0] = full[1] = pp[0], full[3] = pp[1], full[4] = pp[2];
+        else if (q->shape == FIXED)
+                full[0] = q->la, full[1] = q->lb, full[3] = pp[0], full[4] = pp[1];
+        c = (float)cos(p[2]);
+        s = (float)sin(p[2]);
         *x = (struct ap_brdf_texel){.ks = 1, .f0 = q->f0};
         x->ax = (float)exp(fmin(fmax(p[0], LOG_A_MIN), LOG_A_MAX));
         x->ay = (float)exp(fmin(fmax(p[1], LOG_A_MIN), LOG_A_MAX));
