@@ -169,31 +169,31 @@ static void test_hold_kill(char **argv)
         free(rig);
 }
 
-/* --for 1: on for about a second, then gonioctl switches it off and exits 0. Held without
- * --for and switched off by another client: gonioctl says so and exits 10. */
+/* --for 1: on for about a second, then gonioctl switches it off and exits 0 (on the test rig,
+ * whose laser has off_on_disconnect: false, so that the off is gonioctl's own, not goniod's
+ * when gonioctl leaves). Held with --for and switched off by another client: gonioctl says
+ * so and exits 10. */
 static void test_hold_for(char **argv)
 {
-        char *rig = rig_replace(NULL, RIG_LASER_ONE_SHOT, "");
         struct rigenv e;
         double t0, t;
         pid_t pid;
         int fd;
 
-        rigenv_start_rig(&e, argv, 10, rig);
+        rigenv_start(&e, argv, 10);
         t0 = now_s();
         pid = hold_laser(&e, "--for=1");
         t = now_s() - t0 + wait_off(&e, -1, 4);
         fprintf(stderr, "laser on --for 1: off after %.2f s\n", t);
         CHECK(t >= 0.9 && t < 2.5);
         CHECK_INT(reap(pid, 0), 0);
-        pid = hold_laser(&e, NULL);
+        pid = hold_laser(&e, "--for=30");
         fd = raw_connect(&e);
         json_decref(raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"laser.set\","
                                  "\"params\":{\"on\":false}}\n"));
         CHECK_INT(reap(pid, 0), 10);
         close(fd);
         rigenv_stop(&e);
-        free(rig);
 }
 
 int main(int argc, char **argv)
