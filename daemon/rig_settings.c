@@ -68,7 +68,7 @@ static void read_gain(const struct rig *rig, int i, struct rig_setting *s)
         camera_range(rig, i, OPT_GAIN, c->max_gain, "max_gain", s);
 }
 
-/* Queues the rates of axis i, one of them changed to v (speed when is_speed). */
+/* Queues a J_RATES job writing speed and accel to axis i's drive; done follows. */
 static int apply_rates(struct rig *rig, int i, double speed, double accel, rig_done_fn done,
                        void *ud)
 {

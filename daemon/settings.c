@@ -65,13 +65,11 @@ int settings_get(struct srv_req *req, json_t *params, void *userdata)
                         return srv_req_errmsg(req, r, "%s", msg);
                 return srv_reply(req, setting_json(device, &s)), 0;
         }
-        if (rig_axis_index(m->rig, device) >= 0 || rig_camera_index(m->rig, device) >= 0)
-                return srv_reply(req,
-                                 device_settings(m, device,
-                                                 rig_axis_index(m->rig, device) >= 0 ? "axis"
-                                                                                     : "camera")),
-                       0;
-        return srv_req_errmsg(req, -ENOENT, "no axis or camera named '%s'", device);
+        if (rig_axis_index(m->rig, device) < 0 && rig_camera_index(m->rig, device) < 0)
+                return srv_req_errmsg(req, -ENOENT, "no axis or camera named '%s'", device);
+        srv_reply(req, device_settings(m, device,
+                                       rig_axis_index(m->rig, device) >= 0 ? "axis" : "camera"));
+        return 0;
 }
 
 static void on_set(struct rig *rig, int result, const char *msg, void *userdata)
