@@ -1,8 +1,9 @@
 /* test-settings.c - gonioctl get/set of device settings through goniod on gonio-sim (issue 13,
  * docs/goniod.md "Settings"): get shows each value and its limit; an axis's speed reaches its
  * drive, whose emulator then takes longer over the same move; a camera's default exposure
- * reaches the renderer, whose stored image is darker; out of range refused naming the limit,
- * unknown devices and settings refused, settings refused while a session runs. */
+ * reaches the renderer, whose stored image is darker; every client hears of a change
+ * (setting.changed); out of range refused naming the limit, unknown devices and settings
+ * refused, settings refused while a session runs. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -83,12 +84,20 @@ static void test_axis_speed(struct rigenv *e)
         double fast, slow,
                 want = (180.0 / 30 + 30.0 / 180 - (180.0 / 90 + 90.0 / 180)) / TIME_SCALE;
         json_t *r;
+        int fd;
 
         json_decref(ctl_ok(e, "home", "turntable", NULL));
         fast = move_time(e);
+        fd = raw_connect(e); /* another client: it hears of the change */
         r = ctl_ok(e, "set", "turntable.speed", "30", NULL);
         CHECK_NEAR(json_number_value(json_object_get(r, "value")), 30, 1e-9);
         json_decref(r);
+        r = raw_wait_note(fd, "setting.changed", NULL, 5);
+        CHECK_STR(json_string_value(json_object_get(r, "device")), "turntable");
+        CHECK_STR(json_string_value(json_object_get(r, "setting")), "speed");
+        CHECK_NEAR(json_number_value(json_object_get(r, "value")), 30, 1e-9);
+        json_decref(r);
+        close(fd);
         CHECK_NEAR(get_value(e, "turntable.speed"), 30, 1e-9);
         slow = move_time(e);
         fprintf(stderr,
