@@ -404,6 +404,13 @@ void rig_axis_stop_and_follow(struct rig_axis *a, const char *why)
         rig_update_state(rig);
 }
 
+/* The acceleration of a move of a at speed (0: the settings'): a move at a speed of its own (a
+ * continuous scan) keeps the rig file's, which its run-up was computed with. */
+static double move_accel(const struct rig_axis *a, double speed)
+{
+        return speed > 0 ? a->ax->conf->accel : a->accel_setting;
+}
+
 /* Queues a homing (J_HOME) or a move of a to leg degrees at speed (0: the speed setting). */
 static int submit_motion(struct rig_axis *a, enum job_kind kind, double leg, double speed)
 {
@@ -417,7 +424,7 @@ static int submit_motion(struct rig_axis *a, enum job_kind kind, double leg, dou
                           .idx = a->idx,
                           .arg = leg,
                           .speed = speed > 0 ? speed : a->speed_setting,
-                          .accel = a->accel_setting,
+                          .accel = move_accel(a, speed),
                           .gen = atomic_load(&a->gen),
                           .motions = a->motions};
         return rig_submit(j, false);
@@ -789,7 +796,7 @@ static int start_motion(struct rig *rig, int i, enum axis_op op, double target, 
         struct rig_axis *a = &rig->axes[i];
         const struct rig_axis_conf *c = a->ax->conf;
         double t = axis_move_time(op == AX_HOMING ? 360 : fabs(target - a->st.position_deg),
-                                  speed > 0 ? speed : a->speed_setting, a->accel_setting),
+                                  speed > 0 ? speed : a->speed_setting, move_accel(a, speed)),
                leg;
         int r;
 
