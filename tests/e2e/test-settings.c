@@ -26,6 +26,14 @@ static double get_value(struct rigenv *e, const char *what)
         return v;
 }
 
+/* Member key of setting name of device d (a device of get or describe: {..., settings}). */
+static double setting_of(json_t *d, const char *name, const char *key)
+{
+        json_t *s = json_object_get(json_object_get(d, "settings"), name);
+
+        return json_number_value(json_object_get(s, key));
+}
+
 /* gonioctl fails with exit code want and a message holding text. */
 static void refused(struct rigenv *e, int want, const char *text, const char *a, const char *b)
 {
@@ -58,9 +66,7 @@ static void test_get_and_refusals(struct rigenv *e)
         json_t *r = ctl_ok(e, "get", NULL), *d = json_array_get(json_object_get(r, "devices"), 0);
 
         CHECK_STR(json_string_value(json_object_get(d, "device")), "turntable");
-        CHECK_NEAR(json_number_value(json_object_get(
-                           json_object_get(json_object_get(d, "settings"), "speed"), "max")),
-                   90, 1e-9);
+        CHECK_NEAR(setting_of(d, "speed", "max"), 90, 1e-9);
         json_decref(r);
         r = ctl_ok(e, "get", "turntable.speed", NULL);
         CHECK_NEAR(json_number_value(json_object_get(r, "value")), 90, 1e-9);
@@ -99,6 +105,10 @@ static void test_axis_speed(struct rigenv *e)
         json_decref(r);
         close(fd);
         CHECK_NEAR(get_value(e, "turntable.speed"), 30, 1e-9);
+        r = ctl_ok(e, "describe", NULL); /* describe shows the settings too */
+        CHECK_NEAR(setting_of(json_array_get(json_object_get(r, "devices"), 0), "speed", "value"),
+                   30, 1e-9);
+        json_decref(r);
         slow = move_time(e);
         fprintf(stderr,
                 "half turn at 90 deg/s: %.3f s, at 30 deg/s: %.3f s; %.3f s longer, the "
