@@ -43,7 +43,9 @@ static const char *const test_rig =
         "      radius: 450, intensity: 2.0e6 }\n"
         "  - { name: lamp1, modbus-coil: { bus: relays, unit: 10, coil: 1 }, elevation: 60,\n"
         "      radius: 450, intensity: 2.0e6 }\n"
-        "laser: { name: laser, modbus-coil: { bus: relays, unit: 10, coil: 7 } }\n"
+        /* one-shot `gonioctl laser on`: the tests check the laser after gonioctl left */
+        "laser: { name: laser, off_on_disconnect: false, modbus-coil: { bus: relays, unit: 10, "
+        "coil: 7 } }\n"
         "cameras:\n"
         "  - { name: cam0, sim: { bus: frames }, elevation: 15, distance: 600, azimuth: 30,\n"
         "      target: [0, 0, 40], width: 160, height: 120, fx: 400, fy: 400,\n"
@@ -261,15 +263,28 @@ static void init(struct rigenv *e, char **argv, double time_scale, const char *r
         snprintf(e->time_scale, sizeof(e->time_scale), "%g", time_scale);
 }
 
-char *rig_insert(const char *rig, const char *after, const char *text)
+/* from with the skip bytes at at replaced by text (at must not be NULL), malloc'ed. */
+static char *rig_splice(const char *from, const char *at, size_t skip, const char *text)
 {
-        const char *from = rig ? rig : test_rig, *at = strstr(from, after);
         char *out;
 
         CHECK(at);
-        at += strlen(after);
-        CHECK(asprintf(&out, "%.*s%s%s", (int)(at - from), from, text, at) > 0);
+        CHECK(asprintf(&out, "%.*s%s%s", (int)(at - from), from, text, at + skip) > 0);
         return out;
+}
+
+char *rig_insert(const char *rig, const char *after, const char *text)
+{
+        const char *from = rig ? rig : test_rig, *at = strstr(from, after);
+
+        return rig_splice(from, at ? at + strlen(after) : NULL, 0, text);
+}
+
+char *rig_replace(const char *rig, const char *old, const char *text)
+{
+        const char *from = rig ? rig : test_rig;
+
+        return rig_splice(from, strstr(from, old), strlen(old), text);
 }
 
 void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
