@@ -77,8 +77,10 @@ static struct tls_creds *client_creds(const char *ca)
         return c;
 }
 
-/* Expects tls_creds_new_server(cert, key) to fail with err, its message holding what. */
-static void server_refused(const char *cert, const char *key, int want, const char *what)
+/* Expects tls_creds_new_server(cert, key) to fail with want, its message holding what and
+ * not innocent (the file that is not at fault; NULL: both are). */
+static void server_refused(const char *cert, const char *key, int want, const char *what,
+                           const char *innocent)
 {
         struct tls_creds *c = NULL;
         char err[600] = "";
@@ -86,6 +88,7 @@ static void server_refused(const char *cert, const char *key, int want, const ch
         CHECK_INT(tls_creds_new_server(cert, key, &c, err, sizeof(err)), want);
         CHECK(!c);
         CHECK_STR_CONTAINS(err, what);
+        CHECK(!innocent || !strstr(err, innocent));
 }
 
 static void test_creds(void)
@@ -99,12 +102,12 @@ static void test_creds(void)
         CHECK(f);
         fputs("not PEM at all\n", f);
         fclose(f);
-        server_refused(none, key, -ENOENT, none);
-        server_refused(cert, none, -ENOENT, none);
-        server_refused(junk, key, -EBADMSG, junk);
-        server_refused(cert, junk, -EBADMSG, junk);
+        server_refused(none, key, -ENOENT, none, key);
+        server_refused(cert, none, -ENOENT, none, cert);
+        server_refused(junk, key, -EBADMSG, junk, key);
+        server_refused(cert, junk, -EBADMSG, junk, cert);
         server_refused(cert, in_dir("other-ca.key"), -EKEYREJECTED,
-                       "the key is not the certificate's");
+                       "the key is not the certificate's", NULL);
         CHECK_INT(tls_creds_new_client(none, &c, err, sizeof(err)), -ENOENT);
         CHECK_STR_CONTAINS(err, none);
         CHECK_INT(tls_creds_new_client(junk, &c, err, sizeof(err)), -EBADMSG);
