@@ -1125,7 +1125,8 @@ void server_broadcast(struct server *s, const char *method, json_t *params)
         if (msg && (text = proto_dump(msg, &len))) /* once for every client */
                 for (struct client *c = s->clients, *next; c; c = next) {
                         next = c->next;
-                        client_send_text(c, text, len);
+                        if (!c->token) /* the rig's doings are not for strangers */
+                                client_send_text(c, text, len);
                 }
         json_decref(msg);
 }

@@ -101,7 +101,8 @@ void server_on_close(struct server *s, void (*fn)(uint64_t client, void *ud), vo
  * SRV_IDLE_TIMEOUT_USEC, e.g. for tests. */
 void server_set_limits(struct server *s, unsigned max_clients, uint64_t idle_usec);
 
-/* Sends notification method with params (stolen) to every client. */
+/* Sends notification method with params (stolen) to every client, but those of a TCP
+ * listener that have not given its token yet (nor ended their TLS handshake). */
 void server_broadcast(struct server *s, const char *method, json_t *params);
 
 /* Number of connected clients. */

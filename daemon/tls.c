@@ -206,7 +206,7 @@ static int client_setup(struct tls_conn *t, const char *peer)
 
 int tls_conn_new(const struct tls_creds *creds, int fd, const char *peer, struct tls_conn **ret)
 {
-        unsigned flags = GNUTLS_NONBLOCK | GNUTLS_NO_SIGNAL;
+        unsigned flags = GNUTLS_NONBLOCK | GNUTLS_NO_SIGNAL | GNUTLS_NO_TICKETS; /* no resumption */
         struct tls_conn *t = calloc(1, sizeof(*t));
         int r;
 

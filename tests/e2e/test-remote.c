@@ -2,7 +2,8 @@
  * Usage: test-e2e-remote GONIOD GONIOCTL GONIO_SIM CASE [CERTS-SCRIPT]
  *   token    loopback only without TLS, every request refused until hello gives the token, a
  *            wrong token refused and the third closes the connection, the token's client then
- *            served as any operator (status, a move), the Unix socket unchanged; an address
+ *            served as any operator (status, a move), notifications only for it (not for a
+ *            client without the token), the Unix socket unchanged; an address
  *            beyond loopback, or no token, stops goniod at its start with the reason;
  *   tls      with --tls-cert/--tls-key (made by tests/tls-certs.sh): a key that is not the
  *            certificate's or a missing certificate stops goniod at its start naming it;
@@ -14,6 +15,7 @@
  *            10.77.0.1 on lo: that address without TLS stops goniod at its start, with TLS
  *            gonioctl is served there. */
 #include <arpa/inet.h>
+#include <errno.h>
 #include <netinet/in.h>
 #include <sched.h>
 #include <stdio.h>
@@ -122,7 +124,7 @@ static void case_token(struct rigenv *e)
         static const char status[] = "{\"jsonrpc\":\"2.0\",\"id\":2,\"method\":\"status\"}\n";
         struct tcp_env t;
         char buf[400];
-        int port = 20000 + getpid() % 20000, fd, unix_fd;
+        int port = 20000 + getpid() % 20000, fd, unix_fd, stranger;
 
         tcp_env_init(&t, e, "0.0.0.0", port);
         start_refused(e, &t, "not a loopback address");
@@ -131,12 +133,16 @@ static void case_token(struct rigenv *e)
         start_refused(e, &t, "the token must be 16 to 127 characters");
         write_file(t.token_file, TOKEN "\n");
         rigenv_spawn_daemon(e, e->sock, tcp_env, &t);
+        stranger = tcp_connect(t.ip, port); /* never gives the token */
         fd = tcp_connect(t.ip, port);
         refused(fd, status, "say hello with the token first");
         refused(fd, hello(NULL, buf, sizeof(buf)), "wrong or missing token");
         ok(fd, hello(TOKEN, buf, sizeof(buf)));
         ok(fd, status);
         ok(fd, "{\"jsonrpc\":\"2.0\",\"id\":3,\"method\":\"home\"}\n");
+        CHECK(strstr(raw_seen(), "state.changed")); /* home was told to the token's client, */
+        CHECK(recv(stranger, buf, sizeof(buf), MSG_DONTWAIT) < 0 && errno == EAGAIN); /* only */
+        close(stranger);
         close(fd);
         fd = tcp_connect(t.ip, port); /* three wrong tokens: closed */
         for (int i = 0; i < 2; i++)
