@@ -351,9 +351,9 @@ static const char global_options[] =
         "  --token-file FILE\n"
         "                  over TCP, the token hello gives: the file's first line\n"
         "                  (default $GONIO_TOKEN_FILE)\n"
-        "  --tls-ca FILE   over TLS, goniod's certificate must chain to a CA of FILE (PEM)\n"
+        "  --tls-ca FILE   speak TLS; goniod's certificate must chain to a CA of FILE (PEM)\n"
         "                  and name HOST (default $GONIO_TLS_CA)\n"
-        "  --tls           over TLS, goniod's certificate checked by the system's CAs\n"
+        "  --tls           speak TLS, goniod's certificate checked by the system's CAs\n"
         "  --json          results, and errors as {\"error\":{...}}, as one line of JSON\n"
         "  --timeout SEC   reply timeout (default 30, home/move/capture 120)\n"
         "  --quiet         print nothing on success\n";
