@@ -548,9 +548,7 @@ static const char *opt_or_env(const char *opt, const char *name)
         return opt ? opt : env && *env ? env : NULL;
 }
 
-/* Where goniod listens on TCP for a: --connect, else $GONIO_CONNECT unless --socket is
- * given; NULL: its Unix socket. */
-static const char *tcp_address(const struct args *a)
+const char *cmd_tcp_address(const struct args *a)
 {
         return a->connect || a->socket ? a->connect : opt_or_env(NULL, "GONIO_CONNECT");
 }
@@ -573,11 +571,11 @@ static int read_token(const struct args *a, struct out *o, char *buf, size_t len
         return EXIT_OK;
 }
 
-/* Connects to goniod's Unix socket or, for tcp_address, over TCP (TLS with --tls-ca or
+/* Connects to goniod's Unix socket or, for cmd_tcp_address, over TCP (TLS with --tls-ca or
  * --tls). Returns EXIT_OK or EXIT_CONNECT after printing why. */
 static int open_conn(const struct args *a, int64_t deadline, struct out *o, struct conn **ret)
 {
-        const char *tcp = tcp_address(a);
+        const char *tcp = cmd_tcp_address(a);
         struct conn_error e = {0};
         char path[108];
         int r;
@@ -607,7 +605,7 @@ int cmd_connect(const struct args *a, struct out *o, struct conn **ret)
         int64_t deadline = deadline_after(a->timeout_s > 0 ? a->timeout_s : TIMEOUT_S);
         int r, proto;
 
-        if (tcp_address(a) && (r = read_token(a, o, token, sizeof(token))) != EXIT_OK)
+        if (cmd_tcp_address(a) && (r = read_token(a, o, token, sizeof(token))) != EXIT_OK)
                 return r;
         if ((r = open_conn(a, deadline, o, ret)) != EXIT_OK)
                 return r;

@@ -10,7 +10,8 @@
  *            gonioctl over TLS (options, or $GONIO_CONNECT...) gets the status and moves an
  *            axis while a client stalls in its handshake; another CA is refused with the
  *            reason (a JSON error object), a client without TLS is told so and goniod goes on
- *            serving;
+ *            serving; gonioctl doctor over TLS (no socket file to check; another CA's
+ *            failure named);
  *   netns    in a network namespace of its own (skipped, 77, where none can be made) with
  *            10.77.0.1 on lo: that address without TLS stops goniod at its start, with TLS
  *            gonioctl is served there. */
@@ -217,6 +218,26 @@ static void status_by_env(struct rigenv *e, struct tcp_env *t)
         unsetenv("GONIO_TLS_CA");
 }
 
+/* gonioctl doctor over TLS: no socket file to check, goniod answers; with another CA it
+ * says why it does not. */
+static void doctor(struct rigenv *e, struct tcp_env *t)
+{
+        json_t *out = NULL;
+        char *text;
+
+        CHECK_INT(tls_ctl(e, t, "ca.pem", &out, "doctor", NULL, NULL), 0);
+        CHECK_STR_CONTAINS(json_string_value(json_object_get(
+                                   json_array_get(json_object_get(out, "checks"), 0), "detail")),
+                           "over TCP");
+        json_decref(out);
+        CHECK_INT(tls_ctl(e, t, "other-ca.pem", &out, "doctor", NULL, NULL), 3);
+        text = json_dumps(out, 0);
+        CHECK_STR_CONTAINS(text, "goniod does not answer: connect: ");
+        CHECK_STR_CONTAINS(text, "The certificate issuer is unknown");
+        free(text);
+        json_decref(out);
+}
+
 static void case_tls(struct rigenv *e)
 {
         static const char partial_hello[] = "\x16\x03\x01\x02\x00\x01\x00"; /* of 512 bytes */
@@ -250,6 +271,7 @@ static void case_tls(struct rigenv *e)
         CHECK(ctl(e, &out, "--connect", t.addr, "--token-file", t.token_file, "status", NULL));
         error_holds(out, "this port of goniod takes TLS connections only");
         status_by_env(e, &t);
+        doctor(e, &t);
         close(stalled);
 }
 
