@@ -22,6 +22,9 @@
 /* TLS 1.3 first, 1.2 where the peer has nothing newer; GnuTLS's default suites otherwise. */
 #define TLS_PRIORITY     "NORMAL:-VERS-ALL:+VERS-TLS1.3:+VERS-TLS1.2"
 #define TLS_RECORD_BYTE0 0x16 /* the content type of a handshake record */
+/* Calls of GnuTLS after a non-fatal error (a warning alert...) per call of ours: a peer that
+ * sends nothing else cannot keep the loop in one call. */
+#define TLS_RETRIES 16
 
 struct tls_creds {
         gnutls_certificate_credentials_t cred;
@@ -267,11 +270,13 @@ static int fail(struct tls_conn *t, int g)
 {
         gnutls_datum_t out = {0};
 
-        if (g == GNUTLS_E_CERTIFICATE_VERIFICATION_ERROR &&
-            gnutls_certificate_verification_status_print(
-                    gnutls_session_get_verify_cert_status(t->session),
-                    gnutls_certificate_type_get(t->session), &out, 0) >= 0) {
-                snprintf(t->error, sizeof(t->error), "%s", (const char *)out.data);
+        if (g == GNUTLS_E_CERTIFICATE_VERIFICATION_ERROR) {
+                bool said = gnutls_certificate_verification_status_print(
+                                    gnutls_session_get_verify_cert_status(t->session),
+                                    gnutls_certificate_type_get(t->session), &out, 0) >= 0;
+
+                snprintf(t->error, sizeof(t->error), "%s",
+                         said ? (const char *)out.data : gnutls_strerror(g));
                 gnutls_free(out.data);
                 return -EKEYREJECTED;
         }
@@ -318,10 +323,12 @@ int tls_handshake(struct tls_conn *t)
                 if (r < 0)
                         return r;
         }
-        do
+        for (int i = 0; i < TLS_RETRIES; i++) {
                 g = gnutls_handshake(t->session);
-        while (g < 0 && g != GNUTLS_E_AGAIN && !gnutls_error_is_fatal(g));
-        if (g == GNUTLS_E_AGAIN)
+                if (g >= 0 || g == GNUTLS_E_AGAIN || gnutls_error_is_fatal(g))
+                        break;
+        }
+        if (g == GNUTLS_E_AGAIN || (g < 0 && !gnutls_error_is_fatal(g)))
                 return -EAGAIN;
         if (g < 0)
                 return fail(t, g);
@@ -344,10 +351,12 @@ ssize_t tls_read(struct tls_conn *t, void *buf, size_t len)
 {
         ssize_t n;
 
-        do
+        for (int i = 0; i < TLS_RETRIES; i++) {
                 n = gnutls_record_recv(t->session, buf, len);
-        while (n < 0 && n != GNUTLS_E_AGAIN && !gnutls_error_is_fatal((int)n));
-        if (n == GNUTLS_E_AGAIN)
+                if (n >= 0 || n == GNUTLS_E_AGAIN || gnutls_error_is_fatal((int)n))
+                        break;
+        }
+        if (n == GNUTLS_E_AGAIN || (n < 0 && !gnutls_error_is_fatal((int)n)))
                 return -EAGAIN;
         if (n == GNUTLS_E_PREMATURE_TERMINATION)
                 return 0; /* closed without close_notify: the end all the same for lines */
