@@ -13,6 +13,10 @@
 
 enum opt_id {
         O_SOCKET,
+        O_CONNECT,
+        O_TOKEN_FILE,
+        O_TLS_CA,
+        O_TLS,
         O_JSON,
         O_TIMEOUT,
         O_QUIET,
@@ -53,6 +57,10 @@ static const struct {
         const char *help;
 } options[] = {
         {"socket", O_SOCKET, "PATH", 0, "goniod's socket"},
+        {"connect", O_CONNECT, "HOST:PORT", 0, "goniod over TCP"},
+        {"token-file", O_TOKEN_FILE, "FILE", 0, "the token of goniod's TCP listener"},
+        {"tls-ca", O_TLS_CA, "FILE", 0, "TLS, goniod's certificate signed by these CAs"},
+        {"tls", O_TLS, NULL, 0, "TLS, goniod's certificate checked by the system's CAs"},
         {"json", O_JSON, NULL, 0, "results and errors as JSON on stdout"},
         {"timeout", O_TIMEOUT, "SEC", 0, "reply timeout"},
         {"quiet", O_QUIET, NULL, 0, "print nothing on success"},
@@ -164,6 +172,15 @@ static int set_value(struct args *a, enum opt_id id, const char *v)
         case O_SOCKET:
                 a->socket = v;
                 return 0;
+        case O_CONNECT:
+                a->connect = v;
+                return 0;
+        case O_TOKEN_FILE:
+                a->token_file = v;
+                return 0;
+        case O_TLS_CA:
+                a->tls_ca = v;
+                return 0;
         case O_TIMEOUT:
                 if (args_parse_double(v, &a->timeout_s) < 0 || a->timeout_s <= 0 ||
                     a->timeout_s > 86400)
@@ -243,6 +260,7 @@ static void set_flag(struct args *a, enum opt_id id)
         a->quiet |= id == O_QUIET;
         a->help |= id == O_HELP;
         a->version |= id == O_VERSION;
+        a->tls |= id == O_TLS;
 }
 
 /* Handles argv[*i] = "--name[=value]"; advances *i past a separate value. */

@@ -36,8 +36,11 @@ enum arg_opt {
 };
 
 struct args {
-        const char *socket; /* --socket, NULL for the default path */
-        bool json, quiet, help, version;
+        const char *socket;     /* --socket, NULL for the default path */
+        const char *connect;    /* --connect HOST:PORT: goniod over TCP */
+        const char *token_file; /* --token-file: the token hello gives over TCP */
+        const char *tls_ca;     /* --tls-ca: the CAs of goniod's certificate (TLS) */
+        bool json, quiet, help, version, tls;
         double timeout_s;        /* --timeout, 0 when not given */
         unsigned given;          /* enum arg_opt bits seen */
         const char *camera;      /* --camera */

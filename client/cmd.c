@@ -386,14 +386,23 @@ static void usage_line(FILE *f, const struct cmd *c)
 static const char global_options[] =
         "  --socket PATH   goniod's socket (default $GONIO_SOCKET, else\n"
         "                  $XDG_RUNTIME_DIR/gonio/goniod.sock, else /run/gonio/goniod.sock)\n"
+        "  --connect HOST:PORT\n"
+        "                  goniod over TCP instead (default $GONIO_CONNECT unless --socket)\n"
+        "  --token-file FILE\n"
+        "                  over TCP, the token hello gives: the file's first line\n"
+        "                  (default $GONIO_TOKEN_FILE)\n"
+        "  --tls-ca FILE   speak TLS; goniod's certificate must chain to a CA of FILE (PEM)\n"
+        "                  and name HOST (default $GONIO_TLS_CA)\n"
+        "  --tls           speak TLS, goniod's certificate checked by the system's CAs\n"
         "  --json          results, and errors as {\"error\":{...}}, as one line of JSON\n"
         "  --timeout SEC   reply timeout (default 30, home/move/capture 120)\n"
         "  --quiet         print nothing on success\n";
 
 void cmd_usage(FILE *f)
 {
-        fprintf(f, "Usage: gonioctl [--socket PATH] [--json] [--timeout SEC] [--quiet] COMMAND "
-                   "[ARGS]\n\nCommands:\n");
+        fprintf(f, "Usage: gonioctl [--socket PATH | --connect HOST:PORT [--token-file FILE]\n"
+                   "                [--tls-ca FILE | --tls]] [--json] [--timeout SEC] [--quiet]\n"
+                   "                COMMAND [ARGS]\n\nCommands:\n");
         for (size_t i = 0; i < ELEMENTSOF(commands); i++)
                 usage_line(f, &commands[i]);
         fprintf(f,
@@ -548,7 +557,7 @@ static int64_t deadline_after(double timeout_s)
 }
 
 /* cmd_connect to the admin socket: $GONIO_ADMIN_SOCKET, else admin.sock beside the control
- * socket (--socket or the default path), as goniod places it. */
+ * socket (--socket or the default path), as goniod places it; never over TCP. */
 static int admin_connect(const struct args *a, struct out *o, struct conn **ret)
 {
         char ctl[108], path[108];
@@ -567,31 +576,83 @@ static int admin_connect(const struct args *a, struct out *o, struct conn **ret)
                          ctl);
         }
         b.socket = path;
+        b.connect = NULL;
         return cmd_connect(&b, o, ret);
 }
 
-int cmd_connect(const struct args *a, struct out *o, struct conn **ret)
+/* The value of an option, else of the environment variable name; NULL when neither is set. */
+static const char *opt_or_env(const char *opt, const char *name)
 {
-        char path[108];
-        struct conn_error e;
-        json_t *res = NULL, *params;
-        int64_t deadline = deadline_after(a->timeout_s > 0 ? a->timeout_s : TIMEOUT_S);
-        int r, proto;
+        const char *env = getenv(name);
 
-        if (a->socket)
+        return opt ? opt : env && *env ? env : NULL;
+}
+
+const char *cmd_tcp_address(const struct args *a)
+{
+        return a->connect || a->socket ? a->connect : opt_or_env(NULL, "GONIO_CONNECT");
+}
+
+/* The first line of the token file (--token-file, else $GONIO_TOKEN_FILE) into buf ("" when
+ * neither is given). Returns 0, or EXIT_CONNECT after printing why it cannot be read. */
+static int read_token(const struct args *a, struct out *o, char *buf, size_t len)
+{
+        const char *path = opt_or_env(a->token_file, "GONIO_TOKEN_FILE");
+        _cleanup_fclose_ FILE *f = path ? fopen(path, "re") : NULL;
+
+        buf[0] = 0;
+        if (path && !f) {
+                out_error(o, "connect", "token file %s: %s", path, strerror(errno));
+                return EXIT_CONNECT;
+        }
+        if (f && !fgets(buf, (int)len, f))
+                buf[0] = 0;
+        buf[strcspn(buf, "\r\n")] = 0;
+        return EXIT_OK;
+}
+
+/* Connects to goniod's Unix socket or, for cmd_tcp_address, over TCP (TLS with --tls-ca or
+ * --tls). Returns EXIT_OK or EXIT_CONNECT after printing why. */
+static int open_conn(const struct args *a, int64_t deadline, struct out *o, struct conn **ret)
+{
+        const char *tcp = cmd_tcp_address(a);
+        struct conn_error e = {0};
+        char path[108];
+        int r;
+
+        if (tcp)
+                r = conn_open_tcp(tcp, a->tls, opt_or_env(a->tls_ca, "GONIO_TLS_CA"), deadline, ret,
+                                  &e);
+        else if (a->socket)
                 r = snprintf(path, sizeof(path), "%s", a->socket) >= (int)sizeof(path)
                             ? -ENAMETOOLONG
                             : 0;
         else
                 r = proto_socket_path(path, sizeof(path));
-        if (r >= 0)
+        if (!tcp && r >= 0)
                 r = conn_open(path, deadline, ret);
-        if (r < 0) {
-                out_error(o, "connect", "%s: %s", path, strerror(-r));
-                return EXIT_CONNECT;
-        }
+        if (r < 0)
+                out_error(o, "connect", "%s: %s", tcp ? tcp : path,
+                          e.message[0] ? e.message : strerror(-r));
+        return r < 0 ? EXIT_CONNECT : EXIT_OK;
+}
+
+int cmd_connect(const struct args *a, struct out *o, struct conn **ret)
+{
+        char token[256] = "";
+        struct conn_error e;
+        json_t *res = NULL, *params;
+        int64_t deadline = deadline_after(a->timeout_s > 0 ? a->timeout_s : TIMEOUT_S);
+        int r, proto;
+
+        if (cmd_tcp_address(a) && (r = read_token(a, o, token, sizeof(token))) != EXIT_OK)
+                return r;
+        if ((r = open_conn(a, deadline, o, ret)) != EXIT_OK)
+                return r;
         params = json_pack("{s:s,s:i}", "client", "gonioctl/" GONIO_VERSION, "protocol",
                            PROTO_VERSION);
+        if (params && token[0])
+                json_object_set_new(params, "token", json_string(token));
         r = conn_call(*ret, "hello", params, deadline, -1, NULL, NULL, &res, &e);
         if (r < 0)
                 return cmd_call_failed(o, "hello", r, &e);

@@ -49,8 +49,13 @@ int cmd_help(const struct args *a);
 struct conn;
 struct out;
 
-/* Connects to goniod (--socket, else the default path) and says hello (checks the protocol
- * version). Returns EXIT_OK with a new connection in *ret, or the exit code (error printed). */
+/* Where a reaches goniod over TCP ("HOST:PORT": --connect, else $GONIO_CONNECT unless
+ * --socket is given), or NULL for its Unix socket. */
+const char *cmd_tcp_address(const struct args *a);
+
+/* Connects to goniod (cmd_tcp_address, else --socket, else the default path) and says hello
+ * (with the token over TCP; checks the protocol version). Returns EXIT_OK with a new
+ * connection in *ret, or the exit code (error printed). */
 int cmd_connect(const struct args *a, struct out *o, struct conn **ret);
 
 /* Catches SIGINT and SIGTERM from now on: returns a descriptor that becomes readable with one

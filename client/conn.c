@@ -1,7 +1,8 @@
-/* conn.c - gonioctl's connection to goniod over a Unix stream socket: non-blocking I/O
- * with poll() and a deadline on every wait, line framing and message validation from
- * protocol/, one outstanding request at a time. */
+/* conn.c - gonioctl's connection to goniod over a Unix stream socket or TCP (plain or TLS,
+ * daemon/tls.h): non-blocking I/O with poll() and a deadline on every wait, line framing
+ * and message validation from protocol/, one outstanding request at a time. */
 #include <errno.h>
+#include <netdb.h>
 #include <poll.h>
 #include <string.h>
 #include <sys/socket.h>
@@ -11,12 +12,15 @@
 #include "client/conn.h"
 #include "common/clock.h"
 #include "common/cleanup.h"
+#include "daemon/tls.h"
 #include "protocol/proto.h"
 
 #define CONNECT_RETRY_MS 10 /* pause between connects while the listen backlog is full */
 
 struct conn {
         int fd;
+        struct tls_creds *creds; /* TLS: what the server's certificate is checked against */
+        struct tls_conn *tls;    /* NULL: a plain connection */
         json_int_t next_id;
         json_int_t abandoned_id; /* a request whose wait was given up (0: none) */
         struct proto_lines lines;
@@ -58,13 +62,13 @@ static int wait_fd(int fd, short events, int64_t deadline, int intr_fd)
         }
 }
 
-static int connect_socket(int fd, const struct sockaddr_un *sa, int64_t deadline)
+static int connect_socket(int fd, const struct sockaddr *sa, socklen_t len, int64_t deadline)
 {
         for (;;) {
                 int err = 0;
                 socklen_t sl = sizeof(err);
 
-                if (connect(fd, (const struct sockaddr *)sa, sizeof(*sa)) == 0)
+                if (connect(fd, sa, len) == 0)
                         return 0;
                 if (errno == EAGAIN) { /* Unix sockets: backlog full, try again shortly */
                         if (conn_now_ms() + CONNECT_RETRY_MS > deadline)
@@ -92,7 +96,7 @@ int conn_open(const char *path, int64_t deadline, struct conn **ret)
 
         if (fd < 0)
                 return fd;
-        r = connect_socket(fd, &sa, deadline);
+        r = connect_socket(fd, (const struct sockaddr *)&sa, sizeof(sa), deadline);
         if (r < 0)
                 return r;
         c = calloc(1, sizeof(*c));
@@ -104,31 +108,130 @@ int conn_open(const char *path, int64_t deadline, struct conn **ret)
         return 0;
 }
 
+/* Splits addr ("HOST:PORT", "[V6]:PORT") into host and port. Returns 0 or -EINVAL. */
+static int split_addr(const char *addr, char *host, size_t len, const char **port)
+{
+        const char *colon = strrchr(addr, ':');
+        size_t n = colon ? (size_t)(colon - addr) : 0;
+
+        if (!colon || n == 0 || n >= len || !colon[1])
+                return -EINVAL;
+        if (addr[0] == '[' && addr[n - 1] == ']')
+                snprintf(host, len, "%.*s", (int)n - 2, addr + 1);
+        else
+                snprintf(host, len, "%.*s", (int)n, addr);
+        *port = colon + 1;
+        return host[0] ? 0 : -EINVAL;
+}
+
+/* A TCP connection to host:port before deadline, trying each address of host in turn.
+ * Returns the socket (non-blocking), -EHOSTUNREACH when host has no address, or the errno
+ * of the last connect. */
+static int connect_tcp(const char *host, const char *port, int64_t deadline)
+{
+        struct addrinfo hints = {.ai_socktype = SOCK_STREAM}, *res = NULL;
+        int r = -EHOSTUNREACH;
+
+        if (getaddrinfo(host, port, &hints, &res) != 0)
+                return -EHOSTUNREACH;
+        for (struct addrinfo *ai = res; ai; ai = ai->ai_next) {
+                _cleanup_close_ int fd =
+                        socket(ai->ai_family, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+
+                r = fd < 0 ? -errno : connect_socket(fd, ai->ai_addr, ai->ai_addrlen, deadline);
+                if (r >= 0) {
+                        r = TAKE_FD(fd);
+                        break;
+                }
+        }
+        freeaddrinfo(res);
+        return r;
+}
+
+/* The handshake of c's TLS session with the server host before deadline. Returns 0 or the
+ * -errno of tls_handshake (err->message says why), -ETIMEDOUT. */
+static int handshake(struct conn *c, const char *host, int64_t deadline, struct conn_error *err)
+{
+        int r = tls_conn_new(c->creds, c->fd, host, &c->tls);
+
+        while (r >= 0 && (r = tls_handshake(c->tls)) == -EAGAIN)
+                r = wait_fd(c->fd, tls_wants_write(c->tls) ? POLLOUT : POLLIN, deadline, -1);
+        if (r < 0 && c->tls && tls_conn_error(c->tls)[0])
+                snprintf(err->message, sizeof(err->message), "TLS: %s", tls_conn_error(c->tls));
+        return r;
+}
+
+int conn_open_tcp(const char *addr, bool tls, const char *ca_file, int64_t deadline,
+                  struct conn **ret, struct conn_error *err)
+{
+        _cleanup_(conn_freep) struct conn *c = NULL;
+        const char *port;
+        char host[256];
+        int r = split_addr(addr, host, sizeof(host), &port);
+
+        *err = (struct conn_error){};
+        if (r < 0) {
+                snprintf(err->message, sizeof(err->message), "expected HOST:PORT");
+                return r;
+        }
+        c = calloc(1, sizeof(*c));
+        if (!c)
+                return -ENOMEM;
+        c->next_id = 1;
+        c->fd = -EBADF;
+        if ((tls || ca_file) &&
+            (r = tls_creds_new_client(ca_file, &c->creds, err->message, sizeof(err->message))) < 0)
+                return r;
+        c->fd = connect_tcp(host, port, deadline);
+        if (c->fd == -EHOSTUNREACH)
+                snprintf(err->message, sizeof(err->message), "no address for %s", host);
+        if (c->fd < 0)
+                return c->fd;
+        if (c->creds && (r = handshake(c, host, deadline, err)) < 0)
+                return r;
+        *ret = TAKE_PTR(c);
+        return 0;
+}
+
 struct conn *conn_free(struct conn *c)
 {
         if (!c)
                 return NULL;
+        tls_conn_free(c->tls);
+        tls_creds_free(c->creds);
         closep(&c->fd);
         proto_lines_done(&c->lines);
         free(c);
         return NULL;
 }
 
+/* Sends what c's transport takes of s. Returns the bytes taken, -EAGAIN or -errno. */
+static ssize_t send_some(struct conn *c, const char *s, size_t n)
+{
+        ssize_t k;
+
+        if (c->tls)
+                return tls_write(c->tls, s, n);
+        k = send(c->fd, s, n, MSG_NOSIGNAL);
+        return k < 0 ? -errno : k;
+}
+
 static int send_all(struct conn *c, const char *s, size_t n, int64_t deadline)
 {
         while (n > 0) {
-                ssize_t k = send(c->fd, s, n, MSG_NOSIGNAL);
+                ssize_t k = send_some(c, s, n);
 
-                if (k < 0 && errno == EINTR)
+                if (k == -EINTR)
                         continue;
-                if (k < 0 && errno == EAGAIN) {
-                        int r = wait_fd(c->fd, POLLOUT, deadline, -1);
+                if (k == -EAGAIN) {
+                        bool in = c->tls && !tls_wants_write(c->tls);
+                        int r = wait_fd(c->fd, in ? POLLIN : POLLOUT, deadline, -1);
                         if (r < 0)
                                 return r;
                         continue;
                 }
                 if (k < 0)
-                        return errno == EPIPE ? -ECONNRESET : -errno;
+                        return k == -EPIPE ? -ECONNRESET : (int)k;
                 s += k;
                 n -= (size_t)k;
         }
@@ -139,12 +242,14 @@ static int send_all(struct conn *c, const char *s, size_t n, int64_t deadline)
 static int read_some(struct conn *c)
 {
         char buf[16384];
-        ssize_t n = recv(c->fd, buf, sizeof(buf), 0);
+        ssize_t n = c->tls ? tls_read(c->tls, buf, sizeof(buf)) : recv(c->fd, buf, sizeof(buf), 0);
 
-        if (n < 0)
-                return errno == EAGAIN || errno == EINTR ? 0 : -errno;
-        if (n == 0)
-                return -ECONNRESET;
+        if (!c->tls && n < 0)
+                n = -errno;
+        if (n == -EAGAIN || n == -EINTR)
+                return 0;
+        if (n <= 0)
+                return n < 0 ? (int)n : -ECONNRESET;
         return proto_lines_feed(&c->lines, buf, (size_t)n);
 }
 
@@ -171,7 +276,7 @@ static int read_msg(struct conn *c, int64_t deadline, int intr_fd, struct proto_
                                  why);
                         return -EPROTO;
                 }
-                r = wait_fd(c->fd, POLLIN, deadline, intr_fd);
+                r = c->tls && tls_pending(c->tls) ? 0 : wait_fd(c->fd, POLLIN, deadline, intr_fd);
                 if (r >= 0)
                         r = read_some(c);
                 if (r < 0)

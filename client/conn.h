@@ -5,6 +5,7 @@
  * CONN_NO_DEADLINE waits without limit (only `watch` uses it). Single-threaded. */
 #pragma once
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include <jansson.h>
@@ -29,6 +30,16 @@ int64_t conn_now_ms(void);
  * connection in *ret (conn_free it), -ENAMETOOLONG, -ETIMEDOUT, or the connect errno
  * (-ENOENT, -ECONNREFUSED, -EACCES, ...). */
 int conn_open(const char *path, int64_t deadline, struct conn **ret);
+
+/* Connects to goniod over TCP at addr ("HOST:PORT", HOST a name or an address, "[V6]:PORT")
+ * before deadline: over TLS when tls or ca_file, the server's certificate checked against
+ * ca_file's CAs (PEM; NULL: the system's trust store) and HOST. Returns 0 and *ret, or
+ * -EINVAL (addr), -EHOSTUNREACH (HOST has no address), -ETIMEDOUT, the connect errno
+ * (-ECONNREFUSED...), -errno of reading ca_file, -EKEYREJECTED (the server's certificate is
+ * not trusted or does not name HOST), -EPROTO / -ECONNRESET (TLS failed: a server without
+ * TLS); err->message says why for the file and TLS. */
+int conn_open_tcp(const char *addr, bool tls, const char *ca_file, int64_t deadline,
+                  struct conn **ret, struct conn_error *err);
 
 /* Closes the socket and frees c. NULL is a no-op. Returns NULL. */
 struct conn *conn_free(struct conn *c);

@@ -204,13 +204,16 @@ int doctor_command(const struct args *a, struct out *o, json_t **ret)
         struct out quiet = *o;
         bool dev, room;
 
-        if (!check_socket(a, checks))
+        if (cmd_tcp_address(a)) /* no socket file: whether goniod answers says it all */
+                add(checks, "socket", "ok", NULL, "over TCP: %s", cmd_tcp_address(a));
+        else if (!check_socket(a, checks))
                 return finish(o, checks, EXIT_CONNECT, ret);
         quiet.quiet = true;
         if (cmd_connect(a, &quiet, &conn) != EXIT_OK ||
             conn_call(conn, "status", json_object(), deadline, -1, NULL, NULL, &st, &e) < 0) {
                 add(checks, "goniod", "fail", "is goniod running? journalctl -u goniod says why",
-                    "%s", "goniod does not answer on the socket");
+                    "goniod does not answer%s%s", quiet.error[0] ? ": " : " on the socket",
+                    quiet.error); /* why: a TLS certificate not trusted, a wrong token... */
                 return finish(o, checks, EXIT_CONNECT, ret);
         }
         add(checks, "goniod", "ok", NULL, "goniod answers (protocol %d)", PROTO_VERSION);

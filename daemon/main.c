@@ -27,9 +27,13 @@ static void usage(FILE *f)
                 "                 (both taken from systemd instead when socket-activated)\n"
                 "  --data DIR     directory of datasets (default $GONIO_DATA or /var/lib/gonio)\n"
                 "  --listen-tcp HOST:PORT\n"
-                "                 also listen on TCP (loopback only; $GONIO_LISTEN_TCP)\n"
+                "                 also listen on TCP (loopback only without TLS;\n"
+                "                 $GONIO_LISTEN_TCP)\n"
                 "  --token-file FILE\n"
                 "                 the token a TCP client gives in hello ($GONIO_TOKEN_FILE)\n"
+                "  --tls-cert FILE, --tls-key FILE\n"
+                "                 TLS only on TCP, with this certificate and key (PEM;\n"
+                "                 $GONIO_TLS_CERT, $GONIO_TLS_KEY)\n"
                 "  --verbose      debug logging\n"
                 "  --version      print the version and exit\n");
 }
@@ -56,9 +60,10 @@ static void default_admin(const char *sock, char *out, size_t len)
         snprintf(out, len, "%.*sadmin.sock", slash ? (int)(slash - sock + 1) : 0, sock);
 }
 
-/* The TCP listener at addr with the token of token_file (its first line). Returns 0 or
- * -errno (logged). */
-static int listen_tcp(struct manager *m, const char *addr, const char *token_file)
+/* The TCP listener at addr with the token of token_file (its first line), with TLS when
+ * cert and key are given. Returns 0 or -errno (logged). */
+static int listen_tcp(struct manager *m, const char *addr, const char *token_file, const char *cert,
+                      const char *key)
 {
         char token[256] = "";
         FILE *f = token_file && *token_file ? fopen(token_file, "re") : NULL;
@@ -73,7 +78,7 @@ static int listen_tcp(struct manager *m, const char *addr, const char *token_fil
                 token[0] = 0;
         fclose(f);
         token[strcspn(token, "\r\n")] = 0;
-        return server_listen_tcp(m->server, addr, token);
+        return server_listen_tcp(m->server, addr, token, cert, key);
 }
 
 int main(int argc, char **argv)
@@ -88,16 +93,19 @@ int main(int argc, char **argv)
                 {"version", no_argument, NULL, 'V'},
                 {"listen-tcp", required_argument, NULL, 't'},
                 {"token-file", required_argument, NULL, 'k'},
+                {"tls-cert", required_argument, NULL, 'C'},
+                {"tls-key", required_argument, NULL, 'K'},
                 {},
         };
         const char *rig = NULL, *data = getenv("GONIO_DATA"), *tcp = getenv("GONIO_LISTEN_TCP"),
-                   *token_file = getenv("GONIO_TOKEN_FILE");
+                   *token_file = getenv("GONIO_TOKEN_FILE"), *cert = getenv("GONIO_TLS_CERT"),
+                   *key = getenv("GONIO_TLS_KEY");
         char sock[PATH_MAX] = "", admin[PATH_MAX] = "";
         struct manager *m = NULL;
         int c, r;
 
         gn_log_set_ident("goniod");
-        while ((c = getopt_long(argc, argv, "r:s:a:d:vhVt:k:", opts, NULL)) >= 0) {
+        while ((c = getopt_long(argc, argv, "r:s:a:d:vhVt:k:C:K:", opts, NULL)) >= 0) {
                 switch (c) {
                 case 'r':
                         rig = optarg;
@@ -116,6 +124,12 @@ int main(int argc, char **argv)
                         break;
                 case 'k':
                         token_file = optarg;
+                        break;
+                case 'C':
+                        cert = optarg;
+                        break;
+                case 'K':
+                        key = optarg;
                         break;
                 case 'v':
                         gn_log_set_level(GN_LOG_DEBUG);
@@ -144,7 +158,10 @@ int main(int argc, char **argv)
                 log_error_errno(r, "cannot start: %m");
                 return 1;
         }
-        if (tcp && *tcp && (r = listen_tcp(m, tcp, token_file)) < 0) {
+        if ((!tcp || !*tcp) && ((cert && *cert) || (key && *key)))
+                log_notice("a TLS certificate or key without --listen-tcp: nothing listens on "
+                           "TCP, ignoring them");
+        if (tcp && *tcp && (r = listen_tcp(m, tcp, token_file, cert, key)) < 0) {
                 manager_free(m);
                 return 1;
         }

@@ -45,18 +45,19 @@
 #include "common/log.h"
 #include "protocol/proto.h"
 #include "server.h"
+#include "tls.h"
 
 #define SRV_MAX_OUTPUT   (16u * PROTO_MAX_LINE) /* 1 MiB: a client's unsent output */
-#define SRV_FD_RESERVE   64 /* descriptors left for devices, datasets and the loop */
-#define SRV_ACCEPT_BATCH 1024
-#define MAX_BAD_TOKENS                                                                             \
-        3 /* wrong tokens before a TCP connection is closed */ /* per wake-up, so a connection     \
-                                                                  flood cannot starve clients */
+#define SRV_FD_RESERVE   64    /* descriptors left for devices, datasets and the loop */
+#define SRV_ACCEPT_BATCH 1024  /* per wake-up, so a connection flood cannot starve clients */
+#define MAX_BAD_TOKENS   3     /* wrong tokens before a TCP connection is closed */
+#define MAX_PLAIN_DRAIN  65536 /* bytes read of a client without TLS on a TLS listener */
 
 struct client {
         struct server *server;
         unsigned ref;
         int fd;
+        struct tls_conn *tls; /* NULL: a plain connection */
         sd_event_source *io;
         struct proto_lines in;
         char *out;
@@ -76,8 +77,9 @@ struct listener {
         int fd, lock_fd; /* lock_fd: "<path>.lock", for the sockets we bound */
         enum srv_role role;
         char path[sizeof(((struct sockaddr_un *)0)->sun_path)];
-        char token[128]; /* TCP: what hello must give, "" none */
-        bool bound;      /* path is the socket we bound, identified by dev/ino */
+        char token[128];       /* TCP: what hello must give, "" none */
+        struct tls_creds *tls; /* TCP with TLS: the server's credentials, else NULL */
+        bool bound;            /* path is the socket we bound, identified by dev/ino */
         dev_t dev;
         ino_t ino;
         sd_event_source *src;
@@ -140,6 +142,7 @@ static void client_close(struct client *c)
         if (c->fd < 0)
                 return;
         c->io = sd_event_source_disable_unref(c->io);
+        c->tls = tls_conn_free(c->tls);
         close(c->fd);
         c->fd = -EBADF;
         for (struct client **p = &s->clients; *p; p = &(*p)->next)
@@ -154,17 +157,30 @@ static void client_close(struct client *c)
         client_unref(c);
 }
 
+/* Writes what c's transport takes of buf. Returns the bytes taken, -EAGAIN or -errno. */
+static ssize_t client_write(struct client *c, const char *buf, size_t len)
+{
+        ssize_t n;
+
+        if (c->tls)
+                return tls_write(c->tls, buf, len);
+        n = send(c->fd, buf, len, MSG_NOSIGNAL | MSG_DONTWAIT);
+        return n < 0 ? -errno : n;
+}
+
 static int client_flush(struct client *c)
 {
+        if (c->tls && !tls_ready(c->tls))
+                return 0; /* output waits for the end of the handshake */
         while (c->out_len > 0) {
-                ssize_t n = send(c->fd, c->out, c->out_len, MSG_NOSIGNAL | MSG_DONTWAIT);
+                ssize_t n = client_write(c, c->out, c->out_len);
 
-                if (n < 0 && errno == EINTR)
+                if (n == -EINTR)
                         continue;
-                if (n < 0 && errno == EAGAIN)
+                if (n == -EAGAIN)
                         break;
                 if (n < 0)
-                        return -errno;
+                        return (int)n;
                 memmove(c->out, c->out + n, c->out_len - n);
                 c->out_len -= n;
         }
@@ -423,44 +439,45 @@ static void handle_line(struct client *c, const char *line, size_t len)
         json_decref(msg.root);
 }
 
+/* Reads what c's transport has into buf. Returns the bytes read, 0 at the end of the
+ * stream, -EAGAIN or -errno. */
+static ssize_t client_recv(struct client *c, char *buf, size_t len)
+{
+        ssize_t n;
+
+        if (c->tls)
+                return tls_read(c->tls, buf, len);
+        n = recv(c->fd, buf, len, MSG_DONTWAIT);
+        return n < 0 ? -errno : n;
+}
+
+/* Reads and handles what c sent; with TLS also what GnuTLS already decrypted, which does
+ * not make the socket readable. */
 static int client_read(struct client *c)
 {
         char buf[16384];
-        ssize_t n = recv(c->fd, buf, sizeof(buf), MSG_DONTWAIT);
         char *line;
         size_t len;
         int r;
 
-        if (n < 0)
-                return errno == EAGAIN || errno == EINTR ? 0 : -errno;
-        if (n == 0)
-                return -ECONNRESET;
-        if (proto_lines_feed(&c->in, buf, n) < 0)
-                return -ENOMEM;
-        while (c->fd >= 0 && (r = proto_lines_next(&c->in, &line, &len)) != 0) {
-                if (r == -EMSGSIZE)
-                        send_error(c, NULL, PROTO_E_LINE_TOO_LONG,
-                                   "line longer than the protocol's maximum, dropped");
-                else if (r > 0)
-                        handle_line(c, line, len);
-        }
+        do {
+                ssize_t n = client_recv(c, buf, sizeof(buf));
+
+                if (n == -EAGAIN || n == -EINTR)
+                        return 0;
+                if (n <= 0)
+                        return n < 0 ? (int)n : -ECONNRESET;
+                if (proto_lines_feed(&c->in, buf, n) < 0)
+                        return -ENOMEM;
+                while (c->fd >= 0 && (r = proto_lines_next(&c->in, &line, &len)) != 0) {
+                        if (r == -EMSGSIZE)
+                                send_error(c, NULL, PROTO_E_LINE_TOO_LONG,
+                                           "line longer than the protocol's maximum, dropped");
+                        else if (r > 0)
+                                handle_line(c, line, len);
+                }
+        } while (c->fd >= 0 && c->tls && tls_pending(c->tls) > 0);
         return c->fd < 0 ? -ECONNRESET : 0;
-}
-
-static int on_client_io(sd_event_source *es, int fd, uint32_t revents, void *userdata)
-{
-        struct client *c = userdata;
-        int r = 0;
-
-        c->ref++; /* keep c while handlers run: they may close it */
-        if (revents & EPOLLOUT)
-                r = client_flush(c);
-        if (r >= 0 && (revents & (EPOLLIN | EPOLLHUP | EPOLLERR)))
-                r = client_read(c);
-        if (r < 0 && c->fd >= 0)
-                client_close(c);
-        client_unref(c);
-        return 0;
 }
 
 /* Logs an eviction or refusal, at most one a second with a count of those skipped, so
@@ -478,22 +495,104 @@ static void log_drop(struct server *s, const char *what, const char *text)
         s->log_quiet_until = now + 1000000;
 }
 
+/* Writes msg (taken, may be NULL) as one line straight to fd, a connection we will not
+ * serve, as far as its socket takes it. */
+static void send_raw(int fd, json_t *msg)
+{
+        _cleanup_free_ char *line = NULL;
+        size_t len;
+
+        if (msg && (line = proto_dump(msg, &len)))
+                (void)send(fd, line, len, MSG_NOSIGNAL | MSG_DONTWAIT);
+        json_decref(msg);
+}
+
 /* Writes one error line for -EUSERS straight to a connection we will not serve. */
 static void refuse(struct server *s, int fd, const char *why)
 {
-        _cleanup_free_ char *line = NULL;
         char text[256];
-        json_t *msg;
-        size_t len;
 
         snprintf(text, sizeof(text),
                  "too many clients (%u)%s; close idle connections or retry later", s->max_clients,
                  why);
-        msg = proto_error_errno(NULL, -EUSERS, text);
-        if (msg && (line = proto_dump(msg, &len)))
-                (void)send(fd, line, len, MSG_NOSIGNAL | MSG_DONTWAIT);
-        json_decref(msg);
+        send_raw(fd, proto_error_errno(NULL, -EUSERS, text));
         log_drop(s, "refused a connection", text);
+}
+
+/* Tells a client that spoke without TLS to a TLS listener why it is not served, as the
+ * error of a request that could not be read. Its input is read first (at most
+ * MAX_PLAIN_DRAIN bytes): closing over unread input would reset the connection, and the
+ * reset could overtake the line. */
+static void refuse_plain(struct client *c)
+{
+        char buf[4096];
+
+        for (int i = 0; i < MAX_PLAIN_DRAIN / (int)sizeof(buf); i++)
+                if (recv(c->fd, buf, sizeof(buf), MSG_DONTWAIT) <= 0)
+                        break;
+        send_raw(c->fd, proto_error(NULL, PROTO_INVALID_REQUEST,
+                                    "this port of goniod takes TLS connections only "
+                                    "(gonioctl --tls-ca FILE, or --tls)",
+                                    NULL));
+}
+
+/* Goes on with c's TLS handshake. Returns 1 once it has ended, 0 while it goes on, or
+ * -errno when it failed (logged, rate-limited). */
+static int client_handshake(struct client *c)
+{
+        char what[64];
+        int r = tls_handshake(c->tls);
+
+        if (r == -EAGAIN)
+                return sd_event_source_set_io_events(c->io,
+                                                     tls_wants_write(c->tls) ? EPOLLOUT : EPOLLIN);
+        if (r == -EPROTONOSUPPORT)
+                refuse_plain(c);
+        if (r < 0) {
+                log_drop(c->server, "TLS handshake failed", tls_conn_error(c->tls));
+                return r;
+        }
+        log_debug("client %p: %s", (void *)c, tls_conn_describe(c->tls, what, sizeof(what)));
+        return 1;
+}
+
+/* Handles revents on c: on TLS the handshake first, then output and input. */
+static int client_io(struct client *c, uint32_t revents)
+{
+        int r = 0;
+
+        if (c->tls && !tls_ready(c->tls)) {
+                r = client_handshake(c);
+                if (r <= 0)
+                        return r;
+                revents |= EPOLLIN | EPOLLOUT; /* requests may have come with its end */
+        }
+        if (revents & EPOLLOUT)
+                r = client_flush(c);
+        if (r >= 0 && (revents & (EPOLLIN | EPOLLHUP | EPOLLERR)))
+                r = client_read(c);
+        return r;
+}
+
+static int on_client_io(sd_event_source *es, int fd, uint32_t revents, void *userdata)
+{
+        struct client *c = userdata;
+
+        c->ref++; /* keep c while handlers run: they may close it */
+        if (client_io(c, revents) < 0 && c->fd >= 0)
+                client_close(c);
+        client_unref(c);
+        return 0;
+}
+
+/* A TLS client that has not ended its handshake in time (stalled, or trickling bytes). */
+static int on_handshake_timeout(sd_event_source *es, uint64_t usec, void *userdata)
+{
+        struct client *c = userdata;
+
+        log_drop(c->server, "TLS handshake failed", "not ended in time, connection closed");
+        client_close(c);
+        return 0;
 }
 
 /* The client to drop for a new one: the oldest that never said hello, else the one idle
@@ -557,7 +656,14 @@ static void client_add(struct listener *l, int cfd, uint64_t now)
         c->last_active = now;
         c->number = ++s->last_number;
         r = sd_event_add_io(s->event, &c->io, fd, EPOLLIN, on_client_io, c);
+        if (r >= 0 && l->tls)
+                r = tls_conn_new(l->tls, fd, NULL, &c->tls);
+        if (r >= 0 && l->tls)
+                r = tls_conn_set_deadline(c->tls, s->event, TLS_HANDSHAKE_USEC,
+                                          on_handshake_timeout, c);
         if (r < 0) {
+                c->io = sd_event_source_disable_unref(c->io);
+                tls_conn_free(c->tls);
                 free(c);
                 log_warning_errno(r, "cannot watch client, ignoring: %m");
                 return;
@@ -752,6 +858,7 @@ static void listener_close(struct listener *l)
         if (own_socket(l))
                 (void)unlink(l->path);
         l->lock_fd = safe_close(l->lock_fd); /* after the unlink: the next daemon may take over */
+        l->tls = tls_creds_free(l->tls);
 }
 
 /* Takes the next listener slot of s for role and path. Returns it, or NULL with *err set
@@ -830,8 +937,8 @@ int server_listen(struct server *s, const char *path, enum srv_role role)
         return listener_add(l, listen_unix(l, role == SRV_ADMIN ? 0600 : 0660));
 }
 
-/* The loopback address of addr ("HOST:PORT", HOST numeric, [::1] bracketed) into sa.
- * Returns 0, -EINVAL or -EPERM (not loopback). */
+/* The address of addr ("HOST:PORT", HOST numeric, [::1] bracketed) into sa. Returns 0 for a
+ * loopback address, -EPERM for another (sa filled all the same), or -EINVAL. */
 static int tcp_address(const char *addr, struct sockaddr_storage *sa, socklen_t *len)
 {
         struct addrinfo hints = {.ai_family = AF_UNSPEC,
@@ -858,27 +965,54 @@ static int tcp_address(const char *addr, struct sockaddr_storage *sa, socklen_t 
         return loop ? 0 : -EPERM;
 }
 
-int server_listen_tcp(struct server *s, const char *addr, const char *token)
+/* The server credentials of the TCP listener at addr from cert and key into *ret. Returns 0
+ * or -errno (logged, naming the file at fault). */
+static int listener_creds(const char *addr, const char *cert, const char *key,
+                          struct tls_creds **ret)
+{
+        char err[600];
+        int r;
+
+        if (!cert || !*cert || !key || !*key)
+                return log_error_errno(EINVAL,
+                                       "TCP listener %s: TLS needs both a certificate "
+                                       "(--tls-cert FILE) and its key (--tls-key FILE)",
+                                       addr);
+        r = tls_creds_new_server(cert, key, ret, err, sizeof(err));
+        return r < 0 ? log_error_errno(r, "TCP listener %s: TLS: %s", addr, err) : 0;
+}
+
+int server_listen_tcp(struct server *s, const char *addr, const char *token, const char *cert,
+                      const char *key)
 {
         struct sockaddr_storage sa;
         socklen_t len = 0;
         struct listener *l;
+        struct tls_creds *tls = NULL;
         int r = tcp_address(addr, &sa, &len), fd, one = 1;
+        bool with_tls = (cert && *cert) || (key && *key);
 
-        if (r == -EPERM)
+        if (r == -EPERM && !with_tls)
                 return log_error_errno(EPERM,
                                        "TCP listener %s: not a loopback address: beyond "
-                                       "loopback the protocol needs TLS, which goniod does not "
-                                       "have yet",
+                                       "loopback goniod needs TLS (--tls-cert FILE --tls-key "
+                                       "FILE)",
                                        addr);
-        if (r < 0 || !token || strlen(token) < 16 || strlen(token) >= sizeof(l->token))
+        if ((r < 0 && r != -EPERM) || !token || strlen(token) < 16 ||
+            strlen(token) >= sizeof(l->token))
                 return log_error_errno(EINVAL, "TCP listener %s: %s", addr,
-                                       r < 0 ? "expected HOST:PORT, HOST a numeric loopback "
-                                               "address (127.0.0.1, [::1])"
-                                             : "the token must be 16 to 127 characters");
-        if (!(l = listener_new(s, SRV_OPERATOR, addr, &r)))
+                                       r < 0 && r != -EPERM
+                                               ? "expected HOST:PORT, HOST a numeric address "
+                                                 "(127.0.0.1, [::1]; others with TLS)"
+                                               : "the token must be 16 to 127 characters");
+        if (with_tls && (r = listener_creds(addr, cert, key, &tls)) < 0)
                 return r;
+        if (!(l = listener_new(s, SRV_OPERATOR, addr, &r))) {
+                tls_creds_free(tls);
+                return r;
+        }
         snprintf(l->token, sizeof(l->token), "%s", token);
+        l->tls = tls;
         fd = socket(sa.ss_family, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
         if (fd < 0 || setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof(one)) < 0 ||
             bind(fd, (struct sockaddr *)&sa, len) < 0 || listen(fd, SOMAXCONN) < 0) {
@@ -886,6 +1020,8 @@ int server_listen_tcp(struct server *s, const char *addr, const char *token)
                 safe_close(fd);
                 fd = r;
         }
+        if (fd >= 0)
+                log_info("listening on TCP %s (%s)", addr, tls ? "TLS" : "plain, loopback");
         return listener_add(l, fd);
 }
 
@@ -989,7 +1125,8 @@ void server_broadcast(struct server *s, const char *method, json_t *params)
         if (msg && (text = proto_dump(msg, &len))) /* once for every client */
                 for (struct client *c = s->clients, *next; c; c = next) {
                         next = c->next;
-                        client_send_text(c, text, len);
+                        if (!c->token) /* the rig's doings are not for strangers */
+                                client_send_text(c, text, len);
                 }
         json_decref(msg);
 }

@@ -73,12 +73,17 @@ int server_listen_fd(struct server *s, int fd, enum srv_role role);
  * of server_listen_fd (logged). Every passed descriptor is taken, also on failure. */
 int server_listen_systemd(struct server *s);
 
-/* Listens on TCP at addr ("127.0.0.1:PORT", "[::1]:PORT"; numeric, loopback only: beyond it
- * the protocol would need TLS, which goniod does not have) for operator connections that
- * must say hello with params.token equal to token (16 characters at least) before anything
- * else; three wrong tokens close the connection. Returns 0, -EINVAL (a bad address or a
- * short token), -EPERM (not loopback) or -errno of bind/listen (logged). */
-int server_listen_tcp(struct server *s, const char *addr, const char *token);
+/* Listens on TCP at addr ("HOST:PORT", HOST numeric: "127.0.0.1", "[::1]", "0.0.0.0"...) for
+ * operator connections that must say hello with params.token equal to token (16 characters
+ * at least) before anything else; three wrong tokens close the connection. With cert and key
+ * (PEM files; NULL: none) connections speak TLS only (daemon/tls.h): a handshake not ended
+ * in TLS_HANDSHAKE_USEC is dropped, a client without TLS is told so and closed. Without them
+ * addr must be a loopback address. Returns 0, -EINVAL (a bad address, a short token, a
+ * certificate without key), -EPERM (beyond loopback without TLS), -errno of reading the
+ * certificate or key (-ENOENT, -EACCES, -EBADMSG, -EKEYREJECTED: the key is not the
+ * certificate's) or of bind/listen; every failure is logged with its cause. */
+int server_listen_tcp(struct server *s, const char *addr, const char *token, const char *cert,
+                      const char *key);
 
 /* Starts accepting connections. Returns 0 or -errno. */
 int server_start(struct server *s);
@@ -96,7 +101,8 @@ void server_on_close(struct server *s, void (*fn)(uint64_t client, void *ud), vo
  * SRV_IDLE_TIMEOUT_USEC, e.g. for tests. */
 void server_set_limits(struct server *s, unsigned max_clients, uint64_t idle_usec);
 
-/* Sends notification method with params (stolen) to every client. */
+/* Sends notification method with params (stolen) to every client, but those of a TCP
+ * listener that have not given its token yet (nor ended their TLS handshake). */
 void server_broadcast(struct server *s, const char *method, json_t *params);
 
 /* Number of connected clients. */

@@ -1,7 +1,7 @@
 """gonio - a Python client of goniod, the daemon of the gonio capture rig, for lab scripts.
 
 Speaks goniod's control protocol (docs/protocol.md: JSON-RPC 2.0, one object per line, over
-a Unix stream socket) with the standard library only. Every request of the protocol is a
+a Unix stream socket, or over TCP with goniod's token and TLS) with the standard library only. Every request of the protocol is a
 method taking keyword arguments and returning the result as a dict; an error response raises
 GonioError with the protocol's code and message; notifications are kept in a bounded queue
 and read with next_event() or the events() iterator. Every wait is bounded by a timeout.
@@ -15,6 +15,9 @@ docs/python.md documents the API, with a complete example (examples/scripts/capt
         rig.dataset_open("gem1", create=True)
         print(rig.capture_at(lamps=["lamp0"]))
 
+    # goniod's TCP listener on another machine, over TLS (docs/goniod.md, "Remote access")
+    rig = gonio.Client(connect="lab1.example.org:7777", token="...", tls_ca="lab-ca.pem")
+
 A Client is not thread-safe: use one per thread.
 """
 
@@ -23,6 +26,7 @@ import errno as _errno
 import json
 import os
 import socket
+import ssl
 import time
 
 __version__ = "0.1.0"
@@ -113,6 +117,46 @@ def socket_path():
     return "/run/gonio/goniod.sock"
 
 
+def _split_address(address):
+    """(host, port) of "HOST:PORT" or "[V6]:PORT"; ValueError when it is neither."""
+    host, sep, port = address.rpartition(":")
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    if not sep or not host or not port.isdigit():
+        raise ValueError(f"expected HOST:PORT, not {address!r}")
+    return host, int(port)
+
+
+def _connect_tcp(address, timeout, tls_ca, tls):
+    """A socket connected to goniod's TCP listener at address within timeout seconds; over TLS
+    (1.2 or newer) when tls or tls_ca, the server's certificate checked against the CAs of
+    the file tls_ca (None: the system's) and the address's host."""
+    host, port = _split_address(address)
+    sock = socket.create_connection((host, port), timeout=timeout)
+    if not (tls or tls_ca):
+        return sock
+    try:
+        ctx = ssl.create_default_context(cafile=tls_ca)
+        ctx.minimum_version = ssl.TLSVersion.TLSv1_2
+        return ctx.wrap_socket(sock, server_hostname=host)
+    except BaseException:
+        sock.close()
+        raise
+
+
+def _env_token():
+    """The first line of the file $GONIO_TOKEN_FILE names (None when it is not set)."""
+    path = os.environ.get("GONIO_TOKEN_FILE")
+    if not path:
+        return None
+    try:
+        with open(path, encoding="utf-8") as f:
+            return f.readline().rstrip("\r\n")
+    except OSError as e:
+        raise GonioError(None, f"token file {path}: {e.strerror}",
+                         {"errno": _errno.errorcode.get(e.errno)}) from None
+
+
 def _params(**kw):
     """The params object of a request: the keyword arguments that are not None."""
     return {k: v for k, v in kw.items() if v is not None}
@@ -201,10 +245,19 @@ class Client:
     timeout seconds and says hello (the server's answer is in self.server). timeout bounds
     quick requests, timeout_long those that wait for the rig (home, move, capture, datasets,
     sessions, scans); every method also takes timeout= for its own wait. Raises GonioError
-    when the socket cannot be reached, ProtocolError when goniod speaks another protocol."""
+    when the socket cannot be reached, ProtocolError when goniod speaks another protocol.
 
-    def __init__(self, path=None, *, timeout=TIMEOUT, timeout_long=TIMEOUT_LONG, name=None):
-        self.path = path or socket_path()
+    connect="HOST:PORT" (default: $GONIO_CONNECT unless path is given) reaches goniod's TCP
+    listener instead, giving token in hello (default: the first line of the file
+    $GONIO_TOKEN_FILE names). With tls_ca (a PEM file of CAs; default $GONIO_TLS_CA), or
+    tls=True for the system's CAs, it speaks TLS and checks that goniod's certificate chains
+    to those CAs and names HOST; a certificate that does not raises GonioError saying why
+    (data errno "EKEYREJECTED"), as any TLS failure (errno "EPROTO")."""
+
+    def __init__(self, path=None, *, connect=None, token=None, tls_ca=None, tls=False,
+                 timeout=TIMEOUT, timeout_long=TIMEOUT_LONG, name=None):
+        self.address = connect or (None if path else os.environ.get("GONIO_CONNECT") or None)
+        self.path = None if self.address else path or socket_path()
         self.timeout = timeout
         self.timeout_long = timeout_long
         self.events_dropped = 0  # notifications dropped because the queue was full
@@ -215,27 +268,40 @@ class Client:
         self._abandoned = set()  # ids whose wait timed out: their late reply is skipped
         self._replies = {}       # id -> response that came while waiting for another
         self._events = collections.deque()
-        self._sock = self._connect(timeout)
+        self._sock = self._connect(timeout, tls_ca or os.environ.get("GONIO_TLS_CA") or None,
+                                   tls)
         try:
-            self.hello(client=name or f"gonio.py/{__version__}")
+            self.hello(client=name or f"gonio.py/{__version__}",
+                       token=token if token or not self.address else _env_token())
         except BaseException:
             self.close()
             raise
 
-    def _connect(self, timeout):
-        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        sock.settimeout(timeout)
+    def _connect(self, timeout, tls_ca, tls):
+        where = f"cannot connect to goniod at {self.address or self.path}"
         try:
-            sock.connect(self.path)
+            if self.address:
+                return _connect_tcp(self.address, timeout, tls_ca, tls)
+            sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            sock.settimeout(timeout)
+            try:
+                sock.connect(self.path)
+            except BaseException:
+                sock.close()
+                raise
+            return sock
         except socket.timeout:
-            sock.close()
-            raise Timeout(f"cannot connect to goniod at {self.path}: no answer in {timeout:g} s") \
-                from None
+            raise Timeout(f"{where}: no answer in {timeout:g} s") from None
+        except ssl.SSLCertVerificationError as e:
+            raise GonioError(None, f"{where}: TLS: {e.verify_message}",
+                             {"errno": "EKEYREJECTED"}) from None
+        except ssl.SSLError as e:
+            raise GonioError(None, f"{where}: TLS: {e.reason or e}", {"errno": "EPROTO"}) from None
+        except ValueError as e:
+            raise GonioError(None, f"{where}: {e}", {"errno": "EINVAL"}) from None
         except OSError as e:
-            sock.close()
-            raise GonioError(None, f"cannot connect to goniod at {self.path}: {e.strerror}",
+            raise GonioError(None, f"{where}: {e.strerror}",
                              {"errno": _errno.errorcode.get(e.errno)}) from None
-        return sock
 
     def __enter__(self):
         return self
@@ -244,7 +310,7 @@ class Client:
         self.close()
 
     def __repr__(self):
-        return f"<gonio.Client {self.path} {'closed' if self.closed else 'open'}>"
+        return f"<gonio.Client {self.address or self.path} {'closed' if self.closed else 'open'}>"
 
     @property
     def closed(self):
@@ -286,7 +352,8 @@ class Client:
         self._sock.settimeout(_left(deadline))
         try:
             data = self._sock.recv(MAX_LINE)
-        except (socket.timeout, BlockingIOError):  # timeout 0 makes the socket non-blocking
+        except (socket.timeout, BlockingIOError, ssl.SSLWantReadError, ssl.SSLWantWriteError):
+            # timeout 0 makes the socket non-blocking
             raise Timeout("no message from goniod in time") from None
         except OSError as e:
             raise self._fail(ConnectionClosed(f"goniod closed the connection ({e.strerror})")) \
@@ -437,10 +504,11 @@ class Client:
 
     # ---- the protocol's methods (docs/protocol.md, section 5) ----
 
-    def hello(self, client=None, protocol=PROTOCOL, timeout=None):
-        """hello (done on connect): checks that goniod speaks this module's protocol
-        (ProtocolError, connection closed, when not); returns {server, version, protocol, rig}."""
-        res = self.call("hello", _params(client=client, protocol=protocol), timeout)
+    def hello(self, client=None, protocol=PROTOCOL, timeout=None, token=None):
+        """hello (done on connect, with the token of a TCP connection): checks that goniod
+        speaks this module's protocol (ProtocolError, connection closed, when not); returns
+        {server, version, protocol, rig}."""
+        res = self.call("hello", _params(client=client, protocol=protocol, token=token), timeout)
         if res.get("protocol") != PROTOCOL:
             raise self._fail(ProtocolError(f"goniod speaks protocol {res.get('protocol')}, "
                                            f"this client {PROTOCOL}"))

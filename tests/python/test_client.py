@@ -6,7 +6,9 @@ and against a server that breaks the protocol (suite python).
 Cases: hello (hello, describe, status, errors of requests), move (moves and their errors,
 notifications, parallel moves, stop, lamps), session (capture_at, a session run to its end
 with its progress), fault (a device fault, a session paused by another client and resumed), closed (goniod killed under a pending request), broken (malformed
-replies, silence, a late reply: a fake server), example (examples/scripts/capture.py)."""
+replies, silence, a late reply: a fake server), example (examples/scripts/capture.py), tls
+(goniod's TCP listener over TLS: status and a move; another CA, no TLS, a wrong token refused;
+the address, token and CA from the environment)."""
 
 import json
 import os
@@ -314,6 +316,56 @@ def case_example(argv):
         check("```python\n" + f.read() + "```\n" in doc.read(), "docs/python.md has the script")
 
 
+TOKEN = "a-token-of-twenty-six-chars"
+
+
+def tls_client(address, ca, **kw):
+    """A Client over TLS to address, retried while goniod starts its TCP listener."""
+    end = time.monotonic() + 10
+    while True:
+        try:
+            return gonio.Client(connect=address, tls_ca=ca, **kw)
+        except gonio.GonioError as e:
+            if e.errno_name != "ECONNREFUSED" or time.monotonic() > end:
+                raise
+
+
+def case_tls(argv):
+    rig = rig_of(argv)
+    port = 20000 + os.getpid() % 20000
+    address, token_file = f"127.0.0.1:{port}", os.path.join(rig.dir, "token")
+    made = subprocess.run([os.path.join(argv[2], "tests", "tls-certs.sh"), rig.dir,
+                           "IP:127.0.0.1"]).returncode
+    if made == 77:  # no openssl
+        shutil.rmtree(rig.dir)
+        sys.exit(77)
+    check(made == 0, "tls-certs.sh failed")
+    with open(token_file, "w") as f:
+        f.write(TOKEN + "\n")
+    ca, other_ca = os.path.join(rig.dir, "ca.pem"), os.path.join(rig.dir, "other-ca.pem")
+    rig.env.update(GONIO_LISTEN_TCP=address, GONIO_TOKEN_FILE=token_file,
+                   GONIO_TLS_CERT=os.path.join(rig.dir, "server.pem"),
+                   GONIO_TLS_KEY=os.path.join(rig.dir, "server.key"))
+    with rig:
+        with tls_client(address, ca, token=TOKEN) as c:
+            check(c.server["rig"] == "py" and "state" in c.status(), "status over TLS")
+            c.home()
+            check(abs(c.move("camera_arm", 30)["position"] - 30) < 0.01, "move over TLS")
+        e = expect_error(None, gonio.Client, connect=address, token=TOKEN, tls_ca=other_ca)
+        check(e.errno_name == "EKEYREJECTED" and "issuer" in e.message, "another CA", e)
+        e = expect_error(gonio.INVALID_REQUEST, gonio.Client, connect=address, token=TOKEN)
+        check("TLS connections only" in e.message, "without TLS", e)
+        try:
+            tls_client(address, ca, token="a-wrong-token-0123")
+            check(False, "a wrong token is taken")
+        except gonio.GonioError as e:
+            check(e.errno_name == "EACCES" and "wrong or missing token" in e.message, "token", e)
+        os.environ.update(GONIO_CONNECT=address, GONIO_TOKEN_FILE=token_file, GONIO_TLS_CA=ca)
+        with gonio.Client() as c:  # all from the environment
+            check(c.address == address and "state" in c.status(), "by the environment", c)
+
+
 if __name__ == "__main__":
     main({"hello": case_hello, "move": case_move, "session": case_session, "fault": case_fault,
-          "closed": case_closed, "broken": case_broken, "example": case_example})
+          "closed": case_closed, "broken": case_broken, "example": case_example,
+          "tls": case_tls})
