@@ -10,6 +10,7 @@
 #include "gonio_version.h"
 #include "manager.h"
 #include "protocol/proto.h"
+#include "web.h"
 
 static void usage(FILE *f)
 {
@@ -28,8 +29,15 @@ static void usage(FILE *f)
                 "  --data DIR     directory of datasets (default $GONIO_DATA or /var/lib/gonio)\n"
                 "  --listen-tcp HOST:PORT\n"
                 "                 also listen on TCP (loopback only; $GONIO_LISTEN_TCP)\n"
+                "  --listen-http HOST:PORT\n"
+                "                 serve the dashboard over HTTP (loopback only;\n"
+                "                 $GONIO_LISTEN_HTTP)\n"
+                "  --preview-fps N\n"
+                "                 live pictures a second per camera, 1 to 10 (default 4;\n"
+                "                 $GONIO_PREVIEW_FPS)\n"
                 "  --token-file FILE\n"
-                "                 the token a TCP client gives in hello ($GONIO_TOKEN_FILE)\n"
+                "                 the token a TCP client gives in hello, and the\n"
+                "                 dashboard's ($GONIO_TOKEN_FILE)\n"
                 "  --verbose      debug logging\n"
                 "  --version      print the version and exit\n");
 }
@@ -56,24 +64,41 @@ static void default_admin(const char *sock, char *out, size_t len)
         snprintf(out, len, "%.*sadmin.sock", slash ? (int)(slash - sock + 1) : 0, sock);
 }
 
-/* The TCP listener at addr with the token of token_file (its first line). Returns 0 or
- * -errno (logged). */
-static int listen_tcp(struct manager *m, const char *addr, const char *token_file)
+/* The token of token_file (its first line) into token (len bytes) for the listener what at
+ * addr. Returns 0 or -errno (logged). */
+static int read_token(const char *what, const char *addr, const char *token_file, char *token,
+                      size_t len)
 {
-        char token[256] = "";
         FILE *f = token_file && *token_file ? fopen(token_file, "re") : NULL;
 
         if (!token_file || !*token_file)
-                return log_error_errno(EINVAL, "TCP listener %s needs a token: --token-file FILE",
+                return log_error_errno(EINVAL, "%s %s needs a token: --token-file FILE", what,
                                        addr);
         if (!f)
-                return log_error_errno(errno, "TCP listener %s: token file %s: %m", addr,
-                                       token_file);
-        if (!fgets(token, sizeof(token), f))
+                return log_error_errno(errno, "%s %s: token file %s: %m", what, addr, token_file);
+        if (!fgets(token, len, f))
                 token[0] = 0;
         fclose(f);
         token[strcspn(token, "\r\n")] = 0;
-        return server_listen_tcp(m->server, addr, token);
+        return 0;
+}
+
+/* The TCP listener and the dashboard, where asked for. Returns 0 or -errno (logged). */
+static int listen_remote(struct manager *m, const char *tcp, const char *http,
+                         const char *token_file, const char *fps)
+{
+        const char *timeout = getenv("GONIO_HTTP_TIMEOUT_MS");
+        char token[256] = "";
+        int r = 0;
+
+        if (tcp && *tcp &&
+            (r = read_token("TCP listener", tcp, token_file, token, sizeof(token))) >= 0)
+                r = server_listen_tcp(m->server, tcp, token);
+        if (r >= 0 && http && *http &&
+            (r = read_token("HTTP listener", http, token_file, token, sizeof(token))) >= 0)
+                r = web_new(m, http, token, fps ? (unsigned)atoi(fps) : 0,
+                            timeout ? strtoull(timeout, NULL, 10) * 1000 : 0, &m->web);
+        return r;
 }
 
 int main(int argc, char **argv)
@@ -88,16 +113,19 @@ int main(int argc, char **argv)
                 {"version", no_argument, NULL, 'V'},
                 {"listen-tcp", required_argument, NULL, 't'},
                 {"token-file", required_argument, NULL, 'k'},
+                {"listen-http", required_argument, NULL, 'H'},
+                {"preview-fps", required_argument, NULL, 'F'},
                 {},
         };
         const char *rig = NULL, *data = getenv("GONIO_DATA"), *tcp = getenv("GONIO_LISTEN_TCP"),
-                   *token_file = getenv("GONIO_TOKEN_FILE");
+                   *token_file = getenv("GONIO_TOKEN_FILE"), *http = getenv("GONIO_LISTEN_HTTP"),
+                   *fps = getenv("GONIO_PREVIEW_FPS");
         char sock[PATH_MAX] = "", admin[PATH_MAX] = "";
         struct manager *m = NULL;
         int c, r;
 
         gn_log_set_ident("goniod");
-        while ((c = getopt_long(argc, argv, "r:s:a:d:vhVt:k:", opts, NULL)) >= 0) {
+        while ((c = getopt_long(argc, argv, "r:s:a:d:vhVt:k:H:F:", opts, NULL)) >= 0) {
                 switch (c) {
                 case 'r':
                         rig = optarg;
@@ -116,6 +144,12 @@ int main(int argc, char **argv)
                         break;
                 case 'k':
                         token_file = optarg;
+                        break;
+                case 'H':
+                        http = optarg;
+                        break;
+                case 'F':
+                        fps = optarg;
                         break;
                 case 'v':
                         gn_log_set_level(GN_LOG_DEBUG);
@@ -144,7 +178,7 @@ int main(int argc, char **argv)
                 log_error_errno(r, "cannot start: %m");
                 return 1;
         }
-        if (tcp && *tcp && (r = listen_tcp(m, tcp, token_file)) < 0) {
+        if ((r = listen_remote(m, tcp, http, token_file, fps)) < 0) {
                 manager_free(m);
                 return 1;
         }

@@ -86,13 +86,21 @@ static const char *job_device(const struct job *j)
 static const char *job_operation(const struct job *j)
 {
         static const char *const names[] = {
-                [J_OPEN_AXIS] = "open",     [J_HOME] = "home",
-                [J_MOVE] = "move",          [J_POLL] = "read state",
-                [J_STOP] = "stop",          [J_RESET] = "reset",
-                [J_OPEN_SW] = "open",       [J_CHECK_SW] = "read state",
-                [J_SWITCH] = "switch",      [J_OPEN_CAM] = "open",
-                [J_CAPTURE] = "capture",    [J_STREAM_START] = "stream",
-                [J_STREAM_NEXT] = "stream", [J_STREAM_STOP] = "stop streaming",
+                [J_OPEN_AXIS] = "open",
+                [J_HOME] = "home",
+                [J_MOVE] = "move",
+                [J_POLL] = "read state",
+                [J_STOP] = "stop",
+                [J_RESET] = "reset",
+                [J_OPEN_SW] = "open",
+                [J_CHECK_SW] = "read state",
+                [J_SWITCH] = "switch",
+                [J_OPEN_CAM] = "open",
+                [J_CAPTURE] = "capture",
+                [J_PEEK] = "capture",
+                [J_STREAM_START] = "stream",
+                [J_STREAM_NEXT] = "stream",
+                [J_STREAM_STOP] = "stop streaming",
         };
         return names[j->kind];
 }
@@ -182,6 +190,7 @@ static int job_call(struct bus *b, struct job *j)
                 return cam_open(rig->cams[j->idx]);
         case J_CAPTURE:
                 return cam_capture(rig->cams[j->idx], &j->creq, &j->frame);
+        case J_PEEK:
         case J_STREAM_START:
         case J_STREAM_NEXT:
         case J_STREAM_STOP:

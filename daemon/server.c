@@ -328,8 +328,7 @@ static const char *role_path(const struct server *s, enum srv_role role)
         return NULL;
 }
 
-/* Whether a and b are the same string, in a time that does not tell where they differ. */
-static bool same_secret(const char *a, const char *b)
+bool server_same_secret(const char *a, const char *b)
 {
         size_t la = strlen(a), lb = strlen(b);
         unsigned char d = la != lb;
@@ -345,7 +344,7 @@ static bool token_given(struct client *c, const struct srv_method *m, json_t *pa
 {
         const char *t = json_string_value(json_object_get(params, "token"));
 
-        if (strcmp(m->name, "hello") || !t || !same_secret(t, c->token))
+        if (strcmp(m->name, "hello") || !t || !server_same_secret(t, c->token))
                 return false;
         c->token = NULL;
         return true;
@@ -858,34 +857,49 @@ static int tcp_address(const char *addr, struct sockaddr_storage *sa, socklen_t 
         return loop ? 0 : -EPERM;
 }
 
-int server_listen_tcp(struct server *s, const char *addr, const char *token)
+int server_tcp_socket(const char *addr, const char *what)
 {
         struct sockaddr_storage sa;
         socklen_t len = 0;
-        struct listener *l;
-        int r = tcp_address(addr, &sa, &len), fd, one = 1;
+        int r = tcp_address(addr, &sa, &len), one = 1;
+        _cleanup_close_ int fd = -EBADF;
 
         if (r == -EPERM)
                 return log_error_errno(EPERM,
-                                       "TCP listener %s: not a loopback address: beyond "
-                                       "loopback the protocol needs TLS, which goniod does not "
-                                       "have yet",
-                                       addr);
-        if (r < 0 || !token || strlen(token) < 16 || strlen(token) >= sizeof(l->token))
-                return log_error_errno(EINVAL, "TCP listener %s: %s", addr,
-                                       r < 0 ? "expected HOST:PORT, HOST a numeric loopback "
-                                               "address (127.0.0.1, [::1])"
-                                             : "the token must be 16 to 127 characters");
-        if (!(l = listener_new(s, SRV_OPERATOR, addr, &r)))
-                return r;
-        snprintf(l->token, sizeof(l->token), "%s", token);
+                                       "%s %s: not a loopback address: beyond loopback goniod "
+                                       "needs TLS, which it does not have yet",
+                                       what, addr);
+        if (r < 0)
+                return log_error_errno(EINVAL,
+                                       "%s %s: expected HOST:PORT, HOST a numeric loopback "
+                                       "address (127.0.0.1, [::1])",
+                                       what, addr);
         fd = socket(sa.ss_family, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
         if (fd < 0 || setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof(one)) < 0 ||
-            bind(fd, (struct sockaddr *)&sa, len) < 0 || listen(fd, SOMAXCONN) < 0) {
-                r = log_error_errno(errno, "Cannot listen on TCP %s: %m", addr);
-                safe_close(fd);
-                fd = r;
+            bind(fd, (struct sockaddr *)&sa, len) < 0 || listen(fd, SOMAXCONN) < 0)
+                return log_error_errno(errno, "Cannot listen on %s %s: %m", what, addr);
+        return TAKE_FD(fd);
+}
+
+int server_listen_tcp(struct server *s, const char *addr, const char *token)
+{
+        struct listener *l;
+        int r, fd = server_tcp_socket(addr, "TCP listener");
+
+        if (fd < 0)
+                return fd;
+        if (!token || strlen(token) < SRV_TOKEN_MIN || strlen(token) > SRV_TOKEN_MAX) {
+                close(fd);
+                return log_error_errno(EINVAL,
+                                       "TCP listener %s: the token must be %d to %d "
+                                       "characters",
+                                       addr, SRV_TOKEN_MIN, SRV_TOKEN_MAX);
         }
+        if (!(l = listener_new(s, SRV_OPERATOR, addr, &r))) {
+                close(fd);
+                return r;
+        }
+        snprintf(l->token, sizeof(l->token), "%s", token);
         return listener_add(l, fd);
 }
 

@@ -73,12 +73,26 @@ int server_listen_fd(struct server *s, int fd, enum srv_role role);
  * of server_listen_fd (logged). Every passed descriptor is taken, also on failure. */
 int server_listen_systemd(struct server *s);
 
+/* Shortest and longest token of a TCP listener, in characters. */
+#define SRV_TOKEN_MIN 16
+#define SRV_TOKEN_MAX 127
+
 /* Listens on TCP at addr ("127.0.0.1:PORT", "[::1]:PORT"; numeric, loopback only: beyond it
  * the protocol would need TLS, which goniod does not have) for operator connections that
  * must say hello with params.token equal to token (16 characters at least) before anything
  * else; three wrong tokens close the connection. Returns 0, -EINVAL (a bad address or a
  * short token), -EPERM (not loopback) or -errno of bind/listen (logged). */
 int server_listen_tcp(struct server *s, const char *addr, const char *token);
+
+/* A listening TCP socket (non-blocking, SO_REUSEADDR, backlog SOMAXCONN) on addr
+ * ("HOST:PORT", HOST numeric, [::1] bracketed), loopback only, for goniod's TCP listeners
+ * (this server's, the dashboard's); what names it in the log ("TCP listener"). Returns the
+ * fd, -EINVAL (a bad address), -EPERM (not loopback) or -errno of bind/listen, logged. */
+int server_tcp_socket(const char *addr, const char *what);
+
+/* Whether a and b are the same string, in a time that does not tell where they differ
+ * (tokens). */
+bool server_same_secret(const char *a, const char *b);
 
 /* Starts accepting connections. Returns 0 or -errno. */
 int server_start(struct server *s);
