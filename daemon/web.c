@@ -285,7 +285,8 @@ static int send_asset(struct httpd_conn *c, const char *path)
                 const char *ext, *type;
         } types[] = {{".html", "text/html; charset=utf-8"},
                      {".js", "text/javascript"},
-                     {".css", "text/css"}};
+                     {".css", "text/css"},
+                     {".svg", "image/svg+xml"}};
         const char *name = strcmp(path, "/") == 0 ? "index.html" : path + 1;
 
         for (const struct web_asset *a = web_assets; a->name; a++) {

@@ -280,7 +280,12 @@ void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const ch
 
 void rigenv_start_sim(struct rigenv *e, char **argv, double time_scale)
 {
-        init(e, argv, time_scale, NULL);
+        rigenv_start_sim_rig(e, argv, time_scale, NULL);
+}
+
+void rigenv_start_sim_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
+{
+        init(e, argv, time_scale, rig_text);
         start_sim(e);
 }
 

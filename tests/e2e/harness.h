@@ -36,6 +36,9 @@ void rigenv_start_logged(struct rigenv *e, char **argv, double time_scale);
 /* Like rigenv_start without goniod: the test starts it (rigenv_spawn_daemon). */
 void rigenv_start_sim(struct rigenv *e, char **argv, double time_scale);
 
+/* Like rigenv_start_sim with the rig file rig_text (YAML; NULL: the default test rig). */
+void rigenv_start_sim_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text);
+
 /* Forks goniod on e's rig and data with --socket socket, its stderr appended to DIR/goniod.log,
  * after setup(ud) ran in the child (environment, descriptors: as systemd would); sets
  * e->daemon (stopped by rigenv_stop) and does not wait for it. */
