@@ -64,7 +64,8 @@ int httpd_respond(struct httpd_conn *c, int code, const char *type, const char *
  * until either side closes it; on_close(c, ud) is called once when it is closed, whoever
  * closes it (also by httpd_free), after which c is gone. Unsent data is bounded by
  * max_pending bytes; a stream that has unsent data and takes none of it for the idle
- * limit is closed. Returns 0 or -errno (on_close is then not called). */
+ * limit is closed. For HEAD it answers the headers alone and on_close is never called: answer
+ * HEAD with httpd_respond instead. Returns 0 or -errno (on_close is then not called). */
 int httpd_stream(struct httpd_conn *c, const char *type, const char *extra, size_t max_pending,
                  void (*on_close)(struct httpd_conn *c, void *ud), void *ud);
 

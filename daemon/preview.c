@@ -4,7 +4,7 @@
  * watched camera whose last picture is at least 1/fps old, with none in the encoder, is
  * downscaled on the loop (PREVIEW_MAX_WIDTH, the mean of up to 2x2 samples per output pixel,
  * 16-bit samples to their top 8 bits) into a job for the worker (common/workq.h, one thread,
- * one slot per camera), which encodes it with libjpeg; the JPEG comes back on the loop and
+ * one slot per camera, niced), which encodes it with libjpeg; the JPEG comes back on the loop and
  * goes to the callback. Every other frame is dropped, so the loop's cost is bounded by fps
  * per camera whatever the capture rate, and the worker never queues.
  *
@@ -15,6 +15,8 @@
 #include <errno.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <jpeglib.h> /* after stdio.h: it needs FILE and size_t */
 #include <systemd/sd-event.h>
@@ -97,12 +99,18 @@ static int downscale(const struct gn_frame *f, int k, struct pv_job *j)
         return 0;
 }
 
-/* Encodes j->pix as JPEG into j->jpeg (worker thread). Returns 0 or -EIO. */
+/* Encodes j->pix as JPEG into j->jpeg (worker thread, lowered to PREVIEW_NICE at its first
+ * job so that it yields to the session's threads). Returns 0 or -EIO. */
 static int encode(void *userdata)
 {
+        static _Thread_local bool niced;
         struct pv_job *j = userdata;
         struct jpeg_compress_struct cinfo;
         struct jpeg_error_mgr jerr;
+
+        if (!niced && setpriority(PRIO_PROCESS, gettid(), PREVIEW_NICE) < 0)
+                log_debug("preview: cannot lower the encoder's priority: %m");
+        niced = true;
 
         cinfo.err = jpeg_std_error(&jerr); /* errors exit: only on out of memory here */
         jpeg_create_compress(&cinfo);
@@ -159,7 +167,8 @@ void preview_frame(struct preview *p, int cam, const struct gn_frame *frame)
                 return;
         }
         pc->encoding = true;
-        pc->last_ns = now;
+        /* on the fps grid while frames keep coming, so the rate is fps, not a bit below */
+        pc->last_ns = now - pc->last_ns < 2 * p->period_ns ? pc->last_ns + p->period_ns : now;
 }
 
 static void on_peeked(struct rig *rig, int result, struct gn_frame *frame, const char *msg,

@@ -22,6 +22,7 @@ struct preview;
 #define PREVIEW_MAX_FPS     10
 #define PREVIEW_IDLE_FPS    2 /* at most, from peeks while the rig is idle */
 #define PREVIEW_QUALITY     75
+#define PREVIEW_NICE        10 /* of the encoder thread: the session's threads come first */
 
 /* Receives camera cam's newest picture on the loop thread: jpeg (len bytes, width x height)
  * is valid during the call only. */

@@ -152,13 +152,17 @@ static void viewer_closed(struct httpd_conn *c, void *ud)
         free(v);
 }
 
-/* Turns c into a stream of type for camera cam (-1: events). Returns 1 or -errno. */
-static int open_stream(struct web *w, struct httpd_conn *c, int cam, const char *type)
+/* Turns c into a stream of type for camera cam (-1: events); HEAD gets the headers alone.
+ * Returns 1 or -errno. */
+static int open_stream(struct web *w, struct httpd_conn *c, const char *method, int cam,
+                       const char *type)
 {
-        struct viewer *v = calloc(1, sizeof(*v));
+        struct viewer *v;
         int r;
 
-        if (!v)
+        if (strcmp(method, "HEAD") == 0)
+                return httpd_respond(c, 200, type, SECURITY_HEADERS, NULL, 0) ?: 1;
+        if (!(v = calloc(1, sizeof(*v))))
                 return -ENOMEM;
         *v = (struct viewer){.w = w, .c = c, .cam = cam};
         r = httpd_stream(c, type, SECURITY_HEADERS, WEB_MAX_PENDING, viewer_closed, v);
@@ -246,7 +250,7 @@ static void on_picture(void *ud, int cam, const uint8_t *jpeg, size_t len, int w
 }
 
 /* /events: an event stream, its first snapshot at once. Returns 1 or -errno. */
-static int open_events(struct web *w, struct httpd_conn *c)
+static int open_events(struct web *w, struct httpd_conn *c, const char *method)
 {
         _cleanup_free_ char *ev = NULL;
         size_t len = 0;
@@ -254,14 +258,14 @@ static int open_events(struct web *w, struct httpd_conn *c)
 
         if (w->n_events >= WEB_MAX_EVENTS)
                 return respond_text(c, 503, "Retry-After: 5\r\n", "503 too many event streams\n");
-        r = open_stream(w, c, -1, "text/event-stream");
-        if (r > 0 && (ev = status_event(w, &len)))
+        r = open_stream(w, c, method, -1, "text/event-stream");
+        if (r > 0 && strcmp(method, "GET") == 0 && (ev = status_event(w, &len)))
                 (void)httpd_stream_send(c, ev, len);
         return r;
 }
 
 /* /preview/NAME.mjpg: camera NAME's pictures. Returns 1 or -errno. */
-static int open_preview(struct web *w, struct httpd_conn *c, const char *file)
+static int open_preview(struct web *w, struct httpd_conn *c, const char *method, const char *file)
 {
         char name[RIG_NAME_MAX];
         size_t n = strlen(file);
@@ -275,7 +279,7 @@ static int open_preview(struct web *w, struct httpd_conn *c, const char *file)
                 return respond_text(c, 404, "", "404 no such camera\n");
         if (w->n_pictures >= WEB_MAX_VIEWERS)
                 return respond_text(c, 503, "Retry-After: 5\r\n", "503 too many viewers\n");
-        return open_stream(w, c, cam, "multipart/x-mixed-replace; boundary=" BOUNDARY);
+        return open_stream(w, c, method, cam, "multipart/x-mixed-replace; boundary=" BOUNDARY);
 }
 
 /* A file of the page by its route ("/" is index.html). Returns 1, 0 (none) or -errno. */
@@ -316,9 +320,9 @@ static int handle(struct httpd_conn *c, const char *method, const char *path, co
         if (strcmp(path, "/api/session") == 0)
                 return respond_json(c, session_status(w->m->session));
         if (strcmp(path, "/events") == 0)
-                return open_events(w, c);
+                return open_events(w, c, method);
         if (strncmp(path, "/preview/", 9) == 0)
-                return open_preview(w, c, path + 9);
+                return open_preview(w, c, method, path + 9);
         r = send_asset(c, path);
         return r != 0 ? r : respond_text(c, 404, "", "404 not found\n");
 }

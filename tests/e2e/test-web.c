@@ -10,7 +10,8 @@
  *   rude   a request that never ends (slowloris) gets 408 and is closed at the deadline;
  *          huge headers 431; POST and DELETE 405; unknown paths 401 before 404; path
  *          traversal never serves a file; 70 idle connections do not lock a client out
- *          (the oldest are dropped); the 17th picture stream gets 503 */
+ *          (the oldest are dropped); HEAD of a picture stream opens none; the 17th picture
+ *          stream gets 503 */
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -284,6 +285,10 @@ static void case_rude(struct rigenv *e)
         read_until(fds[0], buf, sizeof(buf), NULL, 1);
         for (int i = 0; i < 70; i++)
                 close(fds[i]);
+        for (int i = 0; i < WEB_MAX_VIEWERS + 4; i++) /* HEAD opens no stream */
+                CHECK_INT(http("HEAD /preview/cam0.mjpg HTTP/1.1\r\n" BEARER "\r\n", buf,
+                               sizeof(buf)),
+                          200);
         for (int i = 0; i <= WEB_MAX_VIEWERS; i++) { /* picture streams are bounded */
                 streams[i] = http_connect();
                 snprintf(buf, sizeof(buf), "GET /preview/cam0.mjpg HTTP/1.1\r\n" BEARER "\r\n");
