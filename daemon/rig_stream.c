@@ -104,21 +104,26 @@ void rig_stream_job_done(struct job *j, int result)
                 st->fn(rig, 0, &j->frame, NULL, st->ud);
 }
 
-int rig_stream_start(struct rig *rig, int i, const struct cam_request *req, rig_frame_fn fn,
-                     void *userdata)
+/* Queues the first job (kind) of a stream or a peek of camera i (busy: it has one already),
+ * unless the rig refuses it. Returns 0 or -errno. */
+static int begin(struct rig *rig, int i, bool busy, enum job_kind kind,
+                 const struct cam_request *req)
 {
-        struct rig_stream *st = &rig->streams[i];
-        int r;
-
         if (rig->closing)
                 return -ESHUTDOWN;
         if (rig->fault)
                 return -ESTALE;
-        if (st->on || st->next)
+        if (busy)
                 return -EBUSY;
-        if (!rig->cam_open[i])
-                return -ENODEV;
-        r = submit(rig, J_STREAM_START, i, req);
+        return rig->cam_open[i] ? submit(rig, kind, i, req) : -ENODEV;
+}
+
+int rig_stream_start(struct rig *rig, int i, const struct cam_request *req, rig_frame_fn fn,
+                     void *userdata)
+{
+        struct rig_stream *st = &rig->streams[i];
+        int r = begin(rig, i, st->on || st->next, J_STREAM_START, req);
+
         if (r < 0)
                 return r;
         *st = (struct rig_stream){.on = true, .fn = fn, .ud = userdata};
@@ -128,17 +133,8 @@ int rig_stream_start(struct rig *rig, int i, const struct cam_request *req, rig_
 int rig_peek(struct rig *rig, int i, const struct cam_request *req, rig_frame_fn fn, void *userdata)
 {
         struct rig_peek *pk = &rig->peeks[i];
-        int r;
+        int r = begin(rig, i, pk->busy || rig->streams[i].on || rig->streams[i].next, J_PEEK, req);
 
-        if (rig->closing)
-                return -ESHUTDOWN;
-        if (rig->fault)
-                return -ESTALE;
-        if (pk->busy || rig->streams[i].on || rig->streams[i].next)
-                return -EBUSY;
-        if (!rig->cam_open[i])
-                return -ENODEV;
-        r = submit(rig, J_PEEK, i, req);
         if (r < 0)
                 return r;
         *pk = (struct rig_peek){.busy = true, .fn = fn, .ud = userdata};

@@ -1,7 +1,9 @@
 /* harness.c - process and socket helpers for gonio's end-to-end tests. */
+#include <arpa/inet.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -143,6 +145,22 @@ static bool wait_word(int fd, const char *word, double timeout)
                         memmove(buf, buf + len / 2, len - len / 2), len -= len / 2;
         }
         return false;
+}
+
+int tcp_connect(int port)
+{
+        struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port)};
+
+        sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        for (double end = now_s() + 10; now_s() < end; usleep(50000)) {
+                int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+                CHECK(fd >= 0);
+                if (connect(fd, (struct sockaddr *)&sa, sizeof(sa)) == 0)
+                        return fd;
+                close(fd);
+        }
+        CHECK(!"goniod does not listen on TCP");
+        return -1;
 }
 
 int raw_connect(struct rigenv *e)

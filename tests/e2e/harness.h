@@ -79,6 +79,10 @@ int ctl(struct rigenv *e, json_t **out, ...) __attribute__((sentinel));
 /* Like ctl but exits the test unless gonioctl succeeds; returns the parsed result. */
 json_t *ctl_ok(struct rigenv *e, ...) __attribute__((sentinel));
 
+/* A TCP connection to 127.0.0.1:port (goniod's --listen-tcp or --listen-http), retried for
+ * 10 s while goniod starts; the test fails after. Returns the fd. */
+int tcp_connect(int port);
+
 /* Connects a raw client to the daemon's socket. Returns the fd. */
 int raw_connect(struct rigenv *e);
 

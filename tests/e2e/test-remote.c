@@ -3,8 +3,6 @@
  * and the third closes the connection, the token's client then served as any operator
  * (status, a move), the Unix socket unchanged; an address beyond loopback, or no token,
  * stops goniod at its start with the reason. */
-#include <arpa/inet.h>
-#include <netinet/in.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -27,23 +25,6 @@ static void tcp_env(void *ud)
 
         setenv("GONIO_LISTEN_TCP", t->addr, 1);
         setenv("GONIO_TOKEN_FILE", t->token_file, 1);
-}
-
-/* A TCP connection to 127.0.0.1:port, retried while goniod starts. */
-static int tcp_connect(int port)
-{
-        struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port)};
-
-        sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-        for (double end = now_s() + 10; now_s() < end; usleep(50000)) {
-                int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-                CHECK(fd >= 0);
-                if (connect(fd, (struct sockaddr *)&sa, sizeof(sa)) == 0)
-                        return fd;
-                close(fd);
-        }
-        CHECK(!"goniod does not listen on TCP");
-        return -1;
 }
 
 /* raw_call's reply carries an error whose message holds what. */

@@ -12,8 +12,6 @@
  *          traversal never serves a file; 70 idle connections do not lock a client out
  *          (the oldest are dropped); HEAD of a picture stream opens none; the 17th picture
  *          stream gets 503 */
-#include <arpa/inet.h>
-#include <netinet/in.h>
 #include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -43,23 +41,6 @@ static void http_env(void *ud)
         setenv("GONIO_HTTP_TIMEOUT_MS", "400", 1);
 }
 
-/* A connection to the dashboard, retried while goniod starts. */
-static int http_connect(void)
-{
-        struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port)};
-
-        sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-        for (double end = now_s() + 10; now_s() < end; usleep(20000)) {
-                int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-                CHECK(fd >= 0);
-                if (connect(fd, (struct sockaddr *)&sa, sizeof(sa)) == 0)
-                        return fd;
-                close(fd);
-        }
-        CHECK(!"goniod does not serve the dashboard");
-        return -1;
-}
-
 /* Reads fd into buf (len bytes, NUL-terminated) until needle is there (NULL: end of file)
  * or timeout s. Returns the bytes read. */
 static size_t read_until(int fd, char *buf, size_t len, const char *needle, double timeout)
@@ -87,7 +68,7 @@ static size_t read_until(int fd, char *buf, size_t len, const char *needle, doub
  * status code. */
 static int http(const char *request, char *buf, size_t len)
 {
-        int fd = http_connect(), code = 0;
+        int fd = tcp_connect(port), code = 0;
 
         CHECK(send(fd, request, strlen(request), MSG_NOSIGNAL) == (ssize_t)strlen(request));
         read_until(fd, buf, len, NULL, 5);
@@ -190,7 +171,7 @@ static void check_picture(const char *cam, int w, int h)
 {
         static char buf[1 << 20];
         char req[512];
-        int fd = http_connect(), len = 0, got_w, got_h;
+        int fd = tcp_connect(port), len = 0, got_w, got_h;
         const char *part, *jpeg;
         size_t n;
 
@@ -231,7 +212,7 @@ static void case_serve(struct rigenv *e)
         CHECK_STR_CONTAINS(buf, "<title>goniod</title>");
         CHECK_INT(get("/dashboard.js", cookie, buf, sizeof(buf)), 200);
         check_status(e);
-        fd = http_connect();
+        fd = tcp_connect(port);
         snprintf(buf, sizeof(buf), "GET /events HTTP/1.1\r\n%s\r\n", cookie);
         CHECK(send(fd, buf, strlen(buf), MSG_NOSIGNAL) > 0);
         read_until(fd, buf, sizeof(buf), "\n\n", 5);
@@ -250,7 +231,7 @@ static void case_rude(struct rigenv *e)
         double t;
 
         rigenv_spawn_daemon(e, e->sock, http_env, "127.0.0.1");
-        fd = http_connect(); /* slowloris: the headers never end */
+        fd = tcp_connect(port); /* slowloris: the headers never end */
         CHECK(send(fd, "GET / HTTP/1.1\r\nHost: x\r\n", 25, MSG_NOSIGNAL) == 25);
         t = now_s();
         read_until(fd, buf, sizeof(buf), NULL, 3);
@@ -259,7 +240,7 @@ static void case_rude(struct rigenv *e)
         CHECK_STR_CONTAINS(buf, "HTTP/1.1 408");
         memset(big, 'a', sizeof(big) - 1);
         snprintf(buf, sizeof(buf), "GET / HTTP/1.1\r\nX-Big: ");
-        CHECK(send(fd = http_connect(), buf, strlen(buf), MSG_NOSIGNAL) > 0);
+        CHECK(send(fd = tcp_connect(port), buf, strlen(buf), MSG_NOSIGNAL) > 0);
         (void)send(fd, big, strlen(big), MSG_NOSIGNAL);
         read_until(fd, buf, sizeof(buf), NULL, 3);
         close(fd);
@@ -280,7 +261,7 @@ static void case_rude(struct rigenv *e)
                 CHECK(!strstr(buf, "root:"));
         }
         for (int i = 0; i < 70; i++) /* idle connections: the oldest make room */
-                fds[i] = http_connect();
+                fds[i] = tcp_connect(port);
         CHECK_INT(get("/api/status", BEARER, buf, sizeof(buf)), 200);
         read_until(fds[0], buf, sizeof(buf), NULL, 1);
         for (int i = 0; i < 70; i++)
@@ -290,7 +271,7 @@ static void case_rude(struct rigenv *e)
                                sizeof(buf)),
                           200);
         for (int i = 0; i <= WEB_MAX_VIEWERS; i++) { /* picture streams are bounded */
-                streams[i] = http_connect();
+                streams[i] = tcp_connect(port);
                 snprintf(buf, sizeof(buf), "GET /preview/cam0.mjpg HTTP/1.1\r\n" BEARER "\r\n");
                 CHECK(send(streams[i], buf, strlen(buf), MSG_NOSIGNAL) > 0);
                 read_until(streams[i], buf, sizeof(buf), "\r\n\r\n", 3);
