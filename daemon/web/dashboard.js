@@ -66,13 +66,14 @@ function renderCameras(cams) {
 
 function renderSession(s) {
   const box = $('session');
-  if (!s || s.state === 'none') {
+  if (!s || !s.name) {
     box.textContent = 'no session';
     $('progress').value = 0;
     $('progress-text').textContent = '';
     return;
   }
-  box.textContent = 'session ' + s.name + ' (' + s.dataset + '): ' + s.state + (s.reason ? ': ' + s.reason : '');
+  const state = s.state === 'none' ? 'ended, ' + s.ended : s.state;
+  box.textContent = 'session ' + s.name + ' (' + s.dataset + '): ' + state + (s.reason ? ': ' + s.reason : '');
   $('progress').max = Math.max(s.planned, 1);
   $('progress').value = s.captured;
   $('progress-text').textContent = s.captured + ' / ' + s.planned + ' captured, ' +

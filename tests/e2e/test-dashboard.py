@@ -2,14 +2,15 @@
 """test-dashboard.py GONIOD GONIO_SIM SOURCE_ROOT [SCREENSHOT.png] - goniod's dashboard
 (docs/goniod.md, "Dashboard") in headless Chromium (tests/appearance/browser.py), on
 gonio-sim (tests/python/harness.py): signed in by /?token=T, the page shows the rig's state
-and its axes, follows a short session's progress (captured grows to planned, the session
-ends done) from the daemon's event stream, and each camera's <img> has decoded a live
+and its axes, follows a short session's progress from the daemon's event stream (running
+with captures made, then ended done with every planned capture), and each camera's <img> has decoded a live
 picture of the camera's size. The page is screenshot (to SCREENSHOT.png when given) and
 must not be blank. Exits 77 (skipped) when Chromium is not installed."""
 import base64
 import os
 import socket
 import sys
+import threading
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, '..', 'python'))
@@ -49,40 +50,53 @@ def main():
         f.write(TOKEN + '\n')
     rig.env.update(GONIO_LISTEN_HTTP=f'127.0.0.1:{port}',
                    GONIO_TOKEN_FILE=os.path.join(rig.dir, 'token'))
-    with rig, browser.Browser(width=1100, height=900) as b:
-        c = gonio.Client(rig.sock)
-        c.home()
-        b.open(f'http://127.0.0.1:{port}/?token={TOKEN}')
-        b.wait('window.gonio && gonio.updates > 0 && gonio.status.homed', timeout=10)
-        check(b.eval("document.getElementById('state').textContent") == 'idle', 'state shown')
-        rows = b.eval("[...document.querySelectorAll('#axes tbody tr')].map(r => r.cells[0].textContent)")
-        check(rows == [a['name'] for a in c.status()['axes']], 'axes shown', rows)
-        path = os.path.join(rig.dir, 's.yaml')
-        with open(path, 'w') as f:
-            f.write(SESSION)
-        planned = c.session_plan(path)['captures']
-        c.session_run(path)
-        b.wait("gonio.session.state === 'running' && gonio.session.captured > 0 && "
-               "document.getElementById('progress').value > 0", timeout=10)
-        mid = b.eval("document.getElementById('progress-text').textContent")
-        check(f'/ {planned} captured' in mid, 'progress shown', mid)
-        b.wait("gonio.session.state === 'none' && gonio.session.ended === 'done' || "
-               f"gonio.session.captured === {planned}", timeout=15)
-        sizes = b.wait("(() => { const i = [...document.querySelectorAll('#cameras img')];"
-                       " return i.length === 2 && i.every(x => x.complete && x.naturalWidth > 0)"
-                       " && i.map(x => [x.alt, x.naturalWidth, x.naturalHeight]); })()",
-                       timeout=10)
-        cams = {x['name']: (x['width'], x['height']) for x in c.status()['cameras']}
-        check(all(tuple(s[1:]) == (w // -(-w // 320), h // -(-w // 320))
-                  for s in sizes for w, h in [cams[s[0]]]), 'pictures of the camera size', sizes)
-        png = base64.b64decode(b.call('Page.captureScreenshot', session=True, format='png')['data'])
-        path = shot or os.path.join(rig.dir, 'dashboard.png')
-        with open(path, 'wb') as f:
-            f.write(png)
-        w, h, ch, px = browser.read_png(path)
-        check(len(set(px[i] for i in range(0, len(px), 97))) > 20, 'the screenshot is not blank')
-        check(not b.errors(), 'no console errors', b.errors())
-        c.close()
+    started = {}  # Chromium starts while gonio-sim and goniod do
+    t = threading.Thread(target=lambda: started.update(b=browser.Browser(width=1100, height=900)))
+    t.start()
+    with rig:
+        t.join()
+        check('b' in started, 'chromium started')
+        with started['b'] as b:
+            follow(rig, b, port, shot)
+
+
+def follow(rig, b, port, shot):
+    """Signs in, runs the session and checks what the page shows."""
+    c = gonio.Client(rig.sock)
+    c.home()
+    b.open(f'http://127.0.0.1:{port}/?token={TOKEN}')
+    b.wait('window.gonio && gonio.updates > 0 && gonio.status.homed', timeout=10)
+    check(b.eval("document.getElementById('state').textContent") == 'idle', 'state shown')
+    rows = b.eval("[...document.querySelectorAll('#axes tbody tr')].map(r => r.cells[0].textContent)")
+    check(rows == [a['name'] for a in c.status()['axes']], 'axes shown', rows)
+    path = os.path.join(rig.dir, 's.yaml')
+    with open(path, 'w') as f:
+        f.write(SESSION)
+    planned = c.session_plan(path)['captures']
+    c.session_run(path)
+    b.wait("gonio.session.state === 'running' && gonio.session.captured > 0 && "
+           "document.getElementById('progress').value > 0", timeout=10)
+    mid = b.eval("document.getElementById('progress-text').textContent")
+    check(f'/ {planned} captured' in mid, 'progress shown', mid)
+    b.wait("gonio.session.state === 'none' && gonio.session.ended === 'done'", timeout=15)
+    end = b.eval("[document.getElementById('session').textContent, "
+                 "document.getElementById('progress').value]")
+    check(end == ['session web1 (webds): ended, done', planned], 'the end shown', end)
+    sizes = b.wait("(() => { const i = [...document.querySelectorAll('#cameras img')];"
+                   " return i.length === 2 && i.every(x => x.complete && x.naturalWidth > 0)"
+                   " && i.map(x => [x.alt, x.naturalWidth, x.naturalHeight]); })()",
+                   timeout=10)
+    cams = {x['name']: (x['width'], x['height']) for x in c.status()['cameras']}
+    check(all(tuple(s[1:]) == (w // -(-w // 320), h // -(-w // 320))
+              for s in sizes for w, h in [cams[s[0]]]), 'pictures of the camera size', sizes)
+    png = base64.b64decode(b.call('Page.captureScreenshot', session=True, format='png')['data'])
+    path = shot or os.path.join(rig.dir, 'dashboard.png')
+    with open(path, 'wb') as f:
+        f.write(png)
+    w, h, ch, px = browser.read_png(path)
+    check(len(set(px[i] for i in range(0, len(px), 97))) > 20, 'the screenshot is not blank')
+    check(not b.errors(), 'no console errors', b.errors())
+    c.close()
     print('dashboard ok: session of', planned, 'captures followed; pictures', sizes,
           'screenshot', path if shot else '(removed with the temp dir)')
 
