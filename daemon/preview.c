@@ -13,6 +13,7 @@
  * scan is active (they own the cameras and their captures feed the view) or the rig is in
  * fault. A peek is one capture job on the camera's bus; it does not lock the rig. */
 #include <errno.h>
+#include <setjmp.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/resource.h>
@@ -99,6 +100,21 @@ static int downscale(const struct gn_frame *f, int k, struct pv_job *j)
         return 0;
 }
 
+/* libjpeg's errors, which would exit() by default: back to encode() instead. */
+struct pv_error {
+        struct jpeg_error_mgr mgr;
+        jmp_buf back;
+};
+
+static void on_jpeg_error(j_common_ptr cinfo)
+{
+        char msg[JMSG_LENGTH_MAX];
+
+        cinfo->err->format_message(cinfo, msg);
+        log_warning("preview: libjpeg: %s", msg);
+        longjmp(((struct pv_error *)cinfo->err)->back, 1);
+}
+
 /* Encodes j->pix as JPEG into j->jpeg (worker thread, lowered to PREVIEW_NICE at its first
  * job so that it yields to the session's threads). Returns 0 or -EIO. */
 static int encode(void *userdata)
@@ -106,13 +122,17 @@ static int encode(void *userdata)
         static _Thread_local bool niced;
         struct pv_job *j = userdata;
         struct jpeg_compress_struct cinfo;
-        struct jpeg_error_mgr jerr;
+        struct pv_error err;
 
         if (!niced && setpriority(PRIO_PROCESS, gettid(), PREVIEW_NICE) < 0)
                 log_debug("preview: cannot lower the encoder's priority: %m");
         niced = true;
-
-        cinfo.err = jpeg_std_error(&jerr); /* errors exit: only on out of memory here */
+        cinfo.err = jpeg_std_error(&err.mgr);
+        err.mgr.error_exit = on_jpeg_error;
+        if (setjmp(err.back)) {
+                jpeg_destroy_compress(&cinfo);
+                return -EIO;
+        }
         jpeg_create_compress(&cinfo);
         jpeg_mem_dest(&cinfo, &j->jpeg, &j->jpeg_len);
         cinfo.image_width = j->width;
@@ -187,7 +207,8 @@ static int on_tick(sd_event_source *es, uint64_t usec, void *userdata)
 {
         struct preview *p = userdata;
         struct manager *m = p->m;
-        uint64_t now = gn_monotonic_ns(), idle_ns = 1000000000ULL / PREVIEW_IDLE_FPS;
+        uint64_t now = gn_monotonic_ns(),
+                 idle_ns = MAX(p->period_ns, 1000000000ULL / PREVIEW_IDLE_FPS);
 
         if (!session_active(m->session) && !scan_active(m->scan) &&
             strcmp(rig_state(m->rig), "fault") != 0)

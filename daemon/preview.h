@@ -20,7 +20,7 @@ struct preview;
 #define PREVIEW_MAX_WIDTH   320 /* pixels: frames are downscaled by a whole factor to fit */
 #define PREVIEW_DEFAULT_FPS 4
 #define PREVIEW_MAX_FPS     10
-#define PREVIEW_IDLE_FPS    2 /* at most, from peeks while the rig is idle */
+#define PREVIEW_IDLE_FPS    2 /* at most (and at most fps), from peeks while the rig is idle */
 #define PREVIEW_QUALITY     75
 #define PREVIEW_NICE        10 /* of the encoder thread: the session's threads come first */
 

@@ -6,7 +6,8 @@
  *          `gonioctl status` prints (storage aside), /api/session what session.status
  *          answers; /events starts with a status event; one part of /preview/CAM.mjpg
  *          decodes as a JPEG of the camera's size downscaled to at most 320 pixels wide
- *          (a 720x480 camera: 240x160; a 16-bit one too); an unknown camera 404
+ *          (a 720x480 camera: 240x160; a 16-bit one too); an unknown camera 404; the bash
+ *          completion (argument 5: daemon/goniod.bash) offers --listen-http
  *   rude   a request that never ends (slowloris) gets 408 and is closed at the deadline;
  *          huge headers 431; POST and DELETE 405; unknown paths 401 before 404; path
  *          traversal never serves a file; 70 idle connections do not lock a client out
@@ -191,7 +192,25 @@ static void check_picture(const char *cam, int w, int h)
         CHECK_INT(got_h, h);
 }
 
-static void case_serve(struct rigenv *e)
+/* goniod's bash completion (daemon/goniod.bash) offers its HTTP options, from its --help. */
+static void check_completion(struct rigenv *e, const char *completion)
+{
+        const char *slash = strrchr(e->goniod, '/');
+        char cmd[2048], out[256] = "";
+        FILE *p;
+
+        CHECK(slash && completion);
+        snprintf(cmd, sizeof(cmd),
+                 "PATH='%.*s':\"$PATH\" bash -c 'source %s; COMP_WORDS=(goniod --listen-h);"
+                 " COMP_CWORD=1; _goniod; echo \"${COMPREPLY[*]}\"'",
+                 (int)(slash - e->goniod), e->goniod, completion);
+        CHECK((p = popen(cmd, "r")));
+        CHECK(fgets(out, sizeof(out), p));
+        CHECK_INT(pclose(p), 0);
+        CHECK_STR(out, "--listen-http\n");
+}
+
+static void case_serve(struct rigenv *e, const char *completion)
 {
         static char buf[65536];
         int fd;
@@ -222,6 +241,7 @@ static void case_serve(struct rigenv *e)
         check_picture("cam2", 240, 160);
         check_picture("cam1", 160, 120); /* 16-bit */
         CHECK_INT(get("/preview/nosuch.mjpg", cookie, buf, sizeof(buf)), 404);
+        check_completion(e, completion);
 }
 
 static void case_rude(struct rigenv *e)
@@ -287,7 +307,7 @@ int main(int argc, char **argv)
         struct rigenv e;
         char token_file[300], *rig;
 
-        CHECK(argc == 5);
+        CHECK(argc >= 5);
         port = 20000 + (getpid() * 7) % 20000;
         rig = rig_insert(NULL, "bits: 16 }\n",
                          "  - { name: cam2, sim: { bus: frames }, elevation: 30, distance: 600,\n"
@@ -299,7 +319,7 @@ int main(int argc, char **argv)
         write_file(token_file, TOKEN "\n");
         setenv("GONIO_TOKEN_FILE", token_file, 1);
         if (strcmp(argv[4], "serve") == 0)
-                case_serve(&e);
+                case_serve(&e, argc > 5 ? argv[5] : NULL);
         else if (strcmp(argv[4], "rude") == 0)
                 case_rude(&e);
         else
