@@ -6,7 +6,9 @@
  *          `gonioctl status` prints (storage aside), /api/session what session.status
  *          answers; /events starts with a status event; one part of /preview/CAM.mjpg
  *          decodes as a JPEG of the camera's size downscaled to at most 320 pixels wide
- *          (a 720x480 camera: 240x160; a 16-bit one too); an unknown camera 404; the bash
+ *          (a 720x480 camera: 240x160; a 16-bit one too); an unknown camera 404; while
+ *          pictures come from peeks of the idle rig, no move, switch or capture is refused; the
+ *          bash
  *          completion (argument 5: daemon/goniod.bash) offers --listen-http
  *   rude   a request that never ends (slowloris) gets 408 and is closed at the deadline;
  *          huge headers 431; POST and DELETE 405; unknown paths 401 before 404; path
@@ -210,6 +212,58 @@ static void check_completion(struct rigenv *e, const char *completion)
         CHECK_STR(out, "--listen-http\n");
 }
 
+/* One request on the control connection fd, which must succeed (never refused busy). */
+static void control_ok(int fd, const char *method, const char *params)
+{
+        char req[512];
+        json_t *r;
+
+        snprintf(req, sizeof(req),
+                 "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"%s\",\"params\":%s}\n", method,
+                 params);
+        r = raw_call(fd, req);
+        if (!json_object_get(r, "result"))
+                print_json(method, r);
+        CHECK(json_object_get(r, "result"));
+        json_decref(r);
+}
+
+/* While the pictures of an idle rig are watched (from peeks), moves, switching and captures
+ * are never refused: a peek holds nothing. The pictures keep coming meanwhile. */
+static void check_peeks_hold_nothing(struct rigenv *e)
+{
+        static char buf[1 << 18];
+        char req[512], params[128];
+        int fds[3], ctl = raw_connect(e), parts = 0;
+        const char *cams[] = {"cam0", "cam1", "cam2"}, *p = buf;
+        size_t n;
+
+        for (int i = 0; i < 3; i++) {
+                fds[i] = tcp_connect(port);
+                snprintf(req, sizeof(req), "GET /preview/%s.mjpg HTTP/1.1\r\n%s\r\n", cams[i],
+                         cookie);
+                CHECK(send(fds[i], req, strlen(req), MSG_NOSIGNAL) > 0);
+        }
+        control_ok(ctl, "home", "{}");
+        control_ok(ctl, "dataset.open", "{\"name\":\"webpeek\",\"create\":true}");
+        for (int i = 0; i < 8; i++) {
+                snprintf(params, sizeof(params), "{\"axis\":\"turntable\",\"position\":%d}",
+                         10 * i);
+                control_ok(ctl, "move", params);
+                control_ok(ctl, "lamp.set",
+                           i % 2 ? "{\"lamp\":0,\"on\":true}" : "{\"lamp\":0,\"on\":false}");
+                control_ok(ctl, "capture", "{}");
+        }
+        close(ctl);
+        n = read_until(fds[0], buf, sizeof(buf), NULL, 0.2);
+        for (int i = 0; i < 3; i++)
+                close(fds[i]);
+        while ((p = memmem(p, buf + n - p, "--gonioframe\r\n", 14)))
+                parts++, p++;
+        fprintf(stderr, "%d pictures of cam0 while moving, switching and capturing\n", parts);
+        CHECK(parts >= 2);
+}
+
 static void case_serve(struct rigenv *e, const char *completion)
 {
         static char buf[65536];
@@ -241,6 +295,7 @@ static void case_serve(struct rigenv *e, const char *completion)
         check_picture("cam2", 240, 160);
         check_picture("cam1", 160, 120); /* 16-bit */
         CHECK_INT(get("/preview/nosuch.mjpg", cookie, buf, sizeof(buf)), 404);
+        check_peeks_hold_nothing(e);
         check_completion(e, completion);
 }
 
