@@ -125,7 +125,7 @@ static int encode(void *userdata)
         struct pv_error err;
 
         if (!niced && setpriority(PRIO_PROCESS, gettid(), PREVIEW_NICE) < 0)
-                log_debug("preview: cannot lower the encoder's priority: %m");
+                log_info("preview: cannot lower the encoder's priority (%m): it runs at goniod's");
         niced = true;
         cinfo.err = jpeg_std_error(&err.mgr);
         err.mgr.error_exit = on_jpeg_error;
