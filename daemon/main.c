@@ -10,6 +10,7 @@
 #include "gonio_version.h"
 #include "manager.h"
 #include "protocol/proto.h"
+#include "preview.h"
 #include "web.h"
 
 static void usage(FILE *f)
@@ -94,6 +95,9 @@ static int listen_remote(struct manager *m, const char *tcp, const char *http,
         if (tcp && *tcp &&
             (r = read_token("TCP listener", tcp, token_file, token, sizeof(token))) >= 0)
                 r = server_listen_tcp(m->server, tcp, token);
+        if (fps && (atoi(fps) < 1 || atoi(fps) > PREVIEW_MAX_FPS))
+                return log_error_errno(EINVAL, "--preview-fps %s: expected 1 to %d", fps,
+                                       PREVIEW_MAX_FPS);
         if (r >= 0 && http && *http &&
             (r = read_token("HTTP listener", http, token_file, token, sizeof(token))) >= 0)
                 r = web_new(m, http, token, fps ? (unsigned)atoi(fps) : 0,

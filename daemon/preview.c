@@ -173,7 +173,7 @@ void preview_frame(struct preview *p, int cam, const struct gn_frame *frame)
         int k = (frame->width + PREVIEW_MAX_WIDTH - 1) / PREVIEW_MAX_WIDTH, r;
 
         if (pc->viewers == 0 || pc->encoding || now - pc->last_ns < p->period_ns || !frame->data ||
-            (frame->channels != 1 && frame->channels != 3) || frame->width < k || frame->height < k)
+            (frame->channels != 1 && frame->channels != 3) || k < 1 || frame->height < k)
                 return;
         j = calloc(1, sizeof(*j));
         if (!j)
