@@ -24,7 +24,7 @@ SESSION = """\
 name: web1
 dataset: webds
 sweep:
-  turntable: { from: 0, to: 315, step: 45 }
+  turntable: { from: 0, to: 270, step: 90 }
 cameras: [cam0, cam1]
 lamps: [lamp0]
 skip_occluded: false

@@ -246,7 +246,7 @@ static void check_peeks_hold_nothing(struct rigenv *e)
         }
         control_ok(ctl, "home", "{}");
         control_ok(ctl, "dataset.open", "{\"name\":\"webpeek\",\"create\":true}");
-        for (int i = 0; i < 8; i++) {
+        for (int i = 0; i < 5; i++) {
                 snprintf(params, sizeof(params), "{\"axis\":\"turntable\",\"position\":%d}",
                          10 * i);
                 control_ok(ctl, "move", params);
