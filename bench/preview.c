@@ -162,17 +162,46 @@ static double run_viewed(struct rigenv *e, const char *name, int n, double *cpu_
         return rate;
 }
 
+/* What the rounds measured, summed over them (rates and fps averaged). */
+struct result {
+        double rate0, rate_v, cpu0, cpu_v, fps;
+        struct bench_samples ratios;
+};
+
+/* One round: the session alone and with n viewers, in an order that alternates with k so
+ * that drifts of the machine's load cancel. */
+static void round_run(struct rigenv *e, int k, int n, int rounds, struct result *res)
+{
+        double r0 = 0, r1 = 0, f = 0;
+        int64_t planned;
+        char name[32];
+
+        for (int j = 0; j < 2; j++) {
+                bool viewed = (j + k) % 2;
+                snprintf(name, sizeof(name), "%s%d", viewed ? "viewed" : "alone", k);
+                if (viewed)
+                        r1 = run_viewed(e, name, n, &res->cpu_v, &f);
+                else
+                        r0 = bench_run_session(e, name, &planned, &res->cpu0, NULL);
+        }
+        printf("round %d: %.1f captures/s alone, %.1f with %d viewers (ratio %.3f)\n", k, r0, r1, n,
+               r1 / r0);
+        res->rate0 += r0 / rounds;
+        res->rate_v += r1 / rounds;
+        res->fps += f / rounds;
+        bench_add(&res->ratios, r1 / r0);
+}
+
 int main(int argc, char **argv)
 {
         static const struct option opts[] = {{"viewers", required_argument, NULL, 'w'},
                                              {"rounds", required_argument, NULL, 'r'},
                                              {}};
+        char addr[64], token_file[] = "/tmp/gonio-bench-token-XXXXXX";
         int n = 10, rounds = 4, c;
-        double rate0 = 0, rate_v = 0, cpu0 = 0, cpu_v = 0, fps = 0, f = 0, median;
-        char addr[64], token_file[] = "/tmp/gonio-bench-token-XXXXXX", name[32];
-        struct bench_samples ratios = {0};
+        struct result res = {0};
         struct rigenv e;
-        int64_t planned;
+        double median;
 
         while ((c = getopt_long(argc, argv, "w:r:", opts, NULL)) >= 0) {
                 CHECK(c == 'w' || c == 'r');
@@ -188,34 +217,18 @@ int main(int argc, char **argv)
         setenv("GONIO_TOKEN_FILE", token_file, 1);
         bench_start(&e, TIME_SCALE, false);
         json_decref(ctl_ok(&e, "home", NULL));
-        for (int k = 0; k < rounds; k++) { /* the order alternates: drifts of the load cancel */
-                double r0 = 0, r1 = 0;
-                for (int j = 0; j < 2; j++) {
-                        bool viewed = (j + k) % 2;
-                        snprintf(name, sizeof(name), "%s%d", viewed ? "viewed" : "alone", k);
-                        if (viewed)
-                                r1 = run_viewed(&e, name, n, &cpu_v, &f);
-                        else
-                                r0 = bench_run_session(&e, name, &planned, &cpu0, NULL);
-                }
-                printf("round %d: %.1f captures/s alone, %.1f with %d viewers (ratio %.3f)\n", k,
-                       r0, r1, n, r1 / r0);
-                rate0 += r0 / rounds;
-                rate_v += r1 / rounds;
-                fps += f / rounds;
-                bench_add(&ratios, r1 / r0);
-        }
+        for (int k = 0; k < rounds; k++)
+                round_run(&e, k, n, rounds, &res);
         rigenv_stop(&e);
         unlink(token_file);
-        printf("goniod's CPU per capture: %.2f ms alone, %.2f ms with %d viewers\n", cpu0 / rounds,
-               cpu_v / rounds, n);
-        median = bench_quantile(&ratios, 0.5);
-        bench_samples_clear(&ratios);
+        printf("goniod's CPU per capture: %.2f ms alone, %.2f ms with %d viewers\n",
+               res.cpu0 / rounds, res.cpu_v / rounds, n);
+        median = bench_quantile(&res.ratios, 0.5);
+        bench_samples_clear(&res.ratios);
         printf("{\"bench\":\"preview\",\"rate_0\":%.1f,\"rate_viewers\":%.1f,\"rate_ratio\":%.4f,"
-               "\"rate_ratio_median\":%.4f,"
-               "\"preview_fps\":%.2f,\"viewers\":%d,\"rounds\":%d,"
+               "\"rate_ratio_median\":%.4f,\"preview_fps\":%.2f,\"viewers\":%d,\"rounds\":%d,"
                "\"goniod_cpu_ms_per_capture_0\":%.2f,\"goniod_cpu_ms_per_capture_viewers\":%.2f}\n",
-               rate0, rate_v, rate_v / rate0, median, fps, n, rounds, cpu0 / rounds,
-               cpu_v / rounds);
+               res.rate0, res.rate_v, res.rate_v / res.rate0, median, res.fps, n, rounds,
+               res.cpu0 / rounds, res.cpu_v / rounds);
         return 0;
 }
