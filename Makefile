@@ -9,7 +9,7 @@ MESON_OPTS ?=
 # (those that compare rig time with wall time run alone: tests/e2e/meson.build).
 TEST_JOBS  ?= 3
 
-.PHONY: all deps build install demo test test-fast test-asan test-fuzz bench format clean
+.PHONY: all deps build install demo test test-fast test-kernel test-asan test-fuzz bench format clean
 
 all: build
 
@@ -20,7 +20,7 @@ $(BUILD)/build.ninja:
 	meson setup $(BUILD) $(MESON_OPTS)
 
 $(ASAN_BUILD)/build.ninja:
-	meson setup $(ASAN_BUILD) -Dbuildtype=debug -Doptimization=1 -Db_sanitize=address,undefined $(MESON_OPTS)
+	meson setup $(ASAN_BUILD) -Dbuildtype=debug -Doptimization=1 -Db_sanitize=address,undefined -Dbenchmarks=false $(MESON_OPTS)
 
 $(FUZZ_BUILD)/build.ninja:
 	CC=clang CXX=clang++ meson setup $(FUZZ_BUILD) -Dfuzzing=true -Dkernel_lane=false $(MESON_OPTS)
@@ -39,12 +39,17 @@ demo: build
 	scripts/demo $(BUILD)
 
 # The whole suite, then once more under AddressSanitizer + UndefinedBehaviorSanitizer, then a
-# few seconds of each fuzz target over its corpus.
+# few seconds of each fuzz target over its corpus. The kernel lane (qemu boots, run one at a
+# time) runs once, in the sanitizer pass, where it also checks the backends' memory use;
+# `make test-kernel` runs it alone in build/.
 test: test-fast test-asan test-fuzz
 	@scripts/test-summary $(BUILD) $(ASAN_BUILD) $(FUZZ_BUILD)
 
 test-fast: build
-	meson test -C $(BUILD) --print-errorlogs --num-processes $(TEST_JOBS)
+	meson test -C $(BUILD) --print-errorlogs --num-processes $(TEST_JOBS) --no-suite kernel
+
+test-kernel: build
+	meson test -C $(BUILD) --print-errorlogs --suite kernel
 
 test-asan: deps $(ASAN_BUILD)/build.ninja
 	ninja -C $(ASAN_BUILD)

@@ -1,6 +1,7 @@
 /* brdf.h - the reflectance model of issue 12 (docs/appearance.md, "The BRDF model"): per
- * texel of a texture atlas on the object's mesh (atlas.h), the parameters of the material
- * gonio-sim renders (sim/render/material.c, SPEC_BECKMANN):
+ * texel of a texture atlas on the object's mesh (atlas.h), or where there is no mesh per pixel
+ * of each captured view (the view kind, "The view-kind BRDF model"), the parameters of the
+ * material gonio-sim renders (sim/render/material.c, SPEC_BECKMANN):
  *
  *     f(l, v) cos_l = (1 - ks) albedo / pi cos_l + ks D(h) G(l, v) F(l . h) / (4 cos_v)
  *
@@ -30,6 +31,16 @@ enum ap_brdf_flags {
         AP_BRDF_FITTED = 1,       /* every parameter fitted */
         AP_BRDF_DIFFUSE_ONLY = 2, /* no sample near a highlight: albedo only, ks 0 (a fallback) */
         AP_BRDF_MASKED = 4,       /* too few usable samples (seen, lit, not saturated): none */
+        AP_BRDF_ISOTROPIC = 8,    /* view kind: too few samples near the highlight to tell ax
+                                   * from ay: one roughness, the tangent not fitted */
+        AP_BRDF_LOBE_VIEW = 16,   /* view kind: as ISOTROPIC, but ax, ay the view's medians
+                                   * (struct ap_brdf_view) along the base tangent */
+};
+
+/* What a model's parameters are attached to. */
+enum ap_brdf_kind {
+        AP_BRDF_KIND_TEXEL, /* texels of an atlas on the object's mesh */
+        AP_BRDF_KIND_VIEW,  /* pixels of each captured view (no mesh) */
 };
 
 /* One texel's material. */
@@ -42,12 +53,28 @@ struct ap_brdf_texel {
         uint32_t flags;              /* enum ap_brdf_flags */
 };
 
+/* One captured view of a view-kind model: a texel per pixel. */
+struct ap_brdf_view {
+        struct ap_camera cam;
+        double dir[3];            /* unit, object centre towards the camera */
+        struct ap_brdf_texel *px; /* cam.width * cam.height, row-major */
+        float *points;            /* 3 per pixel: the surface point its lights were placed from
+                                   * (object frame, mm; on its ray, the depth fitted) */
+        float ax, ay;             /* the medians of its pixels whose lobe's shape was fitted
+                                   * (ax along the base tangent), given to the others
+                                   * (AP_BRDF_LOBE_VIEW); 0: too few such pixels */
+};
+
 struct ap_brdf_model {
         char name[AP_NAME_MAX];
-        struct ap_atlas atlas;        /* the mesh and its texture atlas */
-        struct ap_brdf_texel *texels; /* atlas.width * atlas.height, row-major */
-        double response;              /* pixel value per unit of (I / r^2) f cos (Units) */
-        char notes[1024];             /* the fallbacks taken, "" none */
+        enum ap_brdf_kind kind;
+        struct ap_atlas atlas;        /* texel kind: the mesh and its texture atlas */
+        struct ap_brdf_texel *texels; /* texel kind: atlas.width * atlas.height, row-major */
+        struct ap_brdf_view *views;   /* view kind */
+        size_t n_views;
+        double centre[3]; /* view kind: the object's centre (mean of the views') */
+        double response;  /* pixel value per unit of (I / r^2) f cos (Units) */
+        char notes[1024]; /* the fallbacks taken, "" none */
         double fit_seconds;
         double read_seconds; /* of fit_seconds, reading the samples (not stored) */
 };

@@ -1,8 +1,9 @@
 /* brdf_fit.c - the BRDF fit's setup and course (brdf_fit.h): the geometry exactly as the SH
- * fit places it (ap_geometry_read), the object's mesh (mesh.h) and its atlas, the camera's
- * response and the material's Fresnel f0 from the rig file's simulated scene where it has one,
- * the samples (brdf_samples.c), then the texels fitted on threads (brdf_solve.c) and the
- * fallbacks counted into the model's notes. */
+ * fit places it (ap_geometry_read), the camera's response and the material's Fresnel f0 from
+ * the rig file's simulated scene where it has one; the texel kind: the object's mesh (mesh.h)
+ * and its atlas, the samples (brdf_samples.c), then the texels fitted on threads
+ * (brdf_solve.c) and the fallbacks counted into the model's notes; the view kind where there
+ * is no mesh or it is asked for (brdf_view.c). */
 #include <errno.h>
 #include <gsl/gsl_errno.h>
 #include <math.h>
@@ -25,13 +26,11 @@ void ap_brdf_fit_opts_default(struct ap_brdf_fit_opts *o)
                                        .texels = AP_BRDF_TEXELS_DEFAULT,
                                        .threads = 2,
                                        .saturation = 0.995,
-                                       .f0 = 0.04};
+                                       .f0 = 0.04,
+                                       .background = 0.01};
 }
 
-static void note(char *notes, size_t len, const char *fmt, ...)
-        __attribute__((format(printf, 3, 4)));
-
-static void note(char *notes, size_t len, const char *fmt, ...)
+void brdf_note(char *notes, size_t len, const char *fmt, ...)
 {
         size_t n = strlen(notes);
         char buf[512];
@@ -53,7 +52,8 @@ static void sensor_and_material(struct brdf_ctx *c, struct ap_brdf_model *m)
         c->response = 1;
         c->f0 = c->o->f0;
         if (sim_scene_new(c->g->rc, &s, err, sizeof(err)) < 0) {
-                note(m->notes, sizeof(m->notes), "no simulated sensor: response 1, f0 %g", c->f0);
+                brdf_note(m->notes, sizeof(m->notes), "no simulated sensor: response 1, f0 %g",
+                          c->f0);
                 return;
         }
         c->response =
@@ -61,8 +61,8 @@ static void sensor_and_material(struct brdf_ctx *c, struct ap_brdf_model *m)
         if (s->has_object && s->mats[s->geoms[0].mat].model == SPEC_BECKMANN)
                 c->f0 = s->mats[s->geoms[0].mat].f0;
         else
-                note(m->notes, sizeof(m->notes), "f0 %g (the scene's object has no Beckmann lobe)",
-                     c->f0);
+                brdf_note(m->notes, sizeof(m->notes),
+                          "f0 %g (the scene's object has no Beckmann lobe)", c->f0);
         sim_scene_free(s);
 }
 
@@ -80,10 +80,10 @@ static int fit_mesh_to_texels(const struct brdf_ctx *c, struct ap_mesh *mesh,
                 return 0;
         if ((r = ap_mesh_simplify(mesh, target)) < 0)
                 return r;
-        note(m->notes, sizeof(m->notes),
-             "mesh simplified from %zu to %zu triangles for an atlas of about %zu texels "
-             "(--texels)",
-             nt, mesh->nt, c->o->texels);
+        brdf_note(m->notes, sizeof(m->notes),
+                  "mesh simplified from %zu to %zu triangles for an atlas of about %zu texels "
+                  "(--texels)",
+                  nt, mesh->nt, c->o->texels);
         return 0;
 }
 
@@ -119,9 +119,7 @@ static int atlas_setup(struct brdf_ctx *c, struct ap_brdf_model *m, char *err, s
         return 0;
 }
 
-/* The base tangent at normal n: the object's z axis (the turntable's, the simulator's
- * anisotropy axis) projected on the tangent plane, else x. */
-static void base_tangent(const float n[3], float t[3])
+void brdf_base_tangent(const float n[3], float t[3])
 {
         float a[3] = {0, 0, 1}, d, l;
 
@@ -155,9 +153,10 @@ static void *work(void *arg)
                         continue;
                 }
                 memcpy(x->normal, &w->c->normals[3 * i], sizeof(x->normal));
-                base_tangent(x->normal, x->tangent);
+                brdf_base_tangent(x->normal, x->tangent);
                 x->f0 = (float)w->c->f0;
-                brdf_solve_texel(w->s->s + w->s->first[i], w->s->first[i + 1] - w->s->first[i], x);
+                brdf_solve_texel(w->s->s + w->s->first[i], w->s->first[i + 1] - w->s->first[i],
+                                 &brdf_texel_limits, x);
                 if (!ap_brdf_texel_valid(x)) {
                         *x = (struct ap_brdf_texel){.flags = AP_BRDF_MASKED};
                         w->invalid++;
@@ -166,12 +165,25 @@ static void *work(void *arg)
         return NULL;
 }
 
+void brdf_run_threads(int n, void *(*fn)(void *), void *args, size_t size)
+{
+        pthread_t th[16];
+        bool started[16] = {false};
+
+        for (int k = 1; k < n; k++)
+                started[k] = pthread_create(&th[k], NULL, fn, (char *)args + k * size) == 0;
+        for (int k = 0; k < n; k++) /* the first's share, and any a thread did not start for */
+                if (!started[k])
+                        fn((char *)args + k * size);
+        for (int k = 1; k < n; k++)
+                if (started[k])
+                        pthread_join(th[k], NULL);
+}
+
 static int fit_texels(const struct brdf_ctx *c, const struct brdf_samples *s,
                       struct ap_brdf_model *m)
 {
-        pthread_t th[16];
         struct worker w[16];
-        bool started[16] = {false};
         int n = c->o->threads;
 
         m->texels = calloc(s->n_texels, sizeof(*m->texels));
@@ -179,19 +191,12 @@ static int fit_texels(const struct brdf_ctx *c, const struct brdf_samples *s,
                 return -ENOMEM;
         for (int k = 0; k < n; k++)
                 w[k] = (struct worker){c, s, m, k, n, 0};
-        for (int k = 1; k < n; k++)
-                started[k] = pthread_create(&th[k], NULL, work, &w[k]) == 0;
-        for (int k = 0; k < n; k++) /* the first's share, and any a thread did not start for */
-                if (!started[k])
-                        work(&w[k]);
-        for (int k = 1; k < n; k++)
-                if (started[k])
-                        pthread_join(th[k], NULL);
+        brdf_run_threads(n, work, w, sizeof(w[0]));
         for (int k = 1; k < n; k++)
                 w[0].invalid += w[k].invalid;
         if (w[0].invalid)
-                note(m->notes, sizeof(m->notes),
-                     "%zu texels masked: their solve gave no valid parameters", w[0].invalid);
+                brdf_note(m->notes, sizeof(m->notes),
+                          "%zu texels masked: their solve gave no valid parameters", w[0].invalid);
         return 0;
 }
 
@@ -206,20 +211,22 @@ static void summarise(const struct brdf_samples *s, struct ap_brdf_model *m)
                 sat += (m->texels[i].flags & AP_BRDF_DIFFUSE_ONLY) && s->n_sat_near[i] > 0;
         }
         if (masked)
-                note(m->notes, sizeof(m->notes),
-                     "%zu of %zu texels masked (fewer than %d samples seen, lit and unsaturated)",
-                     masked, n, AP_BRDF_MIN_SAMPLES);
+                brdf_note(m->notes, sizeof(m->notes),
+                          "%zu of %zu texels masked (fewer than %d samples seen, lit and "
+                          "unsaturated)",
+                          masked, n, AP_BRDF_MIN_SAMPLES);
         if (diffuse)
-                note(m->notes, sizeof(m->notes),
-                     "%zu texels diffuse only (fewer than %d usable samples near a highlight)",
-                     diffuse, AP_BRDF_MIN_NEAR);
+                brdf_note(m->notes, sizeof(m->notes),
+                          "%zu texels diffuse only (fewer than %d usable samples near a highlight)",
+                          diffuse, AP_BRDF_MIN_NEAR);
         if (sat)
-                note(m->notes, sizeof(m->notes),
-                     "%zu of them had their highlight samples saturated", sat);
+                brdf_note(m->notes, sizeof(m->notes),
+                          "%zu of them had their highlight samples saturated", sat);
         if (s->n_sat)
-                note(m->notes, sizeof(m->notes), "%zu saturated samples left out", s->n_sat);
+                brdf_note(m->notes, sizeof(m->notes), "%zu saturated samples left out", s->n_sat);
         if (s->n_shadowed)
-                note(m->notes, sizeof(m->notes), "%zu samples in shadow left out", s->n_shadowed);
+                brdf_note(m->notes, sizeof(m->notes), "%zu samples in shadow left out",
+                          s->n_shadowed);
 }
 
 static void ctx_free(struct brdf_ctx *c)
@@ -234,19 +241,58 @@ static int check_opts(const struct ap_brdf_fit_opts *o, char *err, size_t errlen
 {
         if (o->name && o->name[0] && !strchr(o->name, '/') && o->name[0] != '.' &&
             strlen(o->name) < AP_NAME_MAX && o->texels >= 16 && o->texels <= ((size_t)1 << 26) &&
-            o->threads >= 1 && o->threads <= 16 && o->saturation > 0 && o->f0 >= 0 && o->f0 <= 1)
+            o->threads >= 1 && o->threads <= 16 && o->saturation > 0 && o->f0 >= 0 && o->f0 <= 1 &&
+            o->background >= 0 && o->background < 1 && o->kind <= AP_BRDF_FIT_VIEW)
                 return 0;
         snprintf(err, errlen,
-                 "bad options: name '%s', %zu texels, %d threads, saturation %g, f0 %g",
-                 o->name ? o->name : "", o->texels, o->threads, o->saturation, o->f0);
+                 "bad options: name '%s', %zu texels, %d threads, saturation %g, f0 %g, "
+                 "background %g",
+                 o->name ? o->name : "", o->texels, o->threads, o->saturation, o->f0,
+                 o->background);
         return -EINVAL;
+}
+
+/* The texel kind: the mesh and its atlas, the samples of every texel, their fits. */
+static int fit_texel_kind(struct brdf_ctx *c, struct ap_brdf_model *m, char *err, size_t errlen)
+{
+        struct brdf_samples s = {0};
+        int r = atlas_setup(c, m, err, errlen);
+
+        if (r == 0 && (r = brdf_samples_read(c, &s)) < 0)
+                snprintf(err, errlen, "%s", c->err[0] ? c->err : strerror(-r));
+        if (r == 0)
+                r = fit_texels(c, &s, m);
+        if (r == 0) {
+                summarise(&s, m);
+                m->kind = AP_BRDF_KIND_TEXEL;
+                m->atlas = c->atlas;
+                c->atlas = (struct ap_atlas){0};
+                m->read_seconds = s.read_seconds;
+        }
+        brdf_samples_free(&s);
+        return r;
+}
+
+/* The kind o asks for, or without a mesh (o->kind AP_BRDF_FIT_AUTO) the view kind. */
+static int fit_kind(struct brdf_ctx *c, struct ap_brdf_model *m, char *err, size_t errlen)
+{
+        int r = -ENOENT;
+
+        if (c->o->kind != AP_BRDF_FIT_VIEW)
+                r = fit_texel_kind(c, m, err, errlen);
+        if (r == -ENOENT && c->o->kind == AP_BRDF_FIT_AUTO)
+                brdf_note(m->notes, sizeof(m->notes), "%s: fitted per pixel of each view", err);
+        if (r != -ENOENT || c->o->kind == AP_BRDF_FIT_TEXEL)
+                return r;
+        if ((r = brdf_view_fit(c, m)) < 0)
+                snprintf(err, errlen, "%s", c->err[0] ? c->err : strerror(-r));
+        return r;
 }
 
 int ap_brdf_fit(struct ds *d, const struct ap_brdf_fit_opts *o, struct ap_brdf_model **ret,
                 char *err, size_t errlen)
 {
         struct brdf_ctx c = {.o = o, .dir = d ? ds_path(d) : NULL};
-        struct brdf_samples s = {0};
         struct ap_brdf_model *m = calloc(1, sizeof(*m));
         struct timespec t0, t1;
         int r = m ? check_opts(o, err, errlen) : -ENOMEM;
@@ -261,24 +307,15 @@ int ap_brdf_fit(struct ds *d, const struct ap_brdf_fit_opts *o, struct ap_brdf_m
                         c.g->shots[0].row->exposure_us > 0 ? c.g->shots[0].row->exposure_us : 1;
                 c.gain_ref = c.g->shots[0].row->gain > 0 ? c.g->shots[0].row->gain : 1;
                 sensor_and_material(&c, m);
-                r = atlas_setup(&c, m, err, errlen);
+                r = fit_kind(&c, m, err, errlen);
         }
-        if (r == 0 && (r = brdf_samples_read(&c, &s)) < 0)
-                snprintf(err, errlen, "%s", c.err[0] ? c.err : strerror(-r));
-        if (r == 0)
-                r = fit_texels(&c, &s, m);
         if (r == 0) {
-                summarise(&s, m);
                 snprintf(m->name, sizeof(m->name), "%s", o->name);
                 m->response = c.response;
-                m->atlas = c.atlas;
-                c.atlas = (struct ap_atlas){0};
                 clock_gettime(CLOCK_MONOTONIC, &t1);
                 m->fit_seconds = (t1.tv_sec - t0.tv_sec) + (t1.tv_nsec - t0.tv_nsec) * 1e-9;
-                m->read_seconds = s.read_seconds;
                 *ret = TAKE_PTR(m);
         }
-        brdf_samples_free(&s);
         ctx_free(&c);
         ap_brdf_model_free(m);
         return r;

@@ -285,14 +285,7 @@ static bool lit(const struct shadow *sh, const float p[3])
         return x[2] <= dmax * (1 + SHADOW_BIAS) + SHADOW_SLOPE * x[2] / sh->ph.fx;
 }
 
-/* A normalised image: 3 floats a pixel (linear, base exposure), saturated pixels flagged. */
-struct image {
-        int w, h;
-        float *px;
-        uint8_t *sat;
-};
-
-static void image_free(struct image *im)
+static void image_free(struct brdf_image *im)
 {
         free(im->px);
         free(im->sat);
@@ -328,8 +321,7 @@ static const struct ds_capture *dark_of(const struct brdf_ctx *c, const struct d
         return NULL;
 }
 
-/* Reads row r (minus its dark frame) into im, normalised to the base exposure and gain. */
-static int read_image(const struct brdf_ctx *c, const struct ds_capture *r, struct image *im)
+int brdf_image_read(const struct brdf_ctx *c, const struct ds_capture *r, struct brdf_image *im)
 {
         const struct ds_capture *dr = dark_of(c, r);
         struct gn_frame f = {0}, dk = {0};
@@ -373,9 +365,9 @@ static double tan_half(const float l[3], const float v[3], const float n[3])
 }
 
 /* The samples of shot sh (its image im) at the texels seen s[0..n) into a. */
-static int shot_samples(const struct brdf_ctx *c, const struct ap_shot *sh, const struct image *im,
-                        const struct shadow *smap, const struct seen *s, size_t n, struct acc *a,
-                        struct brdf_samples *out)
+static int shot_samples(const struct brdf_ctx *c, const struct ap_shot *sh,
+                        const struct brdf_image *im, const struct shadow *smap,
+                        const struct seen *s, size_t n, struct acc *a, struct brdf_samples *out)
 {
         int r = 0;
 
@@ -427,8 +419,8 @@ static int view_samples(const struct brdf_ctx *c, size_t i, size_t first, size_t
         const struct ap_camera *g = &c->g->cameras[i];
         size_t n_seen = 0, npx = (size_t)g->width * g->height;
         _cleanup_free_ struct seen *seen = NULL;
-        _cleanup_(image_free) struct image im = {g->width, g->height,
-                                                 malloc(3 * npx * sizeof(float)), malloc(npx)};
+        _cleanup_(image_free) struct brdf_image im = {g->width, g->height,
+                                                      malloc(3 * npx * sizeof(float)), malloc(npx)};
         struct shadow sh = {0};
         double centre[3], radius;
         int r = view_texels(c, g, &seen, &n_seen);
@@ -437,7 +429,7 @@ static int view_samples(const struct brdf_ctx *c, size_t i, size_t first, size_t
                 r = -ENOMEM;
         bounds(&c->atlas.mesh, centre, &radius);
         for (size_t k = first; r == 0 && k < last && n_seen; k++) {
-                r = read_image(c, c->g->shots[k].row, &im);
+                r = brdf_image_read(c, c->g->shots[k].row, &im);
                 if (r == 0)
                         r = shadow_map(c, c->g->shots[k].lamp, centre, radius, &sh);
                 if (r == 0)

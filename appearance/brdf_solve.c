@@ -1,7 +1,9 @@
 /* brdf_solve.c - one texel of the BRDF fit (brdf_internal.h): nonlinear least squares with
  * GSL's multifit_nlinear (Levenberg-Marquardt, finite-difference Jacobian) over the log
  * roughness along and across the tangent, the tangent's angle about the normal and the
- * normal's tilt towards the base tangent and bitangent; for each such point the diffuse
+ * normal's tilt towards the base tangent and bitangent (where too few samples are near the
+ * highlight to tell the two roughnesses apart: the tilt alone, the lobe's shape given along
+ * the base tangent, or one log roughness and the tilt); for each such point the diffuse
  * weights (1 - ks) albedo per channel and ks are linear and solved in closed form, clamped
  * non-negative (variable projection). Started from the best of a few isotropic roughnesses,
  * then reweighted twice with a Cauchy loss (scale from the median residual) so that shadowed
@@ -17,6 +19,8 @@
 #include "common/sortx.h"
 
 #define NP           5 /* log ax, log ay, tangent angle, normal tilt (2) */
+#define NP_ISO       3 /* log a, normal tilt (2) */
+#define NP_FIXED     2 /* normal tilt (2): the lobe's shape given */
 #define MAX_ITER     20
 #define IRLS_ROUNDS  1
 #define N_STARTS     1     /* Levenberg-Marquardt runs from the best points of a grid */
@@ -33,7 +37,10 @@ struct problem {
         const float *w;            /* per sample, NULL: 1 */
         float n0[3], t0[3], b0[3]; /* the texel's base frame */
         float f0;
-        bool lobe;      /* false: diffuse only (ks 0) */
+        bool lobe;                       /* false: diffuse only (ks 0) */
+        enum { FREE, ISO, FIXED } shape; /* of the lobe: NP, NP_ISO or NP_FIXED parameters */
+        size_t np;
+        double la, lb;  /* FIXED: log ax, log ay */
         double *D, *S;  /* per sample: the bases at the last parameters (basis()) */
         double a[3], k; /* the last linear solve */
 };
@@ -46,11 +53,20 @@ static void normalize3(float v[3])
                 v[i] /= l;
 }
 
-/* The texel of parameters p (albedo 0, ks 1: ap_brdf_eval gives the lobe alone). */
-static void texel_at(const struct problem *q, const double *p, struct ap_brdf_texel *x)
+/* The texel of parameters p (q->np of them; albedo 0, ks 1: ap_brdf_eval gives the lobe
+ * alone). */
+static void texel_at(const struct problem *q, const double *pp, struct ap_brdf_texel *x)
 {
-        float c = (float)cos(p[2]), s = (float)sin(p[2]), t[3], b[3], tn;
+        double full[NP] = {0}; /* NP values from pp's q->np: read no further */
+        const double *p = q->shape == FREE ? pp : full;
+        float c, s, t[3], b[3], tn;
 
+        if (q->shape == ISO)
+                full[0] = full[1] = pp[0], full[3] = pp[1], full[4] = pp[2];
+        else if (q->shape == FIXED)
+                full[0] = q->la, full[1] = q->lb, full[3] = pp[0], full[4] = pp[1];
+        c = (float)cos(p[2]);
+        s = (float)sin(p[2]);
         *x = (struct ap_brdf_texel){.ks = 1, .f0 = q->f0};
         x->ax = (float)exp(fmin(fmax(p[0], LOG_A_MIN), LOG_A_MAX));
         x->ay = (float)exp(fmin(fmax(p[1], LOG_A_MIN), LOG_A_MAX));
@@ -124,7 +140,7 @@ static int residuals(const gsl_vector *p, void *data, gsl_vector *f)
 
 static double cost(struct problem *q, const double *p, gsl_vector *f)
 {
-        gsl_vector_const_view v = gsl_vector_const_view_array(p, NP);
+        gsl_vector_const_view v = gsl_vector_const_view_array(p, q->np);
         double c2 = 0;
 
         residuals(&v.vector, q, f);
@@ -136,14 +152,14 @@ static double cost(struct problem *q, const double *p, gsl_vector *f)
 /* Levenberg-Marquardt from p (updated) on q's current weights. */
 static void minimise(struct problem *q, double *p, gsl_multifit_nlinear_workspace *ws)
 {
-        gsl_multifit_nlinear_fdf fdf = {.f = residuals, .n = 3 * q->n, .p = NP, .params = q};
-        gsl_vector_view v = gsl_vector_view_array(p, NP);
+        gsl_multifit_nlinear_fdf fdf = {.f = residuals, .n = 3 * q->n, .p = q->np, .params = q};
+        gsl_vector_view v = gsl_vector_view_array(p, q->np);
         int info;
 
         if (gsl_multifit_nlinear_init(&v.vector, &fdf, ws) != GSL_SUCCESS)
                 return;
         gsl_multifit_nlinear_driver(MAX_ITER, 1e-7, 1e-9, 0, NULL, NULL, &info, ws);
-        memcpy(p, gsl_multifit_nlinear_position(ws)->data, NP * sizeof(double));
+        memcpy(p, gsl_multifit_nlinear_position(ws)->data, q->np * sizeof(double));
 }
 
 /* Cauchy weights of the residuals f (3 per sample) into w; the unweighted sum of squares. */
@@ -172,7 +188,8 @@ static double reweight(const struct problem *q, const gsl_vector *f, float *w, d
 }
 
 /* The starts: the N_STARTS best of a grid of roughnesses along and across the base tangent
- * and at 45 degrees to it, best first. */
+ * and at 45 degrees to it (isotropic: its diagonal; the shape given: the base normal), best
+ * first, in q's parameters. */
 static void starts(struct problem *q, double p[N_STARTS][NP], gsl_vector *f)
 {
         static const double alpha[] = {0.05, 0.1, 0.2, 0.4};
@@ -183,8 +200,16 @@ static void starts(struct problem *q, double p[N_STARTS][NP], gsl_vector *f)
         for (int i = 0; i < 32; i++) {
                 double t[NP] = {log(alpha[i % 4]), log(alpha[i / 4 % 4]), i < 16 ? 0 : M_PI_4, 0,
                                 0};
-                double c2 = cost(q, t, f);
+                double c2;
                 int k = N_STARTS;
+                if ((q->shape == ISO && (i >= 16 || i % 4 != i / 4 % 4)) ||
+                    (q->shape == FIXED && i > 0))
+                        continue;
+                if (q->shape == ISO) /* log a, no tilt */
+                        t[1] = t[2] = 0;
+                if (q->shape == FIXED) /* no tilt */
+                        t[0] = t[1] = 0;
+                c2 = cost(q, t, f);
                 while (k > 0 && c2 < best[k - 1])
                         k--;
                 if (k == N_STARTS)
@@ -204,7 +229,10 @@ static void finish(struct problem *q, const double *p, struct ap_brdf_texel *x)
         x->ks = (float)q->k;
         for (int c = 0; c < 3; c++)
                 x->albedo[c] = (float)(q->a[c] / (1 - q->k));
-        x->flags = q->lobe ? AP_BRDF_FITTED : AP_BRDF_DIFFUSE_ONLY;
+        x->flags = !q->lobe            ? AP_BRDF_DIFFUSE_ONLY
+                   : q->shape == ISO   ? AP_BRDF_FITTED | AP_BRDF_ISOTROPIC
+                   : q->shape == FIXED ? AP_BRDF_FITTED | AP_BRDF_LOBE_VIEW
+                                       : AP_BRDF_FITTED;
         if (!q->lobe)
                 x->ax = x->ay = 1;
 }
@@ -220,13 +248,12 @@ static bool is_near(const struct brdf_sample *s, const float n[3])
         return c > 0 && sqrtf(fmaxf(1 - c * c, 0)) < AP_BRDF_NEAR_TAN * c;
 }
 
-/* Samples near a highlight of the base normal. */
-static size_t near_highlight(const struct problem *q)
+size_t brdf_near_highlight(const struct brdf_sample *s, size_t n, const float n0[3])
 {
         size_t k = 0;
 
-        for (size_t i = 0; i < q->n; i++)
-                k += is_near(&q->s[i], q->n0);
+        for (size_t i = 0; i < n; i++)
+                k += is_near(&s[i], n0);
         return k;
 }
 
@@ -263,7 +290,8 @@ static double fit(struct problem *q, double *p, float *w, double *tmp)
         double ss = NAN, st[N_STARTS][NP], best = INFINITY;
 
         par.h_df = 1e-4; /* the model is evaluated in float */
-        ws = f ? gsl_multifit_nlinear_alloc(gsl_multifit_nlinear_trust, &par, 3 * q->n, NP) : NULL;
+        ws = f ? gsl_multifit_nlinear_alloc(gsl_multifit_nlinear_trust, &par, 3 * q->n, q->np)
+               : NULL;
         if (ws) {
                 starts(q, st, f);
                 for (int k = 0; k < (q->lobe ? N_STARTS : 1); k++) {
@@ -287,8 +315,12 @@ static double fit(struct problem *q, double *p, float *w, double *tmp)
         return sqrt(ss / (3.0 * q->n));
 }
 
-void brdf_solve_texel(const struct brdf_sample *s, size_t n, struct ap_brdf_texel *x)
+const struct brdf_limits brdf_texel_limits = {AP_BRDF_MIN_SAMPLES, AP_BRDF_MIN_NEAR, 0};
+
+void brdf_solve_texel(const struct brdf_sample *s, size_t n, const struct brdf_limits *lim,
+                      struct ap_brdf_texel *x)
 {
+        size_t near;
         _cleanup_free_ struct brdf_sample *few =
                 n > AP_BRDF_MAX_SAMPLES ? malloc(AP_BRDF_MAX_SAMPLES * sizeof(*few)) : NULL;
         struct problem q;
@@ -308,8 +340,12 @@ void brdf_solve_texel(const struct brdf_sample *s, size_t n, struct ap_brdf_texe
         q.b0[0] = q.n0[1] * q.t0[2] - q.n0[2] * q.t0[1];
         q.b0[1] = q.n0[2] * q.t0[0] - q.n0[0] * q.t0[2];
         q.b0[2] = q.n0[0] * q.t0[1] - q.n0[1] * q.t0[0];
-        q.lobe = near_highlight(&q) >= AP_BRDF_MIN_NEAR;
-        if (n < AP_BRDF_MIN_SAMPLES || !w || !tmp) {
+        near = brdf_near_highlight(q.s, q.n, q.n0);
+        q.lobe = near >= lim->min_near;
+        q.shape = near >= lim->min_aniso ? FREE : lim->ax > 0 ? FIXED : ISO;
+        q.np = q.shape == FREE ? NP : q.shape == ISO ? NP_ISO : NP_FIXED;
+        q.la = log(lim->ax > 0 ? lim->ax : 1), q.lb = log(lim->ay > 0 ? lim->ay : 1);
+        if (n < lim->min_samples || !w || !tmp) {
                 *x = (struct ap_brdf_texel){.flags = AP_BRDF_MASKED};
         } else {
                 double rms;

@@ -495,5 +495,12 @@ int ap_export_gltf(struct ds *d, const char *ds_dir, const char *dir,
                          ds_dir, name, name);
         if (r < 0)
                 return r;
+        if (m->kind == AP_BRDF_KIND_VIEW) {
+                snprintf(err, errlen,
+                         "%s: BRDF model '%s' is of the view kind (fitted without a mesh): glTF "
+                         "needs a mesh; scan the object and fit again",
+                         ds_dir, name);
+                return -EINVAL;
+        }
         return gltf_fill(m, dir, err, errlen);
 }

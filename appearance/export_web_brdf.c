@@ -42,6 +42,8 @@ int web_brdf_load(struct web *w, const char *model_dir)
 {
         int r = ap_brdf_read(model_dir, &w->brdf, w->err, w->errlen);
 
+        if (r == 0 && w->brdf->kind == AP_BRDF_KIND_VIEW) /* no mesh: the viewer shows SH only */
+                w->brdf = ap_brdf_model_free(w->brdf);
         if (r == -ENOENT)
                 w->err[0] = 0;
         else if (r < 0 && !w->err[0])

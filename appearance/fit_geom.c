@@ -388,24 +388,34 @@ static void pixel_ray(const struct ap_camera *g, const double uv[2], double C[3]
                 d[k] /= n;
 }
 
+void fit_nominal_point(const struct ap_camera *g, const double c0[3], const double uv[2],
+                       double X[3])
+{
+        double o[3], d[3], s;
+
+        pixel_ray(g, uv, o, d);
+        s = (c0[0] - o[0]) * d[0] + (c0[1] - o[1]) * d[1] + (c0[2] - o[2]) * d[2];
+        for (int k = 0; k < 3; k++)
+                X[k] = o[k] + s * d[k];
+}
+
 /* Where the mesh gave none (or there is no mesh): the point of each tile's centre ray
  * nearest the object's centre. */
 static void nominal_points(const struct fit_ctx *c, struct fit_view *v)
 {
         int T = c->o->tile, tw = (v->geom.width + T - 1) / T, th = (v->geom.height + T - 1) / T;
-        double C[3], c0[3];
+        double c0[3];
 
-        camera_centre(&v->geom, C, c0);
+        fit_camera_centre(&v->geom, c0);
         for (int ty = 0; ty < th; ty++)
                 for (int tx = 0; tx < tw; tx++) {
-                        double uv[2], o[3], d[3], s;
+                        double uv[2], X[3];
                         if (!isnan(v->points[3 * (ty * tw + tx)]))
                                 continue;
                         tile_centre(c, v, tx, ty, uv);
-                        pixel_ray(&v->geom, uv, o, d);
-                        s = (c0[0] - o[0]) * d[0] + (c0[1] - o[1]) * d[1] + (c0[2] - o[2]) * d[2];
+                        fit_nominal_point(&v->geom, c0, uv, X);
                         for (int k = 0; k < 3; k++)
-                                v->points[3 * (ty * tw + tx) + k] = (float)(o[k] + s * d[k]);
+                                v->points[3 * (ty * tw + tx) + k] = (float)X[k];
                 }
 }
 

@@ -83,6 +83,11 @@ int fit_geometry(struct fit_ctx *c);
  * the object frame. */
 void fit_camera_centre(const struct ap_camera *g, double c0[3]);
 
+/* The point of pixel uv's ray of camera g (distortion undone) nearest c0 (object frame):
+ * where the fit places a surface it has no mesh for. */
+void fit_nominal_point(const struct ap_camera *g, const double c0[3], const double uv[2],
+                       double X[3]);
+
 /* Reads the mesh (o->mesh, else the dataset's mesh.ply when there is one) into c->mesh.
  * Returns 0, or -EBADMSG/-errno with c->err. */
 int fit_mesh_read(struct fit_ctx *c);

@@ -4,7 +4,10 @@
  * appearance/. */
 #pragma once
 
+#include <jansson.h>
 #include <stddef.h>
+
+#include "appearance/model.h"
 
 /* Writes a new file name in dfd with buf and fsyncs it. Returns 0 or -errno. */
 int ap_io_put_file(int dfd, const char *name, const void *buf, size_t len);
@@ -20,6 +23,7 @@ struct ap_io_rd {
         const char *dir;
         char *err;
         size_t errlen;
+        const char *json; /* the JSON file read, for messages; NULL: "model.json" */
 };
 
 /* Writes "DIR/FILE: message" into rd's buffer. Returns -EBADMSG. */
@@ -29,3 +33,17 @@ int ap_io_bad(const struct ap_io_rd *rd, const char *file, const char *fmt, ...)
 /* Reads file of rd's directory whole into *buf, of exactly want bytes (0: any). Returns 0,
  * -EBADMSG (missing, or another size, with the sentence) or -errno. */
 int ap_io_slurp(const struct ap_io_rd *rd, const char *file, size_t want, void **buf, size_t *len);
+
+/* A JSON array of the n numbers v (NULL on allocation failure). */
+json_t *ap_io_json_vec(const double *v, size_t n);
+
+/* Camera c as JSON: width, height, fx, fy, cx, cy, dist (5), R (9), t (3). */
+json_t *ap_io_camera_json(const struct ap_camera *c);
+
+/* Reads the n numbers of array key of object o into v; where names o in messages. Returns 0
+ * or -EBADMSG with the sentence. */
+int ap_io_get_vec(const struct ap_io_rd *rd, json_t *o, const char *key, double *v, size_t n,
+                  const char *where);
+
+/* Reads camera o (ap_io_camera_json's) into c. Returns 0 or -EBADMSG with the sentence. */
+int ap_io_get_camera(const struct ap_io_rd *rd, json_t *o, struct ap_camera *c, const char *where);

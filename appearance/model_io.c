@@ -79,7 +79,7 @@ int ap_view_alloc(struct ap_view *v, int k)
 
 /* ---- writing ---- */
 
-static json_t *json_vec(const double *v, size_t n)
+json_t *ap_io_json_vec(const double *v, size_t n)
 {
         json_t *a = json_array();
 
@@ -103,20 +103,21 @@ static json_t *json_angle(double v)
         return isnan(v) ? json_null() : json_real(v);
 }
 
-static json_t *camera_json(const struct ap_camera *c)
+json_t *ap_io_camera_json(const struct ap_camera *c)
 {
         return json_pack("{s:i,s:i,s:f,s:f,s:f,s:f,s:o,s:o,s:o}", "width", c->width, "height",
                          c->height, "fx", c->fx, "fy", c->fy, "cx", c->cx, "cy", c->cy, "dist",
-                         json_vec(c->dist, 5), "R", json_vec(c->R, 9), "t", json_vec(c->t, 3));
+                         ap_io_json_vec(c->dist, 5), "R", ap_io_json_vec(c->R, 9), "t",
+                         ap_io_json_vec(c->t, 3));
 }
 
 static json_t *view_json(const struct ap_view *v, int k, const float *scale, const float *offset)
 {
         return json_pack("{s:s,s:o,s:o,s:o,s:o,s:o,s:o}", "camera", v->camera, "turntable_deg",
                          json_angle(v->turntable_deg), "camera_arm_deg",
-                         json_angle(v->camera_arm_deg), "dir", json_vec(v->dir, 3), "geometry",
-                         camera_json(&v->cam), "scale", json_fvec(scale, k), "offset",
-                         json_fvec(offset, k));
+                         json_angle(v->camera_arm_deg), "dir", ap_io_json_vec(v->dir, 3),
+                         "geometry", ap_io_camera_json(&v->cam), "scale", json_fvec(scale, k),
+                         "offset", json_fvec(offset, k));
 }
 
 static json_t *model_json(const struct ap_model *m, json_t *views)
@@ -404,40 +405,41 @@ int ap_io_slurp(const struct ap_io_rd *rd, const char *file, size_t want, void *
         return 0;
 }
 
-/* Reads n numbers of array key of o into v. */
-static int get_vec(const struct ap_io_rd *rd, json_t *o, const char *key, double *v, size_t n,
-                   const char *where)
+int ap_io_get_vec(const struct ap_io_rd *rd, json_t *o, const char *key, double *v, size_t n,
+                  const char *where)
 {
         json_t *a = json_object_get(o, key);
 
         if (!json_is_array(a) || json_array_size(a) != n)
-                return ap_io_bad(rd, "model.json", "%s: '%s' is not an array of %zu numbers", where,
-                                 key, n);
+                return ap_io_bad(rd, rd->json ? rd->json : "model.json",
+                                 "%s: '%s' is not an array of %zu numbers", where, key, n);
         for (size_t i = 0; i < n; i++) {
                 if (!json_is_number(json_array_get(a, i)))
-                        return ap_io_bad(rd, "model.json", "%s: '%s'[%zu] is not a number", where,
-                                         key, i);
+                        return ap_io_bad(rd, rd->json ? rd->json : "model.json",
+                                         "%s: '%s'[%zu] is not a number", where, key, i);
                 v[i] = json_number_value(json_array_get(a, i));
         }
         return 0;
 }
 
-static int get_camera(const struct ap_io_rd *rd, json_t *o, struct ap_camera *c, const char *where)
+int ap_io_get_camera(const struct ap_io_rd *rd, json_t *o, struct ap_camera *c, const char *where)
 {
         json_error_t e;
         int r;
 
         if (json_unpack_ex(o, &e, 0, "{s:i,s:i,s:F,s:F,s:F,s:F}", "width", &c->width, "height",
                            &c->height, "fx", &c->fx, "fy", &c->fy, "cx", &c->cx, "cy", &c->cy) < 0)
-                return ap_io_bad(rd, "model.json", "%s: geometry: %s", where, e.text);
+                return ap_io_bad(rd, rd->json ? rd->json : "model.json", "%s: geometry: %s", where,
+                                 e.text);
         if (c->width <= 0 || c->height <= 0 || c->width > 16384 || c->height > 16384)
-                return ap_io_bad(rd, "model.json", "%s: geometry: size %dx%d out of range", where,
-                                 c->width, c->height);
-        r = get_vec(rd, o, "dist", c->dist, 5, where);
+                return ap_io_bad(rd, rd->json ? rd->json : "model.json",
+                                 "%s: geometry: size %dx%d out of range", where, c->width,
+                                 c->height);
+        r = ap_io_get_vec(rd, o, "dist", c->dist, 5, where);
         if (r == 0)
-                r = get_vec(rd, o, "R", c->R, 9, where);
+                r = ap_io_get_vec(rd, o, "R", c->R, 9, where);
         if (r == 0)
-                r = get_vec(rd, o, "t", c->t, 3, where);
+                r = ap_io_get_vec(rd, o, "t", c->t, 3, where);
         return r;
 }
 
@@ -501,13 +503,13 @@ static int read_view(const struct ap_io_rd *rd, json_t *o, struct ap_model *m, s
         snprintf(v->camera, sizeof(v->camera), "%s", cam);
         v->turntable_deg = angle_of(o, "turntable_deg");
         v->camera_arm_deg = angle_of(o, "camera_arm_deg");
-        r = get_vec(rd, o, "dir", v->dir, 3, where);
+        r = ap_io_get_vec(rd, o, "dir", v->dir, 3, where);
         if (r == 0)
-                r = get_camera(rd, json_object_get(o, "geometry"), &v->cam, where);
+                r = ap_io_get_camera(rd, json_object_get(o, "geometry"), &v->cam, where);
         if (r == 0)
-                r = get_vec(rd, o, "scale", q, m->k, where);
+                r = ap_io_get_vec(rd, o, "scale", q, m->k, where);
         if (r == 0)
-                r = get_vec(rd, o, "offset", q + AP_K_MAX, m->k, where);
+                r = ap_io_get_vec(rd, o, "offset", q + AP_K_MAX, m->k, where);
         for (int k = 0; r == 0 && k < m->k; k++) {
                 v->scale[k] = (float)q[k];
                 v->offset[k] = (float)q[AP_K_MAX + k];

@@ -357,8 +357,7 @@ static bool shade_ground(const struct ap_env_renderer *r, const float C[3], cons
         return true;
 }
 
-/* The light's unit direction l from p and the irradiance factor I / r^2 (or I). */
-static float light_at(const struct ap_env_light *L, const float p[3], float l[3])
+float ap_env_light_at(const struct ap_env_light *L, const float p[3], float l[3])
 {
         float r2 = 1, len;
 
@@ -395,7 +394,7 @@ static void shade_object_light(const struct ap_env_renderer *r, int32_t t, const
         bary_of(&r->sc.m->atlas.mesh, t, p, w);
         texel_taps(r->sc.m, t, w, &tps);
         texel_blend(r->sc.m, &tps, x);
-        e = light_at(r->sc.light, p, l);
+        e = ap_env_light_at(r->sc.light, p, l);
         ap_brdf_eval(x, l, v, out);
         vis = dot3(l, x->normal) > 0 ? light_vis(r, p, x->normal, l, false) : 0;
         for (int q = 0; q < 3; q++)
@@ -414,7 +413,7 @@ static bool shade_ground_light(const struct ap_env_renderer *r, const float C[3]
         p[0] = C[0] + s * d[0], p[1] = C[1] + s * d[1], p[2] = 0.01f;
         if (p[0] * p[0] + p[1] * p[1] > R * R)
                 return false;
-        e = light_at(r->sc.light, p, l);
+        e = ap_env_light_at(r->sc.light, p, l);
         e *= l[2] > 0 ? l[2] * light_vis(r, p, up, l, true) : 0;
         for (int c = 0; c < 3; c++)
                 out[c] = r->sc.ground_albedo[c] * (float)M_1_PI * e;

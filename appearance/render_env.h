@@ -46,6 +46,10 @@ struct ap_env_light {
         float intensity; /* I */
 };
 
+/* Light L's unit direction l from point p and its irradiance factor I / r^2 (point) or I
+ * (directional). */
+float ap_env_light_at(const struct ap_env_light *L, const float p[3], float l[3]);
+
 #define AP_ENV_LIGHT_ETA 4000.f /* a light of about a degree: shadows nearly hard */
 
 struct ap_env_scene {

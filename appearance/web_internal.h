@@ -33,8 +33,9 @@ int web_fail(struct web *w, int r, const char *what);
  * ("chunk", "bytes", "raw_bytes"). Returns 0 or -errno with the sentence in w. */
 int web_write_chunk(struct web *w, const char *name, const void *data, size_t len, json_t *entry);
 
-/* Reads the BRDF model beside the SH model in model_dir, if any, into w->brdf. Returns 0 (none
- * is fine) or -EBADMSG / -errno with a sentence in w. */
+/* Reads the BRDF model beside the SH model in model_dir, if any, into w->brdf (a view-kind
+ * model, which has no mesh, counts as none). Returns 0 (none is fine) or -EBADMSG / -errno
+ * with a sentence in w. */
 int web_brdf_load(struct web *w, const char *model_dir);
 
 /* Writes the BRDF model's mesh, texels and sphere set, and the manifest's "brdf" object into

@@ -12,10 +12,15 @@
  * full session; 0.1 for a short run: fewer turntable positions). Last line:
  * {"bench":"soak","captures":..,"faults":..,"kills":..,"lost":0,"duplicated":0,
  * "rss_start_mb":..,"rss_end_mb":..}. */
+#include <errno.h>
 #include <getopt.h>
+#include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mount.h>
+#include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include "bench.h"
@@ -159,35 +164,52 @@ static bool dataset_fault(struct soak *s, double timeout)
         return false;
 }
 
+/* Shrinks the tmpfs at dir to what it holds. goniod may store more between the reading and
+ * the remount (then EINVAL): read again. Returns 0 or -errno. */
+static int shrink_to_used(const char *dir)
+{
+        for (int i = 0; i < 100; i++) {
+                struct statvfs v;
+                char opts[64];
+
+                if (statvfs(dir, &v) < 0)
+                        return -errno;
+                snprintf(opts, sizeof(opts), "size=%llu",
+                         (unsigned long long)(v.f_blocks - v.f_bfree) * v.f_frsize);
+                if (mount(NULL, dir, NULL, MS_REMOUNT, opts) == 0)
+                        return 0;
+                if (errno != EINVAL)
+                        return -errno;
+        }
+        return -EBUSY;
+}
+
 /* The data tmpfs shrunk to what it holds: the next store fails (ENOSPC) and goniod faults;
  * then room again. */
 static void fill_disk(struct soak *s)
 {
-        char cmd[600];
-
         s->filled = true;
         if (!s->tmpfs)
                 return;
-        snprintf(cmd, sizeof(cmd),
-                 "mount -o remount,size=$(df --output=used -k %s | tail -1 | tr -d ' ')k %s",
-                 s->e.data, s->e.data);
-        CHECK(system(cmd) == 0);
+        CHECK_INT(shrink_to_used(s->e.data), 0);
         CHECK(dataset_fault(s, 20));
-        snprintf(cmd, sizeof(cmd), "mount -o remount,size=4g %s", s->e.data);
-        CHECK(system(cmd) == 0);
+        CHECK(mount(NULL, s->e.data, NULL, MS_REMOUNT, "size=4g") == 0);
         s->faults++;
         recover(s);
 }
 
 static void setup(struct soak *s, double scale)
 {
-        char text[1024], cmd[600];
+        char text[1024];
         int steps = (int)(360 * scale) < 2 ? 2 : (int)(360 * scale);
 
+        /* in a mount namespace of the bench's own, the tmpfs goes away with the bench and its
+         * children however they end (killed, stopped at a CHECK) */
+        s->tmpfs =
+                unshare(CLONE_NEWNS) == 0 && mount(NULL, "/", NULL, MS_REC | MS_PRIVATE, NULL) == 0;
         bench_start(&s->e, TIME_SCALE, true);
-        snprintf(cmd, sizeof(cmd), "mkdir -p %s && mount -t tmpfs -o size=4g tmpfs %s 2>/dev/null",
-                 s->e.data, s->e.data);
-        s->tmpfs = system(cmd) == 0;
+        s->tmpfs = s->tmpfs && (mkdir(s->e.data, 0755) == 0 || errno == EEXIST) &&
+                   mount("tmpfs", s->e.data, "tmpfs", 0, "size=4g") == 0;
         if (!s->tmpfs)
                 printf("no tmpfs (not root?): no disk-full fault\n");
         snprintf(text, sizeof(text),
@@ -277,11 +299,8 @@ int main(int argc, char **argv)
                "full %s; goniod RSS %.1f MB after 1000 captures, %.1f MB at the end; %.0f s\n",
                (long long)s.planned, s.faults, s.rig_faults, s.kills, s.tmpfs ? "once" : "skipped",
                s.rss_start, s.rss_end, (bench_now_ms() - t0) / 1e3);
-        if (s.tmpfs) {
-                char cmd[600];
-                snprintf(cmd, sizeof(cmd), "umount %s", s.e.data);
-                (void)!system(cmd);
-        }
+        if (s.tmpfs)
+                (void)umount2(s.e.data, MNT_DETACH);
         rigenv_stop(&s.e);
         printf("{\"bench\":\"soak\",\"captures\":%lld,\"faults\":%d,\"kills\":%d,\"lost\":0,"
                "\"duplicated\":0,\"rss_start_mb\":%.1f,\"rss_end_mb\":%.1f}\n",

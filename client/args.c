@@ -42,6 +42,7 @@ enum opt_id {
         O_NOMINAL,
         O_RIG,
         O_STATE,
+        O_FOR,
 };
 
 static const struct {
@@ -83,6 +84,7 @@ static const struct {
         {"rig", O_RIG, "RIG-FILE", ARG_RIG, "the rig a session file runs on"},
         {"state", O_STATE, "STATE", ARG_STATE,
          "idle (default), homing, moving, stopping, capturing, storing or fault"},
+        {"for", O_FOR, "SEC", ARG_FOR, "hold it on SEC seconds, then switch it off"},
 };
 
 static char last_error[256]; /* the first usage error, for --json (args_last_error) */
@@ -216,6 +218,10 @@ static int set_value(struct args *a, enum opt_id id, const char *v)
                 return 0;
         case O_STATE:
                 a->state = v;
+                return 0;
+        case O_FOR:
+                if (args_parse_double(v, &a->for_s) < 0 || a->for_s <= 0 || a->for_s > 86400)
+                        break;
                 return 0;
         case O_SPHERE:
                 if (args_parse_double(v, &a->sphere_mm) < 0 || a->sphere_mm <= 0)

@@ -32,6 +32,7 @@ enum arg_opt {
         ARG_NOMINAL = 1 << 21,
         ARG_RIG = 1 << 22,
         ARG_STATE = 1 << 23,
+        ARG_FOR = 1 << 24,
 };
 
 struct args {
@@ -56,6 +57,7 @@ struct args {
         double lamp_radius_mm;   /* --lamp-radius (calibrate lamps) */
         const char *rig;         /* --rig: a rig file (validate) */
         const char *state;       /* --state: a rig state (wait) */
+        double for_s;            /* --for: seconds to hold a laser or lamp on */
         char **words;            /* positional words (command first); borrowed from argv */
         int nwords;
 };

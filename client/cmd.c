@@ -19,7 +19,9 @@
 #include "client/output.h"
 #include "client/scan.h"
 #include "client/export.h"
+#include "client/hold.h"
 #include "client/session.h"
+#include "client/settings.h"
 #include "client/validate.h"
 #include "client/wait.h"
 #include "common/cleanup.h"
@@ -56,6 +58,7 @@ struct cmd {
         bool stops;   /* waits for motion: an interrupted wait stops the rig (not --no-wait) */
         bool follows; /* follows the session its result describes until it ends or pauses */
         bool admin;   /* an admin method: over the admin socket (admin_socket) */
+        bool holds;   /* switches on: holds them on while connected (hold_switch) */
         /* runs here, without goniod: fills its result (printed) or prints its error with
          * out_error; returns an enum gonioctl_exit value */
         int (*local)(const struct args *a, struct out *o, json_t **ret);
@@ -150,6 +153,35 @@ static int p_laser(const struct cmd *c, const struct args *a, char **argv, int a
         return set(*ret, "on", json_boolean(on));
 }
 
+/* {device, setting?} from DEVICE[.SETTING]: the setting is what follows the last dot. */
+static int p_device(const struct cmd *c, const char *arg, bool need_setting, json_t *p)
+{
+        const char *dot = strrchr(arg, '.');
+
+        if ((dot && (dot == arg || !dot[1])) || (need_setting && !dot))
+                return usage_error(c, "expected DEVICE.SETTING, not '%s'", arg);
+        if (set(p, "device", json_stringn(arg, dot ? (size_t)(dot - arg) : strlen(arg))) < 0)
+                return -ENOMEM;
+        return dot ? set(p, "setting", json_string(dot + 1)) : 0;
+}
+
+static int p_get(const struct cmd *c, const struct args *a, char **argv, int argc, json_t **ret)
+{
+        return argc > 0 ? p_device(c, argv[0], false, *ret) : 0;
+}
+
+static int p_set(const struct cmd *c, const struct args *a, char **argv, int argc, json_t **ret)
+{
+        double v;
+        int r = p_device(c, argv[0], true, *ret);
+
+        if (r < 0)
+                return r;
+        if (args_parse_double(argv[1], &v) < 0)
+                return usage_error(c, "invalid value '%s' (a number)", argv[1]);
+        return set(*ret, "value", json_real(v));
+}
+
 static int p_capture(const struct cmd *c, const struct args *a, char **argv, int argc, json_t **ret)
 {
         if ((a->given & ARG_CAMERA) && set(*ret, "camera", json_string(a->camera)) < 0)
@@ -232,10 +264,18 @@ static const struct cmd commands[] = {
         {NULL, "move", "AXIS DEG [--relative] [--no-wait]", "move an axis (degrees)", "move", 2, 2,
          ARG_RELATIVE | ARG_NO_WAIT, TIMEOUT_LONG_S, p_move, out_print_move, .stops = true},
         {NULL, "stop", "", "stop all motion now", "stop", 0, 0, 0, TIMEOUT_S, NULL, out_print_stop},
-        {NULL, "lamp", "N|NAME on|off", "switch a lamp", "lamp.set", 2, 2, 0, TIMEOUT_S, p_lamp,
-         out_print_lamp},
-        {NULL, "laser", "on|off [NAME]", "switch the laser NAME, or every laser", "laser.set", 1, 2,
-         0, TIMEOUT_S, p_laser, out_print_laser},
+        {NULL, "lamp", "N|NAME on|off [--for SEC]",
+         "switch a lamp (off_on_disconnect: held on as a laser)", "lamp.set", 2, 2, ARG_FOR,
+         TIMEOUT_S, p_lamp, out_print_lamp, .holds = true},
+        {NULL, "laser", "on|off [NAME] [--for SEC]",
+         "switch the laser NAME, or every laser (on: held until Ctrl-C, SIGTERM or --for)",
+         "laser.set", 1, 2, ARG_FOR, TIMEOUT_S, p_laser, out_print_laser, .holds = true},
+        {NULL, "get", "[DEVICE[.SETTING]]",
+         "device settings and their limits (axis speed, accel; camera exposure_us, gain)",
+         "device.get", 0, 1, 0, TIMEOUT_S, p_get, settings_print_get},
+        {NULL, "set", "DEVICE.SETTING VALUE",
+         "change a device setting until goniod restarts (refused during a session)", "device.set",
+         2, 2, 0, TIMEOUT_S, p_set, settings_print_set},
         {NULL, "capture", "[--camera NAME] [--exposure US] [--gain G] [--bits 8|16]",
          "capture into the open dataset", "capture", 0, 0,
          ARG_CAMERA | ARG_EXPOSURE | ARG_GAIN | ARG_BITS, TIMEOUT_LONG_S, p_capture,
@@ -737,15 +777,16 @@ static int run_method(const struct cmd *c, const struct args *a, struct out *o, 
 {
         double timeout_s = a->timeout_s > 0 ? a->timeout_s : c->timeout_s;
         bool stops = (c->stops && !(a->given & ARG_NO_WAIT)) || c->follows;
-        _cleanup_close_ int sfd = stops ? cmd_intr_fd() : -EBADF;
+        /* a hold catches signals before its request: one that comes meanwhile ends the hold */
+        _cleanup_close_ int sfd = stops || c->holds ? cmd_intr_fd() : -EBADF;
         _cleanup_(json_decrefp) json_t *sent = json_incref(params);
         struct interruption why;
         struct conn_error e;
         json_t *res = NULL;
         int r;
 
-        r = conn_call(conn, method, params, deadline_after(timeout_s), sfd, on_progress, o, &res,
-                      &e);
+        r = conn_call(conn, method, params, deadline_after(timeout_s), stops ? sfd : -1,
+                      on_progress, o, &res, &e);
         if (stops && (r == -EINTR || r == -ETIMEDOUT)) {
                 read_interruption(sfd, r, timeout_s, &why);
                 return stop_interrupted(o, conn, method, sent, &why);
@@ -760,8 +801,9 @@ static int run_method(const struct cmd *c, const struct args *a, struct out *o, 
                 return r;
         }
         out_result(o, c->print, c->done, res);
+        r = c->holds ? hold_switch(a, o, conn, method, sent, res, sfd) : EXIT_OK;
         json_decref(res);
-        return EXIT_OK;
+        return r;
 }
 
 /* Runs a command that needs no goniod and prints its result. */

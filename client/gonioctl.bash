@@ -1,7 +1,8 @@
 # gonioctl.bash - bash completion of gonioctl, installed as
 # share/bash-completion/completions/gonioctl. Commands and options come from gonioctl itself
 # (`gonioctl --help`, `gonioctl COMMAND --help`), so they never drift from the program; device
-# names (axes, lamps, lasers, cameras) from `gonioctl describe` when goniod answers within 1 s.
+# names (axes, lamps, lasers, cameras) from `gonioctl describe` and DEVICE.SETTING from
+# `gonioctl get` when goniod answers within 1 s.
 
 # The device names of class $2 (axis, lamp, laser, camera; empty: every class), asked of
 # goniod on the socket $1 (empty: the default one).
@@ -9,6 +10,12 @@ _gonioctl_devices()
 {
         gonioctl ${1:+--socket "$1"} --timeout 1 describe 2>/dev/null |
                 awk -v cls="$2" 'NR > 1 && /^[^ ]/ && (cls == "" || $2 == cls) { print $1 }'
+}
+
+# DEVICE.SETTING of every device setting (gonioctl get), asked of goniod on the socket $1.
+_gonioctl_settings()
+{
+        gonioctl ${1:+--socket "$1"} --timeout 1 get 2>/dev/null | awk 'NR > 1 { print $1 "." $2 }'
 }
 
 # The commands (first words) of the usage, or the subcommands of the group $1.
@@ -38,7 +45,7 @@ _gonioctl()
                 --timeout | --camera | --exposure | --gain | --bits | --count | --from | \
                         --board | --laser | --calibration | --start | --end | --step | \
                         --mode | --lamps | --sphere | --lamp-radius | --rig | --state | \
-                        --triangles | --format | -o) ((i++)) ;;
+                        --triangles | --format | --for | -o) ((i++)) ;;
                 -*) ;;
                 *) cmd+=("$w") ;;
                 esac
@@ -55,7 +62,7 @@ _gonioctl()
         --laser) COMPREPLY=($(compgen -W "$(_gonioctl_devices "$socket" laser)" -- "$cur")); return ;;
         --lamps) COMPREPLY=($(compgen -W "$(_gonioctl_devices "$socket" lamp)" -- "$cur")); return ;;
         --timeout | --exposure | --gain | --count | --start | --end | --step | --sphere | \
-                --lamp-radius | --triangles) return ;;
+                --lamp-radius | --triangles | --for) return ;;
         esac
         if [[ $cur == -* ]]; then
                 COMPREPLY=($(compgen -W "$(_gonioctl_options "${cmd[@]:0:2}")" -- "$cur"))
@@ -76,6 +83,8 @@ _gonioctl()
                 COMPREPLY=($(compgen -W "on off" -- "$cur")) ;;
         laser:2)
                 COMPREPLY=($(compgen -W "$(_gonioctl_devices "$socket" laser)" -- "$cur")) ;;
+        get:1 | set:1)
+                COMPREPLY=($(compgen -W "$(_gonioctl_settings "$socket")" -- "$cur")) ;;
         validate:1 | session:2 | scan:1)
                 COMPREPLY=($(compgen -f -- "$cur")) ;;
         esac

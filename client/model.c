@@ -2,8 +2,10 @@
  * [--reg tikhonov|tsvd] [--reg-param X] [--tile N] [--threads N] [--calibration FILE|nominal]
  * [--mesh FILE] [--force]: the appearance fit of a dataset (appearance/fit.h) written as
  * models/<name>/ of the dataset (appearance/model.h), without goniod; with --brdf [--texels N]
- * the BRDF fit instead (appearance/brdf_fit.h) written as models/<name>/brdf/; the summary as
- * text or JSON (docs/appearance.md, "gonioctl model fit"). */
+ * [--per-view] the BRDF fit instead (appearance/brdf_fit.h; per texel of the mesh, or per
+ * pixel of each view where there is no mesh or --per-view asks) written as
+ * models/<name>/brdf/; the summary as text or JSON (docs/appearance.md, "gonioctl model
+ * fit"). */
 #include <errno.h>
 #include <getopt.h>
 #include <limits.h>
@@ -32,8 +34,9 @@ struct fit_cli {
         struct ap_fit_opts o;
         const char *dataset;
         bool force;
-        bool brdf;   /* --brdf: the BRDF fit */
-        long texels; /* its --texels, 0: the default */
+        bool brdf;     /* --brdf: the BRDF fit */
+        bool per_view; /* --per-view: of the view kind */
+        long texels;   /* its --texels, 0: the default */
 };
 
 /* Stores option c's value v into f. Returns 0 or -EINVAL (message printed). */
@@ -97,6 +100,7 @@ static int parse_fit(int n, char **words, struct fit_cli *f)
                 {"force", no_argument, NULL, 'f'},
                 {"brdf", no_argument, NULL, 'b'},
                 {"texels", required_argument, NULL, 'T'},
+                {"per-view", no_argument, NULL, 'V'},
                 {},
         };
         int c, li = 0;
@@ -106,8 +110,8 @@ static int parse_fit(int n, char **words, struct fit_cli *f)
         optind = 0; /* glibc: a full reset, words is not the process's argv */
         opterr = 0;
         while ((c = getopt_long(n, words, "", opts, &li)) != -1) {
-                if (c == 'f' || c == 'b')
-                        *(c == 'f' ? &f->force : &f->brdf) = true;
+                if (c == 'f' || c == 'b' || c == 'V')
+                        *(c == 'f' ? &f->force : c == 'b' ? &f->brdf : &f->per_view) = true;
                 else if (c == '?' || c == ':')
                         return args_usage_error(WHAT, "unknown option or missing value '%s'",
                                                 words[optind - 1]);
@@ -118,8 +122,9 @@ static int parse_fit(int n, char **words, struct fit_cli *f)
         if (optind != n - 1)
                 return args_usage_error(WHAT, "needs one DATASET (usage: model fit DATASET "
                                               "[--name N] [--order P] [--components K] ...)");
-        if (f->texels && !f->brdf)
-                return args_usage_error(WHAT, "--texels needs --brdf");
+        if ((f->texels || f->per_view) && !f->brdf)
+                return args_usage_error(WHAT, "--%s needs --brdf",
+                                        f->texels ? "texels" : "per-view");
         f->dataset = words[optind];
         return 0;
 }
@@ -134,26 +139,42 @@ static json_t *summary_json(const struct ap_model *m, const char *dir)
                          m->fit_seconds, "notes", m->notes);
 }
 
-/* The summary of BRDF model m written at dir: texels by outcome, the median rms. */
-static json_t *brdf_summary_json(const struct ap_brdf_model *m, const char *dir)
+/* Adds the n texels x to the counts by outcome k (fitted, diffuse only, masked) and the
+ * residuals of those not masked to rms[*nr ..]. */
+static void brdf_count(const struct ap_brdf_texel *x, size_t n, size_t k[3], float *rms, size_t *nr)
 {
-        size_t n = (size_t)m->atlas.width * m->atlas.height, k[3] = {0}, nr = 0;
-        _cleanup_free_ float *rms = malloc((n + 1) * sizeof(float));
-
-        for (size_t i = 0; rms && i < n; i++) {
-                uint32_t fl = m->texels[i].flags;
+        for (size_t i = 0; i < n; i++) {
+                uint32_t fl = x[i].flags;
                 k[fl & AP_BRDF_FITTED ? 0 : fl & AP_BRDF_DIFFUSE_ONLY ? 1 : 2]++;
                 if (!(fl & AP_BRDF_MASKED))
-                        rms[nr++] = m->texels[i].rms;
+                        rms[(*nr)++] = x[i].rms;
         }
-        if (!rms)
+}
+
+/* The summary of BRDF model m written at dir: texels (or the views' pixels) by outcome, the
+ * median rms. */
+static json_t *brdf_summary_json(const struct ap_brdf_model *m, const char *dir)
+{
+        bool view = m->kind == AP_BRDF_KIND_VIEW;
+        size_t n = view ? 0 : (size_t)m->atlas.width * m->atlas.height, k[3] = {0}, nr = 0;
+        _cleanup_free_ float *rms = NULL;
+
+        for (size_t i = 0; i < m->n_views; i++)
+                n += (size_t)m->views[i].cam.width * m->views[i].cam.height;
+        if (!(rms = malloc((n + 1) * sizeof(float))))
                 return NULL;
+        if (!view)
+                brdf_count(m->texels, n, k, rms, &nr);
+        for (size_t i = 0; i < m->n_views; i++)
+                brdf_count(m->views[i].px, (size_t)m->views[i].cam.width * m->views[i].cam.height,
+                           k, rms, &nr);
         qsort(rms, nr, sizeof(float), gn_cmp_float);
-        return json_pack("{s:s,s:s,s:b,s:I,s:I,s:I,s:I,s:f,s:f,s:f,s:s}", "model", dir, "name",
-                         m->name, "brdf", 1, "texels", (json_int_t)n, "fitted", (json_int_t)k[0],
-                         "diffuse_only", (json_int_t)k[1], "masked", (json_int_t)k[2], "median_rms",
-                         nr ? (double)rms[nr / 2] : 0.0, "response", m->response, "seconds",
-                         m->fit_seconds, "notes", m->notes);
+        return json_pack("{s:s,s:s,s:b,s:s,s:I,s:I,s:I,s:I,s:I,s:f,s:f,s:f,s:s}", "model", dir,
+                         "name", m->name, "brdf", 1, "kind", view ? "view" : "texel", "views",
+                         (json_int_t)m->n_views, "texels", (json_int_t)n, "fitted",
+                         (json_int_t)k[0], "diffuse_only", (json_int_t)k[1], "masked",
+                         (json_int_t)k[2], "median_rms", nr ? (double)rms[nr / 2] : 0.0, "response",
+                         m->response, "seconds", m->fit_seconds, "notes", m->notes);
 }
 
 /* The BRDF fit of dataset d with f's options, written and summarised. */
@@ -170,6 +191,8 @@ static int model_fit_brdf(const struct fit_cli *f, struct ds *d, const char *dir
         bo.backends = f->o.backends;
         if (f->texels)
                 bo.texels = (size_t)f->texels;
+        if (f->per_view)
+                bo.kind = AP_BRDF_FIT_VIEW;
         if ((r = ap_brdf_fit(d, &bo, &m, err, sizeof(err))) < 0) {
                 out_error(o, WHAT, "%s: %s", f->dataset, err);
                 return cmd_exit_for_errno(r);
@@ -258,9 +281,11 @@ void model_print(json_t *res)
         if (!res) /* model render: printed already */
                 return;
         if (json_is_true(json_object_get(res, "brdf"))) {
-                printf("BRDF model %s: %lld texels: %lld fitted, %lld diffuse only, %lld masked\n",
+                bool view = !strcmp(json_string_value(json_object_get(res, "kind")), "view");
+                printf("BRDF model %s: %lld %s%s: %lld fitted, %lld diffuse only, %lld masked\n",
                        json_string_value(json_object_get(res, "model")),
                        (long long)json_integer_value(json_object_get(res, "texels")),
+                       view ? "pixels of the views" : "texels", view ? " (no mesh)" : "",
                        (long long)json_integer_value(json_object_get(res, "fitted")),
                        (long long)json_integer_value(json_object_get(res, "diffuse_only")),
                        (long long)json_integer_value(json_object_get(res, "masked")));

@@ -209,31 +209,27 @@ int render_place_camera(const struct render_opts *o, const double c[3], double d
         return ap_camera_look_at(&intr, eye, c, cam) < 0 ? EXIT_INVALID : 0;
 }
 
-/* The SH model's output camera: the intrinsics of the sampled view nearest the direction
- * (scaled to --size, or --focal), at --distance (else that view's) from the mesh centre. */
-static int make_camera(const struct render_opts *o, const struct ap_model *m,
-                       const struct ap_renderer *r, struct ap_camera *cam)
+int render_check_view(const struct render_opts *o, const struct ap_views *vs)
 {
-        double d[3], c[3], best = -2, dist = 0, s;
-        const struct ap_view *near = NULL;
-        struct ap_camera intr;
+        double d[3], s;
 
         render_view_dir(o, d);
-        s = ap_views_outside_angle(ap_renderer_views(r), d) * 180 / M_PI;
-        if (s > MAX_OUTSIDE_DEG) {
-                fprintf(stderr,
-                        "gonioctl: model render: view %g,%g is %.0f deg away from the views the "
-                        "model covers (at most %.0f)\n",
-                        o->az, o->el, s, MAX_OUTSIDE_DEG);
-                return EXIT_INVALID;
-        }
-        ap_renderer_centre(r, c);
-        for (size_t i = 0; i < m->n_views; i++) {
-                const double *v = m->views[i].dir;
-                if (v[0] * d[0] + v[1] * d[1] + v[2] * d[2] > best)
-                        best = v[0] * d[0] + v[1] * d[1] + v[2] * d[2], near = &m->views[i];
-        }
-        intr = near->cam;
+        s = ap_views_outside_angle(vs, d) * 180 / M_PI;
+        if (s <= MAX_OUTSIDE_DEG)
+                return 0;
+        fprintf(stderr,
+                "gonioctl: model render: view %g,%g is %.0f deg away from the views the model "
+                "covers (at most %.0f)\n",
+                o->az, o->el, s, MAX_OUTSIDE_DEG);
+        return EXIT_INVALID;
+}
+
+int render_camera_near(const struct render_opts *o, const double c[3], const struct ap_camera *near,
+                       struct ap_camera *cam)
+{
+        struct ap_camera intr = *near;
+        double dist = 0, s;
+
         for (int i = 0; i < 3; i++) {
                 double e = -(intr.R[i] * intr.t[0] + intr.R[3 + i] * intr.t[1] +
                              intr.R[6 + i] * intr.t[2]) -
@@ -245,6 +241,27 @@ static int make_camera(const struct render_opts *o, const struct ap_model *m,
                                   o->focal > 0 ? o->focal : intr.fx * s,
                                   o->focal > 0 ? o->focal : intr.fy * s};
         return render_place_camera(o, c, sqrt(dist), intr, cam);
+}
+
+/* The SH model's output camera: the intrinsics of the sampled view nearest the direction
+ * (scaled to --size, or --focal), at --distance (else that view's) from the mesh centre. */
+static int make_camera(const struct render_opts *o, const struct ap_model *m,
+                       const struct ap_renderer *r, struct ap_camera *cam)
+{
+        double d[3], c[3], best = -2;
+        const struct ap_view *near = NULL;
+        int e;
+
+        if ((e = render_check_view(o, ap_renderer_views(r))) != 0)
+                return e;
+        render_view_dir(o, d);
+        ap_renderer_centre(r, c);
+        for (size_t i = 0; i < m->n_views; i++) {
+                const double *v = m->views[i].dir;
+                if (v[0] * d[0] + v[1] * d[1] + v[2] * d[2] > best)
+                        best = v[0] * d[0] + v[1] * d[1] + v[2] * d[2], near = &m->views[i];
+        }
+        return render_camera_near(o, c, &near->cam, cam);
 }
 
 int render_load_envmap(const struct render_opts *o, struct ap_envmap *e)
@@ -389,8 +406,8 @@ static int render_sh(const struct render_opts *o)
 }
 
 /* The BRDF model of the folder when o asks for it (or, unless o says sh, under --envmap
- * when there is one; --light and --dir take the SH model unless asked): 1 with it in *ret,
- * 0 for the SH model, or an exit code. */
+ * when there is one of the texel kind; --light and --dir take the SH model unless asked): 1
+ * with it in *ret, 0 for the SH model, or an exit code. */
 static int want_brdf(const struct render_opts *o, struct ap_brdf_model **ret)
 {
         char err[1024] = "";
@@ -400,6 +417,10 @@ static int want_brdf(const struct render_opts *o, struct ap_brdf_model **ret)
             (o->reflectance == REFLECTANCE_AUTO && o->kind != AP_LIGHT_ENV))
                 return 0;
         r = ap_brdf_read(o->model, ret, err, sizeof(err));
+        if (r == 0 && (*ret)->kind == AP_BRDF_KIND_VIEW && o->reflectance == REFLECTANCE_AUTO) {
+                *ret = ap_brdf_model_free(*ret); /* no mesh: no environment lighting */
+                return 0;
+        }
         if (r == -ENOENT && o->reflectance == REFLECTANCE_AUTO)
                 return 0;
         if (r < 0) {

@@ -4,7 +4,9 @@
  * mesh, on the object and on a ground disc at z = 0 (docs/appearance.md, "Environment
  * relighting"); or under a point or directional light, the same shadows. The camera looks at the
  * mesh's centre from --view at --distance (default four bounding radii) with --focal (default: the
- * bounding sphere fills 80% of the shorter side). */
+ * bounding sphere fills 80% of the shorter side). A model of the view kind (no mesh:
+ * appearance/brdf_render.h) under a point or directional light only, from its captured view's
+ * own camera at that view's direction, else the nearest view's (as the SH model's). */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -12,13 +14,15 @@
 #include <string.h>
 #include <time.h>
 
+#include "appearance/brdf_render.h"
 #include "appearance/render_env.h"
 #include "client/cmd.h"
 #include "client/model_render.h"
 #include "common/cleanup.h"
 
-#define PF_WIDTH 96 /* each prefiltered map's width */
-#define THREADS  2
+#define PF_WIDTH     96  /* each prefiltered map's width */
+#define CAPTURED_DEG 0.1 /* a --view this near a captured view's direction is that view */
+#define THREADS      2
 
 struct brdf_scene {
         struct ap_envmap env;
@@ -128,6 +132,90 @@ static int render(const struct render_opts *o, const struct brdf_scene *s,
         return EXIT_OK;
 }
 
+/* The view kind's camera: the captured view's own where --view is its direction and no
+ * --size, --focal or --distance asks otherwise (*captured its index, else -1); else near the
+ * nearest view. Returns 0 or an exit code. */
+static int view_kind_camera(const struct render_opts *o, const struct ap_brdf_model *m,
+                            struct ap_camera *cam, long *captured)
+{
+        double d[3], best = -2;
+        size_t near = 0;
+
+        render_view_dir(o, d);
+        for (size_t i = 0; i < m->n_views; i++) {
+                const double *v = m->views[i].dir;
+                if (v[0] * d[0] + v[1] * d[1] + v[2] * d[2] > best)
+                        best = v[0] * d[0] + v[1] * d[1] + v[2] * d[2], near = i;
+        }
+        *captured = -1;
+        if (best < cos(CAPTURED_DEG * M_PI / 180) || o->width || o->focal > 0 || o->distance > 0)
+                return render_camera_near(o, m->centre, &m->views[near].cam, cam);
+        *cam = m->views[near].cam;
+        *captured = (long)near;
+        return 0;
+}
+
+/* Renders view-kind model m under o's light, the views triangulated in vs. */
+static int render_view_kind(const struct render_opts *o, const struct ap_brdf_model *m,
+                            const struct ap_views *vs)
+{
+        struct ap_env_light L = {o->kind == AP_LIGHT_POINT,
+                                 {(float)o->light[0], (float)o->light[1], (float)o->light[2]},
+                                 (float)(o->intensity > 0 ? o->intensity : 1)};
+        _cleanup_free_ float *rgb = NULL;
+        _cleanup_free_ uint8_t *mask = NULL;
+        struct ap_camera cam;
+        size_t n, covered = 0;
+        long captured;
+        int e;
+
+        if ((e = render_check_view(o, vs)) != 0 || (e = view_kind_camera(o, m, &cam, &captured)))
+                return e;
+        n = (size_t)cam.width * cam.height;
+        if (!(rgb = malloc(3 * n * sizeof(float))) || !(mask = malloc(n)))
+                return EXIT_STORAGE;
+        if ((e = ap_brdf_view_render(m, vs, &cam, &L, rgb, mask)) < 0 ||
+            (e = render_write_image(o->out, rgb, cam.width, cam.height, o->gain)) < 0) {
+                fprintf(stderr, "gonioctl: model render: %s: %s\n", o->out, strerror(-e));
+                return cmd_exit_for_errno(e);
+        }
+        for (size_t i = 0; i < n; i++)
+                covered += mask[i];
+        printf("rendered %s: %dx%d, %zu pixels of the object, view %g,%g; BRDF model of the view "
+               "kind (no mesh): ",
+               o->out, cam.width, cam.height, covered, o->az, o->el);
+        if (captured >= 0)
+                printf("captured view %ld\n", captured);
+        else
+                printf("the captured views around it blended\n");
+        return EXIT_OK;
+}
+
+/* A model of the view kind: refused under an environment map, else rendered. */
+static int model_render_view_kind(const struct render_opts *o, const struct ap_brdf_model *m)
+{
+        struct ap_views *vs = NULL;
+        int e;
+
+        if (o->kind == AP_LIGHT_ENV) {
+                fprintf(stderr,
+                        "gonioctl: model render: %s: the BRDF model is of the view kind (fitted "
+                        "without a mesh): no environment lighting without a mesh (its shadows "
+                        "and normals off the views); use --light or --dir, or scan the object "
+                        "and fit again\n",
+                        o->model);
+                return EXIT_INVALID;
+        }
+        if ((e = ap_brdf_views_new(m, &vs)) < 0) {
+                fprintf(stderr, "gonioctl: model render: %s: cannot render: %s\n", o->model,
+                        strerror(-e));
+                return cmd_exit_for_errno(e);
+        }
+        e = render_view_kind(o, m, vs);
+        ap_views_free(vs);
+        return e;
+}
+
 int model_render_brdf(const struct render_opts *o, const struct ap_brdf_model *m)
 {
         struct brdf_scene s = {0};
@@ -135,6 +223,8 @@ int model_render_brdf(const struct render_opts *o, const struct ap_brdf_model *m
         struct ap_camera cam;
         int e;
 
+        if (m->kind == AP_BRDF_KIND_VIEW)
+                return model_render_view_kind(o, m);
         if ((e = scene_build(o, m, &s)) == 0 && (e = scene_camera(o, &s, &cam)) == 0) {
                 if ((e = ap_env_renderer_new(&s.sc, &r)) < 0) {
                         fprintf(stderr, "gonioctl: model render: %s: cannot render: %s\n", o->model,

@@ -384,12 +384,27 @@ static int read_motion(struct yconf *yc, struct fy_node *m, struct rig_axis_conf
         return 0;
 }
 
+/* max_accel: at least accel; accel when absent. */
+static int read_max_accel(struct yconf *yc, struct fy_node *m, struct rig_axis_conf *a)
+{
+        int r;
+
+        a->max_accel = a->accel;
+        if ((r = yconf_double(yc, m, "max_accel", 0.1, 6553.5, &a->max_accel)) < 0)
+                return r;
+        if (a->max_accel < a->accel)
+                return yconf_error(yc, yconf_get(m, "max_accel"), "max_accel",
+                                   "must be at least accel (%g)", a->accel);
+        return 0;
+}
+
 static int parse_axis(struct rig_config *rc, struct fy_node *m, struct rig_axis_conf *a)
 {
         static const char *const keys[] = {
-                "name",         "continuous",       "limits",    "max_speed",        "accel",
-                "settle_ms",    "move_timeout_ms",  "role",      "backlash",         "deadband",
-                "move_retries", "absolute_encoder", "direction", "move_overhead_ms", NULL};
+                "name",      "continuous",       "limits",          "max_speed",
+                "accel",     "settle_ms",        "move_timeout_ms", "role",
+                "backlash",  "deadband",         "move_retries",    "absolute_encoder",
+                "direction", "move_overhead_ms", "max_accel",       NULL};
         struct yconf *yc = &rc->yc;
         double lim[2] = {-180, 180};
         int r;
@@ -402,6 +417,7 @@ static int parse_axis(struct rig_config *rc, struct fy_node *m, struct rig_axis_
             (r = yconf_doubles(yc, m, "limits", lim, 2, 2, NULL)) < 0 ||
             (r = yconf_double(yc, m, "max_speed", 0.1, 6553.5, &a->max_speed)) < 0 ||
             (r = yconf_double(yc, m, "accel", 0.1, 6553.5, &a->accel)) < 0 ||
+            (r = read_max_accel(yc, m, a)) < 0 ||
             (r = read_int(yc, m, "settle_ms", 0, 60000, &a->settle_ms)) < 0 ||
             (r = read_int(yc, m, "move_timeout_ms", 0, 3600000, &a->move_timeout_ms)) < 0 ||
             (r = read_int(yc, m, "move_overhead_ms", 0, 10000, &a->move_overhead_ms)) < 0 ||
@@ -470,7 +486,8 @@ static int parse_laser(struct rig_config *rc, struct fy_node *m, struct rig_swit
                                       .laser_origin = {600, 0, 150},
                                       .laser_width_mm = 0.5,
                                       .laser_power = 1e3,
-                                      .max_on_s = RIG_LASER_MAX_ON_S};
+                                      .max_on_s = RIG_LASER_MAX_ON_S,
+                                      .off_on_disconnect = true};
         if ((r = parse_switch_common(rc, m, keys, s)) < 0 ||
             (r = yconf_double(yc, m, "azimuth", -360, 360, &s->laser_azimuth_deg)) < 0 ||
             (r = yconf_doubles(yc, m, "origin", s->laser_origin, 3, 3, NULL)) < 0 ||
@@ -503,13 +520,47 @@ static int parse_camera_geometry(struct yconf *yc, struct fy_node *m, struct rig
         return 0;
 }
 
+/* max_exposure_us and max_gain: at least the defaults exposure_us and gain. */
+static int read_camera_limits(struct yconf *yc, struct fy_node *m, struct rig_camera_conf *c)
+{
+        int r;
+
+        if ((r = read_int(yc, m, "max_exposure_us", RIG_EXPOSURE_US_MIN, RIG_EXPOSURE_US_MAX,
+                          &c->max_exposure_us)) < 0 ||
+            (r = yconf_double(yc, m, "max_gain", RIG_GAIN_MIN, RIG_GAIN_MAX, &c->max_gain)) < 0)
+                return r;
+        if (c->max_exposure_us && c->max_exposure_us < c->exposure_us)
+                return yconf_error(yc, yconf_get(m, "max_exposure_us"), "max_exposure_us",
+                                   "must be at least exposure_us (%d)", c->exposure_us);
+        if (c->max_gain > 0 && c->max_gain < c->gain)
+                return yconf_error(yc, yconf_get(m, "max_gain"), "max_gain",
+                                   "must be at least gain (%g)", c->gain);
+        return 0;
+}
+
 static int parse_camera(struct rig_config *rc, struct fy_node *m, struct rig_camera_conf *c)
 {
-        static const char *const keys[] = {
-                "name",       "elevation",     "distance",    "azimuth", "target",
-                "width",      "height",        "fx",          "fy",      "cx",
-                "cy",         "distortion",    "exposure_us", "gain",    "bits",
-                "readout_ms", "occlusion_deg", "frame_rate",  NULL};
+        static const char *const keys[] = {"name",
+                                           "elevation",
+                                           "distance",
+                                           "azimuth",
+                                           "target",
+                                           "width",
+                                           "height",
+                                           "fx",
+                                           "fy",
+                                           "cx",
+                                           "cy",
+                                           "distortion",
+                                           "exposure_us",
+                                           "gain",
+                                           "bits",
+                                           "readout_ms",
+                                           "occlusion_deg",
+                                           "frame_rate",
+                                           "max_exposure_us",
+                                           "max_gain",
+                                           NULL};
         struct yconf *yc = &rc->yc;
         int r;
 
@@ -530,6 +581,7 @@ static int parse_camera(struct rig_config *rc, struct fy_node *m, struct rig_cam
             (r = read_int(yc, m, "exposure_us", RIG_EXPOSURE_US_MIN, RIG_EXPOSURE_US_MAX,
                           &c->exposure_us)) < 0 ||
             (r = yconf_double(yc, m, "gain", RIG_GAIN_MIN, RIG_GAIN_MAX, &c->gain)) < 0 ||
+            (r = read_camera_limits(yc, m, c)) < 0 ||
             (r = read_int(yc, m, "bits", 8, 16, &c->bits)) < 0 ||
             (r = read_int(yc, m, "readout_ms", 0, 10000, &c->readout_ms)) < 0 ||
             (r = yconf_double(yc, m, "frame_rate", 0.1, 1000, &c->frame_rate)) < 0 ||

@@ -122,8 +122,9 @@ struct rig_axis_conf {
         int role;                /* enum gn_role, or -1: moves nothing the pose records */
         bool continuous;         /* wraps at 360 deg; no soft limits */
         double min_deg, max_deg; /* soft limits (when !continuous) */
-        double max_speed;        /* deg/s */
-        double accel;            /* deg/s^2 */
+        double max_speed;        /* deg/s: the speed of moves, and the most `set` allows */
+        double accel;            /* deg/s^2: the acceleration of moves */
+        double max_accel;        /* deg/s^2: the most `set` allows (default: accel) */
         int settle_ms;           /* extra wait after in-position */
         int move_overhead_ms;    /* planning: command and poll latency per leg (default 35) */
         int move_timeout_ms;     /* 0 = derived from distance, speed and accel */
@@ -148,7 +149,7 @@ struct rig_switch_conf {
         int warmup_ms;   /* settle time after switching on */
         double max_on_s; /* switched off after this long on, 0: no limit (docs/rig-file.md) */
         bool off_on_disconnect; /* switched off when the client that switched it on outside a
-                                 * session disconnects */
+                                 * session disconnects (default: true for a laser) */
         /* lamps: position on the light arm */
         double elevation_deg, radius_mm, azimuth_deg; /* azimuth: offset from arm zero */
         double intensity;                             /* radiant intensity, sim units */
@@ -170,6 +171,8 @@ struct rig_camera_conf {
         double dist[5]; /* k1 k2 p1 p2 k3, OpenCV convention */
         int exposure_us;
         double gain;
+        int max_exposure_us;  /* the most `set` allows for exposure_us; 0: the driver's range */
+        double max_gain;      /* the most `set` allows for gain; 0: the driver's range */
         int bits;             /* 8 or 16 */
         int readout_ms;       /* planning: time per frame beyond the exposure (default 30) */
         double frame_rate;    /* frames/s at most: exposures start >= 1/frame_rate apart

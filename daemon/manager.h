@@ -57,6 +57,17 @@ void manager_client_gone(uint64_t client, void *ud);
  * storage. New reference. */
 json_t *manager_status(struct manager *m);
 
+/* Why the rig refused an operation at once with -errno r, for a reply (methods.c). */
+const char *manager_refusal(const struct manager *m, int r);
+
+/* Refuses req (answering it with -EBUSY and the reason; returns that) while a session or a
+ * scan owns the rig; else returns 0 (methods.c). */
+int manager_session_refuses(struct srv_req *req, struct manager *m);
+
+/* device.get and device.set of the control protocol (settings.c, docs/protocol.md). */
+int settings_get(struct srv_req *req, json_t *params, void *userdata);
+int settings_set(struct srv_req *req, json_t *params, void *userdata);
+
 /* The method table of the control protocol (methods.c). */
 extern const struct srv_method manager_methods[];
 

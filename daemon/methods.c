@@ -68,8 +68,7 @@ static void on_rig_done(struct rig *rig, int result, const char *msg, void *user
         op_part_done(userdata, result, msg);
 }
 
-/* Why the rig refused an operation at once. */
-static const char *refusal(const struct manager *m, int r)
+const char *manager_refusal(const struct manager *m, int r)
 {
         switch (r) {
         case -ESTALE:
@@ -90,7 +89,7 @@ static void op_refused(struct op *o, int r, const char *device)
 {
         char msg[256];
 
-        snprintf(msg, sizeof(msg), "%s: %s", device, refusal(o->m, r));
+        snprintf(msg, sizeof(msg), "%s: %s", device, manager_refusal(o->m, r));
         op_part_done(o, r, msg);
 }
 
@@ -109,9 +108,7 @@ static json_t *axes_result(struct op *o)
         return json_pack("{so}", "axes", out);
 }
 
-/* Refuses a request that would move, switch or capture while a session or a scan owns the
- * rig. */
-static int session_refuses(struct srv_req *req, struct manager *m)
+int manager_session_refuses(struct srv_req *req, struct manager *m)
 {
         const char *why = session_busy_reason(m->session) ?: scan_busy_reason(m->scan);
 
@@ -188,7 +185,7 @@ static int m_home(struct srv_req *req, json_t *params, void *userdata)
         int r;
 
         if ((r = srv_params_check(req, params, KEYS("axes"))) < 0 ||
-            (r = session_refuses(req, m)) < 0)
+            (r = manager_session_refuses(req, m)) < 0)
                 return r;
         if (axes && (!json_is_array(axes) || n > RIG_MAX_AXES))
                 return srv_req_errmsg(req, -EINVAL, "param 'axes': expected a list of names");
@@ -233,7 +230,7 @@ static const char *move_refusal(struct manager *m, int i, int r, char *buf, size
         const struct rig_axis_conf *c = &m->rc->axes[i];
 
         if (r != -ERANGE)
-                return refusal(m, r);
+                return manager_refusal(m, r);
         snprintf(buf, len, "outside the soft limits [%g, %g] deg of '%s'", c->min_deg, c->max_deg,
                  c->name);
         return buf;
@@ -254,7 +251,7 @@ static int m_move(struct srv_req *req, json_t *params, void *userdata)
             (r = srv_param_double(req, params, "position", &pos)) < 0 ||
             (r = srv_param_bool(req, params, "relative", &relative)) < 0 ||
             (r = srv_param_bool(req, params, "wait", &wait)) < 0 ||
-            (r = session_refuses(req, m)) < 0)
+            (r = manager_session_refuses(req, m)) < 0)
                 return r;
         if (!axis || isnan(pos))
                 return srv_req_errmsg(req, -EINVAL, "params 'axis' and 'position' are required");
@@ -319,16 +316,21 @@ void manager_client_gone(uint64_t client, void *ud)
 }
 
 /* Switches the n switches of indices first.. (a lamp, or lasers: RIG_SW_LASER) and answers
- * with {key: name, on} once all are done; name lists them, comma-separated. */
+ * with {key: name, on, off_on_disconnect} once all are done; name lists them, comma-separated;
+ * off_on_disconnect: they went on and go off when this client disconnects. */
 static int switch_and_reply(struct srv_req *req, struct manager *m, int first, int n, bool on,
                             const char *key, const char *name)
 {
+        bool held = on;
         struct op *o;
         int r;
 
-        if ((r = session_refuses(req, m)) < 0)
+        if ((r = manager_session_refuses(req, m)) < 0)
                 return r;
-        if (!(o = op_new(req, json_pack("{sssb}", key, name, "on", on))))
+        for (int i = first; i < first + n; i++)
+                held = held && rig_switch_conf_of(m->rc, i)->off_on_disconnect;
+        if (!(o = op_new(req,
+                         json_pack("{sssbsb}", key, name, "on", on, "off_on_disconnect", held))))
                 return -ENOMEM;
         o->m = m;
         o->pending = n + 1;
@@ -499,7 +501,8 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
         if ((r = srv_params_check(req, params, KEYS("camera", "exposure_us", "gain", "bits"))) <
                     0 ||
             (r = srv_param_str(req, params, "camera", &camera)) < 0 ||
-            (r = read_cam_request(req, params, &cr)) < 0 || (r = session_refuses(req, m)) < 0)
+            (r = read_cam_request(req, params, &cr)) < 0 ||
+            (r = manager_session_refuses(req, m)) < 0)
                 return r;
         if (camera && (cams[n++] = rig_camera_index(m->rig, camera)) < 0)
                 return srv_req_errmsg(req, -ENOENT, "no camera named '%s'", camera);
@@ -513,7 +516,7 @@ static int m_capture(struct srv_req *req, json_t *params, void *userdata)
                 return srv_req_errmsg(req, -ESTALE, "no dataset is open (dataset.open first)");
         r = capture_take(m->capture, cams, n, &cr, NULL, on_captured, req);
         if (r < 0)
-                return srv_req_errmsg(req, r, "capture refused: %s", refusal(m, r));
+                return srv_req_errmsg(req, r, "capture refused: %s", manager_refusal(m, r));
         return 0;
 }
 
@@ -706,6 +709,8 @@ const struct srv_method manager_methods[] = {
         {"lamp.set", m_lamp_set},
         {"laser.set", m_laser_set},
         {"capture", m_capture},
+        {"device.get", settings_get},
+        {"device.set", settings_set},
         {"dataset.open", datasets_open},
         {"dataset.close", datasets_close},
         {"dataset.list", datasets_list},

@@ -35,7 +35,7 @@
 
 static bool is_axis_job(enum job_kind kind)
 {
-        return kind <= J_RESET;
+        return kind <= J_RATES;
 }
 
 bool rig_is_camera_job(enum job_kind kind)
@@ -92,6 +92,7 @@ static const char *job_operation(const struct job *j)
                 [J_POLL] = "read state",
                 [J_STOP] = "stop",
                 [J_RESET] = "reset",
+                [J_RATES] = "set rates",
                 [J_OPEN_SW] = "open",
                 [J_CHECK_SW] = "read state",
                 [J_SWITCH] = "switch",
@@ -125,19 +126,14 @@ static int poll_after(struct job *j, struct rig_axis *a, int r)
         return r;
 }
 
-/* Runs on the bus worker: a move (or homing) at the job's speed, written to the drive when it
- * changes. */
+/* Runs on the bus worker: a move (or homing) at the job's rates, written to the drive when
+ * they change. */
 static int move_call(struct job *j, struct rig_axis *a)
 {
         int r = 0;
 
-        if (j->speed != a->speed_set) {
-                r = axis_set_speed(a->ax, j->speed);
-                if (r == -EOPNOTSUPP && j->speed == 0)
-                        r = 0;
-                if (r >= 0)
-                        a->speed_set = j->speed;
-        }
+        if (j->speed != a->ax->speed || j->accel != a->ax->accel)
+                r = axis_set_rates(a->ax, j->speed, j->accel);
         if (r < 0)
                 return r;
         return j->kind == J_HOME ? axis_home(a->ax) : axis_move_abs(a->ax, j->arg);
@@ -163,8 +159,7 @@ static int job_call(struct bus *b, struct job *j)
         int r;
 
         switch (j->kind) {
-        case J_OPEN_AXIS:
-                a->speed_set = 0; /* open writes max_speed */
+        case J_OPEN_AXIS: /* open writes ax->speed and ax->accel */
                 return poll_after(j, a, axis_open(a->ax));
         case J_HOME:
         case J_MOVE:
@@ -177,6 +172,8 @@ static int job_call(struct bus *b, struct job *j)
                 return axis_stop(a->ax);
         case J_RESET:
                 return poll_after(j, a, axis_reset(a->ax));
+        case J_RATES:
+                return axis_set_rates(a->ax, j->speed, j->accel);
         case J_OPEN_SW:
                 r = sw_open(rig_switch_slot(rig, j->idx)->sw);
                 return r < 0 ? r : sw_get(rig_switch_slot(rig, j->idx)->sw, &j->on);
@@ -409,7 +406,14 @@ void rig_axis_stop_and_follow(struct rig_axis *a, const char *why)
         rig_update_state(rig);
 }
 
-/* Queues a homing (J_HOME) or a move of a to leg degrees at speed (0: max_speed). */
+/* The acceleration of a move of a at speed (0: the settings'): a move at a speed of its own (a
+ * continuous scan) keeps the rig file's, which its run-up was computed with. */
+static double move_accel(const struct rig_axis *a, double speed)
+{
+        return speed > 0 ? a->ax->conf->accel : a->accel_setting;
+}
+
+/* Queues a homing (J_HOME) or a move of a to leg degrees at speed (0: the speed setting). */
 static int submit_motion(struct rig_axis *a, enum job_kind kind, double leg, double speed)
 {
         struct job *j = calloc(1, sizeof(*j));
@@ -421,7 +425,8 @@ static int submit_motion(struct rig_axis *a, enum job_kind kind, double leg, dou
                           .kind = kind,
                           .idx = a->idx,
                           .arg = leg,
-                          .speed = speed,
+                          .speed = speed > 0 ? speed : a->speed_setting,
+                          .accel = move_accel(a, speed),
                           .gen = atomic_load(&a->gen),
                           .motions = a->motions};
         return rig_submit(j, false);
@@ -576,11 +581,26 @@ static void keep_following(struct rig_axis *a)
                 arm(a, POLL_USEC);
 }
 
+/* The rates of a were written to its drive, or not: the settings follow the drive. */
+static void rates_done(struct job *j, struct rig_axis *a, int result)
+{
+        if (result >= 0) {
+                a->speed_setting = j->speed;
+                a->accel_setting = j->accel;
+        }
+        if (j->done)
+                j->done(j->rig, result, result < 0 ? job_error(j, result) : NULL, j->ud);
+        if (result < 0)
+                axis_job_failed(j, a, result);
+}
+
 static void axis_job_done(struct job *j, int result)
 {
         struct rig_axis *a = &j->rig->axes[j->idx];
         struct rig *rig = j->rig;
 
+        if (j->kind == J_RATES)
+                return rates_done(j, a, result);
         if (result >= 0 && (j->kind == J_POLL || j->kind == J_OPEN_AXIS || j->kind == J_RESET))
                 a->st = j->st;
         if (result >= 0 && j->kind == J_POLL && rig->track_axis == j->idx && rig->track_fn)
@@ -778,7 +798,7 @@ static int start_motion(struct rig *rig, int i, enum axis_op op, double target, 
         struct rig_axis *a = &rig->axes[i];
         const struct rig_axis_conf *c = a->ax->conf;
         double t = axis_move_time(op == AX_HOMING ? 360 : fabs(target - a->st.position_deg),
-                                  speed > 0 ? speed : c->max_speed, c->accel),
+                                  speed > 0 ? speed : a->speed_setting, move_accel(a, speed)),
                leg;
         int r;
 
@@ -848,7 +868,7 @@ int rig_move(struct rig *rig, int i, double *target, bool relative, rig_done_fn 
 
 bool rig_axis_speed_settable(const struct rig *rig, int i)
 {
-        return rig->axes[i].ax->ops->set_speed != NULL;
+        return rig->axes[i].ax->ops->set_rates != NULL;
 }
 
 int rig_move_at(struct rig *rig, int i, double *target, double speed, rig_done_fn done,
@@ -1056,7 +1076,8 @@ static int build_axis(struct rig *rig, size_t i)
         const struct rig_axis_conf *c = &rig->rc->axes[i];
         int r;
 
-        *a = (struct rig_axis){.rig = rig, .idx = i};
+        *a = (struct rig_axis){
+                .rig = rig, .idx = i, .speed_setting = c->max_speed, .accel_setting = c->accel};
         if ((r = axis_new(c, bus_of(rig, c->bus), &a->ax)) < 0 ||
             (r = sd_event_add_time_relative(rig->event, &a->timer, CLOCK_MONOTONIC, 0,
                                             TIMER_ACCURACY, on_axis_timer, a)) < 0)

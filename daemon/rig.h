@@ -223,5 +223,32 @@ json_t *rig_status(const struct rig *rig);
 /* Builds the describe object: devices, backends and their options. New reference. */
 json_t *rig_describe(const struct rig *rig);
 
+/* A device setting (rig_settings.c, docs/goniod.md "Settings"): an axis's speed (deg/s) and
+ * accel (deg/s^2) of the moves that name none, a camera's exposure_us and gain of the
+ * captures that name none. They start at the rig file's values and last until goniod exits. */
+struct rig_setting {
+        const char *name, *unit; /* "speed", "deg/s" */
+        double value, min, max;
+        const char *limit; /* what sets max: "max_speed" (a rig-file key), "the driver's range" */
+};
+
+/* The settings of device (an axis or a camera) as {NAME: {value, min, max, unit, limit}}, or
+ * NULL when the rig has no such device (or it has no settings). New reference. */
+json_t *rig_settings_json(const struct rig *rig, const char *device);
+
+/* Setting name of device into *ret. Returns 0, or -ENOENT (no such device, or no such
+ * setting), -EOPNOTSUPP (the camera's driver has no such control), with the reason in msg. */
+int rig_setting_get(const struct rig *rig, const char *device, const char *name,
+                    struct rig_setting *ret, char *msg, size_t len);
+
+/* Sets setting name of device to value: an axis's rates are written to its drive first (done
+ * follows on the loop thread; the setting changes only once the drive took it), a camera's
+ * take effect at its next capture (done runs before this returns). Returns 0, or -errno:
+ * rig_setting_get's and -ERANGE outside [min, max] (naming the limit) with the reason in msg;
+ * else msg is "" and the refusal is -EBUSY (the axis is moving: rig_busy_reason), -ESTALE
+ * (fault), -ENODEV (not open), -ESHUTDOWN or -ENOMEM. */
+int rig_setting_set(struct rig *rig, const char *device, const char *name, double value,
+                    rig_done_fn done, void *userdata, char *msg, size_t len);
+
 /* The rig configuration. */
 const struct rig_config *rig_config(const struct rig *rig);

@@ -58,7 +58,9 @@ static void submit_stage(struct exposure *x)
                 *j = (struct job){.rig = rig,
                                   .kind = x->stage == EXP_FRAMES ? J_CAPTURE : J_POLL,
                                   .idx = idx,
-                                  .creq = x->req,
+                                  .creq = x->stage == EXP_FRAMES
+                                                  ? rig_camera_request(rig, idx, &x->req)
+                                                  : x->req,
                                   .exp = x,
                                   .shot = i};
                 if (rig_submit(j, false) < 0)

@@ -33,8 +33,10 @@ struct rig_axis {
         bool polling;     /* an idle poll is queued */
         unsigned motions; /* moves and homings queued so far: a poll queued before the latest
                            * one reads the drive before it and says nothing of its progress */
-        double speed;     /* of the running move, deg/s; 0: max_speed */
-        double speed_set; /* the speed last written to the drive (bus worker only); 0: max */
+        double speed;     /* of the running move, deg/s; 0: the speed setting */
+        /* the settings of the following moves (rig_settings.c): the rig file's max_speed
+         * and accel until device.set changes them */
+        double speed_setting, accel_setting;
 };
 
 struct rig_switch {
@@ -70,6 +72,9 @@ struct rig {
         struct rig_switch lamps[RIG_MAX_LAMPS], lasers[RIG_MAX_LASERS];
         struct cam *cams[RIG_MAX_CAMERAS];
         bool cam_open[RIG_MAX_CAMERAS];
+        /* each camera's default controls set by device.set (rig_settings.c): what a request's
+         * 0 becomes; 0 here: the rig file's, which the driver applies itself */
+        struct cam_request cam_defaults[RIG_MAX_CAMERAS];
         unsigned pending;           /* jobs in flight */
         struct exposure *exposure;  /* the exposure running, or NULL */
         sd_event_source *idle_poll; /* reads idle drives back periodically */
@@ -102,6 +107,7 @@ enum job_kind {
         J_POLL,
         J_STOP,
         J_RESET,
+        J_RATES,
         J_OPEN_SW,
         J_CHECK_SW,
         J_SWITCH,
@@ -119,7 +125,8 @@ struct job {
         int idx; /* device index; < 0: laser RIG_SW_LASER_OF(idx) for switch jobs */
         unsigned gen;
         double arg;
-        double speed;     /* J_MOVE: deg/s, 0: max_speed */
+        double speed;     /* J_MOVE, J_HOME, J_RATES: deg/s */
+        double accel;     /* J_MOVE, J_HOME, J_RATES: deg/s^2 */
         uint64_t t_ns;    /* J_POLL: CLOCK_REALTIME mid-way through the drive's answer */
         uint64_t rtt_ns;  /* J_POLL: the answer's round trip */
         unsigned motions; /* J_POLL: the axis's motions when queued */
@@ -164,6 +171,10 @@ int rig_stream_job_call(struct job *j);
 
 /* Completion of a streaming job or a peek's capture (rig_stream.c). */
 void rig_stream_job_done(struct job *j, int result);
+
+/* req with its 0s (the camera's defaults) replaced by camera i's settings where device.set
+ * gave some (rig_settings.c). */
+struct cam_request rig_camera_request(const struct rig *rig, int i, const struct cam_request *req);
 
 /* Fails the exposure in flight at rig_free: its completion is dropped (rig_expose.c). */
 void rig_expose_abandon(struct rig *rig);

@@ -68,17 +68,28 @@ static json_t *device_json(const char *cls, const char *name, const char *backen
                          bus, "options", opts_json(opts, n), "config", config);
 }
 
+/* device_json of an axis or a camera, with its settings (rig_settings.c). */
+static json_t *settable_json(const struct rig *rig, const char *cls, const char *name,
+                             const char *backend, const char *bus, const struct opt_desc *opts,
+                             int n, json_t *config)
+{
+        json_t *d = device_json(cls, name, backend, bus, opts, n, config);
+
+        json_object_set_new(d, "settings", rig_settings_json(rig, name));
+        return d;
+}
+
 /* What the rig file sets for axis c (its limits, speeds and motion semantics, defaults
  * filled in). */
 static json_t *axis_config(const struct rig_axis_conf *c)
 {
-        return json_pack("{ss?sbsfsfsfsfsisfsfsisbsisi}", "role",
+        return json_pack("{ss?sbsfsfsfsfsfsisfsfsisbsisi}", "role",
                          c->role >= 0 ? gn_role_name(c->role) : NULL, "continuous", c->continuous,
                          "min", c->min_deg, "max", c->max_deg, "max_speed", c->max_speed, "accel",
-                         c->accel, "settle_ms", c->settle_ms, "backlash", c->backlash_deg,
-                         "deadband", c->deadband_deg, "move_retries", c->move_retries,
-                         "absolute_encoder", c->absolute_encoder, "direction", c->direction,
-                         "move_timeout_ms", c->move_timeout_ms);
+                         c->accel, "max_accel", axis_max_accel(c), "settle_ms", c->settle_ms,
+                         "backlash", c->backlash_deg, "deadband", c->deadband_deg, "move_retries",
+                         c->move_retries, "absolute_encoder", c->absolute_encoder, "direction",
+                         c->direction, "move_timeout_ms", c->move_timeout_ms);
 }
 
 static json_t *switch_config(const struct rig_switch_conf *c)
@@ -98,9 +109,10 @@ static json_t *switch_config(const struct rig_switch_conf *c)
 
 static json_t *camera_config(const struct rig_camera_conf *c)
 {
-        return json_pack("{sisisisfsisfsfsfsfsf}", "width", c->width, "height", c->height, "bits",
-                         c->bits, "gain", c->gain, "exposure_us", c->exposure_us, "frame_rate",
-                         c->frame_rate, "fx", c->fx, "fy", c->fy, "cx", c->cx, "cy", c->cy);
+        return json_pack("{sisisisfsisfsfsfsfsfsisf}", "width", c->width, "height", c->height,
+                         "bits", c->bits, "gain", c->gain, "exposure_us", c->exposure_us,
+                         "frame_rate", c->frame_rate, "fx", c->fx, "fy", c->fy, "cx", c->cx, "cy",
+                         c->cy, "max_exposure_us", c->max_exposure_us, "max_gain", c->max_gain);
 }
 
 json_t *rig_describe(const struct rig *rig)
@@ -111,9 +123,9 @@ json_t *rig_describe(const struct rig *rig)
         for (size_t i = 0; i < rc->n_axes; i++) {
                 const struct axis *ax = rig->axes[i].ax;
                 json_array_append_new(devs,
-                                      device_json("axis", rc->axes[i].name, ax->ops->name,
-                                                  rc->axes[i].bus, ax->ops->opts, ax->ops->n_opts,
-                                                  axis_config(&rc->axes[i])));
+                                      settable_json(rig, "axis", rc->axes[i].name, ax->ops->name,
+                                                    rc->axes[i].bus, ax->ops->opts, ax->ops->n_opts,
+                                                    axis_config(&rc->axes[i])));
         }
         for (size_t i = 0; i < rc->n_lamps + rc->n_lasers; i++) {
                 const struct sw *s =
@@ -129,8 +141,8 @@ json_t *rig_describe(const struct rig *rig)
                 const struct opt_desc *opts = cam_opts(c, &n);
 
                 json_array_append_new(devs,
-                                      device_json("camera", c->conf->name, c->ops->name,
-                                                  c->conf->bus, opts, n, camera_config(c->conf)));
+                                      settable_json(rig, "camera", c->conf->name, c->ops->name,
+                                                    c->conf->bus, opts, n, camera_config(c->conf)));
         }
         return json_pack("{ssso}", "rig", rc->name, "devices", devs);
 }

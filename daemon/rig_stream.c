@@ -39,7 +39,7 @@ static int submit(struct rig *rig, enum job_kind kind, int i, const struct cam_r
                 return -ENOMEM;
         *j = (struct job){.rig = rig, .kind = kind, .idx = i};
         if (req)
-                j->creq = *req;
+                j->creq = rig_camera_request(rig, i, req);
         return rig_submit(j, false);
 }
 

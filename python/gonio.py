@@ -475,8 +475,22 @@ class Client:
         return self.call("lamp.set", _params(lamp=lamp, on=on), self._long(timeout))
 
     def laser_set(self, on, laser=None, timeout=None):
-        """Switches the laser of that name, or every laser; returns {laser, on}."""
+        """Switches the laser of that name, or every laser; returns {laser, on,
+        off_on_disconnect}. With off_on_disconnect (a laser's default in the rig file) goniod
+        switches it off when this client's connection closes: it stays on while connected."""
         return self.call("laser.set", _params(on=on, laser=laser), self._long(timeout))
+
+    def device_get(self, device=None, setting=None, timeout=None):
+        """Device settings (an axis's speed and accel, a camera's exposure_us and gain) with
+        their limits: {devices: [...]}, one device's {device, class, settings}, or one
+        setting's {device, setting, value, min, max, unit, limit}."""
+        return self.call("device.get", _params(device=device, setting=setting), timeout)
+
+    def device_set(self, device, setting, value, timeout=None):
+        """Changes a device setting until goniod restarts (E_RANGE outside the rig file's
+        limits, E_BUSY during a session); returns {device, setting, value}."""
+        return self.call("device.set", _params(device=device, setting=setting, value=value),
+                         timeout)
 
     def capture(self, camera=None, exposure_us=None, gain=None, bits=None, timeout=None):
         """Captures from camera (None: every camera) into the open dataset; returns

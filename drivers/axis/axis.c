@@ -57,7 +57,11 @@ int axis_new(const struct rig_axis_conf *conf, struct bus *bus, struct axis **re
         ax = calloc(1, sizeof(*ax));
         if (!ax)
                 return -ENOMEM;
-        *ax = (struct axis){.ops = ops, .conf = conf, .bus = bus};
+        *ax = (struct axis){.ops = ops,
+                            .conf = conf,
+                            .bus = bus,
+                            .speed = conf->max_speed,
+                            .accel = conf->accel};
         *ret = ax;
         return 0;
 }
@@ -163,23 +167,30 @@ int axis_poll(struct axis *ax)
         return 0;
 }
 
-int axis_set_speed(struct axis *ax, double deg_s)
+double axis_max_accel(const struct rig_axis_conf *c)
 {
-        char what[64];
-        int r;
+        return c->max_accel > 0 ? c->max_accel : c->accel;
+}
 
-        if (!ax->ops->set_speed)
-                return -EOPNOTSUPP;
-        if (deg_s <= 0)
-                deg_s = ax->conf->max_speed;
-        if (deg_s > ax->conf->max_speed)
+int axis_set_rates(struct axis *ax, double deg_s, double accel)
+{
+        char what[96];
+        int r = 0;
+
+        deg_s = deg_s > 0 ? deg_s : ax->conf->max_speed;
+        accel = accel > 0 ? accel : ax->conf->accel;
+        if (deg_s > ax->conf->max_speed || accel > axis_max_accel(ax->conf))
                 return -ERANGE;
         ax->cause[0] = '\0';
-        r = ax->ops->set_speed(ax, deg_s);
+        if (ax->ops->set_rates)
+                r = ax->ops->set_rates(ax, deg_s, accel);
         if (r < 0) {
-                snprintf(what, sizeof(what), "set the speed to %.3f deg/s", deg_s);
+                snprintf(what, sizeof(what),
+                         "set the speed to %.3f deg/s, acceleration %.3f deg/s^2", deg_s, accel);
                 return fail(ax, r, what);
         }
+        ax->speed = deg_s;
+        ax->accel = accel;
         return 0;
 }
 

@@ -35,8 +35,10 @@ struct axis_ops {
         int (*stop)(struct axis *ax);                 /* immediate stop */
         int (*reset)(struct axis *ax);                /* clear a drive fault */
         int (*poll)(struct axis *ax, struct axis_state *st);
-        /* Optional: the speed of the following moves, deg/s (at most conf->max_speed). */
-        int (*set_speed)(struct axis *ax, double deg_s);
+        /* Optional: writes the speed (deg/s) and acceleration (deg/s^2) of the following moves
+         * to the drive, limits already checked. Backends without it read ax->speed and
+         * ax->accel at each move (a G-code feed rate, a step/dir profile). */
+        int (*set_rates)(struct axis *ax, double deg_s, double accel);
 };
 
 struct axis {
@@ -45,6 +47,9 @@ struct axis {
         struct bus *bus;                  /* borrowed */
         void *priv;                       /* backend state */
         struct axis_state state;          /* last confirmed state */
+        /* The rates of the following moves, deg/s and deg/s^2: the rig file's max_speed and
+         * accel until axis_set_rates() (bus worker). */
+        double speed, accel;
         /* The last message the class logged at warning level or worse, whole ("axis
          * 'turntable' [modbus@drives#1]: Failed to read the drive state: read position (reg
          * 0x0102): Connection timed out after 200 ms"), for operators; "" when none. Written
@@ -74,9 +79,14 @@ int axis_move_abs(struct axis *ax, double deg); /* checks limits first: -ERANGE 
 int axis_stop(struct axis *ax);
 int axis_reset(struct axis *ax);
 int axis_poll(struct axis *ax); /* refreshes ax->state */
-/* Sets the cruise speed of the following moves (0: the rig file's max_speed); -EOPNOTSUPP
- * when the backend cannot, -ERANGE above max_speed. */
-int axis_set_speed(struct axis *ax, double deg_s);
+/* Sets the cruise speed and acceleration of the following moves (0: the rig file's max_speed,
+ * accel) in ax->speed and ax->accel, written to the drive where its backend has set_rates;
+ * -ERANGE above max_speed or axis_max_accel(). */
+int axis_set_rates(struct axis *ax, double deg_s, double accel);
+
+/* The most acceleration axis_set_rates() allows: the rig file's max_accel (its accel when a
+ * config built by hand has none). Pure. */
+double axis_max_accel(const struct rig_axis_conf *c);
 
 /* Logs "axis 'NAME' [BACKEND@PORT#UNIT]: message" at level (GN_LOG_*); %m prints err.
  * Returns -abs(err). At warning level or worse also fills last_error: the ops' thread. */

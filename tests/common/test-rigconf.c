@@ -3,7 +3,9 @@
  * kind of entry and in every backend's map, backend maps missing, doubled, misplaced or
  * naming an unknown profile, two devices on one Modbus address, two buses on one port,
  * unset environment variables, duplicate names, axis roles, camera control ranges; a
- * `lasers:` list (the one `laser:` mapping is its shorthand) and its mistakes.
+ * `lasers:` list (the one `laser:` mapping is its shorthand) and its mistakes; the limits of
+ * the device settings (max_accel, max_exposure_us, max_gain) and off_on_disconnect's
+ * defaults.
  * Usage: test-rigconf EXAMPLE-RIG CASE; an unknown CASE fails. */
 #include <errno.h>
 #include <stdio.h>
@@ -574,10 +576,41 @@ static void case_text(void)
         rigconf_free(rc);
 }
 
+/* The limits of the settings: max_accel defaults to accel, the camera's to none (0), each at
+ * least the value it bounds; a laser goes off when its client goes unless the rig file says
+ * otherwise, a lamp only when it says so. */
+static void case_limits(void)
+{
+        struct rig_config *rc = expect_ok(
+                BUS "axes:\n  - { name: a, modbus: { bus: b, unit: 1 }, accel: 50 }\n"
+                    "  - { name: c, modbus: { bus: b, unit: 2 }, accel: 50, max_accel: 80 }\n"
+                    "lamps:\n" LAMP(
+                            "l", "9",
+                            "0") "laser: { name: x, modbus-coil: { bus: b, "
+                                 "unit: 9, coil: 1 } }\ncameras:\n  - { name: k, sim: { bus: f }, "
+                                 "max_exposure_us: 50000, max_gain: 8 }\n");
+
+        CHECK(rc->axes[0].max_accel == 50 && rc->axes[1].max_accel == 80);
+        CHECK(rc->cameras[0].max_exposure_us == 50000 && rc->cameras[0].max_gain == 8);
+        CHECK(rc->lasers[0].off_on_disconnect && !rc->lamps[0].off_on_disconnect);
+        rigconf_free(rc);
+        rc = expect_ok(BUS "cameras:\n  - { name: k, sim: { bus: f } }\n");
+        CHECK(rc->cameras[0].max_exposure_us == 0 && rc->cameras[0].max_gain == 0);
+        rigconf_free(rc);
+        expect_at(BUS "axes:\n  - { name: a, modbus: { bus: b, unit: 1 }, accel: 50, "
+                      "max_accel: 40 }\n",
+                  6, "max_accel", "must be at least accel (50)");
+        expect_at(BUS "cameras:\n  - { name: k, sim: { bus: f }, max_exposure_us: 500 }\n", 6,
+                  "max_exposure_us", "must be at least exposure_us (10000)");
+        expect_at(BUS "cameras:\n  - { name: k, sim: { bus: f }, gain: 2, max_gain: 1 }\n", 6,
+                  "max_gain", "must be at least gain (2)");
+}
+
 static const struct {
         const char *name;
         void (*fn)(void);
 } cases[] = {
+        {"limits", case_limits},
         {"example", case_example},
         {"errors", case_errors},
         {"unknown-keys", case_unknown_keys},

@@ -83,8 +83,8 @@ static void test_set_speed(struct fixture *f)
         double expect = axis_move_time(50.0, 5.0, 20.0) / TESTRIG_TIME_SCALE, took;
         uint16_t reg;
 
-        CHECK_INT(axis_set_speed(f->arm, 20.0), -ERANGE);
-        CHECK_INT(axis_set_speed(f->arm, 5.0), 0);
+        CHECK_INT(axis_set_rates(f->arm, 20.0, 0), -ERANGE);
+        CHECK_INT(axis_set_rates(f->arm, 5.0, 0), 0);
         CHECK_INT(
                 mbus_read_regs(bus_transport(f->arm->bus), c->unit, c->profile->reg_speed, 1, &reg),
                 1);
@@ -94,7 +94,7 @@ static void test_set_speed(struct fixture *f)
         fprintf(stderr, "move 50 deg at 5 deg/s: %.3f s, model %.3f s\n", took, expect);
         CHECK(took >= 0.85 * expect); /* at 10 deg/s it would take 0.54 of this */
         testrig_wait_in_position(f->arm);
-        CHECK_INT(axis_set_speed(f->arm, 0), 0);
+        CHECK_INT(axis_set_rates(f->arm, 0, 0), 0);
         CHECK_INT(
                 mbus_read_regs(bus_transport(f->arm->bus), c->unit, c->profile->reg_speed, 1, &reg),
                 1);

@@ -97,15 +97,15 @@ static void test_set_speed(struct fixture *f)
 {
         double expect = axis_move_time(50.0, 5.0, 20.0) / TESTRIG_TIME_SCALE, took;
 
-        CHECK_INT(axis_set_speed(f->arm, 20.0), -ERANGE);
-        CHECK_INT(axis_set_speed(f->arm, 5.0), 0);
+        CHECK_INT(axis_set_rates(f->arm, 20.0, 0), -ERANGE);
+        CHECK_INT(axis_set_rates(f->arm, 5.0, 0), 0);
         CHECK_INT(axis_move_abs(f->arm, 100.0), 0);
         CHECK_INT(read_i32(f->arm, 0x005e), 500);
         took = testrig_wait_stopped(f->arm, 10.0);
         fprintf(stderr, "move 50 deg at 5 deg/s: %.3f s, model %.3f s\n", took, expect);
         CHECK(took >= 0.85 * expect);
         testrig_wait_in_position(f->arm);
-        CHECK_INT(axis_set_speed(f->arm, 0), 0); /* max_speed again: test_stop_mid_move */
+        CHECK_INT(axis_set_rates(f->arm, 0, 0), 0); /* max_speed again: test_stop_mid_move */
 }
 
 static void test_soft_limits(struct fixture *f)

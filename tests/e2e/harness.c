@@ -1,5 +1,6 @@
 /* harness.c - process and socket helpers for gonio's end-to-end tests. */
 #include <arpa/inet.h>
+#include <inttypes.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -44,7 +45,9 @@ static const char *const test_rig =
         "      radius: 450, intensity: 2.0e6 }\n"
         "  - { name: lamp1, modbus-coil: { bus: relays, unit: 10, coil: 1 }, elevation: 60,\n"
         "      radius: 450, intensity: 2.0e6 }\n"
-        "laser: { name: laser, modbus-coil: { bus: relays, unit: 10, coil: 7 } }\n"
+        /* one-shot `gonioctl laser on`: the tests check the laser after gonioctl left */
+        "laser: { name: laser, off_on_disconnect: false, modbus-coil: { bus: relays, unit: 10, "
+        "coil: 7 } }\n"
         "cameras:\n"
         "  - { name: cam0, sim: { bus: frames }, elevation: 15, distance: 600, azimuth: 30,\n"
         "      target: [0, 0, 40], width: 160, height: 120, fx: 400, fy: 400,\n"
@@ -278,15 +281,28 @@ static void init(struct rigenv *e, char **argv, double time_scale, const char *r
         snprintf(e->time_scale, sizeof(e->time_scale), "%g", time_scale);
 }
 
-char *rig_insert(const char *rig, const char *after, const char *text)
+/* from with the skip bytes at at replaced by text (at must not be NULL), malloc'ed. */
+static char *rig_splice(const char *from, const char *at, size_t skip, const char *text)
 {
-        const char *from = rig ? rig : test_rig, *at = strstr(from, after);
         char *out;
 
         CHECK(at);
-        at += strlen(after);
-        CHECK(asprintf(&out, "%.*s%s%s", (int)(at - from), from, text, at) > 0);
+        CHECK(asprintf(&out, "%.*s%s%s", (int)(at - from), from, text, at + skip) > 0);
         return out;
+}
+
+char *rig_insert(const char *rig, const char *after, const char *text)
+{
+        const char *from = rig ? rig : test_rig, *at = strstr(from, after);
+
+        return rig_splice(from, at ? at + strlen(after) : NULL, 0, text);
+}
+
+char *rig_replace(const char *rig, const char *old, const char *text)
+{
+        const char *from = rig ? rig : test_rig;
+
+        return rig_splice(from, strstr(from, old), strlen(old), text);
 }
 
 void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
@@ -581,25 +597,37 @@ json_t *raw_wait_note(int fd, const char *method, const char *state, double time
 
 /* ---- rows against the render log ---- */
 
-/* The render-log line of the frame gonio-sim rendered at timestamp ns, or NULL. */
-static json_t *rendered(struct rigenv *e, uint64_t ns)
+/* gonio-sim's render log as an object: each line under its "timestamp_ns" (the first line
+ * of a timestamp wins), read once so that a check of n rows is not n passes over the log. */
+static json_t *render_log(struct rigenv *e)
 {
-        char path[400], line[8192];
-        json_t *found = NULL;
+        char path[400], line[8192], key[32];
+        json_t *log = json_object();
         FILE *f;
 
         snprintf(path, sizeof(path), "%s/render.log", e->dir);
         f = fopen(path, "re");
-        CHECK(f);
-        while (!found && fgets(line, sizeof(line), f)) {
+        CHECK(f && log);
+        while (fgets(line, sizeof(line), f)) {
                 json_t *j = json_loads(line, 0, NULL);
                 CHECK(j);
-                if ((uint64_t)json_integer_value(json_object_get(j, "timestamp_ns")) == ns)
-                        found = json_incref(j);
+                snprintf(key, sizeof(key), "%" JSON_INTEGER_FORMAT,
+                         json_integer_value(json_object_get(j, "timestamp_ns")));
+                if (!json_object_get(log, key))
+                        CHECK_INT(json_object_set(log, key, j), 0);
                 json_decref(j);
         }
         fclose(f);
-        return found;
+        return log;
+}
+
+/* The render-log line of the frame gonio-sim rendered at timestamp ns, or NULL. */
+static json_t *rendered(json_t *log, uint64_t ns)
+{
+        char key[32];
+
+        snprintf(key, sizeof(key), "%" PRIu64, ns);
+        return json_object_get(log, key);
 }
 
 /* The pose gonio-sim reports in a render-log state object (lamps in rig-file order). */
@@ -626,7 +654,7 @@ static void print_pose(const char *what, const struct gn_pose *p)
 }
 
 struct rows {
-        struct rigenv *e;
+        json_t *log;    /* render_log */
         unsigned roles; /* bit r: the rig has an axis of role r */
 };
 
@@ -642,8 +670,7 @@ static bool same_pose(const struct gn_pose *row, struct gn_pose sim, unsigned ro
 static int check_row(const struct ds_capture *c, void *userdata)
 {
         struct rows *rows = userdata;
-        struct rigenv *e = rows->e;
-        json_t *r = rendered(e, c->t_exposure_ns);
+        json_t *r = rendered(rows->log, c->t_exposure_ns);
         struct gn_pose start, end;
 
         if (!r)
@@ -661,13 +688,12 @@ static int check_row(const struct ds_capture *c, void *userdata)
                 print_pose("rendered (end)", &end);
         }
         CHECK(same_pose(&c->pose, start, rows->roles) && same_pose(&c->pose, end, rows->roles));
-        json_decref(r);
         return 0;
 }
 
 int64_t check_dataset_roles(struct rigenv *e, const char *name, unsigned roles)
 {
-        struct rows rows = {e, roles};
+        struct rows rows = {render_log(e), roles};
         char path[400];
         struct ds *d = NULL;
         int64_t n;
@@ -677,6 +703,7 @@ int64_t check_dataset_roles(struct rigenv *e, const char *name, unsigned roles)
         n = ds_count(d);
         CHECK_INT(ds_rows(d, 0, -1, check_row, &rows), n);
         ds_close(d);
+        json_decref(rows.log);
         return n;
 }
 

@@ -29,6 +29,13 @@ void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const ch
  * of after (which it must hold), malloc'ed: a variant of a device. */
 char *rig_insert(const char *rig, const char *after, const char *text);
 
+/* Rig file rig (NULL: the default test rig) with the first occurrence of old (which it must
+ * hold) replaced by text, malloc'ed. The default test rig's laser has off_on_disconnect:
+ * false (one-shot `gonioctl laser on`); rig_replace(NULL, RIG_LASER_ONE_SHOT, "") gives it
+ * the default. */
+char *rig_replace(const char *rig, const char *old, const char *text);
+#define RIG_LASER_ONE_SHOT "off_on_disconnect: false, "
+
 /* Like rigenv_start, with goniod's stderr (its log) appended to e->daemon_log, DIR/goniod.log,
  * for this start and every restart. */
 void rigenv_start_logged(struct rigenv *e, char **argv, double time_scale);

@@ -105,6 +105,18 @@ static char *read_rig(const char *path)
         return text;
 }
 
+/* The rig text with off_on_disconnect: false on both lasers (freed), so that `gonioctl laser
+ * on` switches them on and returns rather than holding them on. */
+static char *one_shot_lasers(char *rig)
+{
+        char *a = rig_insert(rig, "  - name: laser_left\n", "    off_on_disconnect: false\n");
+        char *b = rig_insert(a, "  - name: laser_right\n", "    off_on_disconnect: false\n");
+
+        free(rig);
+        free(a);
+        return b;
+}
+
 int main(int argc, char **argv)
 {
         struct rigenv e;
@@ -114,7 +126,7 @@ int main(int argc, char **argv)
                 fprintf(stderr, "usage: %s GONIOD GONIOCTL GONIO_SIM CICLOP_YAML\n", argv[0]);
                 return 2;
         }
-        rig = read_rig(argv[4]);
+        rig = one_shot_lasers(read_rig(argv[4]));
         rigenv_start_rig(&e, argv, 10.0, rig);
         json_decref(ctl_ok(&e, "home", NULL));
         json_decref(ctl_ok(&e, "dataset", "create", "scan", NULL));

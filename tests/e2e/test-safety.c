@@ -1,11 +1,14 @@
 /* test-safety.c - the laser and lamp safety rules of goniod (docs/goniod.md, "Safety"),
  * checked on gonio-sim's relay coils, not on goniod's word: a switch goes off after its
- * max_on_s, counted from when it went on; where the rig file says off_on_disconnect, when
- * the client that switched it on outside a session disconnects, while what another client
- * switched on stays on. */
+ * max_on_s, counted from when it went on; where the rig file says off_on_disconnect (a
+ * laser's default), when the client that switched it on outside a session disconnects, while
+ * what another client switched on stays on; `gonioctl laser on` holds the laser on while it
+ * runs, and it goes off when gonioctl is killed, ends at SIGTERM, or after --for. */
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "harness.h"
@@ -84,12 +87,12 @@ static void test_max_on(char **argv)
         free(a);
 }
 
-/* The laser and lamp1 (off_on_disconnect) go off when the client that switched them on
- * goes, not before; lamp0, switched on by a client still there, stays on, and stays on
- * after that client goes too (it has no off_on_disconnect). */
+/* The laser (off_on_disconnect by default) and lamp1 (set) go off when the client that
+ * switched them on goes, not before; lamp0, switched on by a client still there, stays on,
+ * and stays on after that client goes too (it has no off_on_disconnect). */
 static void test_disconnect(char **argv)
 {
-        char *a = rig_insert(NULL, "laser: { name: laser, ", "off_on_disconnect: true, ");
+        char *a = rig_replace(NULL, RIG_LASER_ONE_SHOT, "");
         char *rig = rig_insert(a, "name: lamp1, ", "off_on_disconnect: true, ");
         struct rigenv e;
         int one, two;
@@ -114,6 +117,85 @@ static void test_disconnect(char **argv)
         free(a);
 }
 
+/* Starts gonioctl laser on (in hold mode) with extra (NULL or an option) and waits until
+ * gonio-sim has the laser on; returns gonioctl's pid. */
+static pid_t hold_laser(struct rigenv *e, const char *extra)
+{
+        pid_t pid = fork();
+        double t0 = now_s();
+
+        CHECK(pid >= 0);
+        if (pid == 0) {
+                execl(e->gonioctl, e->gonioctl, "--socket", e->sock, "laser", "on", extra,
+                      (char *)NULL);
+                _exit(127);
+        }
+        while (!sim_on(e, -1)) {
+                CHECK(now_s() - t0 < 5);
+                usleep(20000);
+        }
+        return pid;
+}
+
+/* gonioctl's exit status after sig (0: none sent), or -1 when it died by a signal. */
+static int reap(pid_t pid, int sig)
+{
+        int st = 0;
+
+        if (sig)
+                CHECK_INT(kill(pid, sig), 0);
+        CHECK_INT(waitpid(pid, &st, 0), pid);
+        return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+/* Held on while gonioctl runs; off when it is killed outright (goniod sees the connection
+ * close) and when SIGTERM ends it (it switches the laser off itself and exits 0). */
+static void test_hold_kill(char **argv)
+{
+        char *rig = rig_replace(NULL, RIG_LASER_ONE_SHOT, "");
+        struct rigenv e;
+        pid_t pid;
+
+        rigenv_start_rig(&e, argv, 10, rig);
+        pid = hold_laser(&e, NULL);
+        usleep(300 * 1000);
+        CHECK(sim_on(&e, -1));
+        CHECK_INT(reap(pid, SIGKILL), -1);
+        fprintf(stderr, "gonioctl killed: laser off after %.2f s\n", wait_off(&e, -1, 3));
+        pid = hold_laser(&e, NULL);
+        CHECK_INT(reap(pid, SIGTERM), 0);
+        CHECK(!sim_on(&e, -1)); /* off before gonioctl exited */
+        rigenv_stop(&e);
+        free(rig);
+}
+
+/* --for 1: on for about a second, then gonioctl switches it off and exits 0 (on the test rig,
+ * whose laser has off_on_disconnect: false, so that the off is gonioctl's own, not goniod's
+ * when gonioctl leaves). Held with --for and switched off by another client: gonioctl says
+ * so and exits 10. */
+static void test_hold_for(char **argv)
+{
+        struct rigenv e;
+        double t0, t;
+        pid_t pid;
+        int fd;
+
+        rigenv_start(&e, argv, 10);
+        t0 = now_s();
+        pid = hold_laser(&e, "--for=1");
+        t = now_s() - t0 + wait_off(&e, -1, 4);
+        fprintf(stderr, "laser on --for 1: off after %.2f s\n", t);
+        CHECK(t >= 0.9 && t < 2.5);
+        CHECK_INT(reap(pid, 0), 0);
+        pid = hold_laser(&e, "--for=30");
+        fd = raw_connect(&e);
+        json_decref(raw_call(fd, "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"laser.set\","
+                                 "\"params\":{\"on\":false}}\n"));
+        CHECK_INT(reap(pid, 0), 10);
+        close(fd);
+        rigenv_stop(&e);
+}
+
 int main(int argc, char **argv)
 {
         CHECK(argc == 5);
@@ -121,6 +203,10 @@ int main(int argc, char **argv)
                 test_max_on(argv);
         else if (!strcmp(argv[4], "disconnect"))
                 test_disconnect(argv);
+        else if (!strcmp(argv[4], "hold-kill"))
+                test_hold_kill(argv);
+        else if (!strcmp(argv[4], "hold-for"))
+                test_hold_for(argv);
         else
                 CHECK(!"unknown case");
         return 0;

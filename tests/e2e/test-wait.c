@@ -107,17 +107,21 @@ static char *complete(struct rigenv *e, const char *completion, const char *word
         return out;
 }
 
-/* The completion's device names come from goniod: axes after move, lamps after lamp. */
+/* The completion's device names come from goniod: axes after move, lamps after lamp, the
+ * settings of a device after set. */
 static void test_completion(struct rigenv *e, const char *completion)
 {
         char *axes = complete(e, completion, "move \"\""),
              *lamps = complete(e, completion, "lamp l");
         char *cams = complete(e, completion, "capture --camera \"\"");
+        char *settings = complete(e, completion, "set turntable.");
 
         CHECK_STR(axes, "turntable light_arm camera_arm\n");
         CHECK_STR_CONTAINS(lamps, "lamp0");
         CHECK(!strstr(lamps, "laser") && !strstr(lamps, "turntable"));
         CHECK_STR_CONTAINS(cams, "cam");
+        CHECK_STR(settings, "turntable.speed turntable.accel\n");
+        free(settings);
         free(axes);
         free(lamps);
         free(cams);

@@ -48,8 +48,15 @@ ctl --quiet home || fail "home"
 ctl --quiet move turntable 30 || fail "move"
 ctl --quiet lamp lamp1 on || fail "lamp on"
 [ "$(relays)" = 2 ] || fail "relay board state $(relays), expected relay 2 on"
-ctl --quiet laser on || fail "laser on"
-[ "$(sim_line laser value)" = 1 ] || fail "laser line low after laser on"
+# gonioctl holds the laser on while it runs (the rig's laser goes off when its client goes)
+"$gonioctl" --socket "$dir/sock" --quiet laser on --for 300 2> "$dir/hold.err" &
+holder=$!
+pids="$pids $holder"
+i=0
+until [ "$(sim_line laser value)" = 1 ]; do
+        i=$((i + 1)); [ $i -lt 100 ] || fail "laser line low after laser on: $(cat "$dir/hold.err")"
+        sleep 0.1
+done
 ctl --quiet dataset create lab || fail "dataset create"
 cap=$(ctl --json capture) || fail "capture"
 echo "$cap" > "$dir/cap.json"
@@ -65,6 +72,7 @@ for c in caps:
     assert (c["width"], c["height"]) == (640, 480), c
 print(f"lab-goniod: {len(caps)} captures, files and labels match")
 PY
-ctl --quiet laser off && [ "$(sim_line laser value)" = 0 ] || fail "laser off"
+kill -TERM "$holder" && wait "$holder" && [ "$(sim_line laser value)" = 0 ] ||
+        fail "laser off when its gonioctl ends: $(cat "$dir/hold.err")"
 ctl --quiet lamp lamp1 off && [ "$(relays)" = 0 ] || fail "lamp off"
 echo "lab-goniod: Modbus drives, USB relay lamps, GPIO laser and V4L2 cameras in one goniod"

@@ -140,7 +140,7 @@ static int target_of(struct axis *ax, double deg, double *ret)
 
 static int gcax_move_abs(struct axis *ax, double deg)
 {
-        double feed = ax->conf->max_speed > 0 ? ax->conf->max_speed * 60.0 : GCAX_FEED_DEFAULT;
+        double feed = ax->speed > 0 ? ax->speed * 60.0 : GCAX_FEED_DEFAULT;
         char line[GC_LINE_MAX];
         double target;
         int r;
@@ -165,7 +165,7 @@ static int gcax_move_abs(struct axis *ax, double deg)
  * time to brake from full speed plus the reply timeout; *held: motion was stopped. */
 static int wait_held(struct axis *ax, bool *held)
 {
-        double brake_s = ax->conf->accel > 0 ? ax->conf->max_speed / ax->conf->accel : 1.0;
+        double brake_s = ax->accel > 0 ? ax->speed / ax->accel : 1.0;
         int64_t deadline = transport_deadline((int)(brake_s * 1000.0) + 1000);
         struct gc_status st;
         int r;

@@ -4,7 +4,7 @@
  * DESIGN: each axis has a step thread while it moves. move_abs and home (on the bus worker)
  * set the dir line, check the switches, start the thread and return; poll reads the position
  * the thread counts, in steps, as it issues them. The thread times each step on
- * CLOCK_MONOTONIC from the trapezoidal schedule of proto.c (the rig file's max_speed and accel;
+ * CLOCK_MONOTONIC from the trapezoidal schedule of proto.c (the axis's speed and accel;
  * home_speed when homing), 50 % duty, and waits between two edges in ppoll() on the request's
  * edge-event fd and an eventfd: a switch edge or a stop wakes it at once. A thread that wakes
  * late shifts the rest of its schedule instead of catching up, so the step rate never exceeds
@@ -203,7 +203,7 @@ static int start(struct axis *ax, int dir, long n, double speed, bool homing)
         int r;
 
         stop_thread(g);
-        r = gpst_profile_init(&g->prof, n, speed * spd, ax->conf->accel * spd);
+        r = gpst_profile_init(&g->prof, n, speed * spd, ax->accel * spd);
         if (r < 0)
                 return axis_set_cause(ax, r, "speed %.3f deg/s is not > 0", speed);
         g->dir = dir;
@@ -250,8 +250,8 @@ static int gpst_move_abs(struct axis *ax, double deg)
                     : gpst_deg_to_steps(g->conf->steps_per_deg, deg, &target);
         if (r < 0)
                 return axis_set_cause(ax, r, "%.3f deg is beyond the step counter", deg);
-        return start(ax, (target > cur) - (target < cur), (long)llabs(target - cur),
-                     ax->conf->max_speed, false);
+        return start(ax, (target > cur) - (target < cur), (long)llabs(target - cur), ax->speed,
+                     false);
 }
 
 /* Homing travels at most this far: the whole range and some, or a turn and some. */

@@ -3,8 +3,8 @@
  * the I/O that the profile's family (proto.h) describes: the writes of a move or a command,
  * the reads of a poll. Runs on the bus worker; caches nothing from the drive: every state
  * comes from it. The unit and the profile come from the backend map, parsed and resolved
- * when the rig file loads; the speed of the following moves is kept for families whose
- * moves carry it. */
+ * when the rig file loads; families whose moves carry the speed and acceleration take them
+ * from the axis (ax->speed, ax->accel). */
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -21,7 +21,6 @@
 /* The backend's state while open. */
 struct mbax {
         const struct mbax_conf *conf; /* borrowed from the rig config */
-        double speed;                 /* of the following moves, deg/s */
 };
 
 static const struct opt_desc mbax_opts[] = {
@@ -72,14 +71,13 @@ static int write_all(struct axis *ax, const struct mbax_write *w, int n)
         return r < 0 ? r : 0;
 }
 
-/* Sets the speed of the following moves: the drive's registers when its family has them. */
-static int set_rates(struct axis *ax, double speed)
+/* Sets the rates of the following moves: the drive's registers when its family has them. */
+static int set_rates(struct axis *ax, double speed, double accel)
 {
         struct mbax_write w[MBAX_WRITES_MAX];
         struct mbax *m = ax->priv;
 
-        m->speed = speed;
-        return write_all(ax, w, m->conf->family->rates(m->conf, speed, ax->conf->accel, w));
+        return write_all(ax, w, m->conf->family->rates(m->conf, speed, accel, w));
 }
 
 static int mbax_open(struct axis *ax)
@@ -97,14 +95,14 @@ static int mbax_open(struct axis *ax)
                 *m = (struct mbax){.conf = c};
                 ax->priv = m;
         }
-        return set_rates(ax, ax->conf->max_speed);
+        return set_rates(ax, ax->speed, ax->accel);
 }
 
-static int mbax_set_speed(struct axis *ax, double deg_s)
+static int mbax_set_rates(struct axis *ax, double deg_s, double accel)
 {
         if (!ax->priv)
                 return -ENOTCONN;
-        return set_rates(ax, deg_s);
+        return set_rates(ax, deg_s, accel);
 }
 
 static void mbax_close(struct axis *ax)
@@ -178,7 +176,6 @@ static int read_state(struct axis *ax, struct axis_state *st, int32_t *counts)
 static int mbax_move_abs(struct axis *ax, double deg)
 {
         struct mbax_write w[MBAX_WRITES_MAX];
-        const struct mbax *m = ax->priv;
         const struct mbax_conf *c = conf(ax);
         struct axis_state st;
         int32_t cur, target;
@@ -195,7 +192,7 @@ static int mbax_move_abs(struct axis *ax, double deg)
         } else
                 r = mbax_deg_to_counts(c->scale, deg, &target);
         if (r >= 0)
-                r = c->family->move(c, target, m->speed, ax->conf->accel, w);
+                r = c->family->move(c, target, ax->speed, ax->accel, w);
         return r < 0 ? r : write_all(ax, w, r);
 }
 
@@ -233,5 +230,5 @@ const struct axis_ops mbax_ops = {
         .stop = mbax_stop,
         .reset = mbax_reset,
         .poll = mbax_poll,
-        .set_speed = mbax_set_speed,
+        .set_rates = mbax_set_rates,
 };
