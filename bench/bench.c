@@ -245,3 +245,57 @@ long bench_watchers_stop(struct bench_watchers *w)
         free(w->stored);
         return least;
 }
+
+/* What one session run measured. */
+struct run {
+        long stored;
+        double t_first_ms, t_last_ms;
+        bool ended;
+        char how[16]; /* "ended" of the last session.state */
+};
+
+static void on_control(json_t *msg, void *ud)
+{
+        struct run *r = ud;
+        const char *m = json_string_value(json_object_get(msg, "method"));
+        json_t *params = json_object_get(msg, "params");
+        const char *state = json_string_value(json_object_get(params, "state"));
+
+        if (m && strcmp(m, "capture.stored") == 0) {
+                r->t_last_ms = bench_now_ms();
+                if (r->stored++ == 0)
+                        r->t_first_ms = r->t_last_ms;
+        } else if (m && strcmp(m, "session.state") == 0 && state && strcmp(state, "none") == 0) {
+                r->ended = true;
+                snprintf(r->how, sizeof(r->how), "%s",
+                         json_string_value(json_object_get(params, "ended")));
+        }
+}
+
+double bench_run_session(struct rigenv *e, const char *name, int64_t *n, double *cpu_ms,
+                         double span_ms[2])
+{
+        struct bench_lines *l = calloc(1, sizeof(*l));
+        struct run r = {0};
+        char file[400];
+        double cpu;
+
+        CHECK(l);
+        bench_session(e, name, false, file, sizeof(file));
+        *n = sess_planned(e, file, NULL);
+        cpu = bench_cpu_s(e->daemon);
+        l->fd = sess_start_raw(e, file);
+        while (!r.ended)
+                CHECK(bench_lines_read(l, true, on_control, &r) > 0);
+        *cpu_ms += (bench_cpu_s(e->daemon) - cpu) * 1e3 / (double)*n;
+        close(l->fd);
+        free(l);
+        CHECK_STR(r.how, "done");
+        sess_check_complete(e, name, name, *n);
+        CHECK(r.stored > 1 && r.t_last_ms > r.t_first_ms);
+        if (span_ms) {
+                span_ms[0] = r.t_first_ms;
+                span_ms[1] = r.t_last_ms;
+        }
+        return (r.stored - 1) * 1000.0 / (r.t_last_ms - r.t_first_ms);
+}

@@ -81,3 +81,10 @@ void bench_watchers_start(struct bench_watchers *w, struct rigenv *e, int n);
 
 /* Stops the reader and closes the watchers; returns the fewest capture.stored one read. */
 long bench_watchers_stop(struct bench_watchers *w);
+
+/* Runs session name (bench_session) to its end, reading its notifications on the starting
+ * connection; checks it is complete. Returns its captures per second (between its first and
+ * last capture.stored, at bench_now_ms() times written to span_ms unless NULL), its capture
+ * count in *n, and adds goniod's CPU time per capture (ms) to *cpu_ms. */
+double bench_run_session(struct rigenv *e, const char *name, int64_t *n, double *cpu_ms,
+                         double span_ms[2]);

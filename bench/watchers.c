@@ -42,14 +42,6 @@ struct sink {
         pthread_t thread;
 };
 
-/* What one session run measured. */
-struct run {
-        long stored;
-        double t_first_ms, t_last_ms;
-        bool ended;
-        char how[16]; /* "ended" of the last session.state */
-};
-
 static void *flood_loop(void *ud)
 {
         static const char req[] = "{\"jsonrpc\":\"2.0\",\"id\":1,\"method\":\"describe\"}\n";
@@ -65,50 +57,6 @@ static void *flood_loop(void *ud)
                 usleep(1000);
         }
         return NULL;
-}
-
-static void on_control(json_t *msg, void *ud)
-{
-        struct run *r = ud;
-        const char *m = json_string_value(json_object_get(msg, "method"));
-        json_t *params = json_object_get(msg, "params");
-        const char *state = json_string_value(json_object_get(params, "state"));
-
-        if (m && strcmp(m, "capture.stored") == 0) {
-                r->t_last_ms = bench_now_ms();
-                if (r->stored++ == 0)
-                        r->t_first_ms = r->t_last_ms;
-        } else if (m && strcmp(m, "session.state") == 0 && state && strcmp(state, "none") == 0) {
-                r->ended = true;
-                snprintf(r->how, sizeof(r->how), "%s",
-                         json_string_value(json_object_get(params, "ended")));
-        }
-}
-
-/* Runs session name to its end, reading its notifications on the starting connection;
- * checks it is complete. Returns its captures per second, its capture count in *n, and
- * adds goniod's CPU time per capture (ms) to *cpu_ms. */
-static double run_session(struct rigenv *e, const char *name, int64_t *n, double *cpu_ms)
-{
-        struct bench_lines *l = calloc(1, sizeof(*l));
-        struct run r = {0};
-        char file[400];
-        double cpu;
-
-        CHECK(l);
-        bench_session(e, name, false, file, sizeof(file));
-        *n = sess_planned(e, file, NULL);
-        cpu = bench_cpu_s(e->daemon);
-        l->fd = sess_start_raw(e, file);
-        while (!r.ended)
-                CHECK(bench_lines_read(l, true, on_control, &r) > 0);
-        *cpu_ms += (bench_cpu_s(e->daemon) - cpu) * 1e3 / (double)*n;
-        close(l->fd);
-        free(l);
-        CHECK_STR(r.how, "done");
-        sess_check_complete(e, name, name, *n);
-        CHECK(r.stored > 1 && r.t_last_ms > r.t_first_ms);
-        return (r.stored - 1) * 1000.0 / (r.t_last_ms - r.t_first_ms);
 }
 
 /* Whether goniod's log says it disconnected a client that did not read. */
@@ -138,7 +86,7 @@ static double run_watched(struct rigenv *e, const char *name, int n, struct sink
         bench_watchers_start(&w, e, n);
         if (slow)
                 CHECK(pthread_create(&s->thread, NULL, flood_loop, s) == 0);
-        rate = run_session(e, name, &planned, cpu_ms);
+        rate = bench_run_session(e, name, &planned, cpu_ms, NULL);
         if (slow) {
                 atomic_store(&s->quit, true);
                 CHECK(pthread_join(s->thread, NULL) == 0);
@@ -171,7 +119,7 @@ static void round_run(struct rigenv *e, int k, int n, int rounds, struct result 
         double r0, r1, r2;
 
         snprintf(name, sizeof(name), "alone%d", k);
-        r0 = run_session(e, name, &planned, &res->cpu0);
+        r0 = bench_run_session(e, name, &planned, &res->cpu0, NULL);
         snprintf(name, sizeof(name), "watched%d", k);
         r1 = run_watched(e, name, n, &s, false, &res->cpu_watched);
         snprintf(name, sizeof(name), "slow%d", k);

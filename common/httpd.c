@@ -31,6 +31,7 @@
 #include <fcntl.h>
 #include <linux/openat2.h>
 #include <netinet/in.h>
+#include <errno.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <string.h>
@@ -50,14 +51,14 @@
 #define HTTPD_CHUNK        65536u     /* bytes per send() */
 #define HTTPD_SENDS        16         /* send() calls per wake-up, for fairness */
 #define HTTPD_ACCEPTS      256        /* accept() calls per wake-up */
-#define HTTPD_HEAD_MAX     512        /* status line, headers and an error's body */
+#define HTTPD_HEAD_MAX     (512 + HTTPD_EXTRA_MAX) /* status line, headers, an error's body */
 #define HTTPD_PATH_MAX     HTTPD_MAX_REQUEST
 
 #define OPEN_FLAGS (O_RDONLY | O_CLOEXEC | O_NOCTTY | O_NONBLOCK)
 
 enum phase { PHASE_READ, PHASE_WRITE, PHASE_LINGER };
 
-struct conn {
+struct httpd_conn {
         struct httpd *h;
         int fd, file_fd;
         sd_event_source *io, *timer;
@@ -65,8 +66,14 @@ struct conn {
         char head[HTTPD_HEAD_MAX];
         size_t head_len, head_off;
         uint64_t file_off, file_len;
+        char *body; /* a handler's response body, or a stream's unsent data */
+        size_t body_len, body_off, body_cap, max_pending;
+        bool stream, head_only;
+        void (*on_close)(struct httpd_conn *c, void *ud);
+        void *close_ud;
+        const char *headers; /* in req: the header lines after the request line */
         size_t lingered;
-        struct conn *next; /* the list is newest first */
+        struct httpd_conn *next; /* the list is newest first */
         size_t req_len;
         char req[HTTPD_MAX_REQUEST + 1]; /* NUL-terminated */
 };
@@ -76,10 +83,12 @@ struct httpd {
         int root_fd, fd;
         uint16_t port;
         sd_event_source *listen, *resume;
-        struct conn *conns;
+        struct httpd_conn *conns;
         unsigned n_conns, evicted, refused;
         uint64_t idle_usec;
         bool no_openat2; /* the kernel said ENOSYS once */
+        httpd_handler_fn handler;
+        void *handler_ud;
         char buf[HTTPD_CHUNK];
 };
 
@@ -89,12 +98,16 @@ static const struct {
 } statuses[] = {
         {200, "OK"},
         {400, "Bad Request"},
+        {303, "See Other"},
+        {401, "Unauthorized"},
+        {403, "Forbidden"},
         {404, "Not Found"},
         {405, "Method Not Allowed"},
         {408, "Request Timeout"},
         {414, "URI Too Long"},
         {431, "Request Header Fields Too Large"},
         {500, "Internal Server Error"},
+        {503, "Service Unavailable"},
         {505, "HTTP Version Not Supported"},
 };
 
@@ -138,16 +151,22 @@ static void log_dropped(const char *what, unsigned n)
                            HTTPD_MAX_CLIENTS, n);
 }
 
-static void conn_close(struct conn *c)
+static void conn_close(struct httpd_conn *c)
 {
         struct httpd *h = c->h;
 
-        for (struct conn **p = &h->conns; *p; p = &(*p)->next)
+        for (struct httpd_conn **p = &h->conns; *p; p = &(*p)->next)
                 if (*p == c) {
                         *p = c->next;
                         break;
                 }
         h->n_conns--;
+        if (c->on_close) {
+                void (*fn)(struct httpd_conn *, void *) = c->on_close;
+                c->on_close = NULL;
+                fn(c, c->close_ud);
+        }
+        free(c->body);
         sd_event_source_disable_unref(c->io);
         sd_event_source_disable_unref(c->timer);
         closep(&c->file_fd);
@@ -156,33 +175,40 @@ static void conn_close(struct conn *c)
 }
 
 /* (Re)starts c's timer: it fires usec from now, once. */
-static int conn_arm(struct conn *c, uint64_t usec)
+static int conn_arm(struct httpd_conn *c, uint64_t usec)
 {
         int r = sd_event_source_set_time_relative(c->timer, usec);
 
         return r < 0 ? r : sd_event_source_set_enabled(c->timer, SD_EVENT_ONESHOT);
 }
 
-/* Sets c's response head: status, headers and, for an error, a short text body. */
-static void set_head(struct conn *c, int code, const char *type, uint64_t length, const char *extra,
-                     const char *body)
+/* Sets c's response head: status, headers and, for an error, a short text body. A length of
+ * UINT64_MAX (a stream) is not sent. */
+static void set_head(struct httpd_conn *c, int code, const char *type, uint64_t length,
+                     const char *extra, const char *body)
 {
-        int n = snprintf(c->head, sizeof(c->head),
-                         "HTTP/1.1 %d %s\r\n"
-                         "Content-Type: %s\r\n"
-                         "Content-Length: %llu\r\n"
-                         "Cache-Control: no-cache\r\n"
-                         "X-Content-Type-Options: nosniff\r\n"
-                         "Connection: close\r\n"
-                         "%s\r\n%s",
-                         code, status_reason(code), type, (unsigned long long)length, extra, body);
+        char len_line[48] = "";
+        int n;
+
+        if (length != UINT64_MAX)
+                snprintf(len_line, sizeof(len_line), "Content-Length: %llu\r\n",
+                         (unsigned long long)length);
+        n = snprintf(c->head, sizeof(c->head),
+                     "HTTP/1.1 %d %s\r\n"
+                     "Content-Type: %s\r\n"
+                     "%s"
+                     "Cache-Control: no-cache\r\n"
+                     "X-Content-Type-Options: nosniff\r\n"
+                     "Connection: close\r\n"
+                     "%s\r\n%s",
+                     code, status_reason(code), type, len_line, extra, body);
 
         c->head_len = MIN((size_t)MAX(n, 0), sizeof(c->head) - 1);
         c->head_off = 0;
 }
 
 /* Starts sending what set_head and c->file_* hold. Returns 0 or -errno. */
-static int begin_write(struct conn *c)
+static int begin_write(struct httpd_conn *c)
 {
         int r;
 
@@ -192,7 +218,7 @@ static int begin_write(struct conn *c)
 }
 
 /* Answers code with a text body (none for HEAD); 405 says what is allowed. */
-static int respond_error(struct conn *c, int code, bool head_only)
+static int respond_error(struct httpd_conn *c, int code, bool head_only)
 {
         char body[64];
 
@@ -343,16 +369,41 @@ static int open_file(struct httpd *h, const char *rel, uint64_t *size, const cha
         return TAKE_FD(fd);
 }
 
+/* Hands the request to the handler. Returns 1 when it answered, 0 when it passed, or -errno
+ * (answered 500). */
+static int call_handler(struct httpd_conn *c, const char *path, const char *target)
+{
+        const char *q = strchr(target, '?');
+        char query[HTTPD_PATH_MAX];
+        int r;
+
+        snprintf(query, sizeof(query), "%.*s", q ? (int)strcspn(q + 1, "#") : 0, q ? q + 1 : "");
+        r = c->h->handler(c, c->head_only ? "HEAD" : "GET", path, query, c->h->handler_ud);
+        if (r < 0) {
+                log_debug("httpd: the handler failed on %s: %s", path, strerror(-r));
+                r = respond_error(c, 500, c->head_only);
+                return r < 0 ? r : 1;
+        }
+        return r;
+}
+
 /* Answers GET or HEAD of target. Returns 0 or -errno (c is to be closed). */
-static int serve(struct conn *c, char *target, bool head_only)
+static int serve(struct httpd_conn *c, char *target, bool head_only)
 {
         char path[HTTPD_PATH_MAX];
         const char *type;
         uint64_t size = 0;
         int fd;
 
-        if (decode_target(target, path, sizeof(path)) < 0 || normalize_path(path, sizeof(path)) < 0)
+        c->head_only = head_only;
+        if (decode_target(target, path, sizeof(path)) < 0)
                 return respond_error(c, 400, head_only);
+        if (c->h->handler && (fd = call_handler(c, path, target)) != 0)
+                return fd < 0 ? fd : 0;
+        if (normalize_path(path, sizeof(path)) < 0)
+                return respond_error(c, 400, head_only);
+        if (c->h->root_fd < 0)
+                return respond_error(c, 404, head_only);
         fd = open_file(c->h, path, &size, &type);
         log_debug("httpd: %s /%s: %s", head_only ? "HEAD" : "GET", path,
                   fd < 0 ? strerror(-fd) : "found");
@@ -365,11 +416,13 @@ static int serve(struct conn *c, char *target, bool head_only)
 }
 
 /* Parses the request line in c->req (its headers are not looked at) and answers it. */
-static int handle_request(struct conn *c)
+static int handle_request(struct httpd_conn *c)
 {
         char *line = c->req, *target, *version;
         size_t mlen;
 
+        c->headers = line + strcspn(line, "\r\n");
+        c->headers += strspn(c->headers, "\r\n") > 0 ? (c->headers[0] == '\r' ? 2 : 1) : 0;
         line[strcspn(line, "\r\n")] = 0;
         target = strchr(line, ' ');
         version = target ? strchr(target + 1, ' ') : NULL;
@@ -388,7 +441,7 @@ static int handle_request(struct conn *c)
 }
 
 /* Whether the request in c->req is complete: a blank line ends its headers. */
-static bool request_complete(const struct conn *c, size_t from)
+static bool request_complete(const struct httpd_conn *c, size_t from)
 {
         const char *p = c->req + (from > 3 ? from - 3 : 0);
 
@@ -397,7 +450,7 @@ static bool request_complete(const struct conn *c, size_t from)
 
 /* Reads request bytes; answers the request once it is whole, or an error. Returns 0 or
  * -errno (c is to be closed). */
-static int conn_read(struct conn *c)
+static int conn_read(struct httpd_conn *c)
 {
         size_t old = c->req_len;
         ssize_t n = recv(c->fd, c->req + old, HTTPD_MAX_REQUEST - old, 0);
@@ -418,7 +471,7 @@ static int conn_read(struct conn *c)
 }
 
 /* The response is out: half-close and wait for the client's close. Returns 0 or -errno. */
-static int conn_linger(struct conn *c)
+static int conn_linger(struct httpd_conn *c)
 {
         int r;
 
@@ -431,41 +484,71 @@ static int conn_linger(struct conn *c)
         return r < 0 ? r : conn_arm(c, MIN(c->h->idle_usec, HTTPD_LINGER_USEC));
 }
 
-/* Sends as much of the head and the file as the socket takes. Returns 0 or -errno. */
-static int conn_write(struct conn *c)
+/* The response's next bytes after the head into buf (room bytes): the file's or the body's.
+ * Returns their number, 0 at the end, or -errno. */
+static ssize_t next_bytes(struct httpd_conn *c, char *buf, size_t room)
+{
+        size_t n;
+
+        if (c->file_off < c->file_len) {
+                ssize_t r = pread(c->file_fd, buf, MIN(room, c->file_len - c->file_off),
+                                  (off_t)c->file_off);
+                /* 0: the file shrank, Content-Length cannot be kept */
+                return r < 0 ? -errno : r == 0 ? -EIO : r;
+        }
+        n = MIN(room, c->body_len - c->body_off);
+        memcpy(buf, c->body + c->body_off, n);
+        return (ssize_t)n;
+}
+
+/* Everything queued is out: a response lingers, a stream waits for more (watching only for
+ * the client's close, with no deadline). Returns 0 or -errno. */
+static int conn_sent(struct httpd_conn *c)
+{
+        int r;
+
+        if (!c->stream)
+                return conn_linger(c);
+        c->body_len = c->body_off = 0;
+        r = sd_event_source_set_io_events(c->io, EPOLLIN);
+        return r < 0 ? r : sd_event_source_set_enabled(c->timer, SD_EVENT_OFF);
+}
+
+/* Sends as much of the head and the file or body as the socket takes. Returns 0 or -errno. */
+static int conn_write(struct httpd_conn *c)
 {
         char *buf = c->h->buf;
         bool sent_some = false;
 
         for (int i = 0; i < HTTPD_SENDS; i++) {
-                size_t head = c->head_len - c->head_off, len = head;
+                size_t head = c->head_len - c->head_off, len = head, data;
                 ssize_t n;
 
                 memcpy(buf, c->head + c->head_off, head);
-                if (c->file_off < c->file_len) {
-                        n = pread(c->file_fd, buf + head,
-                                  MIN(HTTPD_CHUNK - head, c->file_len - c->file_off),
-                                  (off_t)c->file_off);
-                        if (n <= 0) /* 0: the file shrank, Content-Length cannot be kept */
-                                return n < 0 ? -errno : -EIO;
-                        len += n;
-                }
+                n = next_bytes(c, buf + head, HTTPD_CHUNK - head);
+                if (n < 0)
+                        return n;
+                len += n;
                 if (len == 0)
-                        return conn_linger(c);
+                        return conn_sent(c);
                 n = send(c->fd, buf, len, MSG_NOSIGNAL | MSG_DONTWAIT);
                 if (n < 0 && errno != EAGAIN && errno != EINTR)
                         return -errno;
                 if (n < 0)
                         break;
                 c->head_off += MIN((size_t)n, head);
-                c->file_off += (size_t)n - MIN((size_t)n, head);
+                data = (size_t)n - MIN((size_t)n, head);
+                if (c->file_off < c->file_len)
+                        c->file_off += data;
+                else
+                        c->body_off += data;
                 sent_some = true;
         }
         return sent_some ? conn_arm(c, c->h->idle_usec) : 0;
 }
 
 /* Reads and drops what a lingering client sends. Returns 0, or <0 when c is to close. */
-static int conn_drain(struct conn *c)
+static int conn_drain(struct httpd_conn *c)
 {
         ssize_t n = recv(c->fd, c->h->buf, HTTPD_CHUNK, 0);
 
@@ -479,12 +562,16 @@ static int conn_drain(struct conn *c)
 
 static int on_conn_io(sd_event_source *es, int fd, uint32_t revents, void *userdata)
 {
-        struct conn *c = userdata;
+        struct httpd_conn *c = userdata;
         int r;
 
         if (c->phase == PHASE_READ)
                 r = conn_read(c);
-        else if (c->phase == PHASE_WRITE)
+        else if (c->phase == PHASE_WRITE && c->stream) {
+                r = revents & EPOLLOUT ? conn_write(c) : 0;
+                if (r >= 0 && (revents & (EPOLLIN | EPOLLHUP | EPOLLERR)))
+                        r = conn_drain(c); /* what a viewer sends is dropped; EOF closes */
+        } else if (c->phase == PHASE_WRITE)
                 r = conn_write(c);
         else
                 r = conn_drain(c);
@@ -496,7 +583,7 @@ static int on_conn_io(sd_event_source *es, int fd, uint32_t revents, void *userd
 /* The idle time is over: a partial request gets 408 (best effort), then c closes. */
 static int on_conn_timer(sd_event_source *es, uint64_t usec, void *userdata)
 {
-        struct conn *c = userdata;
+        struct httpd_conn *c = userdata;
 
         if (c->phase == PHASE_READ && c->req_len > 0) {
                 set_head(c, 408, "text/plain; charset=utf-8", 0, "", "");
@@ -510,11 +597,11 @@ static int on_conn_timer(sd_event_source *es, uint64_t usec, void *userdata)
 
 /* The connection to close for a new one: a lingering one, else the oldest still reading
  * its request; NULL when all are sending files. */
-static struct conn *pick_victim(struct httpd *h)
+static struct httpd_conn *pick_victim(struct httpd *h)
 {
-        struct conn *oldest_reader = NULL;
+        struct httpd_conn *oldest_reader = NULL;
 
-        for (struct conn *c = h->conns; c; c = c->next) {
+        for (struct httpd_conn *c = h->conns; c; c = c->next) {
                 if (c->phase == PHASE_LINGER)
                         return c;
                 if (c->phase == PHASE_READ)
@@ -527,7 +614,7 @@ static struct conn *pick_victim(struct httpd *h)
 static void conn_add(struct httpd *h, int cfd)
 {
         _cleanup_close_ int fd = cfd;
-        struct conn *c, *victim;
+        struct httpd_conn *c, *victim;
         int r;
 
         if (h->n_conns >= HTTPD_MAX_CLIENTS) {
@@ -632,20 +719,52 @@ static int listen_on(const char *addr, uint16_t port, uint16_t *ret_port)
 
 int httpd_new(sd_event *event, int root_fd, const char *addr, uint16_t port, struct httpd **ret)
 {
-        struct httpd *h;
-        int r;
+        uint16_t bound = 0;
+        int fd, r;
 
         if (!event || root_fd < 0 || !addr || !ret)
                 return -EINVAL;
+        fd = listen_on(addr, port, &bound);
+        if (fd < 0)
+                return fd;
+        r = httpd_new_fd(event, root_fd, fd, ret);
+        if (r >= 0)
+                log_debug("httpd: serving on %s port %u", addr, bound);
+        return r;
+}
+
+/* The port the listening socket fd is bound to (0 when it cannot tell). */
+static uint16_t bound_port(int fd)
+{
+        struct sockaddr_storage ss;
+        socklen_t len = sizeof(ss);
+
+        if (getsockname(fd, (struct sockaddr *)&ss, &len) < 0)
+                return 0;
+        if (ss.ss_family == AF_INET)
+                return ntohs(((struct sockaddr_in *)&ss)->sin_port);
+        return ss.ss_family == AF_INET6 ? ntohs(((struct sockaddr_in6 *)&ss)->sin6_port) : 0;
+}
+
+int httpd_new_fd(sd_event *event, int root_fd, int listen_fd, struct httpd **ret)
+{
+        _cleanup_close_ int fd = listen_fd;
+        struct httpd *h;
+        int r, flags;
+
+        if (!event || fd < 0 || !ret)
+                return -EINVAL;
+        if ((flags = fcntl(fd, F_GETFL)) < 0 || fcntl(fd, F_SETFL, flags | O_NONBLOCK) < 0)
+                return -errno;
         h = calloc(1, sizeof(*h));
         if (!h)
                 return -ENOMEM;
         h->event = event;
         h->root_fd = root_fd;
         h->idle_usec = HTTPD_IDLE_USEC;
-        h->fd = r = listen_on(addr, port, &h->port);
-        if (r >= 0)
-                r = sd_event_add_io(event, &h->listen, h->fd, EPOLLIN, on_accept, h);
+        h->port = bound_port(fd);
+        h->fd = TAKE_FD(fd);
+        r = sd_event_add_io(event, &h->listen, h->fd, EPOLLIN, on_accept, h);
         if (r >= 0)
                 r = sd_event_add_time_relative(event, &h->resume, CLOCK_MONOTONIC, HTTPD_PAUSE_USEC,
                                                0, on_resume, h);
@@ -657,9 +776,129 @@ int httpd_new(sd_event *event, int root_fd, const char *addr, uint16_t port, str
         }
         sd_event_source_set_description(h->listen, "httpd-listen");
         sd_event_source_set_description(h->resume, "httpd-resume");
-        log_debug("httpd: serving on %s port %u", addr, h->port);
         *ret = h;
         return 0;
+}
+
+void httpd_set_handler(struct httpd *h, httpd_handler_fn fn, void *ud)
+{
+        h->handler = fn;
+        h->handler_ud = ud;
+}
+
+const char *httpd_header(const struct httpd_conn *c, const char *name, char *buf, size_t len)
+{
+        size_t nlen = strlen(name);
+
+        for (const char *p = c->headers; p && *p; p += strcspn(p, "\n"), p += *p == '\n') {
+                const char *v = p + nlen;
+                if (strncasecmp(p, name, nlen) != 0 || *v != ':')
+                        continue;
+                v += 1 + strspn(v + 1, " \t");
+                snprintf(buf, len, "%.*s", (int)strcspn(v, "\r\n"), v);
+                return buf;
+        }
+        return NULL;
+}
+
+int httpd_query_param(const char *query, const char *name, char *buf, size_t len)
+{
+        size_t nlen = strlen(name);
+        char raw[HTTPD_PATH_MAX];
+
+        for (const char *p = query; *p; p += strcspn(p, "&"), p += *p == '&') {
+                if (strncmp(p, name, nlen) != 0 || p[nlen] != '=')
+                        continue;
+                snprintf(raw, sizeof(raw), "/%.*s", (int)strcspn(p + nlen + 1, "&"), p + nlen + 1);
+                for (char *s = raw; (s = strchr(s, '+'));)
+                        *s = ' ';
+                if (decode_target(raw, raw, sizeof(raw)) < 0 || strlen(raw + 1) >= len)
+                        return -EINVAL;
+                memcpy(buf, raw + 1, strlen(raw + 1) + 1);
+                return 1;
+        }
+        return 0;
+}
+
+/* Makes room for len more bytes of body in c (compacting what was sent). 0 or -ENOMEM. */
+static int body_reserve(struct httpd_conn *c, size_t len)
+{
+        char *p;
+
+        if (c->body_off > 0) {
+                memmove(c->body, c->body + c->body_off, c->body_len - c->body_off);
+                c->body_len -= c->body_off;
+                c->body_off = 0;
+        }
+        if (c->body_len + len <= c->body_cap)
+                return 0;
+        p = realloc(c->body, c->body_len + len);
+        if (!p)
+                return -ENOMEM;
+        c->body = p;
+        c->body_cap = c->body_len + len;
+        return 0;
+}
+
+int httpd_respond(struct httpd_conn *c, int code, const char *type, const char *extra,
+                  const void *body, size_t len)
+{
+        if (strlen(extra) > HTTPD_EXTRA_MAX)
+                return -E2BIG;
+        if (!c->head_only && len > 0) {
+                if (body_reserve(c, len) < 0)
+                        return -ENOMEM;
+                memcpy(c->body, body, len);
+                c->body_len = len;
+        }
+        set_head(c, code, type, len, extra, "");
+        log_debug("httpd: answered %d (%zu bytes)", code, len);
+        return begin_write(c);
+}
+
+int httpd_stream(struct httpd_conn *c, const char *type, const char *extra, size_t max_pending,
+                 void (*on_close)(struct httpd_conn *c, void *ud), void *ud)
+{
+        int r = httpd_respond(c, 200, type, extra, NULL, 0);
+
+        if (r < 0)
+                return r;
+        set_head(c, 200, type, UINT64_MAX, extra, ""); /* no length: until the close */
+        c->stream = !c->head_only;
+        c->max_pending = max_pending;
+        c->on_close = c->stream ? on_close : NULL;
+        c->close_ud = ud;
+        return sd_event_source_set_io_events(c->io, EPOLLOUT | (c->stream ? EPOLLIN : 0));
+}
+
+int httpd_stream_send(struct httpd_conn *c, const void *data, size_t len)
+{
+        size_t pending = httpd_stream_pending(c);
+        int r;
+
+        if (!c->stream || c->phase != PHASE_WRITE)
+                return -ENOTCONN;
+        if (pending + len > c->max_pending)
+                return -ENOBUFS;
+        r = body_reserve(c, len);
+        if (r >= 0) {
+                memcpy(c->body + c->body_len, data, len);
+                c->body_len += len;
+                if (pending == 0 && c->head_off == c->head_len)
+                        r = conn_arm(c, c->h->idle_usec); /* from the first unsent byte */
+        }
+        if (r >= 0)
+                r = sd_event_source_set_io_events(c->io, EPOLLIN | EPOLLOUT);
+        if (r >= 0)
+                r = conn_write(c);
+        if (r < 0)
+                conn_close(c);
+        return r;
+}
+
+size_t httpd_stream_pending(const struct httpd_conn *c)
+{
+        return c->body_len - c->body_off;
 }
 
 uint16_t httpd_port(const struct httpd *h)

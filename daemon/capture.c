@@ -42,6 +42,8 @@ struct capture {
         struct take *exposing; /* takes whose exposure has not come back */
         capture_stored_fn stored;
         void *stored_ud;
+        capture_tap_fn tap;
+        void *tap_ud;
 };
 
 int capture_new(sd_event *event, struct rig *rig, capture_stored_fn stored, void *userdata,
@@ -78,6 +80,12 @@ struct capture *capture_free(struct capture *cp)
         cp->ds = ds_close(cp->ds);
         free(cp);
         return NULL;
+}
+
+void capture_set_tap(struct capture *cp, capture_tap_fn fn, void *userdata)
+{
+        cp->tap = fn;
+        cp->tap_ud = userdata;
 }
 
 unsigned capture_in_flight(const struct capture *cp)
@@ -213,6 +221,8 @@ static void store_shot(struct take *t, struct rig_exposure *e, size_t i)
         out->result = s->result;
         if (s->result < 0)
                 return (void)snprintf(out->msg, sizeof(out->msg), "%s", s->msg);
+        if (cp->tap)
+                cp->tap(cp->tap_ud, s->cam, &s->frame);
         if (t->tag.planned && !as_planned(&e->pose, t->tag.planned)) {
                 out->result = -EIO;
                 return (void)snprintf(out->msg, sizeof(out->msg),

@@ -51,6 +51,14 @@ struct capture_tag {
 /* Called on the loop thread for every row committed (capture.stored). */
 typedef void (*capture_stored_fn)(void *userdata, const struct ds_capture *row);
 
+/* Called on the loop thread with every frame of camera cam exposed or streamed for storing,
+ * before it is stored: frame is valid during the call only and must not be changed (the
+ * live view's source, daemon/preview.h). */
+typedef void (*capture_tap_fn)(void *userdata, int cam, const struct gn_frame *frame);
+
+/* Has fn(userdata, ...) see every frame (NULL: none). */
+void capture_set_tap(struct capture *cp, capture_tap_fn fn, void *userdata);
+
 /* Creates the pipeline over rig (borrowed; must outlive it). stored (may be NULL) is told
  * of every committed row. Returns 0 or -ENOMEM. */
 int capture_new(sd_event *event, struct rig *rig, capture_stored_fn stored, void *userdata,

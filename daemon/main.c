@@ -10,6 +10,8 @@
 #include "gonio_version.h"
 #include "manager.h"
 #include "protocol/proto.h"
+#include "preview.h"
+#include "web.h"
 
 static void usage(FILE *f)
 {
@@ -29,11 +31,18 @@ static void usage(FILE *f)
                 "  --listen-tcp HOST:PORT\n"
                 "                 also listen on TCP (loopback only without TLS;\n"
                 "                 $GONIO_LISTEN_TCP)\n"
-                "  --token-file FILE\n"
-                "                 the token a TCP client gives in hello ($GONIO_TOKEN_FILE)\n"
                 "  --tls-cert FILE, --tls-key FILE\n"
                 "                 TLS only on TCP, with this certificate and key (PEM;\n"
                 "                 $GONIO_TLS_CERT, $GONIO_TLS_KEY)\n"
+                "  --listen-http HOST:PORT\n"
+                "                 serve the dashboard over HTTP (loopback only;\n"
+                "                 $GONIO_LISTEN_HTTP)\n"
+                "  --preview-fps N\n"
+                "                 live pictures a second per camera, 1 to 10 (default 4;\n"
+                "                 $GONIO_PREVIEW_FPS)\n"
+                "  --token-file FILE\n"
+                "                 the token a TCP client gives in hello, and the\n"
+                "                 dashboard's ($GONIO_TOKEN_FILE)\n"
                 "  --verbose      debug logging\n"
                 "  --version      print the version and exit\n");
 }
@@ -60,25 +69,52 @@ static void default_admin(const char *sock, char *out, size_t len)
         snprintf(out, len, "%.*sadmin.sock", slash ? (int)(slash - sock + 1) : 0, sock);
 }
 
-/* The TCP listener at addr with the token of token_file (its first line), with TLS when
- * cert and key are given. Returns 0 or -errno (logged). */
-static int listen_tcp(struct manager *m, const char *addr, const char *token_file, const char *cert,
-                      const char *key)
+/* The token of token_file (its first line) into token (len bytes) for the listener what at
+ * addr. Returns 0 or -errno (logged). */
+static int read_token(const char *what, const char *addr, const char *token_file, char *token,
+                      size_t len)
 {
-        char token[256] = "";
         FILE *f = token_file && *token_file ? fopen(token_file, "re") : NULL;
 
         if (!token_file || !*token_file)
-                return log_error_errno(EINVAL, "TCP listener %s needs a token: --token-file FILE",
+                return log_error_errno(EINVAL, "%s %s needs a token: --token-file FILE", what,
                                        addr);
         if (!f)
-                return log_error_errno(errno, "TCP listener %s: token file %s: %m", addr,
-                                       token_file);
-        if (!fgets(token, sizeof(token), f))
+                return log_error_errno(errno, "%s %s: token file %s: %m", what, addr, token_file);
+        if (!fgets(token, len, f))
                 token[0] = 0;
         fclose(f);
         token[strcspn(token, "\r\n")] = 0;
-        return server_listen_tcp(m->server, addr, token, cert, key);
+        return 0;
+}
+
+/* What goniod serves beyond its Unix sockets (options and environment). */
+struct remote {
+        const char *tcp, *token_file, *cert, *key; /* the TCP listener */
+        const char *http, *fps;                    /* the dashboard */
+};
+
+/* The TCP listener and the dashboard, where asked for. Returns 0 or -errno (logged). */
+static int listen_remote(struct manager *m, const struct remote *o)
+{
+        const char *timeout = getenv("GONIO_HTTP_TIMEOUT_MS");
+        char token[256] = "";
+        int r = 0;
+
+        if ((!o->tcp || !*o->tcp) && ((o->cert && *o->cert) || (o->key && *o->key)))
+                log_notice("a TLS certificate or key without --listen-tcp: nothing listens on "
+                           "TCP, ignoring them");
+        if (o->tcp && *o->tcp &&
+            (r = read_token("TCP listener", o->tcp, o->token_file, token, sizeof(token))) >= 0)
+                r = server_listen_tcp(m->server, o->tcp, token, o->cert, o->key);
+        if (o->fps && (atoi(o->fps) < 1 || atoi(o->fps) > PREVIEW_MAX_FPS))
+                return log_error_errno(EINVAL, "--preview-fps %s: expected 1 to %d", o->fps,
+                                       PREVIEW_MAX_FPS);
+        if (r >= 0 && o->http && *o->http &&
+            (r = read_token("HTTP listener", o->http, o->token_file, token, sizeof(token))) >= 0)
+                r = web_new(m, o->http, token, o->fps ? (unsigned)atoi(o->fps) : 0,
+                            timeout ? strtoull(timeout, NULL, 10) * 1000 : 0, &m->web);
+        return r;
 }
 
 int main(int argc, char **argv)
@@ -95,17 +131,23 @@ int main(int argc, char **argv)
                 {"token-file", required_argument, NULL, 'k'},
                 {"tls-cert", required_argument, NULL, 'C'},
                 {"tls-key", required_argument, NULL, 'K'},
+                {"listen-http", required_argument, NULL, 'H'},
+                {"preview-fps", required_argument, NULL, 'F'},
                 {},
         };
-        const char *rig = NULL, *data = getenv("GONIO_DATA"), *tcp = getenv("GONIO_LISTEN_TCP"),
-                   *token_file = getenv("GONIO_TOKEN_FILE"), *cert = getenv("GONIO_TLS_CERT"),
-                   *key = getenv("GONIO_TLS_KEY");
+        struct remote o = {.tcp = getenv("GONIO_LISTEN_TCP"),
+                           .token_file = getenv("GONIO_TOKEN_FILE"),
+                           .cert = getenv("GONIO_TLS_CERT"),
+                           .key = getenv("GONIO_TLS_KEY"),
+                           .http = getenv("GONIO_LISTEN_HTTP"),
+                           .fps = getenv("GONIO_PREVIEW_FPS")};
+        const char *rig = NULL, *data = getenv("GONIO_DATA");
         char sock[PATH_MAX] = "", admin[PATH_MAX] = "";
         struct manager *m = NULL;
         int c, r;
 
         gn_log_set_ident("goniod");
-        while ((c = getopt_long(argc, argv, "r:s:a:d:vhVt:k:C:K:", opts, NULL)) >= 0) {
+        while ((c = getopt_long(argc, argv, "r:s:a:d:vhVt:k:C:K:H:F:", opts, NULL)) >= 0) {
                 switch (c) {
                 case 'r':
                         rig = optarg;
@@ -120,16 +162,22 @@ int main(int argc, char **argv)
                         data = optarg;
                         break;
                 case 't':
-                        tcp = optarg;
+                        o.tcp = optarg;
                         break;
                 case 'k':
-                        token_file = optarg;
+                        o.token_file = optarg;
                         break;
                 case 'C':
-                        cert = optarg;
+                        o.cert = optarg;
                         break;
                 case 'K':
-                        key = optarg;
+                        o.key = optarg;
+                        break;
+                case 'H':
+                        o.http = optarg;
+                        break;
+                case 'F':
+                        o.fps = optarg;
                         break;
                 case 'v':
                         gn_log_set_level(GN_LOG_DEBUG);
@@ -158,10 +206,7 @@ int main(int argc, char **argv)
                 log_error_errno(r, "cannot start: %m");
                 return 1;
         }
-        if ((!tcp || !*tcp) && ((cert && *cert) || (key && *key)))
-                log_notice("a TLS certificate or key without --listen-tcp: nothing listens on "
-                           "TCP, ignoring them");
-        if (tcp && *tcp && (r = listen_tcp(m, tcp, token_file, cert, key)) < 0) {
+        if ((r = listen_remote(m, &o)) < 0) {
                 manager_free(m);
                 return 1;
         }

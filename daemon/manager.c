@@ -14,6 +14,7 @@
 #include "datasets.h"
 #include "manager.h"
 #include "protocol/proto.h"
+#include "web.h"
 
 /* What goniod does, for systemd's STATUS= (systemctl status): the shutdown, a fault, a
  * session's progress, a scan, else the rig's state ("idle", "moving"...). */
@@ -60,6 +61,7 @@ void manager_notify_json(struct manager *m, const char *method, json_t *params)
                 server_broadcast(m->server, method, params);
         else
                 json_decref(params);
+        web_notify(m->web);
         update_status(m, NULL);
 }
 
@@ -237,6 +239,7 @@ struct manager *manager_free(struct manager *m)
                 session_runner_stop(m->session);
         if (m->scan)
                 scan_abandon(m->scan);
+        m->web = web_free(m->web); /* before what its handlers and pictures read */
         datasets_free(m); /* answers the dataset jobs while the capture can take a dataset */
         m->server = server_free(m->server);           /* pending requests outlive their clients */
         m->capture = capture_free(m->capture);        /* completes pending stores */

@@ -13,6 +13,7 @@
 
 typedef struct sd_event sd_event;
 struct workq;
+struct web;
 
 struct manager {
         sd_event *event;
@@ -24,6 +25,7 @@ struct manager {
         struct session_runner *session; /* the scripted capture session, if any */
         struct scan *scan;              /* the continuous scan */
         struct workq *ds_worker;        /* runs dataset.* off the loop (datasets.c) */
+        struct web *web;                /* the dashboard (--listen-http), or NULL */
         bool ds_busy;                   /* a dataset.open or close is running */
         uint64_t shutdown_deadline;     /* set once SIGTERM/SIGINT arrived */
         bool notify;      /* serving under systemd (NOTIFY_SOCKET): STATUS= kept current */
@@ -50,6 +52,10 @@ struct manager *manager_free(struct manager *m);
 /* What goniod does when connection client closes (methods.c): the lasers and lamps it
  * switched on outside a session go off. For server_on_close; ud is the manager. */
 void manager_client_gone(uint64_t client, void *ud);
+
+/* The result of the status method (methods.c): the rig's status, the open dataset, the
+ * storage. New reference. */
+json_t *manager_status(struct manager *m);
 
 /* Why the rig refused an operation at once with -errno r, for a reply (methods.c). */
 const char *manager_refusal(const struct manager *m, int r);

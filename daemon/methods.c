@@ -145,11 +145,9 @@ static json_t *storage_json(const char *root)
                          (json_int_t)((uint64_t)v.f_blocks * v.f_frsize));
 }
 
-static int m_status(struct srv_req *req, json_t *params, void *userdata)
+json_t *manager_status(struct manager *m)
 {
-        struct manager *m = userdata;
         json_t *st = rig_status(m->rig);
-
         struct ds *d = capture_dataset(m->capture);
 
         if (strcmp(json_string_value(json_object_get(st, "state")), "idle") == 0 &&
@@ -161,7 +159,12 @@ static int m_status(struct srv_req *req, json_t *params, void *userdata)
                                           (json_int_t)capture_dataset_count(m->capture))
                               : json_null());
         json_object_set_new(st, "storage", storage_json(m->data_dir));
-        srv_reply(req, st);
+        return st;
+}
+
+static int m_status(struct srv_req *req, json_t *params, void *userdata)
+{
+        srv_reply(req, manager_status(userdata));
         return 0;
 }
 

@@ -98,6 +98,7 @@ static const char *job_operation(const struct job *j)
                 [J_SWITCH] = "switch",
                 [J_OPEN_CAM] = "open",
                 [J_CAPTURE] = "capture",
+                [J_PEEK] = "capture",
                 [J_STREAM_START] = "stream",
                 [J_STREAM_NEXT] = "stream",
                 [J_STREAM_STOP] = "stop streaming",
@@ -186,6 +187,7 @@ static int job_call(struct bus *b, struct job *j)
                 return cam_open(rig->cams[j->idx]);
         case J_CAPTURE:
                 return cam_capture(rig->cams[j->idx], &j->creq, &j->frame);
+        case J_PEEK:
         case J_STREAM_START:
         case J_STREAM_NEXT:
         case J_STREAM_STOP:

@@ -126,6 +126,18 @@ int rig_stream_start(struct rig *rig, int i, const struct cam_request *req, rig_
 /* Stops camera i's stream: fn is not called again; the frame in flight is dropped. */
 void rig_stream_stop(struct rig *rig, int i);
 
+/* Takes one frame of camera i with req for a look (the live view), outside any exposure:
+ * moves, switching and exposures are not refused meanwhile (an exposure of camera i waits on
+ * its bus for this frame at most), and the frame records no pose. fn gets the frame or the
+ * error once, on the loop, unless rig_peek_cancel or rig_free came first. Returns 0,
+ * -ESHUTDOWN, -ESTALE (fault), -EBUSY (a peek of camera i is in flight, or it streams),
+ * -ENODEV, -EAGAIN (its bus queue is full), -ENOMEM. */
+int rig_peek(struct rig *rig, int i, const struct cam_request *req, rig_frame_fn fn,
+             void *userdata);
+
+/* Forgets the fn of camera i's peek in flight: its frame is dropped. */
+void rig_peek_cancel(struct rig *rig, int i);
+
 /* Stops every axis at once (urgent); pending moves complete with -ECANCELED, and axes in
  * motion are followed until they stand still. Writes the indices of the axes that were
  * moving into stopped (may be NULL; room for RIG_MAX_AXES) and returns their number. */

@@ -49,6 +49,13 @@ struct rig_switch {
 
 struct exposure;
 
+/* A camera's single frame for a look (rig_peek, rig_stream.c): one in flight at a time. */
+struct rig_peek {
+        bool busy;       /* its capture job is queued or running */
+        rig_frame_fn fn; /* NULL: forgotten (rig_peek_cancel), the frame is dropped */
+        void *ud;
+};
+
 /* A camera's frame stream (rig_stream.c). */
 struct rig_stream {
         bool on;   /* started and not stopped: dequeue jobs follow each other */
@@ -72,6 +79,7 @@ struct rig {
         struct exposure *exposure;  /* the exposure running, or NULL */
         sd_event_source *idle_poll; /* reads idle drives back periodically */
         struct rig_stream streams[RIG_MAX_CAMERAS];
+        struct rig_peek peeks[RIG_MAX_CAMERAS];
         int track_axis; /* the axis whose every read-back goes to track_fn, or -1 */
         rig_track_fn track_fn;
         void *track_ud;
@@ -105,6 +113,7 @@ enum job_kind {
         J_SWITCH,
         J_OPEN_CAM,
         J_CAPTURE,
+        J_PEEK, /* a capture outside any exposure (rig_peek) */
         J_STREAM_START,
         J_STREAM_NEXT,
         J_STREAM_STOP
@@ -157,10 +166,10 @@ struct rig_switch *rig_switch_slot(struct rig *rig, int i);
 /* True for the camera jobs (open, capture, streaming). */
 bool rig_is_camera_job(enum job_kind kind);
 
-/* Runs a streaming job on the bus worker (rig_stream.c). */
+/* Runs a streaming job or a peek's capture on the bus worker (rig_stream.c). */
 int rig_stream_job_call(struct job *j);
 
-/* Completion of a streaming job (rig_stream.c). */
+/* Completion of a streaming job or a peek's capture (rig_stream.c). */
 void rig_stream_job_done(struct job *j, int result);
 
 /* req with its 0s (the camera's defaults) replaced by camera i's settings where device.set

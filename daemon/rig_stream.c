@@ -1,5 +1,6 @@
 /* rig_stream.c - camera streams: frames taken back to back while the rig moves (a
- * continuous scan), outside the confirmed-pose exposures of rig_expose.c.
+ * continuous scan), and peeks: single frames for a look (the live view); both outside the
+ * confirmed-pose exposures of rig_expose.c.
  *
  * DESIGN: a stream is a chain of jobs on the camera's bus worker: START, then one NEXT
  * (a blocking dequeue, bounded by the backend) after another, each queued when the
@@ -17,6 +18,8 @@ int rig_stream_job_call(struct job *j)
         struct cam *c = j->rig->cams[j->idx];
 
         switch (j->kind) {
+        case J_PEEK:
+                return cam_capture(c, &j->creq, &j->frame);
         case J_STREAM_START:
                 return cam_stream_start(c, &j->creq);
         case J_STREAM_NEXT:
@@ -63,6 +66,20 @@ static const char *job_message(struct job *j, int result, char *buf, size_t len)
         return buf;
 }
 
+/* A peek's frame is back: to its fn unless forgotten. */
+static void peek_done(struct job *j, int result)
+{
+        struct rig_peek *pk = &j->rig->peeks[j->idx];
+        rig_frame_fn fn = pk->fn;
+        void *ud = pk->ud;
+        char msg[256];
+
+        *pk = (struct rig_peek){0};
+        if (fn && !j->rig->freeing)
+                fn(j->rig, result, result < 0 ? NULL : &j->frame,
+                   result < 0 ? job_message(j, result, msg, sizeof(msg)) : NULL, ud);
+}
+
 void rig_stream_job_done(struct job *j, int result)
 {
         struct rig *rig = j->rig;
@@ -70,6 +87,8 @@ void rig_stream_job_done(struct job *j, int result)
         char msg[256];
         int r;
 
+        if (j->kind == J_PEEK)
+                return peek_done(j, result);
         if (j->kind == J_STREAM_STOP)
                 return;
         if (j->kind == J_STREAM_NEXT)
@@ -85,25 +104,46 @@ void rig_stream_job_done(struct job *j, int result)
                 st->fn(rig, 0, &j->frame, NULL, st->ud);
 }
 
-int rig_stream_start(struct rig *rig, int i, const struct cam_request *req, rig_frame_fn fn,
-                     void *userdata)
+/* Queues the first job (kind) of a stream or a peek of camera i (busy: it has one already),
+ * unless the rig refuses it. Returns 0 or -errno. */
+static int begin(struct rig *rig, int i, bool busy, enum job_kind kind,
+                 const struct cam_request *req)
 {
-        struct rig_stream *st = &rig->streams[i];
-        int r;
-
         if (rig->closing)
                 return -ESHUTDOWN;
         if (rig->fault)
                 return -ESTALE;
-        if (st->on || st->next)
+        if (busy)
                 return -EBUSY;
-        if (!rig->cam_open[i])
-                return -ENODEV;
-        r = submit(rig, J_STREAM_START, i, req);
+        return rig->cam_open[i] ? submit(rig, kind, i, req) : -ENODEV;
+}
+
+int rig_stream_start(struct rig *rig, int i, const struct cam_request *req, rig_frame_fn fn,
+                     void *userdata)
+{
+        struct rig_stream *st = &rig->streams[i];
+        int r = begin(rig, i, st->on || st->next, J_STREAM_START, req);
+
         if (r < 0)
                 return r;
         *st = (struct rig_stream){.on = true, .fn = fn, .ud = userdata};
         return 0;
+}
+
+int rig_peek(struct rig *rig, int i, const struct cam_request *req, rig_frame_fn fn, void *userdata)
+{
+        struct rig_peek *pk = &rig->peeks[i];
+        int r = begin(rig, i, pk->busy || rig->streams[i].on || rig->streams[i].next, J_PEEK, req);
+
+        if (r < 0)
+                return r;
+        *pk = (struct rig_peek){.busy = true, .fn = fn, .ud = userdata};
+        return 0;
+}
+
+void rig_peek_cancel(struct rig *rig, int i)
+{
+        rig->peeks[i].fn = NULL;
 }
 
 void rig_stream_stop(struct rig *rig, int i)

@@ -344,8 +344,7 @@ static const char *role_path(const struct server *s, enum srv_role role)
         return NULL;
 }
 
-/* Whether a and b are the same string, in a time that does not tell where they differ. */
-static bool same_secret(const char *a, const char *b)
+bool server_same_secret(const char *a, const char *b)
 {
         size_t la = strlen(a), lb = strlen(b);
         unsigned char d = la != lb;
@@ -361,7 +360,7 @@ static bool token_given(struct client *c, const struct srv_method *m, json_t *pa
 {
         const char *t = json_string_value(json_object_get(params, "token"));
 
-        if (strcmp(m->name, "hello") || !t || !same_secret(t, c->token))
+        if (strcmp(m->name, "hello") || !t || !server_same_secret(t, c->token))
                 return false;
         c->token = NULL;
         return true;
@@ -982,46 +981,54 @@ static int listener_creds(const char *addr, const char *cert, const char *key,
         return r < 0 ? log_error_errno(r, "TCP listener %s: TLS: %s", addr, err) : 0;
 }
 
-int server_listen_tcp(struct server *s, const char *addr, const char *token, const char *cert,
-                      const char *key)
+int server_tcp_socket(const char *addr, const char *what, const char *beyond)
 {
         struct sockaddr_storage sa;
         socklen_t len = 0;
-        struct listener *l;
-        struct tls_creds *tls = NULL;
-        int r = tcp_address(addr, &sa, &len), fd, one = 1;
-        bool with_tls = (cert && *cert) || (key && *key);
+        int r = tcp_address(addr, &sa, &len), one = 1;
+        _cleanup_close_ int fd = -EBADF;
 
-        if (r == -EPERM && !with_tls)
-                return log_error_errno(EPERM,
-                                       "TCP listener %s: not a loopback address: beyond "
-                                       "loopback goniod needs TLS (--tls-cert FILE --tls-key "
-                                       "FILE)",
-                                       addr);
-        if ((r < 0 && r != -EPERM) || !token || strlen(token) < 16 ||
-            strlen(token) >= sizeof(l->token))
-                return log_error_errno(EINVAL, "TCP listener %s: %s", addr,
-                                       r < 0 && r != -EPERM
-                                               ? "expected HOST:PORT, HOST a numeric address "
-                                                 "(127.0.0.1, [::1]; others with TLS)"
-                                               : "the token must be 16 to 127 characters");
+        if (r == -EPERM && beyond)
+                return log_error_errno(EPERM, "%s %s: not a loopback address: beyond loopback %s",
+                                       what, addr, beyond);
+        if (r < 0 && r != -EPERM)
+                return log_error_errno(EINVAL,
+                                       "%s %s: expected HOST:PORT, HOST a numeric address "
+                                       "(127.0.0.1, [::1]; others with TLS)",
+                                       what, addr);
+        fd = socket(sa.ss_family, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+        if (fd < 0 || setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof(one)) < 0 ||
+            bind(fd, (struct sockaddr *)&sa, len) < 0 || listen(fd, SOMAXCONN) < 0)
+                return log_error_errno(errno, "Cannot listen on %s %s: %m", what, addr);
+        return TAKE_FD(fd);
+}
+
+int server_listen_tcp(struct server *s, const char *addr, const char *token, const char *cert,
+                      const char *key)
+{
+        bool with_tls = (cert && *cert) || (key && *key);
+        struct tls_creds *tls = NULL;
+        struct listener *l;
+        int r, fd;
+
+        if (!token || strlen(token) < SRV_TOKEN_MIN || strlen(token) > SRV_TOKEN_MAX)
+                return log_error_errno(EINVAL,
+                                       "TCP listener %s: the token must be %d to %d "
+                                       "characters",
+                                       addr, SRV_TOKEN_MIN, SRV_TOKEN_MAX);
         if (with_tls && (r = listener_creds(addr, cert, key, &tls)) < 0)
                 return r;
-        if (!(l = listener_new(s, SRV_OPERATOR, addr, &r))) {
+        fd = server_tcp_socket(addr, "TCP listener",
+                               with_tls ? NULL
+                                        : "goniod needs TLS (--tls-cert FILE --tls-key FILE)");
+        if (fd < 0 || !(l = listener_new(s, SRV_OPERATOR, addr, &r))) {
                 tls_creds_free(tls);
-                return r;
+                safe_close(fd);
+                return fd < 0 ? fd : r;
         }
         snprintf(l->token, sizeof(l->token), "%s", token);
         l->tls = tls;
-        fd = socket(sa.ss_family, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
-        if (fd < 0 || setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof(one)) < 0 ||
-            bind(fd, (struct sockaddr *)&sa, len) < 0 || listen(fd, SOMAXCONN) < 0) {
-                r = log_error_errno(errno, "Cannot listen on TCP %s: %m", addr);
-                safe_close(fd);
-                fd = r;
-        }
-        if (fd >= 0)
-                log_info("listening on TCP %s (%s)", addr, tls ? "TLS" : "plain, loopback");
+        log_info("listening on TCP %s (%s)", addr, tls ? "TLS" : "plain, loopback");
         return listener_add(l, fd);
 }
 

@@ -73,17 +73,32 @@ int server_listen_fd(struct server *s, int fd, enum srv_role role);
  * of server_listen_fd (logged). Every passed descriptor is taken, also on failure. */
 int server_listen_systemd(struct server *s);
 
+/* Shortest and longest token of a TCP listener, in characters. */
+#define SRV_TOKEN_MIN 16
+#define SRV_TOKEN_MAX 127
+
 /* Listens on TCP at addr ("HOST:PORT", HOST numeric: "127.0.0.1", "[::1]", "0.0.0.0"...) for
- * operator connections that must say hello with params.token equal to token (16 characters
- * at least) before anything else; three wrong tokens close the connection. With cert and key
- * (PEM files; NULL: none) connections speak TLS only (daemon/tls.h): a handshake not ended
- * in TLS_HANDSHAKE_USEC is dropped, a client without TLS is told so and closed. Without them
- * addr must be a loopback address. Returns 0, -EINVAL (a bad address, a short token, a
- * certificate without key), -EPERM (beyond loopback without TLS), -errno of reading the
- * certificate or key (-ENOENT, -EACCES, -EBADMSG, -EKEYREJECTED: the key is not the
- * certificate's) or of bind/listen; every failure is logged with its cause. */
+ * operator connections that must say hello with params.token equal to token (SRV_TOKEN_MIN
+ * to SRV_TOKEN_MAX characters) before anything else; three wrong tokens close the connection.
+ * With cert and key (PEM files; NULL: none) connections speak TLS only (daemon/tls.h): a
+ * handshake not ended in TLS_HANDSHAKE_USEC is dropped, a client without TLS is told so and
+ * closed. Without them addr must be a loopback address. Returns 0, -EINVAL (a bad address, a
+ * short token, a certificate without key), -EPERM (beyond loopback without TLS), -errno of
+ * reading the certificate or key (-ENOENT, -EACCES, -EBADMSG, -EKEYREJECTED: the key is not
+ * the certificate's) or of bind/listen; every failure is logged with its cause. */
 int server_listen_tcp(struct server *s, const char *addr, const char *token, const char *cert,
                       const char *key);
+
+/* A listening TCP socket (non-blocking, SO_REUSEADDR, backlog SOMAXCONN) on addr
+ * ("HOST:PORT", HOST numeric, [::1] bracketed) for goniod's TCP listeners (this server's, the
+ * dashboard's); what names it in the log ("TCP listener"). An address beyond loopback is
+ * refused with the reason beyond ("goniod needs TLS ..."), taken when beyond is NULL. Returns
+ * the fd, -EINVAL (a bad address), -EPERM (refused) or -errno of bind/listen, logged. */
+int server_tcp_socket(const char *addr, const char *what, const char *beyond);
+
+/* Whether a and b are the same string, in a time that does not tell where they differ
+ * (tokens). */
+bool server_same_secret(const char *a, const char *b);
 
 /* Starts accepting connections. Returns 0 or -errno. */
 int server_start(struct server *s);

@@ -12,6 +12,11 @@
  *   bad           an over-long request line and header, a request cut short, POST,
  *                 garbage: 4xx (505 for HTTP/2.0), the server keeps serving
  *   bind          bad arguments and addresses, a port in use, IPv6 on ::1
+ *   stream        a handler's routes (daemon/web.c's way): an answer from memory with its
+ *                 headers, a query parameter decoded, a stream that a reading client gets
+ *                 whole; a stream whose client never reads has its unsent data bounded
+ *                 (sends refused with -ENOBUFS) and is closed after the idle time (1 s),
+ *                 its close callback run; files are still served beside the handler
  *
  * Usage: test-httpd CASE (one meson test per case; $CURL names curl, 77 without it). */
 #include <arpa/inet.h>
@@ -46,6 +51,7 @@ static struct {
         char root[96];
         pid_t pid;
         uint16_t port;
+        bool handler; /* the "stream" case's handler answers first */
 } T;
 
 static uint64_t now_usec(void)
@@ -163,6 +169,69 @@ static void forbid_openat2(void)
         CHECK_INT(prctl(PR_SET_SECCOMP, SECCOMP_MODE_FILTER, &prog), 0);
 }
 
+/* The streams of the "stream" case's handler (in the child) and what it counted. */
+#define STREAM_CHUNK   65536
+#define STREAM_PENDING (4 * STREAM_CHUNK)
+static struct {
+        struct httpd_conn *conns[8];
+        unsigned opened, closed;
+        unsigned long sent, refused;
+        sd_event_source *feed;
+} S;
+
+static void stream_closed(struct httpd_conn *c, void *ud)
+{
+        for (size_t i = 0; i < ELEMENTSOF(S.conns); i++)
+                if (S.conns[i] == c)
+                        S.conns[i] = NULL;
+        S.closed++;
+}
+
+/* Every 2 ms a chunk to each stream; refusals counted. */
+static int on_feed(sd_event_source *es, uint64_t usec, void *ud)
+{
+        static char chunk[STREAM_CHUNK];
+
+        memset(chunk, 'x', sizeof(chunk));
+        for (size_t i = 0; i < ELEMENTSOF(S.conns); i++) {
+                int r = S.conns[i] ? httpd_stream_send(S.conns[i], chunk, sizeof(chunk)) : 0;
+                S.sent += r == 0 && S.conns[i];
+                S.refused += r == -ENOBUFS;
+        }
+        return sd_event_source_set_time_relative(es, 2000);
+}
+
+static int handle(struct httpd_conn *c, const char *method, const char *path, const char *query,
+                  void *ud)
+{
+        char buf[256], v[64];
+        size_t i;
+
+        if (strcmp(path, "/mem") == 0) {
+                if (httpd_query_param(query, "v", v, sizeof(v)) <= 0)
+                        snprintf(v, sizeof(v), "none");
+                snprintf(buf, sizeof(buf), "MEMORY %s %s", method, v);
+                return httpd_respond(c, 200, "text/plain", "X-Test: yes\r\n", buf, strlen(buf))
+                               ?: 1;
+        }
+        if (strcmp(path, "/count") == 0) {
+                snprintf(buf, sizeof(buf), "opened=%u closed=%u refused=%lu", S.opened, S.closed,
+                         S.refused);
+                return httpd_respond(c, 200, "text/plain", "", buf, strlen(buf)) ?: 1;
+        }
+        if (strcmp(path, "/stream") != 0)
+                return 0;
+        for (i = 0; i < ELEMENTSOF(S.conns) && S.conns[i]; i++)
+                ;
+        CHECK(i < ELEMENTSOF(S.conns));
+        CHECK_INT(httpd_stream(c, "application/octet-stream", "", STREAM_PENDING, stream_closed,
+                               NULL),
+                  0);
+        S.conns[i] = strcmp(method, "HEAD") ? c : NULL;
+        S.opened++;
+        return 1;
+}
+
 /* The child: serves T.root until killed, port written to fd. */
 static _Noreturn void serve(int fd, bool walk, uint64_t idle_usec)
 {
@@ -180,6 +249,12 @@ static _Noreturn void serve(int fd, bool walk, uint64_t idle_usec)
         CHECK_INT(sd_event_new(&event), 0);
         CHECK_INT(httpd_new(event, root_fd, T.addr, 0, &h), 0);
         httpd_set_idle(h, idle_usec);
+        if (T.handler) {
+                httpd_set_handler(h, handle, NULL);
+                CHECK(sd_event_add_time_relative(event, &S.feed, CLOCK_MONOTONIC, 2000, 1000,
+                                                 on_feed, NULL) >= 0);
+                CHECK(sd_event_source_set_enabled(S.feed, SD_EVENT_ON) >= 0);
+        }
         port = httpd_port(h);
         CHECK(port > 0);
         CHECK_INT(write(fd, &port, sizeof(port)), sizeof(port));
@@ -624,11 +699,73 @@ static void test_bind(void)
         check_status("/sub/nested.js", "200 text/javascript");
 }
 
+/* Reads a stream's bytes from fd for ms; returns how many. */
+static long read_for(int fd, int ms)
+{
+        uint64_t end = now_usec() + ms * 1000ull;
+        char buf[65536];
+        long total = 0;
+
+        while (now_usec() < end) {
+                struct pollfd p = {.fd = fd, .events = POLLIN};
+                ssize_t n = poll(&p, 1, 20) > 0 ? recv(fd, buf, sizeof(buf), MSG_DONTWAIT) : 0;
+                if (n > 0)
+                        total += n;
+                else if (n == 0 && p.revents)
+                        break;
+        }
+        return total;
+}
+
+static void test_stream(void)
+{
+        static const char req[] = "GET /stream HTTP/1.1\r\nHost: localhost\r\n\r\n";
+        char out[4096];
+        int reader, stuck;
+        long got;
+
+        T.handler = true;
+        start(false, 1000000);
+        check_body("/mem?x=1&v=a%20b+c", "MEMORY GET a b c");
+        check_status("/mem", "200 text/plain");
+        CHECK_INT(curl("-sI", "/mem", out, sizeof(out)), 0);
+        CHECK_STR_CONTAINS(out, "X-Test: yes\r\n"); /* HEAD: the headers alone */
+        check_body("/sub/nested.js", nested_js);    /* files beside the handler */
+        reader = raw_connect(0);
+        send_all(reader, req, strlen(req));
+        stuck = raw_connect(4096);
+        send_all(stuck, req, strlen(req));
+        got = read_for(reader, 500);
+        fprintf(stderr, "a reading client got %ld bytes in 0.5 s\n", got);
+        CHECK(got > 20 * STREAM_CHUNK);
+        /* the client that never reads (never drained here: that would be progress) is
+         * bounded, then closed at the idle time; the reader keeps reading meanwhile */
+        for (uint64_t end = now_usec() + 3000000; now_usec() < end;) {
+                got += read_for(reader, 100);
+                CHECK_INT(curl("", "/count", out, sizeof(out)), 0);
+                if (strstr(out, "closed=1 "))
+                        break;
+        }
+        fprintf(stderr, "%s\n", out);
+        CHECK_STR_CONTAINS(out, "opened=2 closed=1 refused=");
+        CHECK(strtoul(strstr(out, "refused=") + 8, NULL, 10) > 10);
+        CHECK(!is_closed(reader));
+        CHECK_INT(count_closed(&stuck, 1, 1, 2000), 1);
+        close(reader);
+        close(stuck);
+        check_alive();
+}
+
 int main(int argc, char **argv)
 {
         static const struct test_case cases[] = {
-                {"get", test_get},   {"confine", test_confine}, {"confine-walk", test_confine_walk},
-                {"rude", test_rude}, {"bad", test_bad},         {"bind", test_bind},
+                {"get", test_get},
+                {"confine", test_confine},
+                {"confine-walk", test_confine_walk},
+                {"rude", test_rude},
+                {"bad", test_bad},
+                {"bind", test_bind},
+                {"stream", test_stream},
         };
 
         return TEST_RUN_CASES(cases, argc, argv);

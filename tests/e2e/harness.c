@@ -1,8 +1,10 @@
 /* harness.c - process and socket helpers for gonio's end-to-end tests. */
+#include <arpa/inet.h>
 #include <inttypes.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
 #include <stdarg.h>
@@ -146,6 +148,22 @@ static bool wait_word(int fd, const char *word, double timeout)
                         memmove(buf, buf + len / 2, len - len / 2), len -= len / 2;
         }
         return false;
+}
+
+int tcp_connect(const char *ip, int port)
+{
+        struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port)};
+
+        CHECK(inet_pton(AF_INET, ip, &sa.sin_addr) == 1);
+        for (double end = now_s() + 10; now_s() < end; usleep(50000)) {
+                int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+                CHECK(fd >= 0);
+                if (connect(fd, (struct sockaddr *)&sa, sizeof(sa)) == 0)
+                        return fd;
+                close(fd);
+        }
+        CHECK(!"goniod does not listen on TCP");
+        return -1;
 }
 
 int raw_connect(struct rigenv *e)
@@ -296,7 +314,12 @@ void rigenv_start_rig(struct rigenv *e, char **argv, double time_scale, const ch
 
 void rigenv_start_sim(struct rigenv *e, char **argv, double time_scale)
 {
-        init(e, argv, time_scale, NULL);
+        rigenv_start_sim_rig(e, argv, time_scale, NULL);
+}
+
+void rigenv_start_sim_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text)
+{
+        init(e, argv, time_scale, rig_text);
         start_sim(e);
 }
 

@@ -43,6 +43,9 @@ void rigenv_start_logged(struct rigenv *e, char **argv, double time_scale);
 /* Like rigenv_start without goniod: the test starts it (rigenv_spawn_daemon). */
 void rigenv_start_sim(struct rigenv *e, char **argv, double time_scale);
 
+/* Like rigenv_start_sim with the rig file rig_text (YAML; NULL: the default test rig). */
+void rigenv_start_sim_rig(struct rigenv *e, char **argv, double time_scale, const char *rig_text);
+
 /* Forks goniod on e's rig and data with --socket socket, its stderr appended to DIR/goniod.log,
  * after setup(ud) ran in the child (environment, descriptors: as systemd would); sets
  * e->daemon (stopped by rigenv_stop) and does not wait for it. */
@@ -82,6 +85,10 @@ int ctl(struct rigenv *e, json_t **out, ...) __attribute__((sentinel));
 
 /* Like ctl but exits the test unless gonioctl succeeds; returns the parsed result. */
 json_t *ctl_ok(struct rigenv *e, ...) __attribute__((sentinel));
+
+/* A TCP connection to ip:port (IPv4, numeric; goniod's --listen-tcp or --listen-http),
+ * retried for 10 s while goniod starts; the test fails after. Returns the fd. */
+int tcp_connect(const char *ip, int port);
 
 /* Connects a raw client to the daemon's socket. Returns the fd. */
 int raw_connect(struct rigenv *e);

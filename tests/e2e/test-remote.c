@@ -58,22 +58,6 @@ static void tcp_env_init(struct tcp_env *t, struct rigenv *e, const char *ip, in
         write_file(t->token_file, TOKEN "\n");
 }
 
-/* A TCP connection to ip:port, retried while goniod starts. */
-static int tcp_connect(const char *ip, int port)
-{
-        struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port)};
-
-        CHECK(inet_pton(AF_INET, ip, &sa.sin_addr) == 1);
-        for (double end = now_s() + 10; now_s() < end; usleep(50000)) {
-                int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-                CHECK(fd >= 0);
-                if (connect(fd, (struct sockaddr *)&sa, sizeof(sa)) == 0)
-                        return fd;
-                close(fd);
-        }
-        CHECK(!"goniod does not listen on TCP");
-        return -1;
-}
 /* raw_call's reply carries an error whose message holds what. */
 static void refused(int fd, const char *req, const char *what)
 {
