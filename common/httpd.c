@@ -497,7 +497,8 @@ static ssize_t next_bytes(struct httpd_conn *c, char *buf, size_t room)
                 return r < 0 ? -errno : r == 0 ? -EIO : r;
         }
         n = MIN(room, c->body_len - c->body_off);
-        memcpy(buf, c->body + c->body_off, n);
+        if (n > 0) /* no body: c->body is NULL */
+                memcpy(buf, c->body + c->body_off, n);
         return (ssize_t)n;
 }
 
