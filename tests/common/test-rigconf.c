@@ -553,9 +553,10 @@ static void case_lasers(void)
                   6, "lasers", "at most 8 entries");
 }
 
-/* Text the YAML parser must not see: an empty file (getdelim leaves its buffer unwritten)
- * and bytes that are not UTF-8 (libfyaml 0.7 loops for ever on "%\x83"), refused at their
- * line; UTF-8 text loads. */
+/* Text the YAML parser must not see: an empty file (getdelim leaves its buffer unwritten),
+ * bytes that are not UTF-8 (libfyaml 0.7 loops for ever on "%\x83") and a tab outside quotes
+ * and comments (libfyaml 0.8 crashes on "? a:\t? b"), refused at their line; UTF-8 text and
+ * tabs in quotes and comments load. */
 static void case_text(void)
 {
         struct rig_config *rc = NULL;
@@ -573,6 +574,12 @@ static void case_text(void)
         CHECK(rc == NULL);
         rc = expect_ok("rig: t\xc3\xa9\xe2\x82\xac\xf0\x9f\x98\x80\n");
         CHECK_STR(rc->name, "t\xc3\xa9\xe2\x82\xac\xf0\x9f\x98\x80");
+        rigconf_free(rc);
+        CHECK_INT(load_text("rig: t\n? a:\t? I\n", &rc, err, sizeof(err), path), -EINVAL);
+        snprintf(want, sizeof(want), "%s:2: a tab: gonio's YAML files take spaces only", path);
+        CHECK_STR_CONTAINS(err, want);
+        rc = expect_ok("rig: \"t\\\"\tu\" # a\ttab\n# it's\t'\n");
+        CHECK_STR(rc->name, "t\"\tu");
         rigconf_free(rc);
 }
 
