@@ -44,6 +44,7 @@ struct web {
         unsigned n_pictures, n_events;
         sd_event_source *push;
         bool dirty;
+        bool https; /* the cookie goes over TLS only */
         uint64_t last_push_usec;
 };
 
@@ -108,8 +109,8 @@ static int sign_in(struct web *w, struct httpd_conn *c, const char *token)
         }
         snprintf(extra, sizeof(extra),
                  "Location: /\r\nSet-Cookie: " WEB_COOKIE "=%s; Path=/; HttpOnly; "
-                 "SameSite=Strict\r\n",
-                 w->cookie);
+                 "SameSite=Strict%s\r\n",
+                 w->cookie, w->https ? "; Secure" : "");
         return deny(c, 303, extra, "signed in\n");
 }
 
@@ -390,6 +391,7 @@ int web_new(struct manager *m, const char *addr, const char *token, const struct
         httpd_set_handler(w->h, handle, w);
         if (tls)
                 httpd_set_tls(w->h, &web_tls, tls);
+        w->https = tls;
         if (timeout_usec)
                 httpd_set_idle(w->h, timeout_usec);
         (void)sd_event_source_set_description(w->push, "web-push");

@@ -1,7 +1,7 @@
 /* web.h - goniod's dashboard: a small web page with the rig's status, the session's progress
  * and a live picture of each camera, served over HTTP/1.1 (common/httpd.h) on goniod's loop,
- * under the rules of its TCP listener: loopback only, the token of --token-file required
- * (docs/goniod.md, "Dashboard").
+ * under the rules of its TCP listener: the token of --token-file required, loopback only
+ * without TLS, HTTPS only with it (goniod's credentials) (docs/goniod.md, "Dashboard").
  *
  * Routes, all GET (or HEAD), nothing else served (no files from client paths):
  *   /                    the page (built in: daemon/web/)

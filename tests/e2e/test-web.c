@@ -16,12 +16,11 @@
  *          (the oldest are dropped); HEAD of a picture stream opens none; the 17th picture
  *          stream gets 503
  *   tls    with --tls-cert/--tls-key (tests/tls-certs.sh, argument 5): GET /api/status over
- *          TLS with the token answers the status, while a handshake that stalls does not
- *          hold it up and is dropped at the deadline; a client trusting another CA fails its
- *          handshake; plain HTTP gets a plain-text 400 and no page
- *   netns  in a network namespace of its own (skipped, 77, where none can be made) with
- *          10.77.0.1 on lo: that address without TLS stops goniod at its start, with TLS it
- *          serves the status over HTTPS */
+ *          TLS with the token answers the status (the sign-in's cookie is Secure), while a
+ * handshake that stalls does not hold it up and is dropped at the deadline; a client trusting
+ * another CA fails its handshake; plain HTTP gets a plain-text 400 and no page netns  in a network
+ * namespace of its own (skipped, 77, where none can be made) with 10.77.0.1 on lo: that address
+ * without TLS stops goniod at its start, with TLS it serves the status over HTTPS */
 #include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -373,19 +372,21 @@ static void check_crowds(void)
                 close(streams[i]);
 }
 
-/* GET /api/status with the token over TLS to ip:port, trusting the CA file ca (in e's
- * directory); the answer in buf. Returns its status code, or the -errno of the handshake. */
-static int https_status(struct rigenv *e, const char *ip, const char *ca, char *buf, size_t len)
+/* GET path with the token over TLS to ip:port, trusting the CA file ca (in e's directory);
+ * the answer in buf. Returns its status code, or the -errno of the handshake. */
+static int https_get(struct rigenv *e, const char *ip, const char *ca, const char *path, char *buf,
+                     size_t len)
 {
-        static const char req[] = "GET /api/status HTTP/1.1\r\n" BEARER "\r\n";
+        char req[512];
         struct tls_creds *creds = NULL;
         struct tls_conn *t = NULL;
-        char path[400], err[600];
+        char ca_path[400], err[600];
         int fd = tcp_connect(ip, port), code = 0; /* blocking: no call returns -EAGAIN */
         ssize_t n = 0, r;
 
-        snprintf(path, sizeof(path), "%s/%s", e->dir, ca);
-        CHECK(tls_creds_new_client(path, &creds, err, sizeof(err)) == 0);
+        snprintf(req, sizeof(req), "GET %s HTTP/1.1\r\n" BEARER "\r\n", path);
+        snprintf(ca_path, sizeof(ca_path), "%s/%s", e->dir, ca);
+        CHECK(tls_creds_new_client(ca_path, &creds, err, sizeof(err)) == 0);
         CHECK(tls_conn_new(creds, fd, ip, &t) == 0);
         r = tls_handshake(t);
         if (r == 0)
@@ -426,10 +427,12 @@ static void case_tls(struct rigenv *e, const char *certs_script)
         stalled = tcp_connect("127.0.0.1", port);
         CHECK(write(stalled, partial_hello, sizeof(partial_hello) - 1) > 0);
         t0 = now_s();
-        CHECK_INT(https_status(e, "127.0.0.1", "ca.pem", buf, sizeof(buf)), 200);
+        CHECK_INT(https_get(e, "127.0.0.1", "ca.pem", "/api/status", buf, sizeof(buf)), 200);
         CHECK_STR_CONTAINS(body_of(buf), "\"state\":");
         CHECK(now_s() - t0 < 0.3); /* not held up by the stalled handshake */
-        CHECK_INT(https_status(e, "127.0.0.1", "other-ca.pem", buf, sizeof(buf)), -EKEYREJECTED);
+        CHECK_INT(https_get(e, "127.0.0.1", "ca.pem", "/?token=" TOKEN, buf, sizeof(buf)), 303);
+        CHECK_STR_CONTAINS(buf, "; HttpOnly; SameSite=Strict; Secure\r\n");
+        CHECK_INT(https_get(e, "127.0.0.1", "other-ca.pem", "/", buf, sizeof(buf)), -EKEYREJECTED);
         CHECK_INT(get("/api/status", BEARER, buf, sizeof(buf)), 400);
         CHECK_STR_CONTAINS(body_of(buf), "this port takes HTTPS only");
         p = (struct pollfd){.fd = stalled, .events = POLLIN};
@@ -444,7 +447,7 @@ static void case_netns(struct rigenv *e, const char *certs_script)
         start_refused(e, "10.77.0.1", "not a loopback address: beyond loopback the dashboard");
         use_tls(e, certs_script, "IP:10.77.0.1");
         rigenv_spawn_daemon(e, e->sock, http_env, "10.77.0.1");
-        CHECK_INT(https_status(e, "10.77.0.1", "ca.pem", buf, sizeof(buf)), 200);
+        CHECK_INT(https_get(e, "10.77.0.1", "ca.pem", "/api/status", buf, sizeof(buf)), 200);
         CHECK_STR_CONTAINS(body_of(buf), "\"state\":");
 }
 
