@@ -377,10 +377,9 @@ static void check_crowds(void)
 static int https_get(struct rigenv *e, const char *ip, const char *ca, const char *path, char *buf,
                      size_t len)
 {
-        char req[512];
         struct tls_creds *creds = NULL;
         struct tls_conn *t = NULL;
-        char ca_path[400], err[600];
+        char req[512], ca_path[400], err[600];
         int fd = tcp_connect(ip, port), code = 0; /* blocking: no call returns -EAGAIN */
         ssize_t n = 0, r;
 
@@ -391,8 +390,8 @@ static int https_get(struct rigenv *e, const char *ip, const char *ca, const cha
         r = tls_handshake(t);
         if (r == 0)
                 CHECK(tls_write(t, req, strlen(req)) == (ssize_t)strlen(req));
-        while (r == 0 && (r = tls_read(t, buf + n, len - 1 - n)) > 0 && (n += r) + 1 < (ssize_t)len)
-                r = 0;
+        while (r >= 0 && n + 1 < (ssize_t)len && (r = tls_read(t, buf + n, len - 1 - n)) > 0)
+                n += r;
         buf[n] = 0;
         if (n > 0)
                 CHECK(sscanf(buf, "HTTP/1.1 %d", &code) == 1);
