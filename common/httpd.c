@@ -17,6 +17,11 @@
  *           the answer.
  * Every response carries Connection: close; there is no keep-alive.
  *
+ * HTTPS (httpd_set_tls): a connection runs its TLS handshake in READ before the request,
+ * within the same deadline; reads and writes go through the caller's TLS functions, and
+ * what the TLS layer decrypted ahead is read before waiting. LINGER and the watch of a
+ * stream for its close read the raw socket: what comes is dropped anyway.
+ *
  * Paths: percent-decoded, query and fragment dropped, NUL, backslash and ".." refused
  * (400); opened below root_fd with openat2(RESOLVE_BENEATH | RESOLVE_NO_MAGICLINKS), or,
  * where the kernel lacks openat2, one component at a time with O_NOFOLLOW (no symlink is
@@ -62,6 +67,8 @@ struct httpd_conn {
         struct httpd *h;
         int fd, file_fd;
         sd_event_source *io, *timer;
+        struct tls_conn *tls; /* HTTPS: the connection's TLS, else NULL */
+        bool secure;          /* its handshake has ended */
         enum phase phase;
         char head[HTTPD_HEAD_MAX];
         size_t head_len, head_off;
@@ -89,6 +96,8 @@ struct httpd {
         bool no_openat2; /* the kernel said ENOSYS once */
         httpd_handler_fn handler;
         void *handler_ud;
+        const struct httpd_tls *tls; /* HTTPS only: its functions and credentials */
+        const struct tls_creds *creds;
         char buf[HTTPD_CHUNK];
 };
 
@@ -169,9 +178,35 @@ static void conn_close(struct httpd_conn *c)
         free(c->body);
         sd_event_source_disable_unref(c->io);
         sd_event_source_disable_unref(c->timer);
+        if (c->tls)
+                h->tls->conn_free(c->tls);
         closep(&c->file_fd);
         closep(&c->fd);
         free(c);
+}
+
+/* Reads up to len bytes from c, through TLS when it has it. Returns how many, 0 at the end,
+ * or -errno (-EAGAIN: nothing yet). */
+static ssize_t conn_recv(struct httpd_conn *c, void *buf, size_t len)
+{
+        ssize_t n;
+
+        if (c->tls)
+                return c->h->tls->read(c->tls, buf, len);
+        n = recv(c->fd, buf, len, 0);
+        return n >= 0 ? n : errno == EINTR ? -EAGAIN : -errno;
+}
+
+/* Sends up to len bytes to c, through TLS when it has it. Returns how many, or -errno
+ * (-EAGAIN: the socket takes nothing now; with TLS, send the same bytes again). */
+static ssize_t conn_send(struct httpd_conn *c, const void *buf, size_t len)
+{
+        ssize_t n;
+
+        if (c->tls)
+                return c->h->tls->write(c->tls, buf, len);
+        n = send(c->fd, buf, len, MSG_NOSIGNAL | MSG_DONTWAIT);
+        return n >= 0 ? n : errno == EINTR ? -EAGAIN : -errno;
 }
 
 /* (Re)starts c's timer: it fires usec from now, once. */
@@ -448,15 +483,42 @@ static bool request_complete(const struct httpd_conn *c, size_t from)
         return strstr(p, "\r\n\r\n") || strstr(p, "\n\n");
 }
 
-/* Reads request bytes; answers the request once it is whole, or an error. Returns 0 or
- * -errno (c is to be closed). */
+/* Goes on with c's TLS handshake. Returns 1 once it has ended, 0 while it goes on (a client
+ * without TLS: answered 400 in plain text), or -errno (c is to be closed). */
+static int conn_handshake(struct httpd_conn *c)
+{
+        static const char body[] = "400 this port takes HTTPS only\n";
+        int r = c->h->tls->handshake(c->tls);
+
+        if (r == -EAGAIN)
+                return sd_event_source_set_io_events(
+                        c->io, c->h->tls->wants_write(c->tls) ? EPOLLOUT : EPOLLIN);
+        if (r == -EPROTONOSUPPORT) {
+                c->tls = c->h->tls->conn_free(c->tls); /* nothing was read: plain from here */
+                set_head(c, 400, "text/plain; charset=utf-8", strlen(body), "", body);
+                return begin_write(c);
+        }
+        if (r < 0) {
+                log_debug("httpd: TLS handshake failed: %s", strerror(-r));
+                return r;
+        }
+        c->secure = true;
+        r = sd_event_source_set_io_events(c->io, EPOLLIN);
+        return r < 0 ? r : 1;
+}
+
+/* Reads request bytes (the TLS handshake first); answers the request once it is whole, or
+ * an error. Returns 0 or -errno (c is to be closed). */
 static int conn_read(struct httpd_conn *c)
 {
         size_t old = c->req_len;
-        ssize_t n = recv(c->fd, c->req + old, HTTPD_MAX_REQUEST - old, 0);
+        ssize_t n;
 
+        if (c->tls && !c->secure && (n = conn_handshake(c)) <= 0)
+                return (int)n;
+        n = conn_recv(c, c->req + old, HTTPD_MAX_REQUEST - old);
         if (n < 0)
-                return errno == EAGAIN || errno == EINTR ? 0 : -errno;
+                return n == -EAGAIN ? 0 : (int)n;
         if (n == 0) /* a partial request then EOF (the client may still read): 400 */
                 return old > 0 ? respond_error(c, 400, false) : -ECONNRESET;
         c->req_len += n;
@@ -467,7 +529,7 @@ static int conn_read(struct httpd_conn *c)
                 return handle_request(c);
         if (c->req_len == HTTPD_MAX_REQUEST)
                 return respond_error(c, memchr(c->req, '\n', c->req_len) ? 431 : 414, false);
-        return 0;
+        return c->tls && c->h->tls->pending(c->tls) > 0 ? conn_read(c) : 0;
 }
 
 /* The response is out: half-close and wait for the client's close. Returns 0 or -errno. */
@@ -532,11 +594,11 @@ static int conn_write(struct httpd_conn *c)
                 len += n;
                 if (len == 0)
                         return conn_sent(c);
-                n = send(c->fd, buf, len, MSG_NOSIGNAL | MSG_DONTWAIT);
-                if (n < 0 && errno != EAGAIN && errno != EINTR)
-                        return -errno;
-                if (n < 0)
+                n = conn_send(c, buf, len);
+                if (n == -EAGAIN)
                         break;
+                if (n < 0)
+                        return (int)n;
                 c->head_off += MIN((size_t)n, head);
                 data = (size_t)n - MIN((size_t)n, head);
                 if (c->file_off < c->file_len)
@@ -588,7 +650,7 @@ static int on_conn_timer(sd_event_source *es, uint64_t usec, void *userdata)
 
         if (c->phase == PHASE_READ && c->req_len > 0) {
                 set_head(c, 408, "text/plain; charset=utf-8", 0, "", "");
-                (void)send(c->fd, c->head, c->head_len, MSG_NOSIGNAL | MSG_DONTWAIT);
+                (void)conn_send(c, c->head, c->head_len);
         }
         log_debug("httpd: closing a connection idle for %llu ms",
                   (unsigned long long)c->h->idle_usec / 1000);
@@ -633,12 +695,16 @@ static void conn_add(struct httpd *h, int cfd)
         c->h = h;
         c->file_fd = -EBADF;
         c->fd = fd;
-        r = sd_event_add_io(h->event, &c->io, fd, EPOLLIN, on_conn_io, c);
+        r = h->creds ? h->tls->conn_new(h->creds, fd, NULL, &c->tls) : 0;
+        if (r >= 0)
+                r = sd_event_add_io(h->event, &c->io, fd, EPOLLIN, on_conn_io, c);
         if (r >= 0)
                 r = sd_event_add_time_relative(h->event, &c->timer, CLOCK_MONOTONIC, h->idle_usec,
                                                0, on_conn_timer, c);
         if (r < 0) {
                 sd_event_source_disable_unref(c->io);
+                if (c->tls)
+                        h->tls->conn_free(c->tls);
                 free(c);
                 log_warning_errno(r, "httpd: cannot watch a connection, ignoring: %m");
                 return;
@@ -779,6 +845,12 @@ int httpd_new_fd(sd_event *event, int root_fd, int listen_fd, struct httpd **ret
         sd_event_source_set_description(h->resume, "httpd-resume");
         *ret = h;
         return 0;
+}
+
+void httpd_set_tls(struct httpd *h, const struct httpd_tls *fns, const struct tls_creds *creds)
+{
+        h->tls = fns;
+        h->creds = creds;
 }
 
 void httpd_set_handler(struct httpd *h, httpd_handler_fn fn, void *ud)

@@ -7,8 +7,10 @@
  * stop the others being served. docs/viewer.md. */
 #pragma once
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <sys/types.h>
 #include <systemd/sd-event.h>
 
 /* Connections at once. Beyond, a new connection closes one whose response is out, else the
@@ -22,6 +24,8 @@
 #define HTTPD_EXTRA_MAX 768
 
 struct httpd;
+struct tls_creds;
+struct tls_conn;
 /* A connection whose request a handler (httpd_set_handler) answers. */
 struct httpd_conn;
 
@@ -42,6 +46,25 @@ int httpd_new(sd_event *event, int root_fd, const char *addr, uint16_t port, str
  * httpd_free; on failure too). root_fd < 0: no files, only what the handler answers. Returns
  * 0 or -errno. */
 int httpd_new_fd(sd_event *event, int root_fd, int listen_fd, struct httpd **ret);
+
+/* TLS for httpd: the functions of daemon/tls.h (tls_conn_new, tls_conn_free, ...), handed in
+ * by the caller so that httpd does not depend on the TLS library. */
+struct httpd_tls {
+        int (*conn_new)(const struct tls_creds *creds, int fd, const char *peer,
+                        struct tls_conn **ret);
+        struct tls_conn *(*conn_free)(struct tls_conn *t);
+        int (*handshake)(struct tls_conn *t);
+        bool (*wants_write)(const struct tls_conn *t);
+        ssize_t (*read)(struct tls_conn *t, void *buf, size_t len);
+        ssize_t (*write)(struct tls_conn *t, const void *buf, size_t len);
+        size_t (*pending)(const struct tls_conn *t);
+};
+
+/* Has h serve HTTPS only to the connections it accepts from now on, as a TLS server with
+ * creds through fns (both borrowed: keep them while h lives). The handshake counts in the
+ * time a request may take to arrive (a stalled one is closed then); a client that does not
+ * start with a TLS handshake gets a plain-text 400 and is closed. */
+void httpd_set_tls(struct httpd *h, const struct httpd_tls *fns, const struct tls_creds *creds);
 
 /* Has fn(c, method, path, query, ud) answer every request first. */
 void httpd_set_handler(struct httpd *h, httpd_handler_fn fn, void *ud);

@@ -11,6 +11,7 @@
 #include "manager.h"
 #include "protocol/proto.h"
 #include "preview.h"
+#include "tls.h"
 #include "web.h"
 
 static void usage(FILE *f)
@@ -32,10 +33,10 @@ static void usage(FILE *f)
                 "                 also listen on TCP (loopback only without TLS;\n"
                 "                 $GONIO_LISTEN_TCP)\n"
                 "  --tls-cert FILE, --tls-key FILE\n"
-                "                 TLS only on TCP, with this certificate and key (PEM;\n"
-                "                 $GONIO_TLS_CERT, $GONIO_TLS_KEY)\n"
+                "                 TLS only on TCP and HTTPS only for the dashboard, with this\n"
+                "                 certificate and key (PEM; $GONIO_TLS_CERT, $GONIO_TLS_KEY)\n"
                 "  --listen-http HOST:PORT\n"
-                "                 serve the dashboard over HTTP (loopback only;\n"
+                "                 serve the dashboard over HTTP (loopback only without TLS;\n"
                 "                 $GONIO_LISTEN_HTTP)\n"
                 "  --preview-fps N\n"
                 "                 live pictures a second per camera, 1 to 10 (default 4;\n"
@@ -94,25 +95,50 @@ struct remote {
         const char *http, *fps;                    /* the dashboard */
 };
 
-/* The TCP listener and the dashboard, where asked for. Returns 0 or -errno (logged). */
-static int listen_remote(struct manager *m, const struct remote *o)
+/* The server credentials of --tls-cert and --tls-key into *ret, loaded once for both
+ * listeners of o (NULL: no TLS asked for, or no listener to use it). Returns 0 or -errno
+ * (logged, naming the file at fault). */
+static int load_creds(const struct remote *o, struct tls_creds **ret)
+{
+        bool tcp = o->tcp && *o->tcp, http = o->http && *o->http;
+        const char *what = tcp ? "TCP listener" : "HTTP listener", *addr = tcp ? o->tcp : o->http;
+        char err[600];
+        int r;
+
+        *ret = NULL;
+        if ((!o->cert || !*o->cert) && (!o->key || !*o->key))
+                return 0;
+        if (!tcp && !http) {
+                log_notice("a TLS certificate or key without --listen-tcp or --listen-http: "
+                           "nothing listens on TCP, ignoring them");
+                return 0;
+        }
+        if (!o->cert || !*o->cert || !o->key || !*o->key)
+                return log_error_errno(EINVAL,
+                                       "%s %s: TLS needs both a certificate (--tls-cert FILE) "
+                                       "and its key (--tls-key FILE)",
+                                       what, addr);
+        r = tls_creds_new_server(o->cert, o->key, ret, err, sizeof(err));
+        return r < 0 ? log_error_errno(r, "%s %s: TLS: %s", what, addr, err) : 0;
+}
+
+/* The TCP listener and the dashboard, where asked for, with TLS when o has credentials (into
+ * *tls: the caller frees them after m). Returns 0 or -errno (logged). */
+static int listen_remote(struct manager *m, const struct remote *o, struct tls_creds **tls)
 {
         const char *timeout = getenv("GONIO_HTTP_TIMEOUT_MS");
         char token[256] = "";
-        int r = 0;
+        int r = load_creds(o, tls);
 
-        if ((!o->tcp || !*o->tcp) && ((o->cert && *o->cert) || (o->key && *o->key)))
-                log_notice("a TLS certificate or key without --listen-tcp: nothing listens on "
-                           "TCP, ignoring them");
-        if (o->tcp && *o->tcp &&
+        if (r >= 0 && o->tcp && *o->tcp &&
             (r = read_token("TCP listener", o->tcp, o->token_file, token, sizeof(token))) >= 0)
-                r = server_listen_tcp(m->server, o->tcp, token, o->cert, o->key);
+                r = server_listen_tcp(m->server, o->tcp, token, *tls);
         if (o->fps && (atoi(o->fps) < 1 || atoi(o->fps) > PREVIEW_MAX_FPS))
                 return log_error_errno(EINVAL, "--preview-fps %s: expected 1 to %d", o->fps,
                                        PREVIEW_MAX_FPS);
         if (r >= 0 && o->http && *o->http &&
             (r = read_token("HTTP listener", o->http, o->token_file, token, sizeof(token))) >= 0)
-                r = web_new(m, o->http, token, o->fps ? (unsigned)atoi(o->fps) : 0,
+                r = web_new(m, o->http, token, *tls, o->fps ? (unsigned)atoi(o->fps) : 0,
                             timeout ? strtoull(timeout, NULL, 10) * 1000 : 0, &m->web);
         return r;
 }
@@ -144,6 +170,7 @@ int main(int argc, char **argv)
         const char *rig = NULL, *data = getenv("GONIO_DATA");
         char sock[PATH_MAX] = "", admin[PATH_MAX] = "";
         struct manager *m = NULL;
+        struct tls_creds *tls = NULL;
         int c, r;
 
         gn_log_set_ident("goniod");
@@ -206,14 +233,16 @@ int main(int argc, char **argv)
                 log_error_errno(r, "cannot start: %m");
                 return 1;
         }
-        if ((r = listen_remote(m, &o)) < 0) {
+        if ((r = listen_remote(m, &o, &tls)) < 0) {
                 manager_free(m);
+                tls_creds_free(tls);
                 return 1;
         }
         r = manager_run(m);
         if (r < 0)
                 log_error_errno(r, "the event loop failed: %m");
         manager_free(m);
+        tls_creds_free(tls); /* after the listeners that use them */
         log_info("stopped");
         return r < 0 ? 1 : 0;
 }

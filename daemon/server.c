@@ -77,9 +77,9 @@ struct listener {
         int fd, lock_fd; /* lock_fd: "<path>.lock", for the sockets we bound */
         enum srv_role role;
         char path[sizeof(((struct sockaddr_un *)0)->sun_path)];
-        char token[128];       /* TCP: what hello must give, "" none */
-        struct tls_creds *tls; /* TCP with TLS: the server's credentials, else NULL */
-        bool bound;            /* path is the socket we bound, identified by dev/ino */
+        char token[128];             /* TCP: what hello must give, "" none */
+        const struct tls_creds *tls; /* TCP with TLS: goniod's credentials, else NULL */
+        bool bound;                  /* path is the socket we bound, identified by dev/ino */
         dev_t dev;
         ino_t ino;
         sd_event_source *src;
@@ -857,7 +857,7 @@ static void listener_close(struct listener *l)
         if (own_socket(l))
                 (void)unlink(l->path);
         l->lock_fd = safe_close(l->lock_fd); /* after the unlink: the next daemon may take over */
-        l->tls = tls_creds_free(l->tls);
+        l->tls = NULL; /* the credentials are main.c's */
 }
 
 /* Takes the next listener slot of s for role and path. Returns it, or NULL with *err set
@@ -964,23 +964,6 @@ static int tcp_address(const char *addr, struct sockaddr_storage *sa, socklen_t 
         return loop ? 0 : -EPERM;
 }
 
-/* The server credentials of the TCP listener at addr from cert and key into *ret. Returns 0
- * or -errno (logged, naming the file at fault). */
-static int listener_creds(const char *addr, const char *cert, const char *key,
-                          struct tls_creds **ret)
-{
-        char err[600];
-        int r;
-
-        if (!cert || !*cert || !key || !*key)
-                return log_error_errno(EINVAL,
-                                       "TCP listener %s: TLS needs both a certificate "
-                                       "(--tls-cert FILE) and its key (--tls-key FILE)",
-                                       addr);
-        r = tls_creds_new_server(cert, key, ret, err, sizeof(err));
-        return r < 0 ? log_error_errno(r, "TCP listener %s: TLS: %s", addr, err) : 0;
-}
-
 int server_tcp_socket(const char *addr, const char *what, const char *beyond)
 {
         struct sockaddr_storage sa;
@@ -1003,11 +986,9 @@ int server_tcp_socket(const char *addr, const char *what, const char *beyond)
         return TAKE_FD(fd);
 }
 
-int server_listen_tcp(struct server *s, const char *addr, const char *token, const char *cert,
-                      const char *key)
+int server_listen_tcp(struct server *s, const char *addr, const char *token,
+                      const struct tls_creds *tls)
 {
-        bool with_tls = (cert && *cert) || (key && *key);
-        struct tls_creds *tls = NULL;
         struct listener *l;
         int r, fd;
 
@@ -1016,13 +997,9 @@ int server_listen_tcp(struct server *s, const char *addr, const char *token, con
                                        "TCP listener %s: the token must be %d to %d "
                                        "characters",
                                        addr, SRV_TOKEN_MIN, SRV_TOKEN_MAX);
-        if (with_tls && (r = listener_creds(addr, cert, key, &tls)) < 0)
-                return r;
         fd = server_tcp_socket(addr, "TCP listener",
-                               with_tls ? NULL
-                                        : "goniod needs TLS (--tls-cert FILE --tls-key FILE)");
+                               tls ? NULL : "goniod needs TLS (--tls-cert FILE --tls-key FILE)");
         if (fd < 0 || !(l = listener_new(s, SRV_OPERATOR, addr, &r))) {
-                tls_creds_free(tls);
                 safe_close(fd);
                 return fd < 0 ? fd : r;
         }

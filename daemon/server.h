@@ -77,17 +77,18 @@ int server_listen_systemd(struct server *s);
 #define SRV_TOKEN_MIN 16
 #define SRV_TOKEN_MAX 127
 
+struct tls_creds;
+
 /* Listens on TCP at addr ("HOST:PORT", HOST numeric: "127.0.0.1", "[::1]", "0.0.0.0"...) for
  * operator connections that must say hello with params.token equal to token (SRV_TOKEN_MIN
  * to SRV_TOKEN_MAX characters) before anything else; three wrong tokens close the connection.
- * With cert and key (PEM files; NULL: none) connections speak TLS only (daemon/tls.h): a
- * handshake not ended in TLS_HANDSHAKE_USEC is dropped, a client without TLS is told so and
- * closed. Without them addr must be a loopback address. Returns 0, -EINVAL (a bad address, a
- * short token, a certificate without key), -EPERM (beyond loopback without TLS), -errno of
- * reading the certificate or key (-ENOENT, -EACCES, -EBADMSG, -EKEYREJECTED: the key is not
- * the certificate's) or of bind/listen; every failure is logged with its cause. */
-int server_listen_tcp(struct server *s, const char *addr, const char *token, const char *cert,
-                      const char *key);
+ * With tls (server credentials, borrowed: keep them while s lives; NULL: none) connections
+ * speak TLS only (daemon/tls.h): a handshake not ended in TLS_HANDSHAKE_USEC is dropped, a
+ * client without TLS is told so and closed. Without them addr must be a loopback address.
+ * Returns 0, -EINVAL (a bad address, a short token), -EPERM (beyond loopback without TLS)
+ * or -errno of bind/listen; every failure is logged with its cause. */
+int server_listen_tcp(struct server *s, const char *addr, const char *token,
+                      const struct tls_creds *tls);
 
 /* A listening TCP socket (non-blocking, SO_REUSEADDR, backlog SOMAXCONN) on addr
  * ("HOST:PORT", HOST numeric, [::1] bracketed) for goniod's TCP listeners (this server's, the

@@ -19,6 +19,7 @@
 #include "common/sha256.h"
 #include "manager.h"
 #include "preview.h"
+#include "tls.h"
 #include "web.h"
 
 #define BOUNDARY "gonioframe"
@@ -43,6 +44,7 @@ struct web {
         unsigned n_pictures, n_events;
         sd_event_source *push;
         bool dirty;
+        bool https; /* the cookie goes over TLS only */
         uint64_t last_push_usec;
 };
 
@@ -107,8 +109,8 @@ static int sign_in(struct web *w, struct httpd_conn *c, const char *token)
         }
         snprintf(extra, sizeof(extra),
                  "Location: /\r\nSet-Cookie: " WEB_COOKIE "=%s; Path=/; HttpOnly; "
-                 "SameSite=Strict\r\n",
-                 w->cookie);
+                 "SameSite=Strict%s\r\n",
+                 w->cookie, w->https ? "; Secure" : "");
         return deny(c, 303, extra, "signed in\n");
 }
 
@@ -343,8 +345,19 @@ static int token_hash(const char *token, char out[GN_SHA256_HEX])
         return r;
 }
 
-int web_new(struct manager *m, const char *addr, const char *token, unsigned fps,
-            uint64_t timeout_usec, struct web **ret)
+/* The TLS of daemon/tls.h for httpd's HTTPS. */
+static const struct httpd_tls web_tls = {
+        .conn_new = tls_conn_new,
+        .conn_free = tls_conn_free,
+        .handshake = tls_handshake,
+        .wants_write = tls_wants_write,
+        .read = tls_read,
+        .write = tls_write,
+        .pending = tls_pending,
+};
+
+int web_new(struct manager *m, const char *addr, const char *token, const struct tls_creds *tls,
+            unsigned fps, uint64_t timeout_usec, struct web **ret)
 {
         struct web *w;
         int fd, r;
@@ -366,19 +379,23 @@ int web_new(struct manager *m, const char *addr, const char *token, unsigned fps
                                                10000, on_push, w);
         if (r >= 0)
                 r = sd_event_source_set_enabled(w->push, SD_EVENT_OFF);
-        if (r >= 0 && (r = fd = server_tcp_socket(
-                               addr, "HTTP listener",
-                               "the dashboard needs TLS, which it does not have yet")) >= 0)
+        if (r >= 0 && (r = fd = server_tcp_socket(addr, "HTTP listener",
+                                                  tls ? NULL
+                                                      : "the dashboard needs TLS (--tls-cert FILE "
+                                                        "--tls-key FILE)")) >= 0)
                 r = httpd_new_fd(m->event, -1, fd, &w->h);
         if (r < 0) {
                 web_free(w);
                 return r;
         }
         httpd_set_handler(w->h, handle, w);
+        if (tls)
+                httpd_set_tls(w->h, &web_tls, tls);
+        w->https = tls;
         if (timeout_usec)
                 httpd_set_idle(w->h, timeout_usec);
         (void)sd_event_source_set_description(w->push, "web-push");
-        log_info("dashboard on http://%s/", addr);
+        log_info("dashboard on %s://%s/", tls ? "https" : "http", addr);
         *ret = w;
         return 0;
 }

@@ -1,7 +1,7 @@
 /* web.h - goniod's dashboard: a small web page with the rig's status, the session's progress
  * and a live picture of each camera, served over HTTP/1.1 (common/httpd.h) on goniod's loop,
- * under the rules of its TCP listener: loopback only, the token of --token-file required
- * (docs/goniod.md, "Dashboard").
+ * under the rules of its TCP listener: the token of --token-file required, loopback only
+ * without TLS, HTTPS only with it (goniod's credentials) (docs/goniod.md, "Dashboard").
  *
  * Routes, all GET (or HEAD), nothing else served (no files from client paths):
  *   /                    the page (built in: daemon/web/)
@@ -22,6 +22,7 @@
 #include <stdint.h>
 
 struct manager;
+struct tls_creds;
 struct web;
 
 /* One file of the page, built into goniod (webassets.c, scripts/embed-assets). */
@@ -41,13 +42,15 @@ extern const struct web_asset web_assets[];
 #define WEB_MAX_PENDING  (512u * 1024) /* unsent bytes of one stream */
 #define WEB_COOKIE       "gonio_session"
 
-/* Serves the dashboard of m on addr ("HOST:PORT", loopback: server_tcp_socket) for clients
- * that give token (SRV_TOKEN_MIN to SRV_TOKEN_MAX characters), pictures at fps a second at
- * most (0: PREVIEW_DEFAULT_FPS); timeout_usec bounds the time a request may take to arrive
- * and a stalled response (0: HTTPD_IDLE_USEC). Returns 0, -EINVAL (address or token),
- * -EPERM (not loopback) or -errno, logged. */
-int web_new(struct manager *m, const char *addr, const char *token, unsigned fps,
-            uint64_t timeout_usec, struct web **ret);
+/* Serves the dashboard of m on addr ("HOST:PORT": server_tcp_socket) for clients that give
+ * token (SRV_TOKEN_MIN to SRV_TOKEN_MAX characters), over HTTPS only with tls (server
+ * credentials, borrowed: keep them while the web lives), else over HTTP on loopback only;
+ * pictures at fps a second at most (0: PREVIEW_DEFAULT_FPS); timeout_usec bounds the time a
+ * request (its TLS handshake included) may take to arrive and a stalled response (0:
+ * HTTPD_IDLE_USEC). Returns 0, -EINVAL (address or token), -EPERM (not loopback without
+ * TLS) or -errno, logged. */
+int web_new(struct manager *m, const char *addr, const char *token, const struct tls_creds *tls,
+            unsigned fps, uint64_t timeout_usec, struct web **ret);
 
 /* Closes every connection and the listener, stops the pictures. NULL is a no-op; returns
  * NULL. */

@@ -6,6 +6,7 @@
 #include <math.h>
 #include <netinet/in.h>
 #include <poll.h>
+#include <sched.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -164,6 +165,33 @@ int tcp_connect(const char *ip, int port)
         }
         CHECK(!"goniod does not listen on TCP");
         return -1;
+}
+
+void rigenv_make_certs(struct rigenv *e, const char *script, const char *san)
+{
+        char cmd[1000];
+        int r;
+
+        snprintf(cmd, sizeof(cmd), "%s %s %s", script, e->dir, san);
+        r = system(cmd);
+        if (WIFEXITED(r) && WEXITSTATUS(r) == TEST_SKIP)
+                exit(TEST_SKIP); /* no openssl */
+        CHECK(r == 0);
+}
+
+void enter_netns(const char *ip)
+{
+        char cmd[200];
+
+        if (unshare(CLONE_NEWNET) < 0) {
+                perror("unshare(CLONE_NEWNET), skipping");
+                exit(TEST_SKIP);
+        }
+        snprintf(cmd, sizeof(cmd), "ip link set lo up && ip addr add %s/32 dev lo", ip);
+        if (system(cmd) != 0) {
+                fprintf(stderr, "cannot set up lo in the namespace, skipping\n");
+                exit(TEST_SKIP);
+        }
 }
 
 int raw_connect(struct rigenv *e)

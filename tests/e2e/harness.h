@@ -90,6 +90,16 @@ json_t *ctl_ok(struct rigenv *e, ...) __attribute__((sentinel));
  * retried for 10 s while goniod starts; the test fails after. Returns the fd. */
 int tcp_connect(const char *ip, int port);
 
+/* Makes the test certificates of script (tests/tls-certs.sh) for san ("IP:127.0.0.1") in
+ * e's directory: ca.pem, server.pem, server.key, other-ca.pem. Exits 77 without openssl. */
+void rigenv_make_certs(struct rigenv *e, const char *script, const char *san);
+
+/* Moves this process into a network namespace of its own where only lo is up, with ip (an
+ * IPv4 address) on it: an address beyond loopback that no other machine can reach. Call it
+ * before any process starts (they all live in it). Exits 77 where none can be made (not
+ * root, no ip). */
+void enter_netns(const char *ip);
+
 /* Connects a raw client to the daemon's socket. Returns the fd. */
 int raw_connect(struct rigenv *e);
 

@@ -18,7 +18,6 @@
 #include <arpa/inet.h>
 #include <errno.h>
 #include <netinet/in.h>
-#include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -148,14 +147,7 @@ static const char *certs_script;
  * certificate and key to the server's; exits 77 without openssl. */
 static void make_certs(struct rigenv *e, struct tcp_env *t, const char *san)
 {
-        char cmd[1000];
-        int r;
-
-        snprintf(cmd, sizeof(cmd), "%s %s %s", certs_script, e->dir, san);
-        r = system(cmd);
-        if (WIFEXITED(r) && WEXITSTATUS(r) == TEST_SKIP)
-                exit(TEST_SKIP); /* no openssl */
-        CHECK(r == 0);
+        rigenv_make_certs(e, certs_script, san);
         snprintf(t->cert, sizeof(t->cert), "%s/server.pem", e->dir);
         snprintf(t->key, sizeof(t->key), "%s/server.key", e->dir);
 }
@@ -274,21 +266,6 @@ static void case_netns(struct rigenv *e)
         json_decref(out);
 }
 
-/* A network namespace of this process's own, where only lo is up, with 10.77.0.1 on it: an
- * address beyond loopback that no other machine can reach. Exits 77 where none can be made
- * (not root, no ip). */
-static void enter_netns(void)
-{
-        if (unshare(CLONE_NEWNET) < 0) {
-                perror("unshare(CLONE_NEWNET), skipping");
-                exit(TEST_SKIP);
-        }
-        if (system("ip link set lo up && ip addr add 10.77.0.1/32 dev lo") != 0) {
-                fprintf(stderr, "cannot set up lo in the namespace, skipping\n");
-                exit(TEST_SKIP);
-        }
-}
-
 int main(int argc, char **argv)
 {
         struct rigenv e;
@@ -296,7 +273,7 @@ int main(int argc, char **argv)
         CHECK(argc >= 5);
         certs_script = argc > 5 ? argv[5] : NULL;
         if (strcmp(argv[4], "netns") == 0)
-                enter_netns(); /* before any process starts: they all live in it */
+                enter_netns("10.77.0.1"); /* before any process starts: they all live in it */
         CHECK(strcmp(argv[4], "token") == 0 || certs_script);
         rigenv_start_sim(&e, argv, 10);
         if (strcmp(argv[4], "token") == 0)

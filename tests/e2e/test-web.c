@@ -14,7 +14,13 @@
  *          huge headers 431; POST and DELETE 405; unknown paths 401 before 404; path
  *          traversal never serves a file; 70 idle connections do not lock a client out
  *          (the oldest are dropped); HEAD of a picture stream opens none; the 17th picture
- *          stream gets 503 */
+ *          stream gets 503
+ *   tls    with --tls-cert/--tls-key (tests/tls-certs.sh, argument 5): GET /api/status over
+ *          TLS with the token answers the status (the sign-in's cookie is Secure), while a
+ * handshake that stalls does not hold it up and is dropped at the deadline; a client trusting
+ * another CA fails its handshake; plain HTTP gets a plain-text 400 and no page netns  in a network
+ * namespace of its own (skipped, 77, where none can be made) with 10.77.0.1 on lo: that address
+ * without TLS stops goniod at its start, with TLS it serves the status over HTTPS */
 #include <poll.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -25,6 +31,7 @@
 
 #include <jpeglib.h> /* after stdio.h */
 
+#include "daemon/tls.h"
 #include "daemon/web.h"
 #include "harness.h"
 #include "tests/test.h"
@@ -365,6 +372,84 @@ static void check_crowds(void)
                 close(streams[i]);
 }
 
+/* GET path with the token over TLS to ip:port, trusting the CA file ca (in e's directory);
+ * the answer in buf. Returns its status code, or the -errno of the handshake. */
+static int https_get(struct rigenv *e, const char *ip, const char *ca, const char *path, char *buf,
+                     size_t len)
+{
+        struct tls_creds *creds = NULL;
+        struct tls_conn *t = NULL;
+        char req[512], ca_path[400], err[600];
+        int fd = tcp_connect(ip, port), code = 0; /* blocking: no call returns -EAGAIN */
+        ssize_t n = 0, r;
+
+        snprintf(req, sizeof(req), "GET %s HTTP/1.1\r\n" BEARER "\r\n", path);
+        snprintf(ca_path, sizeof(ca_path), "%s/%s", e->dir, ca);
+        CHECK(tls_creds_new_client(ca_path, &creds, err, sizeof(err)) == 0);
+        CHECK(tls_conn_new(creds, fd, ip, &t) == 0);
+        r = tls_handshake(t);
+        if (r == 0)
+                CHECK(tls_write(t, req, strlen(req)) == (ssize_t)strlen(req));
+        while (r >= 0 && n + 1 < (ssize_t)len && (r = tls_read(t, buf + n, len - 1 - n)) > 0)
+                n += r;
+        buf[n] = 0;
+        if (n > 0)
+                CHECK(sscanf(buf, "HTTP/1.1 %d", &code) == 1);
+        tls_conn_free(t);
+        tls_creds_free(creds);
+        close(fd);
+        return n > 0 ? code : (int)r;
+}
+
+/* Has goniod started next serve HTTPS with the certificates made for san. */
+static void use_tls(struct rigenv *e, const char *certs_script, const char *san)
+{
+        char path[400];
+
+        rigenv_make_certs(e, certs_script, san);
+        snprintf(path, sizeof(path), "%s/server.pem", e->dir);
+        setenv("GONIO_TLS_CERT", path, 1);
+        snprintf(path, sizeof(path), "%s/server.key", e->dir);
+        setenv("GONIO_TLS_KEY", path, 1);
+}
+
+static void case_tls(struct rigenv *e, const char *certs_script)
+{
+        static const char partial_hello[] = "\x16\x03\x01\x02\x00\x01\x00"; /* of 512 bytes */
+        static char buf[65536];
+        struct pollfd p;
+        int stalled;
+        double t0;
+
+        use_tls(e, certs_script, "IP:127.0.0.1");
+        rigenv_spawn_daemon(e, e->sock, http_env, "127.0.0.1");
+        stalled = tcp_connect("127.0.0.1", port);
+        CHECK(write(stalled, partial_hello, sizeof(partial_hello) - 1) > 0);
+        t0 = now_s();
+        CHECK_INT(https_get(e, "127.0.0.1", "ca.pem", "/api/status", buf, sizeof(buf)), 200);
+        CHECK_STR_CONTAINS(body_of(buf), "\"state\":");
+        CHECK(now_s() - t0 < 0.3); /* not held up by the stalled handshake */
+        CHECK_INT(https_get(e, "127.0.0.1", "ca.pem", "/?token=" TOKEN, buf, sizeof(buf)), 303);
+        CHECK_STR_CONTAINS(buf, "; HttpOnly; SameSite=Strict; Secure\r\n");
+        CHECK_INT(https_get(e, "127.0.0.1", "other-ca.pem", "/", buf, sizeof(buf)), -EKEYREJECTED);
+        CHECK_INT(get("/api/status", BEARER, buf, sizeof(buf)), 400);
+        CHECK_STR_CONTAINS(body_of(buf), "this port takes HTTPS only");
+        p = (struct pollfd){.fd = stalled, .events = POLLIN};
+        CHECK(poll(&p, 1, 2000) == 1 && recv(stalled, buf, 1, 0) <= 0); /* dropped at 400 ms */
+        close(stalled);
+}
+
+static void case_netns(struct rigenv *e, const char *certs_script)
+{
+        static char buf[65536];
+
+        start_refused(e, "10.77.0.1", "not a loopback address: beyond loopback the dashboard");
+        use_tls(e, certs_script, "IP:10.77.0.1");
+        rigenv_spawn_daemon(e, e->sock, http_env, "10.77.0.1");
+        CHECK_INT(https_get(e, "10.77.0.1", "ca.pem", "/api/status", buf, sizeof(buf)), 200);
+        CHECK_STR_CONTAINS(body_of(buf), "\"state\":");
+}
+
 static void case_rude(struct rigenv *e)
 {
         char buf[4096];
@@ -381,6 +466,8 @@ int main(int argc, char **argv)
         char token_file[300], *rig;
 
         CHECK(argc >= 5);
+        if (strcmp(argv[4], "netns") == 0)
+                enter_netns("10.77.0.1"); /* before any process starts: they all live in it */
         port = 20000 + (getpid() * 7) % 20000;
         rig = rig_insert(NULL, "bits: 16 }\n",
                          "  - { name: cam2, sim: { bus: frames }, elevation: 30, distance: 600,\n"
@@ -395,6 +482,10 @@ int main(int argc, char **argv)
                 case_serve(&e, argc > 5 ? argv[5] : NULL);
         else if (strcmp(argv[4], "rude") == 0)
                 case_rude(&e);
+        else if (strcmp(argv[4], "tls") == 0 && argc > 5)
+                case_tls(&e, argv[5]);
+        else if (strcmp(argv[4], "netns") == 0 && argc > 5)
+                case_netns(&e, argv[5]);
         else
                 CHECK(!"unknown case");
         rigenv_stop(&e);
