@@ -86,22 +86,14 @@ static const char *job_device(const struct job *j)
 static const char *job_operation(const struct job *j)
 {
         static const char *const names[] = {
-                [J_OPEN_AXIS] = "open",
-                [J_HOME] = "home",
-                [J_MOVE] = "move",
-                [J_POLL] = "read state",
-                [J_STOP] = "stop",
-                [J_RESET] = "reset",
-                [J_RATES] = "set rates",
-                [J_OPEN_SW] = "open",
-                [J_CHECK_SW] = "read state",
-                [J_SWITCH] = "switch",
-                [J_OPEN_CAM] = "open",
-                [J_CAPTURE] = "capture",
-                [J_PEEK] = "capture",
-                [J_STREAM_START] = "stream",
-                [J_STREAM_NEXT] = "stream",
-                [J_STREAM_STOP] = "stop streaming",
+                [J_OPEN_AXIS] = "open",      [J_HOME] = "home",
+                [J_MOVE] = "move",           [J_POLL] = "read state",
+                [J_STOP] = "stop",           [J_RESET] = "reset",
+                [J_RATES] = "set rates",     [J_OPEN_SW] = "open",
+                [J_CHECK_SW] = "read state", [J_SWITCH] = "switch",
+                [J_OPEN_CAM] = "open",       [J_CAPTURE] = "capture",
+                [J_PEEK] = "capture",        [J_STREAM_START] = "stream",
+                [J_STREAM_NEXT] = "stream",  [J_STREAM_STOP] = "stop streaming",
         };
         return names[j->kind];
 }

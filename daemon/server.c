@@ -857,7 +857,7 @@ static void listener_close(struct listener *l)
         if (own_socket(l))
                 (void)unlink(l->path);
         l->lock_fd = safe_close(l->lock_fd); /* after the unlink: the next daemon may take over */
-        l->tls = NULL; /* the credentials are main.c's */
+        l->tls = NULL;                       /* the credentials are main.c's */
 }
 
 /* Takes the next listener slot of s for role and path. Returns it, or NULL with *err set
