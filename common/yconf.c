@@ -109,7 +109,7 @@ static bool starts_token(const char *text, const char *p)
         return p == text || strchr(" \t\n[{,", p[-1]);
 }
 
-/* libfyaml 0.8 writes through a NULL pointer on a tab after a complex key ("? a:\t? b", found
+/* libfyaml 0.7.12 writes through a NULL pointer on a tab after a complex key ("? a:\t? b", found
  * by fuzzing), and gonio's files need tabs nowhere YAML gives them meaning: a tab outside a
  * quoted scalar or a comment is refused before it gets there, at its line. */
 static int check_tabs(struct yconf *ctx, const char *text)

@@ -555,7 +555,7 @@ static void case_lasers(void)
 
 /* Text the YAML parser must not see: an empty file (getdelim leaves its buffer unwritten),
  * bytes that are not UTF-8 (libfyaml 0.7 loops for ever on "%\x83") and a tab outside quotes
- * and comments (libfyaml 0.8 crashes on "? a:\t? b"), refused at their line; UTF-8 text and
+ * and comments (libfyaml 0.7.12 crashes on "? a:\t? b"), refused at their line; UTF-8 text and
  * tabs in quotes and comments load. */
 static void case_text(void)
 {
