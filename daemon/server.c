@@ -986,17 +986,22 @@ int server_tcp_socket(const char *addr, const char *what, const char *beyond)
         return TAKE_FD(fd);
 }
 
+int server_check_token(const char *token, const char *what, const char *addr)
+{
+        if (!token || strlen(token) < SRV_TOKEN_MIN || strlen(token) > SRV_TOKEN_MAX)
+                return log_error_errno(EINVAL, "%s %s: the token must be %d to %d characters", what,
+                                       addr, SRV_TOKEN_MIN, SRV_TOKEN_MAX);
+        return 0;
+}
+
 int server_listen_tcp(struct server *s, const char *addr, const char *token,
                       const struct tls_creds *tls)
 {
         struct listener *l;
         int r, fd;
 
-        if (!token || strlen(token) < SRV_TOKEN_MIN || strlen(token) > SRV_TOKEN_MAX)
-                return log_error_errno(EINVAL,
-                                       "TCP listener %s: the token must be %d to %d "
-                                       "characters",
-                                       addr, SRV_TOKEN_MIN, SRV_TOKEN_MAX);
+        if ((r = server_check_token(token, "TCP listener", addr)) < 0)
+                return r;
         fd = server_tcp_socket(addr, "TCP listener",
                                tls ? NULL : "goniod needs TLS (--tls-cert FILE --tls-key FILE)");
         if (fd < 0 || !(l = listener_new(s, SRV_OPERATOR, addr, &r))) {

@@ -90,6 +90,10 @@ struct tls_creds;
 int server_listen_tcp(struct server *s, const char *addr, const char *token,
                       const struct tls_creds *tls);
 
+/* 0 when token is SRV_TOKEN_MIN to SRV_TOKEN_MAX characters, else -EINVAL, logged for the
+ * listener what at addr ("TCP listener", "HTTP listener"). */
+int server_check_token(const char *token, const char *what, const char *addr);
+
 /* A listening TCP socket (non-blocking, SO_REUSEADDR, backlog SOMAXCONN) on addr
  * ("HOST:PORT", HOST numeric, [::1] bracketed) for goniod's TCP listeners (this server's, the
  * dashboard's); what names it in the log ("TCP listener"). An address beyond loopback is

@@ -362,11 +362,8 @@ int web_new(struct manager *m, const char *addr, const char *token, const struct
         struct web *w;
         int fd, r;
 
-        if (!token || strlen(token) < SRV_TOKEN_MIN || strlen(token) > SRV_TOKEN_MAX)
-                return log_error_errno(EINVAL,
-                                       "HTTP listener %s: the token must be %d to %d "
-                                       "characters",
-                                       addr, SRV_TOKEN_MIN, SRV_TOKEN_MAX);
+        if ((r = server_check_token(token, "HTTP listener", addr)) < 0)
+                return r;
         if (!(w = calloc(1, sizeof(*w))))
                 return -ENOMEM;
         w->m = m;
