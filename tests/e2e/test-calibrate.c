@@ -294,9 +294,9 @@ static void write_true_cameras(const char *path)
         CHECK(fclose(f) == 0);
 }
 
-/* Lamp position against the truth on the rig: the frames through goniod give 0.2, 1.4 and
- * 0.1 mm where test-lamps' in-process frames of the same scene give 0.1-0.2 mm (the same at
- * time scale 1 and 20; not understood yet: docs/calibration.md, "Not done yet (lamps)"). */
+/* Lamp position against the truth on the rig: 0.2, 1.4 and 0.1 mm. l1's 1.4 mm is a bias along
+ * its direction from the highlight model, not the rig: test-lamps' in-process frames give the
+ * same without their camera c0's distortion (docs/calibration.md, "Not done yet (lamps)"). */
 #define LAMPS_RIG_TOL_MM 2.0
 
 /* The lamps on the rig: refused before anything moves without the calibration file or the
