@@ -331,6 +331,7 @@ int scan_section(struct ds *d, const struct rig_config *rc, const struct scan_op
                         return e;
         out->points = c->n_pts;
         out->rejected = c->rejected;
+        out->unvouched = c->unvouched;
         for (int l = 0; l < SEC_MAX_LASERS; l++)
                 out->n_lasers += out->laser_points[l] > 0;
         sec_normals(c);

@@ -65,6 +65,7 @@ struct scan_result {
         double agree_offset_mm[SEC_MAX_LASERS]; /* each laser's mean distance from the others */
         size_t points;                          /* in the cloud */
         size_t rejected;  /* line centres without a usable ray (sec_ctx.rejected) */
+        size_t unvouched; /* line centres at runs' ends and steps (sec_ctx.unvouched) */
         size_t triangles; /* joined over the grid */
         size_t triangles_simplified;
         double error_mm;  /* the simplification's deviation */

@@ -200,6 +200,20 @@ static bool line_args_ok(const struct sec_ctx *c, int laser, const struct laserl
                 (tex->channels == 1 || tex->channels == 3) && (tex->bits == 8 || tex->bits == 16));
 }
 
+/* Whether centre i of r is vouched for by its neighbours: the first and last row of a run mix the
+ * line's end with the dark beyond it, and a row off the mean of its neighbours straddles a step
+ * or an occlusion; both give points up to 1.5 mm off the surface. */
+static bool vouched(const struct laserline_result *r, int i)
+{
+        double a, b;
+
+        if (i == 0 || i + 1 >= r->n)
+                return false;
+        a = r->centre[i - 1];
+        b = r->centre[i + 1];
+        return !isnan(a) && !isnan(b) && fabs(a - 2 * r->centre[i] + b) <= SEC_MAX_KINK_PX;
+}
+
 int sec_add_line(struct sec_ctx *c, int laser, double turntable_deg,
                  const struct laserline_result *r, bool columns, const struct gn_frame *texture)
 {
@@ -219,6 +233,10 @@ int sec_add_line(struct sec_ctx *c, int laser, double turntable_deg,
 
                 if (isnan(cu))
                         continue;
+                if (!vouched(r, i)) {
+                        c->unvouched++;
+                        continue;
+                }
                 if (ray_plane(c, laser, u, v, w) < 0) {
                         c->rejected++;
                         continue;

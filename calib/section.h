@@ -28,6 +28,10 @@ struct sec_camera {
 };
 
 /* One point of the cloud, in the object frame. */
+/* The largest second difference of the centres around a row, px: more is a step or an
+ * occlusion the row's centre straddles (docs/scanning.md, "Which centres are used"). */
+#define SEC_MAX_KINK_PX 1.0
+
 struct sec_point {
         float x[3];     /* mm */
         float n[3];     /* unit normal facing the camera; 0 0 0 until sec_normals, or alone */
@@ -57,6 +61,7 @@ struct sec_ctx {
         struct sec_line *lines;
         size_t n_lines, cap_lines;
         size_t rejected; /* centres with no usable ray (grazing, behind, undistortion failed) */
+        size_t unvouched; /* centres at a run's end or a kink (sec_add_line): left out */
 };
 
 /* Starts a context for camera cam (copied). Returns 0 or -EINVAL (no positive focal length or
@@ -74,8 +79,9 @@ int sec_add_laser(struct sec_ctx *c, const double p[3], const double n[3]);
  * azimuth_deg, so p = 0 and n = (-sin az, cos az, 0). Never fails. */
 void sec_rig_laser_plane(double azimuth_deg, double p[3], double n[3]);
 
-/* Triangulates every centre of r (a centre per row, or per column with columns) seen by the
- * context's camera with laser `laser` at turntable angle turntable_deg, and appends the points
+/* Triangulates every centre of r (a centre per row, or per column with columns) that its
+ * neighbours vouch for (both have the line, and it is within SEC_MAX_KINK_PX of their mean:
+ * others are counted in unvouched) seen by the context's camera with laser `laser` at turntable angle turntable_deg, and appends the points
  * in the object frame, coloured from texture (8 or 16 bits, 1 or 3 channels, the camera's
  * size; NULL: none). Returns the number of points added, -EINVAL (bad laser, r larger than
  * the image, texture of another size) or -ENOMEM. */

@@ -99,14 +99,14 @@ static json_t *summary_json(const struct scan_result *s, const struct scan_opts 
                 "wrong_size", (json_int_t)s->wrong_size, "other_view", (json_int_t)s->other_view,
                 "shared", (json_int_t)s->shared);
 
-        return json_pack("{s:s,s:s,s:I,s:I,s:I,s:I,s:I,s:f,s:I,s:b,s:o,s:f,s:[sss]}", "dataset",
+        return json_pack("{s:s,s:s,s:I,s:I,s:I,s:I,s:I,s:I,s:f,s:I,s:b,s:o,s:f,s:[sss]}", "dataset",
                          dir, "camera", s->camera, "points", (json_int_t)s->points, "rejected",
-                         (json_int_t)s->rejected, "triangles", (json_int_t)s->triangles,
-                         "triangles_simplified", (json_int_t)s->triangles_simplified, "target",
-                         (json_int_t)o->triangles, "error_mm", s->error_mm, "folds",
-                         (json_int_t)s->folds, "seam_closed", s->seams_closed > 0, "rows", rows,
-                         "seconds", s->seconds, "files", SCAN_FILE_POINTS, SCAN_FILE_MESH_PLY,
-                         SCAN_FILE_MESH_OBJ);
+                         (json_int_t)s->rejected, "unvouched", (json_int_t)s->unvouched,
+                         "triangles", (json_int_t)s->triangles, "triangles_simplified",
+                         (json_int_t)s->triangles_simplified, "target", (json_int_t)o->triangles,
+                         "error_mm", s->error_mm, "folds", (json_int_t)s->folds, "seam_closed",
+                         s->seams_closed > 0, "rows", rows, "seconds", s->seconds, "files",
+                         SCAN_FILE_POINTS, SCAN_FILE_MESH_PLY, SCAN_FILE_MESH_OBJ);
 }
 
 int scan_reconstruct(const struct args *a, struct out *o, json_t **ret)
@@ -193,6 +193,8 @@ void scan_print(json_t *res)
                "angle, %lld with lasers lit together\n",
                num(skip, "unreadable"), num(skip, "wrong_size"), num(skip, "other_view"),
                num(skip, "shared"));
+        printf("  centres left out: %lld at a line's ends or steps, %lld without a usable ray\n",
+               num(res, "unvouched"), num(res, "rejected"));
         print_lasers(json_object_get(res, "lasers"));
         printf("  mesh: %lld triangles over the grid%s, %lld after simplification (target %lld, "
                "error %.3f mm, %lld folds dropped)\n",

@@ -49,6 +49,11 @@ void scan_rigs(struct scan *s, const char *shape, double elevation, double targe
                 scan_laser_yaml(laser, sizeof(laser), az[i], target_z);
                 rt_open(&s->t[s->lasers++], "", laser, cams, scene);
         }
+        if (strcmp(shape, "sphere") != 0) {
+                struct sim_mesh m;
+                CHECK_INT(sim_object_mesh(s->t[0].s, 0, &m), 0);
+                md_open(&s->md, m, 2.0);
+        }
 }
 
 void scan_start(struct scan *s, const struct sec_camera *cam, const double (*p)[3],
@@ -82,13 +87,14 @@ void scan_open(struct scan *s, const char *shape, double elevation, double targe
 void scan_close(struct scan *s)
 {
         free(s->truth);
+        md_close(&s->md);
         sec_free(&s->c);
         for (int i = 0; i < s->lasers; i++)
                 rt_close(&s->t[i]);
 }
 
 /* Renders laser l on and off at turntable angle deg, extracts and triangulates the line. */
-static void scan_line(struct scan *s, int l, double deg, uint64_t seq, struct sim_truth *tr)
+static void scan_line(struct scan *s, int l, double deg, uint64_t seq)
 {
         struct gn_pose st = {.lasers = 1};
         struct sim_expose ex = {.bits = 8};
@@ -101,7 +107,7 @@ static void scan_line(struct scan *s, int l, double deg, uint64_t seq, struct si
         for (int k = 0; k < GN_ROLE_COUNT; k++)
                 st.deg[k] = NAN;
         st.deg[GN_ROLE_TURNTABLE] = deg;
-        rt_render(&s->t[l], &st, &ex, 2 * seq, &on, SIM_TRUTH_POINT, tr);
+        rt_render(&s->t[l], &st, &ex, 2 * seq, &on, 0, NULL);
         st.lasers = 0;
         rt_render(&s->t[l], &st, &ex, 2 * seq + 1, &off, 0, NULL);
         CHECK(laserline_extract(&on, &off, &o, &r) >= 0);
@@ -129,6 +135,7 @@ static void score_add(struct score *sc, double *sum, double d)
         *sum += d * d;
         sc->bias += d;
         sc->worst = fmax(sc->worst, fabs(d));
+        sc->far += fabs(d) > SCAN_FAR_MM;
         sc->scored++;
 }
 
@@ -155,15 +162,14 @@ static struct score scan_score(struct scan *s, int l, truth_fn fn)
         int n = s->angles;
 
         for (int i = 0; i < n; i++) {
-                _cleanup_(sim_truth_free) struct sim_truth tr = {0};
                 size_t first = s->c.n_pts;
 
-                scan_line(s, l, 360.0 * i / n, (uint64_t)(l * n + i), &tr);
+                scan_line(s, l, 360.0 * i / n, (uint64_t)(l * n + i));
                 s->truth = realloc(s->truth, (s->c.n_pts + 1) * sizeof(*s->truth));
                 CHECK(s->truth);
                 for (size_t j = first; j < s->c.n_pts; j++) {
                         struct sec_point q = scan_to_truth(s->T, &s->c.pts[j]);
-                        if (!fn(&tr, &q, s->truth[j]))
+                        if (!fn(s, &q, s->truth[j]))
                                 s->truth[j][0] = s->truth[j][1] = s->truth[j][2] = s->truth[j][3] =
                                         NAN;
                         score_add(&sc, &sum, truth_dist(s, j));
@@ -187,11 +193,11 @@ struct score scan_rescore(const struct scan *s, int l, const char *label)
         return sc;
 }
 
-bool scan_sphere_dist(const struct sim_truth *tr, const struct sec_point *p, double pl[4])
+bool scan_sphere_dist(const struct scan *s, const struct sec_point *p, double pl[4])
 {
         double r = hypot(hypot(p->x[0], p->x[1]), p->x[2] - 50.0);
 
-        (void)tr;
+        (void)s;
         pl[0] = p->x[0] / r;
         pl[1] = p->x[1] / r;
         pl[2] = (p->x[2] - 50.0) / r;
@@ -199,59 +205,19 @@ bool scan_sphere_dist(const struct sim_truth *tr, const struct sec_point *p, dou
         return true;
 }
 
-/* The truth point of pixel (u, v) (object frame), or NULL off the object or the image. */
-static const float *truth_at(const struct sim_truth *tr, int u, int v)
+bool scan_mesh_dist(const struct scan *s, const struct sec_point *p, double pl[4])
 {
-        const float *q;
+        double x[3] = {p->x[0], p->x[1], p->x[2]}, c[3], n[3], d = md_closest(&s->md, x, c, n);
 
-        if (u < 0 || u >= tr->width || v < 0 || v >= tr->height)
-                return NULL;
-        q = tr->point + 3 * ((size_t)v * tr->width + u);
-        return isnan(q[0]) ? NULL : q;
-}
-
-/* The surface's plane under pixel (u0, v) from the truth points around it: point q (the
- * points of u0 and u0 + 1 interpolated at u) and unit normal n, outwards. False where the pixels
- * u0-2..u0+3 of row v and v-2..v+2 of column u0 do not lie on one
- * plane (a facet edge, a silhouette, a strong curvature). */
-static bool truth_plane(const struct sim_truth *tr, double u, int v, double q[3], double n[3])
-{
-        int u0 = (int)floor(u);
-        const float *a = truth_at(tr, u0 - 2, v), *b = truth_at(tr, u0 + 3, v),
-                    *c = truth_at(tr, u0, v - 2), *d = truth_at(tr, u0, v + 2);
-        const float *q0 = truth_at(tr, u0, v), *q1 = truth_at(tr, u0 + 1, v);
-        double e[3], f[3], len;
-
-        if (!a || !b || !c || !d || !q0 || !q1)
+        if (!isfinite(d))
                 return false;
-        for (int k = 0; k < 3; k++) {
-                e[k] = b[k] - a[k];
-                f[k] = d[k] - c[k];
-                q[k] = q0[k] + (u - u0) * (q1[k] - q0[k]);
+        if (d > 1e-9) { /* off a face's interior (an edge, a vertex): along the way to p */
+                double side = (x[0] - c[0]) * n[0] + (x[1] - c[1]) * n[1] + (x[2] - c[2]) * n[2];
+                for (int k = 0; k < 3; k++)
+                        n[k] = (side < 0 ? -1 : 1) * (x[k] - c[k]) / d;
         }
-        n[0] = e[2] * f[1] - e[1] * f[2]; /* f x e: towards the camera (outwards) */
-        n[1] = e[0] * f[2] - e[2] * f[0];
-        n[2] = e[1] * f[0] - e[0] * f[1];
-        len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        for (int k = 0; k < 3; k++)
-                n[k] /= len;
-        for (int x = u0 - 2; x <= u0 + 7; x++) { /* the row's and column's points on it */
-                const float *p =
-                        x <= u0 + 3 ? truth_at(tr, x, v) : truth_at(tr, u0, v + x - u0 - 5);
-                if (!p ||
-                    fabs(n[0] * (p[0] - q[0]) + n[1] * (p[1] - q[1]) + n[2] * (p[2] - q[2])) > 0.01)
-                        return false;
-        }
-        return true;
-}
-
-bool scan_plane_dist(const struct sim_truth *tr, const struct sec_point *p, double pl[4])
-{
-        double q[3];
-
-        if (!truth_plane(tr, p->u, p->row, q, pl))
-                return false;
-        pl[3] = -(pl[0] * q[0] + pl[1] * q[1] + pl[2] * q[2]);
+        memcpy(pl, n, sizeof(n));
+        pl[3] = -(n[0] * c[0] + n[1] * c[1] + n[2] * c[2]);
         return true;
 }
 
@@ -263,11 +229,13 @@ struct score scan_expect(struct scan *s, int l, const char *shape, truth_fn fn, 
 
         fprintf(stderr,
                 "%s, laser %d: %zu points over %d angles, %d scored, RMS %.4f mm, worst %.4f mm, "
-                "mean %+.4f mm, %zu rejected rays\n",
-                shape, l, s->c.n_pts - before, s->angles, sc.scored, sc.rms, sc.worst, sc.bias,
-                s->c.rejected);
+                "%d beyond %.1f mm, mean %+.4f mm; so far %zu rejected rays, %zu centres not "
+                "vouched for\n",
+                shape, l, s->c.n_pts - before, s->angles, sc.scored, sc.rms, sc.worst, sc.far,
+                SCAN_FAR_MM, sc.bias, s->c.rejected, s->c.unvouched);
         CHECK(sc.scored >= min_points);
         CHECK(sc.rms <= rms_max);
-        CHECK(sc.worst <= fmax(SCAN_MAX_SIGMA * sc.rms, 0.1));
+        CHECK(sc.worst <= SCAN_WORST_MM);
+        CHECK(sc.far <= SCAN_FAR_SHARE * sc.scored);
         return sc;
 }

@@ -1,21 +1,26 @@
 /* scantest.h - 100 mm objects (sphere, gem, relief plate) scanned by light sectioning with the
- * renderer in-process (laser on minus off, noise on, a strong lens), and the scanned points
+ * renderer in-process (laser on minus off, noise on, a strong lens), and every scanned point
  * scored against the renderer's true surface: for the sphere analytically, for the gem and the
- * relief against the plane of the true object points (SIM_TRUTH_POINT) around the line's pixel.
+ * relief against the triangles the renderer traced (meshdist.h).
  * Shared by test-section.c (the true calibration) and test-shape.c (the estimated one). */
 #pragma once
 
 #include "calib/section.h"
+#include "tests/calib/meshdist.h"
 #include "tests/render/rtest.h"
 
 #define SCAN_W          800
 #define SCAN_H          600
-#define SCAN_MAX_SIGMA  6.0 /* no point farther than this many RMS (and 0.1 mm) */
+#define SCAN_WORST_MM   0.5  /* no point farther from the true surface */
+#define SCAN_FAR_MM     0.1  /* and at most SCAN_FAR_SHARE of the points farther than this */
+#define SCAN_FAR_SHARE  0.02
 #define SCAN_MAX_LASERS 3
 
-/* The true surface near p (object frame) as a plane n.x + d = 0 (pl: n, d; n unit, outwards);
- * false where p is not scored. */
-typedef bool (*truth_fn)(const struct sim_truth *tr, const struct sec_point *p, double pl[4]);
+struct scan;
+
+/* The true surface near p (object frame) as a plane n.x + d = 0 (pl: n, d; n unit, outwards)
+ * through its point nearest p; false where p is not scored. */
+typedef bool (*truth_fn)(const struct scan *s, const struct sec_point *p, double pl[4]);
 
 /* One rendering rig per laser (the renderer has one laser), the camera of the first. The
  * points are scored after the rigid motion T (R row-major, then t: x_truth = R x + t) from
@@ -28,12 +33,13 @@ struct scan {
         struct sec_ctx c;
         double T[12];
         double (*truth)[4];
+        struct meshdist md; /* the object's true triangles (none for the sphere) */
 };
 
 /* What a scan with one laser scored. */
 struct score {
         double rms, worst, bias; /* mm: RMS, largest and mean signed distance */
-        int scored;
+        int scored, far;         /* points scored; those beyond SCAN_FAR_MM */
 };
 
 /* The camera of the scans: 380 mm from (0, 0, target_z), at azimuth 30 and the given
@@ -63,16 +69,15 @@ void scan_close(struct scan *s);
 
 /* The sphere's true surface: its tangent plane at the point nearest p (the distance to it is
  * the distance to the sphere). */
-bool scan_sphere_dist(const struct sim_truth *tr, const struct sec_point *p, double pl[4]);
+bool scan_sphere_dist(const struct scan *s, const struct sec_point *p, double pl[4]);
 
-/* The plane of the true surface under the line's pixel; false where the true points there do
- * not lie on one plane within 0.01 mm over 6 pixels of the row and 5 of the column (facet
- * edges, silhouettes, strong curvature). */
-bool scan_plane_dist(const struct sim_truth *tr, const struct sec_point *p, double pl[4]);
+/* The true triangles' surface: the plane through their point nearest p, normal to the way
+ * from it to p (the distance to it is the distance to the surface). Scores every point. */
+bool scan_mesh_dist(const struct scan *s, const struct sec_point *p, double pl[4]);
 
 /* Scans laser l over s->angles angles and scores its points with fn; prints the numbers and
- * checks at least min_points scored, RMS <= rms_max, no point beyond SCAN_MAX_SIGMA RMS (or
- * 0.1 mm). */
+ * checks at least min_points scored, RMS <= rms_max, none beyond SCAN_WORST_MM and at most
+ * SCAN_FAR_SHARE beyond SCAN_FAR_MM. */
 struct score scan_expect(struct scan *s, int l, const char *shape, truth_fn fn, int min_points,
                          double rms_max);
 

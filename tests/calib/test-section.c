@@ -109,7 +109,7 @@ static void test_gem(void)
 {
         struct scan s;
 
-        expect_shape(&s, "gem", 25, 30, scan_plane_dist, ANGLES * 40);
+        expect_shape(&s, "gem", 25, 30, scan_mesh_dist, ANGLES * 40);
         scan_close(&s);
 }
 
@@ -117,7 +117,7 @@ static void test_relief(void)
 {
         struct scan s;
 
-        expect_shape(&s, "relief", 45, 5, scan_plane_dist, ANGLES * 30);
+        expect_shape(&s, "relief", 45, 5, scan_mesh_dist, ANGLES * 30);
         scan_close(&s);
 }
 
@@ -131,8 +131,8 @@ static void test_two_lasers(void)
         size_t normals;
 
         scan_open(&s, "gem", 25, 30, (double[]){0, 70}, 2, ANGLES);
-        a = expect_score(&s, 0, "gem", scan_plane_dist, ANGLES * 40);
-        b = expect_score(&s, 1, "gem", scan_plane_dist, ANGLES * 40);
+        a = expect_score(&s, 0, "gem", scan_mesh_dist, ANGLES * 40);
+        b = expect_score(&s, 1, "gem", scan_mesh_dist, ANGLES * 40);
         CHECK(fabs(a.bias - b.bias) <= 0.1);
         normals = sec_normals(&s.c);
         fprintf(stderr, "two lasers: %zu points, %zu with a normal\n", s.c.n_pts, normals);
@@ -203,9 +203,20 @@ static void test_args(void)
         r.n = H + 1;
         CHECK_INT(sec_add_line(&c, 0, 0, &r, false, NULL), -EINVAL);
         r.n = H;
-        centre[300] = 400; /* the principal ray: meets z = 0 at the origin */
+        centre[300] = 400; /* alone: no neighbour vouches for it */
+        CHECK_INT(sec_add_line(&c, 0, 0, &r, false, NULL), 0);
+        CHECK(c.unvouched == 1);
+        centre[299] = centre[301] = 400; /* the run's ends are left out, its middle is kept */
         CHECK_INT(sec_add_line(&c, 0, 0, &r, false, NULL), 1);
-        CHECK(fabs(c.pts[0].x[0]) < 1e-9 && fabs(c.pts[0].x[2]) < 1e-9);
+        CHECK(c.unvouched == 3);
+        /* the principal ray: meets z = 0 at the origin */
+        CHECK(fabs(c.pts[0].x[0]) < 1e-9 && fabs(c.pts[0].x[2]) < 1e-9 && c.pts[0].row == 300);
+        centre[301] = 400 + 1.01 * SEC_MAX_KINK_PX; /* a step at row 300 */
+        CHECK_INT(sec_add_line(&c, 0, 0, &r, false, NULL), 0);
+        CHECK(c.unvouched == 6);
+        centre[301] = 400 + 0.99 * SEC_MAX_KINK_PX;
+        CHECK_INT(sec_add_line(&c, 0, 0, &r, false, NULL), 1);
+        centre[301] = 400;
         /* nearly along the plane x = 1: a point 100 m away, no point */
         CHECK_INT(sec_add_line(&c, 1, 0, &r, false, NULL), 0);
         CHECK(c.rejected == 1);
@@ -235,7 +246,7 @@ static void test_frames(void)
                         ((uint16_t *)(tex.data + (size_t)y * tex.stride))[x] = 0x4000;
         CHECK_INT(sec_init(&c, &cam), 0);
         CHECK_INT(sec_add_laser(&c, p, nz), 0);
-        centre[500] = 300; /* column 500, row 300: the world point (50, 0, 0) */
+        centre[499] = centre[500] = centre[501] = 300; /* column 500, row 300: (50, 0, 0) */
         CHECK_INT(sec_add_line(&c, 0, 90, &r, true, &tex), 1);
         CHECK(fabs(c.pts[0].x[0]) < 1e-4 && fabs(c.pts[0].x[1] + 50) < 1e-4 &&
               fabs(c.pts[0].x[2]) < 1e-4);

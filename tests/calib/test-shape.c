@@ -350,12 +350,12 @@ static void test_sphere(void)
 
 static void test_gem(void)
 {
-        expect_shape(&(struct rig){"gem", 25, 30, {0}, 1}, scan_plane_dist, ANGLES * 40);
+        expect_shape(&(struct rig){"gem", 25, 30, {0}, 1}, scan_mesh_dist, ANGLES * 40);
 }
 
 static void test_relief(void)
 {
-        expect_shape(&(struct rig){"relief", 45, 5, {0}, 1}, scan_plane_dist, ANGLES * 30);
+        expect_shape(&(struct rig){"relief", 45, 5, {0}, 1}, scan_mesh_dist, ANGLES * 30);
 }
 
 /* Seconds since t0. */
@@ -497,13 +497,13 @@ static void expect_lasers(const struct rig *r, truth_fn fn, int min_points)
 /* The gem with lasers at azimuths 0 and 70 (either side of the camera, at 30). */
 static void test_two_lasers(void)
 {
-        expect_lasers(&(struct rig){"gem", 25, 30, {0, 70}, 2}, scan_plane_dist, ANGLES * 40);
+        expect_lasers(&(struct rig){"gem", 25, 30, {0, 70}, 2}, scan_mesh_dist, ANGLES * 40);
 }
 
 /* The gem with a third laser at -20 (50 deg from the camera). */
 static void test_three_lasers(void)
 {
-        expect_lasers(&(struct rig){"gem", 25, 30, {0, 70, -20}, 3}, scan_plane_dist, ANGLES * 40);
+        expect_lasers(&(struct rig){"gem", 25, 30, {0, 70, -20}, 3}, scan_mesh_dist, ANGLES * 40);
 }
 
 /* cal_plane_to_turntable against the rig's truth: the true laser plane (azimuth 70) in the
