@@ -110,6 +110,7 @@ static int write_mesh(struct web *w, json_t *man)
         ap_mesh_bounds(me, lo, hi);
         json_object_set_new(e, "vertices", json_integer((json_int_t)me->nv));
         json_object_set_new(e, "triangles", json_integer((json_int_t)me->nt));
+        json_object_set_new(e, "front", json_integer(me->front)); /* the winding's side out */
         json_object_set_new(
                 man, "centre",
                 json_pack("[fff]", (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2));

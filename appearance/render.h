@@ -23,6 +23,8 @@
 #define AP_RENDER_CUBE     32    /* texels per side of the cube map of L(l, k, c) */
 #define AP_RENDER_BIAS     0.005 /* depth tolerance of a view's tap, relative to the depth... */
 #define AP_RENDER_SLOPE    2.5   /* ...or this many of the view's pixel footprints if more */
+#define AP_RENDER_FADE_LO  0.10  /* a view's weight fades in from this cosine to the surface... */
+#define AP_RENDER_FADE_HI  0.35  /* ...to full at this one: no seam where it stops seeing it */
 #define AP_RENDER_MARGIN   8     /* view depth maps extend by width/this each side (distortion) */
 #define AP_RENDER_MAX_SIDE 8192
 

@@ -27,6 +27,7 @@ struct ap_renderer {
         struct rview *rv; /* n_views */
         float *cube;      /* 6 * AP_RENDER_CUBE^2 texels of (K + 1) * 3 */
         float *planes;    /* per triangle: unit normal, offset (object frame) */
+        float *vnormals;  /* per vertex: unit normal outwards (a closed mesh), else NULL */
         double centre[3];
         /* the last frame's raster (pinhole, grown to hold a distorted camera's rays) */
         struct ap_pinhole ras;

@@ -131,8 +131,44 @@ int render_prepare_raster(struct ap_renderer *r, const struct ap_camera *cam)
         return 0;
 }
 
-/* The surface point p (object frame) seen at output pixel (x, y); false where none. */
-static bool surface_point(const struct frame *f, int x, int y, float p[3])
+/* The normal n at point p of triangle tri: the vertex normals interpolated (barycentric),
+ * or the face's (its plane pl) where the mesh has none. */
+static void surface_normal(const struct ap_renderer *r, int32_t tri, const float *pl,
+                           const float p[3], float n[3])
+{
+        const uint32_t *ix = &r->mesh->idx[3 * (size_t)tri];
+        float lam[3], len;
+
+        if (!r->vnormals) {
+                memcpy(n, pl, 3 * sizeof(float));
+                return;
+        }
+        for (int k = 0; k < 3; k++) { /* the area of p and the edge opposite vertex k */
+                const float *a = &r->mesh->pos[3 * ix[(k + 1) % 3]],
+                            *b = &r->mesh->pos[3 * ix[(k + 2) % 3]];
+                float u[3] = {a[0] - p[0], a[1] - p[1], a[2] - p[2]},
+                      v[3] = {b[0] - p[0], b[1] - p[1], b[2] - p[2]};
+                lam[k] = pl[0] * (u[1] * v[2] - u[2] * v[1]) + pl[1] * (u[2] * v[0] - u[0] * v[2]) +
+                         pl[2] * (u[0] * v[1] - u[1] * v[0]);
+                lam[k] = lam[k] > 0 ? lam[k] : 0; /* p rounded onto the triangle */
+        }
+        for (int j = 0; j < 3; j++)
+                n[j] = 0;
+        for (int k = 0; k < 3; k++)
+                for (int j = 0; j < 3; j++)
+                        n[j] += lam[k] * r->vnormals[3 * ix[k] + j];
+        len = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (!(len > 0)) {
+                memcpy(n, pl, 3 * sizeof(float));
+                return;
+        }
+        for (int j = 0; j < 3; j++)
+                n[j] /= len;
+}
+
+/* The surface point p (object frame) seen at output pixel (x, y) and the unit normal n there
+ * (surface_normal), turned towards the output camera; false where none. */
+static bool surface_point(const struct frame *f, int x, int y, float p[3], float n[3])
 {
         const struct ap_renderer *r = f->r;
         const struct ap_camera *c = f->cam;
@@ -163,7 +199,22 @@ static bool surface_point(const struct frame *f, int x, int y, float p[3])
         s = (pl[3] - pl[0] * f->C[0] - pl[1] * f->C[1] - pl[2] * f->C[2]) / den;
         for (int i = 0; i < 3; i++)
                 p[i] = f->C[i] + s * d[i];
+        surface_normal(r, tri, pl, p, n);
+        if (n[0] * d[0] + n[1] * d[1] + n[2] * d[2] > 0) /* d points away from the camera */
+                for (int i = 0; i < 3; i++)
+                        n[i] = -n[i];
         return true;
+}
+
+/* The weight of a view that sees a surface at cosine c to its line of sight: 0 at grazing
+ * rising smoothly to 1, so that a view fades out before its silhouette instead of being cut
+ * there (a seam along the edge of what it sees). */
+static inline float view_fade(float c)
+{
+        float t = (c - (float)AP_RENDER_FADE_LO) / (float)(AP_RENDER_FADE_HI - AP_RENDER_FADE_LO);
+
+        t = t < 0 ? 0 : t > 1 ? 1 : t;
+        return t * t * (3 - 2 * t);
 }
 
 static inline int ifloor(float v)
@@ -173,14 +224,16 @@ static inline int ifloor(float v)
         return i - (v < (float)i);
 }
 
-/* Adds wgt times view v's weights at object point p to acc; false where p is hidden from v
- * or outside its mask. Each bilinear tap counts only where the view's mask holds and its
+/* Adds wgt times view v's weights at object point p (normal n) to acc, faded by the view's
+ * cosine to the surface (view_fade; not with n NULL); returns the weight added, 0 where p is hidden
+ * from v or outside its mask. Each bilinear tap counts only where the view's mask holds and its
  * depth map sees the point's surface there, within v->tol times the depth (no blending
  * across occlusion edges: a tap on an occluder, or on a surface behind, is dropped). The
  * depth map is read at the pinhole position of each tap (its offset from the point's). */
-static bool sample_view(const struct rview *v, const float p[3], int K, float wgt, float *acc)
+static float sample_view(const struct rview *v, const float p[3], const float *n, int K, float wgt,
+                         float *acc)
 {
-        float x[3], iz, xd, yd, pu, pv, u, w, a, b, tw = 0, bw[4], tol, du, dv;
+        float x[3], iz, xd, yd, pu, pv, u, w, a, b, tw = 0, bw[4], tol, du, dv, c;
         const float *t0, *dp;
         const uint8_t *mp;
         int x0, y0, W = v->width;
@@ -189,7 +242,17 @@ static bool sample_view(const struct rview *v, const float p[3], int K, float wg
                 x[i] = v->R[3 * i] * p[0] + v->R[3 * i + 1] * p[1] + v->R[3 * i + 2] * p[2] +
                        v->t[i];
         if (x[2] <= 0)
-                return false;
+                return 0;
+        if (n) {
+                c = 0; /* the cosine between n and the way from p to the view's camera, -x */
+                for (int i = 0; i < 3; i++)
+                        c -= (v->R[3 * i] * n[0] + v->R[3 * i + 1] * n[1] +
+                              v->R[3 * i + 2] * n[2]) *
+                             x[i];
+                wgt *= view_fade(c / sqrtf(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]));
+                if (!(wgt > 0))
+                        return 0;
+        }
         iz = 1 / x[2];
         xd = x[0] * iz, yd = x[1] * iz;
         pu = v->fx * xd + v->cx, pv = v->fy * yd + v->cy;
@@ -201,7 +264,7 @@ static bool sample_view(const struct rview *v, const float p[3], int K, float wg
         du = pu - a + v->mx + 0.5f, dv = pv - b + v->my + 0.5f;
         if (x0 < 0 || y0 < 0 || x0 + 1 >= W || y0 + 1 >= v->height || du < 0 || dv < 0 ||
             (int)du + 1 >= v->dw || (int)dv + 1 >= v->dh)
-                return false;
+                return 0;
         dp = v->depth + (size_t)(int)dv * v->dw + (int)du;
         mp = v->mask + (size_t)y0 * W + x0;
         tol = x[2] * v->tol;
@@ -211,7 +274,7 @@ static bool sample_view(const struct rview *v, const float p[3], int K, float wg
         bw[3] = mp[W + 1] && fabsf(dp[v->dw + 1] - x[2]) <= tol ? a * b : 0;
         tw = bw[0] + bw[1] + bw[2] + bw[3];
         if (!(tw > 1e-3f))
-                return false;
+                return 0;
         tw = wgt / tw;
         for (int j = 0; j < 4; j++)
                 bw[j] *= tw;
@@ -219,7 +282,7 @@ static bool sample_view(const struct rview *v, const float p[3], int K, float wg
         for (int k = 0; k < K; k++)
                 acc[k] += bw[0] * t0[k] + bw[1] * t0[K + k] + bw[2] * t0[W * K + k] +
                           bw[3] * t0[(W + 1) * K + k];
-        return true;
+        return wgt;
 }
 
 /* L(l, k, c) at unit l from the cube map, bilinear inside a face. */
@@ -245,13 +308,14 @@ static void cube_sample(const struct ap_renderer *r, const float l[3], float *ou
                          b * ((1 - a) * q10[i] + a * q11[i]);
 }
 
-/* Step 4.1 at surface point p: the weights of the views around its view direction blended
- * into acc (K values, normalised by the views that see p). False where no view sees p. */
-static inline __attribute__((always_inline)) bool blend_views(const struct frame *f,
-                                                              const float p[3], float *acc)
+/* Step 4.1 at surface point p (normal n): the weights of the views around its view direction
+ * blended into acc (K values, normalised by the views that see p; faded near their grazing
+ * unless all are there). False where no view sees p. */
+static inline __attribute__((always_inline)) bool
+blend_views(const struct frame *f, const float p[3], const float n[3], float *acc)
 {
         const struct ap_renderer *r = f->r;
-        int idx[3], n = f->on, K = r->m->k;
+        int idx[3], nv = f->on, K = r->m->k;
         float w[3], ws = 0;
 
         memcpy(idx, f->oidx, sizeof(idx));
@@ -261,11 +325,14 @@ static inline __attribute__((always_inline)) bool blend_views(const struct frame
                 float len = 1 / sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
                 for (int j = 0; j < 3; j++)
                         v[j] *= len;
-                n = ap_views_weights(r->views, v, idx, w);
+                nv = ap_views_weights(r->views, v, idx, w);
         }
-        for (int j = 0; j < n; j++)
-                if (w[j] > 0 && sample_view(&r->rv[idx[j]], p, K, w[j], acc))
-                        ws += w[j];
+        for (int j = 0; j < nv; j++)
+                if (w[j] > 0)
+                        ws += sample_view(&r->rv[idx[j]], p, n, K, w[j], acc);
+        for (int j = 0; j < nv && !(ws > 0); j++) /* every view at grazing: unfaded */
+                if (w[j] > 0)
+                        ws += sample_view(&r->rv[idx[j]], p, NULL, K, w[j], acc);
         if (!(ws > 0))
                 return false;
         ws = 1 / ws;
@@ -311,11 +378,11 @@ apply_light(const struct frame *f, const float p[3], const float *acc, size_t i)
 static inline __attribute__((always_inline)) void shade(const struct frame *f, int x, int y)
 {
         size_t i = (size_t)y * f->cam->width + x;
-        float p[3], acc[AP_K_MAX] = {0};
+        float p[3], n[3], acc[AP_K_MAX] = {0};
 
         f->mask[i] = 0;
         f->rgb[3 * i] = f->rgb[3 * i + 1] = f->rgb[3 * i + 2] = 0;
-        if (!surface_point(f, x, y, p) || !blend_views(f, p, acc))
+        if (!surface_point(f, x, y, p, n) || !blend_views(f, p, n, acc))
                 return;
         apply_light(f, p, acc, i);
         f->mask[i] = 1;

@@ -28,9 +28,13 @@ void main() {
 }`;
 }
 
-// The sources, with the constants the page shares with the renderer (CUBE, VIEW_TEXELS).
-function gonioShaders({CUBE, VIEW_TEXELS}) {
+// The sources, with the constants the page shares with the renderer (CUBE, VIEW_TEXELS,
+// FADE_LO, FADE_HI).
+function gonioShaders({CUBE, VIEW_TEXELS, FADE_LO, FADE_HI}) {
   const VS = gonioVertexShader();
+  // the main pass's: also the vertex normal (render.c build_vertex_normals; 0 0 0: none)
+  const MAIN_VS = gonioVertexShader(`layout(location = 3) in vec3 nrmIn;
+out vec3 vNrm;`, `vNrm = nrmIn;`);
 
   const DEPTH_FS = `#version 300 es
 precision highp float;
@@ -51,6 +55,7 @@ uniform float lscale, gain;
 uniform float lconst[100];
 in vec3 vPos;
 in float vZ;
+in vec3 vNrm;
 out vec4 outColor;
 float acc[32];
 
@@ -140,15 +145,26 @@ float tap(int vi, ivec2 m, ivec2 dd, float z, float tol, ivec2 csz, ivec2 dsz) {
   return abs(texelFetch(depthArr, ivec3(dd, vi), 0).r - z) <= tol ? 1.0 : 0.0;
 }
 
-// render_px.c sample_view: adds wgt times view vi's weights at p to acc.
-bool sampleView(int vi, vec3 p, float wgt) {
+// render_px.c view_fade: a view's weight at cosine c to the surface.
+float viewFade(float c) {
+  return smoothstep(${FADE_LO}, ${FADE_HI}, c);
+}
+
+// render_px.c sample_view: adds wgt times view vi's weights at p (normal n, faded unless
+// fade is false) to acc; returns the weight added.
+float sampleView(int vi, vec3 p, vec3 n, bool fade, float wgt) {
   vec4 r0 = vt(vi, 0), r1 = vt(vi, 1), r2 = vt(vi, 2), in4 = vt(vi, 3), k4 = vt(vi, 4);
   vec4 m5 = vt(vi, 5), m6 = vt(vi, 6), cr = vt(vi, 7), m8 = vt(vi, 8);
-  if (m5.w == 0.0) return false; // not loaded yet
+  if (m5.w == 0.0) return 0.0; // not loaded yet
   vec3 x = vec3(r0.x * p.x + r0.y * p.y + r0.z * p.z + r0.w,
                 r1.x * p.x + r1.y * p.y + r1.z * p.z + r1.w,
                 r2.x * p.x + r2.y * p.y + r2.z * p.z + r2.w);
-  if (x.z <= 0.0) return false;
+  if (x.z <= 0.0) return 0.0;
+  if (fade) {
+    vec3 rn = vec3(dot(r0.xyz, n), dot(r1.xyz, n), dot(r2.xyz, n));
+    wgt *= viewFade(-dot(rn, x) / length(x));
+    if (!(wgt > 0.0)) return 0.0;
+  }
   float iz = 1.0 / x.z, xd = x.x * iz, yd = x.y * iz;
   float pu = in4.x * xd + in4.z, pv = in4.y * yd + in4.w;
   if (m8.w != 0.0) {
@@ -163,7 +179,7 @@ bool sampleView(int vi, vec3 p, float wgt) {
   float du = pu - a + m6.x + 0.5, dv = pv - b + m6.y + 0.5;
   if (x0 < 0 || y0 < 0 || x0 + 1 >= int(m5.y) || y0 + 1 >= int(m5.z) || du < 0.0 || dv < 0.0 ||
       int(du) + 1 >= int(m6.z) || int(dv) + 1 >= int(m6.w))
-    return false;
+    return 0.0;
   ivec2 m = ivec2(x0, y0) - ivec2(cr.xy), csz = ivec2(cr.zw);
   ivec2 dd = ivec2(int(du), int(dv)) - ivec2(m8.xy), dsz = csz + 2 * ivec2(m6.xy);
   float tol = x.z * m8.z;
@@ -172,7 +188,7 @@ bool sampleView(int vi, vec3 p, float wgt) {
                  tap(vi, m + ivec2(0, 1), dd + ivec2(0, 1), x.z, tol, csz, dsz) * (1.0 - a) * b,
                  tap(vi, m + ivec2(1, 1), dd + ivec2(1, 1), x.z, tol, csz, dsz) * a * b);
   float tw = bw.x + bw.y + bw.z + bw.w;
-  if (!(tw > 1e-3)) return false;
+  if (!(tw > 1e-3)) return 0.0;
   bw /= tw;
   for (int gi = 0; gi < 8; gi++) {
     if (gi >= G) break;
@@ -185,7 +201,7 @@ bool sampleView(int vi, vec3 p, float wgt) {
     for (int c = 0; c < 4; c++)
       if (4 * gi + c < K) acc[4 * gi + c] += wgt * (off[c] + sc[c] * s[c]);
   }
-  return true;
+  return wgt;
 }
 
 
@@ -231,8 +247,14 @@ void main() {
   for (int k = 0; k < 32; k++) acc[k] = 0.0;
   if (pixelMode != 0) d = normalize(camC - p);
   viewWeights(d, idx, w);
+  // the normal (render_px.c surface_normal): the vertex normals', else the face's; towards
+  // the camera
+  vec3 n = dot(vNrm, vNrm) > 0.0 ? normalize(vNrm) : normalize(cross(dFdx(p), dFdy(p)));
+  if (dot(n, camC - p) < 0.0) n = -n;
   for (int j = 0; j < 3; j++)
-    if (w[j] > 0.0 && sampleView(idx[j], p, w[j])) ws += w[j];
+    if (w[j] > 0.0) ws += sampleView(idx[j], p, n, true, w[j]);
+  for (int j = 0; j < 3; j++) // every view at grazing: unfaded
+    if (!(ws > 0.0) && w[j] > 0.0) ws += sampleView(idx[j], p, n, false, w[j]);
   if (!(ws > 0.0)) discard;
   for (int k = 0; k < 32; k++) acc[k] /= ws;
   vec3 rgb;
@@ -246,7 +268,7 @@ void main() {
   outColor = vec4(clamp(rgb * gain, 0.0, 1.0), 1.0);
 }`;
 
-  return {VS, DEPTH_FS, MAIN_FS};
+  return {VS, MAIN_VS, DEPTH_FS, MAIN_FS};
 }
 
 // The BRDF model's environment mode (brdf.js): appearance/render_env.c in GLSL. BRDF_VS

@@ -15,6 +15,8 @@ const gonio = (() => {
   const BIAS = 0.005;       // AP_RENDER_BIAS
   const SLOPE = 2.5;        // AP_RENDER_SLOPE
   const MARGIN = 8;         // AP_RENDER_MARGIN
+  const FADE_LO = '0.10';   // AP_RENDER_FADE_LO (GLSL literals)
+  const FADE_HI = '0.35';   // AP_RENDER_FADE_HI
   const FIRST_VIEWS = 3;    // views loaded before the first frame
   const VIEW_TEXELS = 9;    // RGBA32F texels of a view's parameters before its scales
 
@@ -138,7 +140,7 @@ const gonio = (() => {
   }
 
 
-  const {VS, DEPTH_FS, MAIN_FS} = gonioShaders({CUBE, VIEW_TEXELS});
+  const {VS, MAIN_VS, DEPTH_FS, MAIN_FS} = gonioShaders({CUBE, VIEW_TEXELS, FADE_LO, FADE_HI});
 
   // ---- GL ----
   function compile(vs, fs) {
@@ -199,7 +201,27 @@ const gonio = (() => {
     if (!gl.getExtension('EXT_color_buffer_float'))
       throw new Error('This viewer needs float render targets (EXT_color_buffer_float), which this browser lacks.');
     progs.depth = compile(VS, DEPTH_FS);
-    progs.main = compile(VS, MAIN_FS);
+    progs.main = compile(MAIN_VS, MAIN_FS);
+  }
+
+  // render.c build_vertex_normals: a closed mesh's (front: its winding, 1 or -1) vertex
+  // normals, the area-weighted mean of its faces'; null for an open mesh (front 0).
+  function vertexNormals(pos, idx, front) {
+    if (!front) return null;
+    const acc = new Float64Array(pos.length), out = new Float32Array(pos.length);
+    for (let t = 0; t < idx.length; t += 3) {
+      const a = 3 * idx[t], b = 3 * idx[t + 1], c = 3 * idx[t + 2];
+      const u = [0, 1, 2].map((j) => pos[b + j] - pos[a + j]);
+      const v = [0, 1, 2].map((j) => pos[c + j] - pos[a + j]);
+      const n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+      for (const k of [a, b, c])
+        for (let j = 0; j < 3; j++) acc[k + j] += front * n[j];
+    }
+    for (let i = 0; i < pos.length; i += 3) {
+      const len = Math.hypot(acc[i], acc[i + 1], acc[i + 2]);
+      for (let j = 0; j < 3; j++) out[i + j] = len > 0 ? acc[i + j] / len : 0;
+    }
+    return out;
   }
 
   function uploadMesh(buf) {
@@ -212,6 +234,16 @@ const gonio = (() => {
     gl.bufferData(gl.ARRAY_BUFFER, pos, gl.STATIC_DRAW);
     gl.enableVertexAttribArray(0);
     gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
+    const nrm = vertexNormals(pos, idx, man.mesh.front || 0);
+    if (nrm) {
+      const nb = gl.createBuffer();
+      gl.bindBuffer(gl.ARRAY_BUFFER, nb);
+      gl.bufferData(gl.ARRAY_BUFFER, nrm, gl.STATIC_DRAW);
+      gl.enableVertexAttribArray(3);
+      gl.vertexAttribPointer(3, 3, gl.FLOAT, false, 0, 0);
+    } else {
+      gl.vertexAttrib3f(3, 0, 0, 0);
+    }
     const ib = gl.createBuffer();
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ib);
     gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, idx, gl.STATIC_DRAW);

@@ -27,6 +27,10 @@ DEFINE_TRIVIAL_CLEANUP_FUNC(struct ap_renderer *, ap_renderer_free);
 #define TT_ANGLES  12 /* views of the fit: turntable angles 30 degrees apart, one camera */
 #define ARM_ANGLES 18
 
+#define SEAM_TT_ANGLES 6   /* test_seams: views 60 degrees apart */
+#define SEAM_RIM_PX    4   /* pixels this close to the object's outline are not compared */
+#define SEAM_MAX_STEP  0.2 /* largest change of a view's share between pixel neighbours */
+
 static void rm_rfp(char **dir)
 {
         if (*dir)
@@ -42,13 +46,15 @@ struct fitted {
         struct ap_mesh mesh;
 };
 
-static void fit_scene(struct fitted *f, enum aps_material mat, int tt_angles)
+/* fit_scene with the images scale times the default size. */
+static void fit_scene_scaled(struct fitted *f, enum aps_material mat, int tt_angles, int scale)
 {
         struct aps_opts ao;
         char err[512], src[512];
 
         aps_opts_default(&ao, mat);
         ao.turntable_angles = tt_angles, ao.arm_angles = ARM_ANGLES;
+        ao.width *= scale, ao.height *= scale;
         aps_open(&f->s, &ao);
         f->dir = tu_tmpdir();
         snprintf(f->ds, sizeof(f->ds), "%s/ds", f->dir);
@@ -59,6 +65,11 @@ static void fit_scene(struct fitted *f, enum aps_material mat, int tt_angles)
         CHECK_STR_CONTAINS(src, "scan");
 }
 
+static void fit_scene(struct fitted *f, enum aps_material mat, int tt_angles)
+{
+        fit_scene_scaled(f, mat, tt_angles, 1);
+}
+
 static void fitted_free(struct fitted *f)
 {
         ap_mesh_free(&f->mesh);
@@ -67,23 +78,13 @@ static void fitted_free(struct fitted *f)
         rm_rfp(&f->dir);
 }
 
-/* The PSNR of the model relit at turntable angle tt and world light position Pw against
- * the simulator, over the pixels both give (at least 1000 samples). */
-static double relit_psnr(struct fitted *f, struct ap_renderer *r, double tt, const double Pw[3],
-                         enum ap_view_mode mode)
+/* The simulator's camera at turntable angle tt as seen from the object frame. */
+static struct ap_camera object_camera(struct fitted *f, double tt)
 {
-        _cleanup_(sim_truth_free) struct sim_truth tr = {0};
         struct gn_pose pose = {{tt, 0, NAN}, 0, false};
         struct sim_cam_geom g;
         struct ap_camera cam;
-        double a = tt * DEG, sse = 0;
-        struct ap_light l = {
-                AP_LIGHT_POINT,
-                {cos(a) * Pw[0] + sin(a) * Pw[1], -sin(a) * Pw[0] + cos(a) * Pw[1], Pw[2]},
-                0,
-                NULL};
-        struct gn_frame fr;
-        size_t n = 0;
+        double a = tt * DEG;
 
         CHECK_INT(sim_camera_geom(f->s.t.s, &pose, 0, &g), 0);
         cam = (struct ap_camera){g.width, g.height, g.fx, g.fy, g.cx, g.cy};
@@ -94,6 +95,26 @@ static double relit_psnr(struct fitted *f, struct ap_renderer *r, double tt, con
                 cam.R[3 * i + 1] = -g.R[3 * i] * sin(a) + g.R[3 * i + 1] * cos(a);
                 cam.R[3 * i + 2] = g.R[3 * i + 2];
         }
+        return cam;
+}
+
+/* The PSNR of the model relit at turntable angle tt and world light position Pw against
+ * the simulator, over the pixels both give (at least 1000 samples). */
+static double relit_psnr(struct fitted *f, struct ap_renderer *r, double tt, const double Pw[3],
+                         enum ap_view_mode mode)
+{
+        _cleanup_(sim_truth_free) struct sim_truth tr = {0};
+        struct ap_camera cam = object_camera(f, tt);
+        struct sim_cam_geom g = {.width = cam.width, .height = cam.height};
+        double a = tt * DEG, sse = 0;
+        struct ap_light l = {
+                AP_LIGHT_POINT,
+                {cos(a) * Pw[0] + sin(a) * Pw[1], -sin(a) * Pw[0] + cos(a) * Pw[1], Pw[2]},
+                0,
+                NULL};
+        struct gn_frame fr;
+        size_t n = 0;
+
         _cleanup_free_ float *rgb = malloc(3 * sizeof(float) * g.width * g.height);
         _cleanup_free_ uint8_t *mask = malloc((size_t)g.width * g.height);
         CHECK(rgb && mask);
@@ -145,6 +166,109 @@ static void heldout(enum aps_material mat, double min_db)
         CHECK(px / n >= min_db);
         CHECK(obj / n >= min_db - 1);
         ap_renderer_free(TAKE_PTR(r));
+        fitted_free(&f);
+}
+
+/* Sets the first weight of every pixel of view v to value(v), the others to 0. */
+static void set_weights(struct ap_model *m, float (*value)(size_t v))
+{
+        for (size_t v = 0; v < m->n_views; v++) {
+                const struct ap_camera *c = &m->views[v].cam;
+                for (size_t p = 0; p < (size_t)c->width * c->height; p++)
+                        for (int k = 0; k < m->k; k++)
+                                m->views[v].weights[p * m->k + k] = k ? 0 : value(v);
+        }
+}
+
+static float weight_zero(size_t v)
+{
+        return 0;
+}
+
+static float weight_one(size_t v)
+{
+        return 1;
+}
+
+static float weight_odd(size_t v)
+{
+        return v % 2;
+}
+
+/* Green of a per-pixel render of f's model with the weights of value() and light l. */
+static void render_weights(struct fitted *f, const struct ap_camera *cam, const struct ap_light *l,
+                           float (*value)(size_t v), float *rgb, uint8_t *mask)
+{
+        _cleanup_(ap_renderer_freep) struct ap_renderer *r = NULL;
+
+        set_weights(f->m, value);
+        CHECK_INT(ap_renderer_new(f->m, &f->mesh, &r), 0);
+        CHECK_INT(ap_render(r, cam, l, AP_VIEW_PIXEL, 2, rgb, mask), 0);
+}
+
+/* Whether the pixels within SEAM_RIM_PX of p (a square) are all in mask: p is away from the
+ * object's outline, where a pixel spans much of the surface and the blend moves fast. */
+static bool inside(const uint8_t *mask, size_t W, size_t H, size_t p)
+{
+        size_t x = p % W, y = p / W;
+
+        if (x < SEAM_RIM_PX || y < SEAM_RIM_PX || x + SEAM_RIM_PX + 1 >= W ||
+            y + SEAM_RIM_PX + 1 >= H)
+                return false;
+        for (size_t v = y - SEAM_RIM_PX; v <= y + SEAM_RIM_PX + 1; v++)
+                for (size_t u = x - SEAM_RIM_PX; u <= x + SEAM_RIM_PX + 1; u++)
+                        if (!mask[v * W + u])
+                                return false;
+        return true;
+}
+
+/* The largest change of the odd views' share of the blend between pixel neighbours inside the
+ * object in the renders s (weights 0, 1, alternating; mask of the first). */
+static double largest_step(float *const s[3], const uint8_t *mask, size_t W, size_t H)
+{
+        double worst = 0;
+
+        for (size_t p = 0; p < W * H; p++) {
+                double share[3];
+                if (!inside(mask, W, H, p) || !(fabsf(s[1][3 * p + 1] - s[0][3 * p + 1]) > 1e-3f))
+                        continue;
+                for (int j = 0; j < 3; j++) { /* p, its right and lower neighbours */
+                        size_t q = p + (j == 1) + (j == 2) * W;
+                        share[j] = (s[2][3 * q + 1] - s[0][3 * q + 1]) /
+                                   (s[1][3 * q + 1] - s[0][3 * q + 1]);
+                }
+                worst = fmax(worst, fmax(fabs(share[1] - share[0]), fabs(share[2] - share[0])));
+        }
+        return worst;
+}
+
+/* No seam where a view stops seeing the surface. With the views' first weight alternately 0
+ * and 1 (the others 0), the odd views' share of each pixel's blend (from renders with all
+ * weights 0 and all 1: the light term is affine in the weights) moves by at most
+ * SEAM_MAX_STEP between neighbouring pixels inside the object. The views are 60 degrees apart
+ * and the renders half-way between two: each of the two reaches its silhouette well inside
+ * the picture. Measured 0.10; a view cut off there (seen, then not) made the share jump by 0.56. */
+static void test_seams(void)
+{
+        struct ap_light l = {AP_LIGHT_DIRECTIONAL, {1, 0, 0.5}, 0, NULL};
+        struct fitted f;
+        double worst = 0;
+
+        fit_scene_scaled(&f, APS_DIFFUSE, SEAM_TT_ANGLES, 2);
+        for (double tt = 180.0 / SEAM_TT_ANGLES; tt < 360; tt += 90) {
+                struct ap_camera cam = object_camera(&f, tt);
+                size_t n = (size_t)cam.width * cam.height;
+                _cleanup_free_ float *rgb = malloc(3 * 3 * n * sizeof(float));
+                _cleanup_free_ uint8_t *mask = malloc(3 * n);
+                float *s[3] = {rgb, rgb + 3 * n, rgb + 6 * n};
+                CHECK(rgb && mask);
+                render_weights(&f, &cam, &l, weight_zero, s[0], mask);
+                render_weights(&f, &cam, &l, weight_one, s[1], mask + n);
+                render_weights(&f, &cam, &l, weight_odd, s[2], mask + 2 * n);
+                worst = fmax(worst, largest_step(s, mask, cam.width, cam.height));
+        }
+        fprintf(stderr, "largest step of the odd views' share between neighbours: %.3f\n", worst);
+        CHECK(worst <= SEAM_MAX_STEP);
         fitted_free(&f);
 }
 
@@ -339,7 +463,7 @@ int main(int argc, char **argv)
         static const struct test_case cases[] = {
                 {"diffuse", test_diffuse},   {"glossy", test_glossy},
                 {"gonioctl", test_gonioctl}, {"gonioctl-bad", test_gonioctl_bad},
-                {"mesh", test_mesh},
+                {"mesh", test_mesh},         {"seams", test_seams},
         };
 
         /* the datasets' thousand fsyncs cost seconds on a disk: memory where there is one */
