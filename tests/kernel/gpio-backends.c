@@ -466,11 +466,22 @@ static void find_chip(void)
 }
 
 /* Unplugs (0) or plugs back (1) gpio-sim's chip: its configfs device's `live`. */
+#define SIM_LIVE "/sys/kernel/config/gpio-sim/gonio/live"
+
 static void sim_live(const char *v)
 {
-        _cleanup_fclose_ FILE *f = fopen("/sys/kernel/config/gpio-sim/gonio/live", "we");
+        _cleanup_fclose_ FILE *f = fopen(SIM_LIVE, "we");
 
         CHECK(f && fputs(v, f) >= 0 && fflush(f) == 0);
+}
+
+/* At exit, a failed check included: the chip plugged in again for the lane's next test. */
+static void plug_back(void)
+{
+        _cleanup_fclose_ FILE *f = fopen(SIM_LIVE, "we");
+
+        if (f)
+                fputs("1", f);
 }
 
 /* Polls ax until it fails, at most timeout_s; returns the error and the seconds it took. */
@@ -498,6 +509,7 @@ static void test_unplug(struct rig_config *rc, struct bus *b)
         CHECK_INT(axis_open(ax), 0);
         CHECK_INT(sw_open(lamp), 0);
         CHECK_INT(sw_set(lamp, true), 0);
+        CHECK_INT(atexit(plug_back), 0);
         CHECK_INT(axis_move_abs(ax, 60.0), 0);
         for (double t0 = now(); ax->state.position_deg < 1.0; sleep_s(0.01)) {
                 CHECK(now() - t0 < 5.0);
