@@ -6,7 +6,9 @@
  * late the thread runs; signed by dir), and the switches are worked by writing sim_gpioN/pull.
  * Cases: lamp and laser (active low, by offset) on and off; a line held twice; moves whose counted
  * steps match the driver's position; stop mid-move; a limit switch stopping a move and refusing the
- * next one into it; homing stopped by the home switch.
+ * next one into it; homing stopped by the home switch; the chip unplugged mid-move (gpio-sim's
+ * configfs `live` set to 0): the move ends with -ENODEV naming the chip, the switches fail with
+ * -ENODEV, reopening fails until `live` is 1 again and then drives the lines again.
  *
  * Usage: kl-gpio-backends (in the guest; exits 77 without gpio-sim's chip). */
 #include <fcntl.h>
@@ -451,6 +453,8 @@ static void test_wrap(struct rig_config *rc, struct bus *b, struct watcher *w)
 /* Finds gpio-sim's chip, or exits 77. */
 static void find_chip(void)
 {
+        if (chip)
+                gpiod_chip_close(chip);
         chip = gpiod_chip_open_lookup("gonio-gpio");
         if (!chip) {
                 fprintf(stderr, "no gpio-sim chip 'gonio-gpio' (run in the kernel lane)\n");
@@ -459,6 +463,88 @@ static void find_chip(void)
         snprintf(sim_dir, sizeof(sim_dir), "/sys/bus/gpio/devices/%s", gpiod_chip_name(chip));
         for (const char *l = "home\0limit\0limit_max\0"; *l; l += strlen(l) + 1)
                 sim_pull(l, "pull-down");
+}
+
+/* Unplugs (0) or plugs back (1) gpio-sim's chip: its configfs device's `live`. */
+#define SIM_LIVE "/sys/kernel/config/gpio-sim/gonio/live"
+
+static void sim_live(const char *v)
+{
+        _cleanup_fclose_ FILE *f = fopen(SIM_LIVE, "we");
+
+        CHECK(f && fputs(v, f) >= 0 && fflush(f) == 0);
+}
+
+/* At exit, a failed check included: the chip plugged in again for the lane's next test. */
+static void plug_back(void)
+{
+        _cleanup_fclose_ FILE *f = fopen(SIM_LIVE, "we");
+
+        if (f)
+                fputs("1", f);
+}
+
+/* Polls ax until it fails, at most timeout_s; returns the error and the seconds it took. */
+static int wait_failed(struct axis *ax, double timeout_s, double *took)
+{
+        double t0 = now();
+        int r;
+
+        while ((r = axis_poll(ax)) == 0 && now() - t0 < timeout_s)
+                sleep_s(0.005);
+        *took = now() - t0;
+        return r;
+}
+
+/* The chip vanishes mid-move and comes back (perhaps as another gpiochipN): every op fails
+ * with -ENODEV naming it until then, open (what fault.clear calls) reopens it by its label. */
+static void test_unplug(struct rig_config *rc, struct bus *b)
+{
+        struct axis *ax = NULL;
+        struct sw *lamp = NULL;
+        double took;
+
+        CHECK_INT(axis_new(&rc->axes[0], b, &ax), 0);
+        CHECK_INT(sw_new(&rc->lamps[0], b, &lamp), 0);
+        CHECK_INT(axis_open(ax), 0);
+        CHECK_INT(sw_open(lamp), 0);
+        CHECK_INT(sw_set(lamp, true), 0);
+        CHECK_INT(atexit(plug_back), 0);
+        CHECK_INT(axis_move_abs(ax, 60.0), 0);
+        for (double t0 = now(); ax->state.position_deg < 1.0; sleep_s(0.01)) {
+                CHECK(now() - t0 < 5.0);
+                CHECK_INT(axis_poll(ax), 0);
+        }
+        sim_live("0");
+        CHECK_INT(wait_failed(ax, 1.0, &took), -ENODEV);
+        CHECK_STR_CONTAINS(ax->last_error, "axis 'arm'");
+        CHECK_STR_CONTAINS(ax->last_error, "GPIO chip 'gonio-gpio' (gpiochip");
+        CHECK_STR_CONTAINS(ax->last_error, "is gone (unplugged?) while stepping");
+        CHECK_INT(axis_move_abs(ax, 0.0), -ENODEV);
+        CHECK_INT(axis_stop(ax), -ENODEV);
+        CHECK_INT(sw_set(lamp, false), -ENODEV);
+        CHECK_STR_CONTAINS(lamp->last_error, "switch 'lamp0'");
+        CHECK_STR_CONTAINS(lamp->last_error, "is gone (unplugged?) while writing line lamp");
+        CHECK_INT(sw_open(lamp), -ENODEV);
+        CHECK_STR_CONTAINS(lamp->last_error, "GPIO chip 'gonio-gpio' is still gone");
+        CHECK_INT(axis_open(ax), -ENODEV);
+        printf("unplugged mid-move: the move ended with -ENODEV in %.3f s\n", took);
+
+        sim_live("1");
+        find_chip();
+        CHECK_INT(sw_open(lamp), 0);
+        CHECK(!lamp->on && sim_value("lamp") == '0');
+        CHECK_INT(sw_set(lamp, true), 0);
+        CHECK(sim_value("lamp") == '1');
+        CHECK_INT(axis_open(ax), 0);
+        CHECK(!ax->state.homed && !ax->state.fault && sim_value("enable") == '1');
+        CHECK_INT(axis_move_abs(ax, ax->state.position_deg + 0.5), 0);
+        wait_stopped(ax, 5.0);
+        CHECK(ax->state.in_position && sim_value("dir") == '1' && sim_value("step") == '0');
+        axis_free(ax);
+        sw_free(lamp);
+        CHECK(sim_value("enable") == '0' && sim_value("lamp") == '0');
+        printf("plugged back as %s: lines driven again, the axis unhomed\n", sim_dir);
 }
 
 int main(void)
@@ -491,6 +577,7 @@ int main(void)
         pthread_join(w.thread, NULL);
         close(w.pipe_fd);
         trace_write("events/gpio/gpio_value/enable", "0");
+        test_unplug(rc, b);
         unlink(path);
         bus_free(b);
         rigconf_free(rc);

@@ -12,7 +12,13 @@
  * returns no further step comes. The switches end a run: the home switch ends homing (the
  * position becomes 0), a limit switch in the direction of motion stops it with a fault (code
  * GPST_FAULT_LIMIT_*), and a move into a limit switch that is already made is refused. The
- * state shared with the thread sits under one mutex, never held across I/O. */
+ * state shared with the thread sits under one mutex, never held across I/O.
+ *
+ * A chip that vanishes (a USB expander unplugged) ends the run at the next line the thread
+ * writes or the hang-up of its edge-event fd; from then on every op fails with -ENODEV and
+ * says so (poll: "is gone while stepping"; idle polls read a line to notice it), and open
+ * (fault.clear) requests the lines again once the chip is back, unhomed: the steps the axis
+ * made meanwhile are unknown. */
 #include <errno.h>
 #include <math.h>
 #include <poll.h>
@@ -74,6 +80,17 @@ static int level(struct gpst *g, enum gpst_line l)
 static int set_line(struct gpst *g, enum gpst_line l, int v)
 {
         return g->idx[l] < 0 ? 0 : gpio_request_set_value(g->req, (size_t)g->idx[l], v);
+}
+
+/* -ENODEV with the cause when the chip is gone (found while doing what), else 0. */
+static int gone(struct axis *ax, const char *what)
+{
+        struct gpst *g = ax->priv;
+        char buf[GPIO_ERR_MAX + 64];
+
+        if (!gpio_request_lost_cause(g->req, what, buf, sizeof(buf)))
+                return 0;
+        return axis_set_cause(ax, SYNTHETIC_ERRNO(ENODEV), "%s", buf);
 }
 
 /* What the switches say about the run set up in g: the end they force, or RUN_DONE (go on). */
@@ -210,7 +227,9 @@ static int start(struct axis *ax, int dir, long n, double speed, bool homing)
         g->homing = homing;
         r = set_line(g, GPST_DIR, dir > 0);
         if (r < 0)
-                return axis_set_cause(ax, r, "set dir line %s: %m", g->conf->lines[GPST_DIR]);
+                return gpio_request_lost(g->req) ? gone(ax, "setting the dir line")
+                                                 : axis_set_cause(ax, r, "set dir line %s: %m",
+                                                                  g->conf->lines[GPST_DIR]);
         e = switches(g);
         if (e == RUN_LIMIT_MIN || e == RUN_LIMIT_MAX)
                 return axis_set_cause(
@@ -279,7 +298,7 @@ static int gpst_stop(struct axis *ax)
         if (!ax->priv)
                 return -ENOTCONN;
         stop_thread(ax->priv);
-        return 0;
+        return gone(ax, "stopping"); /* no step comes either way */
 }
 
 static int gpst_reset(struct axis *ax)
@@ -292,7 +311,7 @@ static int gpst_reset(struct axis *ax)
         if (!g->moving)
                 g->fault_code = GPST_FAULT_NONE;
         pthread_mutex_unlock(&g->lock);
-        return 0;
+        return gone(ax, "resetting the fault");
 }
 
 /* Logs a new fault once, in words, for the operator (poll still reports it as a code). */
@@ -319,6 +338,7 @@ static int gpst_poll(struct axis *ax, struct axis_state *st)
 {
         struct gpst *g = ax->priv;
         int64_t pos;
+        int r;
 
         if (!g)
                 return -ENOTCONN;
@@ -331,8 +351,15 @@ static int gpst_poll(struct axis *ax, struct axis_state *st)
                                   .fault = g->fault_code != GPST_FAULT_NONE,
                                   .fault_code = g->fault_code};
         pthread_mutex_unlock(&g->lock);
-        if (!st->moving)
-                stop_thread(g); /* joins a thread that has ended */
+        if (!st->moving) {
+                stop_thread(g);            /* joins a thread that has ended */
+                (void)level(g, GPST_STEP); /* an idle axis notices a vanished chip */
+                r = gone(ax, st->fault_code != GPST_FAULT_IO ? "polling"
+                             : g->homing                     ? "homing"
+                                                             : "stepping");
+                if (r < 0)
+                        return r;
+        }
         st->position_deg = gpst_steps_to_deg(g->conf->steps_per_deg, pos, ax->conf->continuous);
         log_fault(ax, st);
         return 0;
@@ -375,6 +402,28 @@ static void gpst_close(struct axis *ax)
         ax->priv = NULL;
 }
 
+/* Requests the lines again once a vanished chip is back (fault.clear); the axis is no longer
+ * homed: the steps it made meanwhile went unseen. */
+static int reopen(struct axis *ax)
+{
+        struct gpst *g = ax->priv;
+        char err[GPIO_ERR_MAX] = "";
+        int r;
+
+        if (!gpio_request_lost(g->req))
+                return 0;
+        stop_thread(g);
+        r = gpio_request_reopen(&g->req, err, sizeof(err));
+        if (r < 0)
+                return axis_set_cause(ax, r, "%s", err);
+        pthread_mutex_lock(&g->lock);
+        g->homed = g->in_position = false;
+        g->fault_code = GPST_FAULT_NONE;
+        pthread_mutex_unlock(&g->lock);
+        g->logged_fault = GPST_FAULT_NONE;
+        return 0;
+}
+
 static int gpst_open(struct axis *ax)
 {
         const struct gpst_conf *c = ax->conf->backend.conf;
@@ -384,7 +433,7 @@ static int gpst_open(struct axis *ax)
         int r;
 
         if (ax->priv)
-                return 0;
+                return reopen(ax);
         if (!c)
                 return axis_set_cause(ax, SYNTHETIC_ERRNO(EINVAL),
                                       "no GPIO settings (not loaded from a rig file)");

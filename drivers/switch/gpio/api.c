@@ -1,6 +1,7 @@
 /* api.c - the "gpio" switch backend: a lamp or laser on one GPIO output line, requested at open
  * (off) through drivers/gpio/gpiod.h and held until close. A write counts once the line reads
- * back the value written. */
+ * back the value written. When the chip vanishes (a USB expander unplugged) get and set fail
+ * with -ENODEV saying so, and open (fault.clear) requests the line again once it is back. */
 #include <errno.h>
 #include <stdlib.h>
 
@@ -13,17 +14,29 @@ static const struct opt_desc gpsw_opts[] = {
         {OPT_STATE, OPT_GET | OPT_SET},
 };
 
-static int gpsw_get(struct sw *s, bool *on)
+/* Records the failure r of reading or writing the line: a vanished chip, or the kernel's
+ * errno. */
+static int line_error(struct sw *s, int r, bool write)
 {
         const struct gpsw_conf *c = s->conf->backend.conf;
+        char doing[RIG_NAME_MAX + 32], buf[GPIO_ERR_MAX + sizeof(doing)];
+
+        snprintf(doing, sizeof(doing), "%s line %s", write ? "writing" : "reading", c->line);
+        if (gpio_request_lost_cause(s->priv, doing, buf, sizeof(buf)))
+                return sw_set_cause(s, SYNTHETIC_ERRNO(ENODEV), "%s", buf);
+        return sw_set_cause(s, r, "%s line %s of %s: %m", write ? "write" : "read", c->line,
+                            gpio_request_chip(s->priv));
+}
+
+static int gpsw_get(struct sw *s, bool *on)
+{
         int v;
 
         if (!s->priv)
                 return -ENOTCONN;
         v = gpio_request_get_value(s->priv, 0);
         if (v < 0)
-                return sw_set_cause(s, v, "read line %s of %s: %m", c->line,
-                                    gpio_request_chip(s->priv));
+                return line_error(s, v, false);
         *on = v;
         return 0;
 }
@@ -31,15 +44,14 @@ static int gpsw_get(struct sw *s, bool *on)
 static int gpsw_set(struct sw *s, bool on)
 {
         const struct gpsw_conf *c = s->conf->backend.conf;
-        bool now;
+        bool now = false;
         int r;
 
         if (!s->priv)
                 return -ENOTCONN;
         r = gpio_request_set_value(s->priv, 0, on);
         if (r < 0)
-                return sw_set_cause(s, r, "write line %s of %s: %m", c->line,
-                                    gpio_request_chip(s->priv));
+                return line_error(s, r, true);
         r = gpsw_get(s, &now);
         if (r < 0)
                 return r;
@@ -62,8 +74,12 @@ static int gpsw_open(struct sw *s)
         struct gpio_request *req;
         int r;
 
-        if (s->priv)
-                return 0;
+        if (s->priv) { /* open, or lost: fault.clear reopens it */
+                req = s->priv;
+                r = gpio_request_reopen(&req, err, sizeof(err));
+                s->priv = req;
+                return r < 0 ? sw_set_cause(s, r, "%s", err) : 0;
+        }
         if (!c)
                 return sw_set_cause(s, SYNTHETIC_ERRNO(EINVAL),
                                     "no GPIO settings (not loaded from a rig file)");
