@@ -41,14 +41,16 @@ struct timed {
         float ref_centre[H];
 };
 
-enum { OURS, REFERENCE, MEMREAD };
+enum { OURS, HORUS, TUNED, MEMREAD };
 
 static void run(struct timed *t, int what)
 {
         if (what == OURS)
                 CHECK(laserline_extract(t->on, t->off, &t->o, &t->r) > 0);
-        else if (what == REFERENCE)
-                CHECK_INT(llref_extract(t->ref, t->on, t->off, t->ref_centre), 0);
+        else if (what == HORUS)
+                CHECK_INT(llref_extract(t->ref, LLREF_HORUS, t->on, t->off, t->ref_centre), 0);
+        else if (what == TUNED)
+                CHECK_INT(llref_extract(t->ref, LLREF_TUNED, t->on, t->off, t->ref_centre), 0);
         else
                 memread(t->on, t->off);
 }
@@ -67,13 +69,37 @@ static double time_ms(struct timed *t, int what, int n)
         return best;
 }
 
+/* The RMS (px) of the reference's last centres against the analytic line. */
+static double ref_rms(const struct llscene *s, struct timed *t)
+{
+        struct laserline_result r = {.centre = t->ref_centre, .n = H};
+        int visible, missed, spurious;
+
+        return ll_score(s, &r, &visible, &missed, &spurious);
+}
+
+/* ms per frame of reference `what` with OpenCV's default threads (*multi) and on one
+ * thread (returned); rms: its accuracy. */
+static double time_ref(struct timed *t, const struct llscene *s, int what, double *multi,
+                       double *rms)
+{
+        double one;
+
+        *multi = time_ms(t, what, 10);
+        llref_threads(1);
+        one = time_ms(t, what, 10);
+        llref_threads(0);
+        *rms = ref_rms(s, t);
+        return one;
+}
+
 int main(void)
 {
         static float centre[H], strength[H], width[H];
         struct llscene s;
         struct gn_frame on, off;
         struct timed t = {.r = {.centre = centre, .strength = strength, .width = width, .n = H}};
-        double ours, ref, ref1, mem, rms;
+        double ours, horus, horus1, horus_rms, tuned, tuned1, tuned_rms, mem, rms;
         int visible, missed, spurious;
 
         ll_open(&s, W, H, 1.2e3, 0);
@@ -85,21 +111,24 @@ int main(void)
         t.ref = llref_new(W, H);
         CHECK(t.ref);
         ours = time_ms(&t, OURS, 50);
-        ref = time_ms(&t, REFERENCE, 10);
-        llref_threads(1);
-        ref1 = time_ms(&t, REFERENCE, 10);
-        llref_threads(0);
+        horus1 = time_ref(&t, &s, HORUS, &horus, &horus_rms);
+        tuned1 = time_ref(&t, &s, TUNED, &tuned, &tuned_rms);
         mem = time_ms(&t, MEMREAD, 50);
         rms = ll_score(&s, &t.r, &visible, &missed, &spurious);
-        printf("laserline: %dx%d RGB8, on minus off: %.3f ms/frame; OpenCV reference %.3f ms "
-               "(%.1fx ours), %.3f ms on one thread (%.1fx ours); reading both frames %.3f ms "
+        printf("laserline: %dx%d RGB8, on minus off: %.3f ms/frame; reading both frames %.3f ms "
                "(ours %.2fx)\n",
-               W, H, ours, ref, ref / ours, ref1, ref1 / ours, mem, ours / mem);
+               W, H, ours, mem, ours / mem);
+        printf("Horus port reference: %.3f ms (%.1fx ours), %.3f ms on one thread (%.1fx ours), "
+               "RMS %.4f px\n",
+               horus, horus / ours, horus1, horus1 / ours, horus_rms);
+        printf("tuned OpenCV reference: %.3f ms (%.1fx ours), %.3f ms on one thread (%.1fx ours), "
+               "RMS %.4f px\n",
+               tuned, tuned / ours, tuned1, tuned1 / ours, tuned_rms);
         printf("accuracy: %d rows with the line seen, %d missed, %d spurious, RMS %.4f px\n",
                visible, missed, spurious, rms);
         printf("{\"bench\":\"laserline\",\"ms_per_frame\":%.4f,\"reference_ms\":%.4f,"
                "\"memread_ms\":%.4f,\"rms_px\":%.4f}\n",
-               ours, ref, mem, rms);
+               ours, horus, mem, rms);
         llref_free(t.ref);
         gn_frame_free_data(&on);
         gn_frame_free_data(&off);

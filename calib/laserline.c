@@ -19,10 +19,14 @@
 
 #include "laserline.h"
 
-#define LL_BLOCK      64 /* samples per block of the candidate search */
-#define LL_CANDIDATES 16 /* candidates tried per row */
-#define LL_NOISE_GAP  24 /* px between a peak's top and the windows its noise comes from */
-#define LL_NOISE_LEN  16 /* px in each of those windows */
+#define LL_BLOCK      64  /* samples per block of the candidate search */
+#define LL_CANDIDATES 16  /* candidates tried per row */
+#define LL_NOISE_GAP  24  /* px between a peak's top and the windows its noise comes from */
+#define LL_NOISE_LEN  16  /* px in each of those windows */
+#define LL_KERNEL     1.1 /* LASERLINE_WEIGHTED: the kernel's sigma, in units of the line's, */
+#define LL_KERNEL_MIN 1.5 /*   and at least this (px): a narrower kernel is biased by sampling */
+#define LL_REFINE     2   /* LASERLINE_WEIGHTED: iterations */
+#define LL_NOISY      200 /* LASERLINE_WEIGHTED: weighted where the noise is 1/200 of the height */
 
 struct line {
         const uint8_t *on8; /* the on frame's samples (one of on8, on16) */
@@ -39,13 +43,14 @@ struct line {
 
 struct peak {
         double centre, strength, width;
+        double noise; /* mean |d[x] - d[x-1]| beside the peak (DN) */
 };
 
 void laserline_opts_default(struct laserline_opts *o, int channel)
 {
         *o = (struct laserline_opts){
                 .channel = channel,
-                .estimator = LASERLINE_COM,
+                .estimator = LASERLINE_WEIGHTED,
                 .min_peak = 0.03,
                 .snr = 8,
                 .min_width = 1.5,
@@ -118,14 +123,14 @@ static uint32_t noise_at(const struct line *l, int x)
         return sad;
 }
 
-/* Least height of a peak whose top spans s0..s1: min_peak, or snr times the noise (mean
- * |d[x] - d[x-1]|) of the noisier of two windows LL_NOISE_GAP px beyond the top. */
-static double threshold(const struct line *l, const struct laserline_opts *o, int s0, int s1)
+/* The noise beside a peak whose top spans s0..s1: the mean |d[x] - d[x-1]| of the noisier of
+ * two windows LL_NOISE_GAP px beyond the top. */
+static double noise_beside(const struct line *l, int s0, int s1)
 {
         uint32_t lo = noise_at(l, s0 - LL_NOISE_GAP - LL_NOISE_LEN),
                  hi = noise_at(l, s1 + LL_NOISE_GAP);
 
-        return fmax(l->floor, o->snr * (lo > hi ? lo : hi) / (LL_NOISE_LEN - 1));
+        return (double)(lo > hi ? lo : hi) / (LL_NOISE_LEN - 1);
 }
 
 static int top_block(const struct line *l)
@@ -222,14 +227,48 @@ static double centre_com(const struct line *l, int x, int w, int lo, int hi)
         return s > 0 ? sx / s : x;
 }
 
-/* Sub-pixel centre of the unclipped peak whose top sample is x (0 < x < n - 1). */
-static double centre_of(const struct line *l, const struct laserline_opts *o, int x, int w, int lo,
-                        int hi)
+/* Refines c, the centre of a line of width (at half height) fwhm, by a centroid weighted with a
+ * triweight kernel (1 - t^2)^3, t = (u - c) / (3 sigma_k), close to a Gaussian of sigma_k =
+ * LL_KERNEL times the line's: a matched filter, so that the samples far from the centre, where
+ * there is noise but little line, weigh little. The weighted centroid of a Gaussian line lies
+ * sigma_k^2 / (sigma^2 + sigma_k^2) of the way from c to the line's centre: each step is scaled
+ * up by the inverse. A symmetric kernel on a symmetric line is unbiased at the fixed point.
+ * Keeps c if a step would leave the line (no signal under the kernel). */
+static double centre_weighted(const struct line *l, double c, double fwhm, int lo, int hi)
+{
+        double sigma = fwhm / 2.3548, kernel = fmax(LL_KERNEL * sigma, LL_KERNEL_MIN);
+        double reach = 3 * kernel, gain = 1 + sigma * sigma / (kernel * kernel);
+        double slope = hi > lo ? (double)(l->d[hi] - l->d[lo]) / (hi - lo) : 0;
+        double b0 = l->d[lo] - slope * lo, r2 = 1 / (reach * reach);
+
+        for (int k = 0; k < LL_REFINE; k++) {
+                double s = 0, su = 0, step;
+                int u0 = (int)ceil(c - reach), u1 = (int)floor(c + reach);
+                for (int u = u0 < 0 ? 0 : u0; u <= u1 && u < l->n; u++) {
+                        double t = 1 - (u - c) * (u - c) * r2;
+                        double v = t * t * t * (l->d[u] - b0 - slope * u);
+                        s += v;
+                        su += v * (u - c);
+                }
+                step = s > 0 ? gain * su / s : INFINITY;
+                if (!(fabs(step) < fwhm / 2))
+                        break;
+                c += step;
+        }
+        return c;
+}
+
+/* Sub-pixel centre of the unclipped peak p whose top sample is x (0 < x < n - 1); w: the centre
+ * of mass's half window. LASERLINE_WEIGHTED: the centre of mass where the noise beside the peak
+ * is low, else the weighted centroid. */
+static double centre_of(const struct line *l, const struct laserline_opts *o, int x, int w,
+                        const struct peak *p, int lo, int hi)
 {
         double b = base_at(l, lo, hi, x);
         double a = l->d[x - 1] - b, m = l->d[x] - b, c = l->d[x + 1] - b, den;
 
-        if (o->estimator == LASERLINE_COM)
+        if (o->estimator == LASERLINE_COM ||
+            (o->estimator == LASERLINE_WEIGHTED && p->noise * LL_NOISY < p->strength))
                 return centre_com(l, x, w, lo, hi);
         if (o->estimator == LASERLINE_GAUSS3 && a > 0 && c > 0) {
                 den = log(a) - 2 * log(m) + log(c);
@@ -237,7 +276,8 @@ static double centre_of(const struct line *l, const struct laserline_opts *o, in
                         return x + 0.5 * (log(a) - log(c)) / den;
         }
         den = a - 2 * m + c;
-        return den < 0 ? x + 0.5 * (a - c) / den : x;
+        b = den < 0 ? x + 0.5 * (a - c) / den : x; /* the parabola */
+        return o->estimator == LASERLINE_WEIGHTED ? centre_weighted(l, b, p->width, lo, hi) : b;
 }
 
 /* Measures the candidate whose top sample is x: *lo, *hi get its feet. Returns whether it is
@@ -261,7 +301,8 @@ static bool peak_eval(const struct line *l, const struct laserline_opts *o, int 
         left = crossing(l, s0, *lo, level);
         right = crossing(l, s1, *hi, level);
         p->width = right - left;
-        if (p->strength < threshold(l, o, s0, s1) || p->width < o->min_width ||
+        p->noise = noise_beside(l, s0, s1);
+        if (p->strength < fmax(l->floor, o->snr * p->noise) || p->width < o->min_width ||
             p->width > o->max_width || s0 == 0 || s1 == l->n - 1)
                 return false;
         mid = (s0 + s1) / 2; /* clipped: the run and its flanks, symmetric about the centre */
@@ -269,8 +310,9 @@ static bool peak_eval(const struct line *l, const struct laserline_opts *o, int 
                 p->centre =
                         centre_com(l, mid, mid - *lo > *hi - mid ? mid - *lo : *hi - mid, *lo, *hi);
         else
-                p->centre = centre_of(
-                        l, o, x, o->window > 0 ? o->window : (int)ceil(1.3 * p->width), *lo, *hi);
+                p->centre =
+                        centre_of(l, o, x, o->window > 0 ? o->window : (int)ceil(1.3 * p->width), p,
+                                  *lo, *hi);
         return true;
 }
 
