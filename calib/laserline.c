@@ -96,6 +96,26 @@ diff16(const uint16_t *on, const uint16_t *off, size_t step, int n, uint16_t *d)
                 DIFF_LOOP(on, off, step, n, d);
 }
 
+/* The largest of n contiguous samples (every channel of a row): a bound on the laser channel's
+ * peak that reads the row at memory speed. */
+__attribute__((target_clones("avx2", "default"))) static unsigned max8(const uint8_t *p, size_t n)
+{
+        uint8_t m = 0;
+
+        for (size_t i = 0; i < n; i++)
+                m = p[i] > m ? p[i] : m;
+        return m;
+}
+
+__attribute__((target_clones("avx2", "default"))) static unsigned max16(const uint16_t *p, size_t n)
+{
+        uint16_t m = 0;
+
+        for (size_t i = 0; i < n; i++)
+                m = p[i] > m ? p[i] : m;
+        return m;
+}
+
 /* Block maxima of d (the tail block padded with the last sample). */
 __attribute__((target_clones("avx2", "default"))) static void block_maxima(struct line *l)
 {
@@ -367,12 +387,27 @@ static int check_args(const struct gn_frame *on, const struct gn_frame *off,
         return len > LASERLINE_MAX_LEN ? -E2BIG : 0;
 }
 
-/* Loads line i of the frames into l: d and its block maxima. */
-static void line_load(struct line *l, const struct gn_frame *on, const struct gn_frame *off,
+/* Whether row i of the on frame is too dark for a line (every sample of every channel under
+ * the least peak height, so no difference can reach it): such a row is not loaded and its
+ * off row never read. */
+static bool row_dark(const struct line *l, const struct gn_frame *on, int i)
+{
+        size_t n = (size_t)on->width * on->channels;
+
+        if (l->on8)
+                return max8(on->data + (size_t)i * on->stride, n) < l->floor;
+        return max16((const uint16_t *)(on->data + (size_t)i * on->stride), n) < l->floor;
+}
+
+/* Loads line i of the frames into l: d and its block maxima. Returns false for a dark row (not
+ * loaded: it has no line). */
+static bool line_load(struct line *l, const struct gn_frame *on, const struct gn_frame *off,
                       const struct laserline_opts *o, int i)
 {
         size_t row = on->stride / (size_t)(on->bits / 8);
 
+        if (off && !o->columns && row_dark(l, on, i))
+                return false;
         l->first =
                 o->columns ? (size_t)i * on->channels + o->channel : (size_t)i * row + o->channel;
         l->step = o->columns ? row : (size_t)on->channels;
@@ -382,6 +417,7 @@ static void line_load(struct line *l, const struct gn_frame *on, const struct gn
                 diff16(l->on16 + l->first, off ? (const uint16_t *)off->data + l->first : NULL,
                        l->step, l->n, l->d);
         block_maxima(l);
+        return true;
 }
 
 int laserline_extract(const struct gn_frame *on, const struct gn_frame *off,
@@ -404,8 +440,8 @@ int laserline_extract(const struct gn_frame *on, const struct gn_frame *off,
         out->n = o->columns ? on->width : on->height;
         out->points = out->ambiguous = 0;
         for (int i = 0; i < out->n; i++) {
-                line_load(&l, on, off, o, i);
-                bool found = line_peak(&l, o, &p, &amb);
+                amb = false;
+                bool found = line_load(&l, on, off, o, i) && line_peak(&l, o, &p, &amb);
                 out->centre[i] = found ? (float)p.centre : NAN;
                 if (out->strength)
                         out->strength[i] = found ? (float)p.strength : 0;
