@@ -124,19 +124,23 @@ static double time_ms(struct timed *t, int what, int n)
         return best;
 }
 
-/* The RMS (px) of the reference's last centres against the analytic line. */
-static double ref_rms(const struct llscene *s, struct timed *t)
+/* The RMS (px) of the reference's last centres against the analytic line; prints its misses
+ * and spurious points. */
+static double ref_rms(const struct llscene *s, struct timed *t, const char *name)
 {
         struct laserline_result r = {.centre = t->ref_centre, .n = H};
         int visible, missed, spurious;
+        double rms = ll_score(s, &r, &visible, &missed, &spurious);
 
-        return ll_score(s, &r, &visible, &missed, &spurious);
+        printf("%s reference: %d of the %d rows with the line missed, %d spurious points\n", name,
+               missed, visible, spurious);
+        return rms;
 }
 
 /* ms per frame of reference `what` with OpenCV's default threads (*multi) and on one
  * thread (returned); rms: its accuracy. */
 static double time_ref(struct timed *t, const struct llscene *s, int what, double *multi,
-                       double *rms)
+                       double *rms, const char *name)
 {
         double one;
 
@@ -144,7 +148,7 @@ static double time_ref(struct timed *t, const struct llscene *s, int what, doubl
         llref_threads(1);
         one = time_ms(t, what, 10);
         llref_threads(0);
-        *rms = ref_rms(s, t);
+        *rms = ref_rms(s, t, name);
         return one;
 }
 
@@ -172,8 +176,8 @@ int main(void)
         memcpy(centre2, centre, sizeof(centre));
         ours1 = time_ms(&t, OURS, 50);
         CHECK(memcmp(centre2, centre, sizeof(centre)) == 0); /* the halves agree with the whole */
-        horus1 = time_ref(&t, &s, HORUS, &horus, &horus_rms);
-        tuned1 = time_ref(&t, &s, TUNED, &tuned, &tuned_rms);
+        horus1 = time_ref(&t, &s, HORUS, &horus, &horus_rms, "Horus port");
+        tuned1 = time_ref(&t, &s, TUNED, &tuned, &tuned_rms, "tuned OpenCV");
         mem = time_ms(&t, MEMREAD, 50);
         rms = ll_score(&s, &t.r, &visible, &missed, &spurious);
         printf("laserline: %dx%d RGB8, on minus off: ours %.3f ms/frame on two threads (a half "

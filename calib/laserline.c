@@ -228,17 +228,27 @@ static double crossing(const struct line *l, int x, int foot, double level)
 }
 
 /* The baseline under x: linear between the feet. */
+static void baseline(const struct line *l, int lo, int hi, double *b0, double *slope)
+{
+        *slope = hi > lo ? (double)(l->d[hi] - l->d[lo]) / (hi - lo) : 0;
+        *b0 = l->d[lo] - *slope * lo;
+}
+
 static double base_at(const struct line *l, int lo, int hi, double x)
 {
-        return hi > lo ? l->d[lo] + (l->d[hi] - l->d[lo]) * (x - lo) / (hi - lo) : l->d[lo];
+        double b0, slope;
+
+        baseline(l, lo, hi, &b0, &slope);
+        return b0 + slope * x;
 }
 
 static double centre_com(const struct line *l, int x, int w, int lo, int hi)
 {
-        double s = 0, sx = 0;
+        double s = 0, sx = 0, b0, slope;
 
+        baseline(l, lo, hi, &b0, &slope);
         for (int u = x - w < 0 ? 0 : x - w; u <= x + w && u < l->n; u++) {
-                double v = l->d[u] - base_at(l, lo, hi, u);
+                double v = l->d[u] - b0 - slope * u;
                 if (v > 0) {
                         s += v;
                         sx += v * u;
@@ -258,9 +268,9 @@ static double centre_weighted(const struct line *l, double c, double fwhm, int l
 {
         double sigma = fwhm / 2.3548, kernel = fmax(LL_KERNEL * sigma, LL_KERNEL_MIN);
         double reach = 3 * kernel, gain = 1 + sigma * sigma / (kernel * kernel);
-        double slope = hi > lo ? (double)(l->d[hi] - l->d[lo]) / (hi - lo) : 0;
-        double b0 = l->d[lo] - slope * lo, r2 = 1 / (reach * reach);
+        double r2 = 1 / (reach * reach), b0, slope;
 
+        baseline(l, lo, hi, &b0, &slope);
         for (int k = 0; k < LL_REFINE; k++) {
                 double s = 0, su = 0, step;
                 int u0 = (int)ceil(c - reach), u1 = (int)floor(c + reach);
