@@ -1,9 +1,12 @@
 /* bench/laserline.c - the laser line's extraction (calib/laserline, on minus off) on 1280x960
- * RGB8 frames rendered once (tests/calib/lltest: the laser on a plate, noise on), against
- * the OpenCV reference of the usual steps (laserline-ref.cpp) and against merely reading
- * both frames from memory (a loop summing them as 64-bit words); the reference also on one
- * thread (printed, not in the JSON line). Also the RMS of our centres against
- * the renderer's analytic line. Last line: one JSON object. */
+ * RGB8 frames rendered once (tests/calib/lltest: the laser on a plate, noise on), against two
+ * OpenCV references (laserline-ref.cpp: the Horus scanner's segmentation ported, in the JSON
+ * line, and a tuned version of the same steps, printed) and against merely reading both frames
+ * from memory (one thread summing them as 64-bit words). Ours on two threads (a half of the
+ * rows each, in the JSON line) and on one; the references with OpenCV's threads (in the JSON
+ * line) and on one. Every kind is timed in turn within each round, the best round kept. Also
+ * the RMS of each one's centres against the renderer's analytic line. Last line: one JSON
+ * object. */
 #include <pthread.h>
 #include <semaphore.h>
 #include <stdio.h>
@@ -16,7 +19,7 @@
 
 #define W      1280
 #define H      960
-#define ROUNDS 7 /* the best round of each is kept: the machine is shared */
+#define ROUNDS 15 /* the best round of each is kept: the machine is shared */
 
 static double now_ms(void)
 {
@@ -54,7 +57,7 @@ struct timed {
         bool quit;
 };
 
-enum { OURS, OURS2, HORUS, TUNED, MEMREAD };
+enum { OURS2, OURS, HORUS, HORUS1, TUNED, TUNED1, MEMREAD, KINDS }; /* *1: one thread */
 
 /* Splits the frames and t->r into two halves of rows, for two threads. */
 static void halves(struct timed *t)
@@ -102,54 +105,46 @@ static void run(struct timed *t, int what)
                 CHECK(laserline_extract(t->on, t->off, &t->o, &t->r) > 0);
         else if (what == OURS2)
                 ours2(t);
-        else if (what == HORUS)
+        else if (what == HORUS || what == HORUS1)
                 CHECK_INT(llref_extract(t->ref, LLREF_HORUS, t->on, t->off, t->ref_centre), 0);
-        else if (what == TUNED)
+        else if (what == TUNED || what == TUNED1)
                 CHECK_INT(llref_extract(t->ref, LLREF_TUNED, t->on, t->off, t->ref_centre), 0);
         else
                 memread(t->on, t->off);
 }
 
-/* Milliseconds per frame of `what`: the best of ROUNDS rounds of n frames. */
-static double time_ms(struct timed *t, int what, int n)
+/* Milliseconds per frame of each kind: the best of ROUNDS rounds, each round timing every kind
+ * in turn (n frames each), so that the ratios see the same load on a shared machine. */
+static void time_all(struct timed *t, double best[KINDS])
 {
-        double best = INFINITY;
+        static const int frames[KINDS] = {50, 50, 10, 10, 10, 10, 50};
 
-        for (int k = 0; k < ROUNDS; k++) {
-                double t0 = now_ms();
-                for (int i = 0; i < n; i++)
-                        run(t, what);
-                best = fmin(best, (now_ms() - t0) / n);
-        }
-        return best;
+        for (int w = 0; w < KINDS; w++)
+                best[w] = INFINITY;
+        for (int k = 0; k < ROUNDS; k++)
+                for (int w = 0; w < KINDS; w++) {
+                        llref_threads(w == HORUS1 || w == TUNED1 ? 1 : 0);
+                        double t0 = now_ms();
+                        for (int i = 0; i < frames[w]; i++)
+                                run(t, w);
+                        best[w] = fmin(best[w], (now_ms() - t0) / frames[w]);
+                }
 }
 
-/* The RMS (px) of the reference's last centres against the analytic line; prints its misses
+/* The RMS (px) of reference `kind`'s centres against the analytic line; prints its misses
  * and spurious points. */
-static double ref_rms(const struct llscene *s, struct timed *t, const char *name)
+static double ref_rms(const struct llscene *s, struct timed *t, int kind, const char *name)
 {
         struct laserline_result r = {.centre = t->ref_centre, .n = H};
         int visible, missed, spurious;
-        double rms = ll_score(s, &r, &visible, &missed, &spurious);
+        double rms;
 
-        printf("%s reference: %d of the %d rows with the line missed, %d spurious points\n", name,
-               missed, visible, spurious);
+        run(t, kind);
+        rms = ll_score(s, &r, &visible, &missed, &spurious);
+        printf("%s reference: %d of the %d rows with the line missed, %d spurious points, RMS "
+               "%.4f px\n",
+               name, missed, visible, spurious, rms);
         return rms;
-}
-
-/* ms per frame of reference `what` with OpenCV's default threads (*multi) and on one
- * thread (returned); rms: its accuracy. */
-static double time_ref(struct timed *t, const struct llscene *s, int what, double *multi,
-                       double *rms, const char *name)
-{
-        double one;
-
-        *multi = time_ms(t, what, 10);
-        llref_threads(1);
-        one = time_ms(t, what, 10);
-        llref_threads(0);
-        *rms = ref_rms(s, t, name);
-        return one;
 }
 
 int main(void)
@@ -158,7 +153,7 @@ int main(void)
         struct llscene s;
         struct gn_frame on, off;
         struct timed t = {.r = {.centre = centre, .strength = strength, .width = width, .n = H}};
-        double ours, ours1, horus, horus1, horus_rms, tuned, tuned1, tuned_rms, mem, rms;
+        double b[KINDS], rms;
         int visible, missed, spurious;
 
         ll_open(&s, W, H, 1.2e3, 0);
@@ -172,29 +167,29 @@ int main(void)
         halves(&t);
         CHECK(sem_init(&t.go, 0, 0) == 0 && sem_init(&t.done, 0, 0) == 0);
         CHECK(pthread_create(&t.worker, NULL, worker, &t) == 0);
-        ours = time_ms(&t, OURS2, 50);
+        run(&t, OURS2);
         memcpy(centre2, centre, sizeof(centre));
-        ours1 = time_ms(&t, OURS, 50);
+        run(&t, OURS);
         CHECK(memcmp(centre2, centre, sizeof(centre)) == 0); /* the halves agree with the whole */
-        horus1 = time_ref(&t, &s, HORUS, &horus, &horus_rms, "Horus port");
-        tuned1 = time_ref(&t, &s, TUNED, &tuned, &tuned_rms, "tuned OpenCV");
-        mem = time_ms(&t, MEMREAD, 50);
+        ref_rms(&s, &t, HORUS, "Horus port");
+        ref_rms(&s, &t, TUNED, "tuned OpenCV");
+        time_all(&t, b);
         rms = ll_score(&s, &t.r, &visible, &missed, &spurious);
         printf("laserline: %dx%d RGB8, on minus off: ours %.3f ms/frame on two threads (a half "
                "of the rows each), %.3f ms on one; reading both frames (one thread) %.3f ms: ours "
                "on one thread %.2fx that\n",
-               W, H, ours, ours1, mem, ours1 / mem);
+               W, H, b[OURS2], b[OURS], b[MEMREAD], b[OURS] / b[MEMREAD]);
         printf("Horus port reference: %.3f ms with OpenCV's threads (%.1fx ours on two), %.3f ms "
-               "on one thread (%.1fx ours on one), RMS %.4f px\n",
-               horus, horus / ours, horus1, horus1 / ours1, horus_rms);
+               "on one thread (%.1fx ours on one)\n",
+               b[HORUS], b[HORUS] / b[OURS2], b[HORUS1], b[HORUS1] / b[OURS]);
         printf("tuned OpenCV reference: %.3f ms with OpenCV's threads (%.1fx ours on two), %.3f ms "
-               "on one thread (%.1fx ours on one), RMS %.4f px\n",
-               tuned, tuned / ours, tuned1, tuned1 / ours1, tuned_rms);
+               "on one thread (%.1fx ours on one)\n",
+               b[TUNED], b[TUNED] / b[OURS2], b[TUNED1], b[TUNED1] / b[OURS]);
         printf("accuracy: %d rows with the line seen, %d missed, %d spurious, RMS %.4f px\n",
                visible, missed, spurious, rms);
         printf("{\"bench\":\"laserline\",\"ms_per_frame\":%.4f,\"reference_ms\":%.4f,"
                "\"memread_ms\":%.4f,\"rms_px\":%.4f}\n",
-               ours, horus, mem, rms);
+               b[OURS2], b[HORUS], b[MEMREAD], rms);
         t.quit = true;
         sem_post(&t.go);
         pthread_join(t.worker, NULL);
