@@ -147,14 +147,36 @@ static double ref_rms(const struct llscene *s, struct timed *t, int kind, const 
         return rms;
 }
 
+/* Prints the times, their ratios and our accuracy (r: our last centres); last the JSON line. */
+static void report(const struct llscene *s, const struct laserline_result *r, const double b[KINDS])
+{
+        int visible, missed, spurious;
+        double rms = ll_score(s, r, &visible, &missed, &spurious);
+
+        printf("laserline: %dx%d RGB8, on minus off: ours %.3f ms/frame on two threads (a half "
+               "of the rows each), %.3f ms on one; reading both frames (one thread) %.3f ms: ours "
+               "on one thread %.2fx that\n",
+               W, H, b[OURS2], b[OURS], b[MEMREAD], b[OURS] / b[MEMREAD]);
+        printf("Horus port reference: %.3f ms with OpenCV's threads (%.1fx ours on two), %.3f ms "
+               "on one thread (%.1fx ours on one)\n",
+               b[HORUS], b[HORUS] / b[OURS2], b[HORUS1], b[HORUS1] / b[OURS]);
+        printf("tuned OpenCV reference: %.3f ms with OpenCV's threads (%.1fx ours on two), %.3f ms "
+               "on one thread (%.1fx ours on one)\n",
+               b[TUNED], b[TUNED] / b[OURS2], b[TUNED1], b[TUNED1] / b[OURS]);
+        printf("accuracy: %d rows with the line seen, %d missed, %d spurious, RMS %.4f px\n",
+               visible, missed, spurious, rms);
+        printf("{\"bench\":\"laserline\",\"ms_per_frame\":%.4f,\"reference_ms\":%.4f,"
+               "\"memread_ms\":%.4f,\"rms_px\":%.4f}\n",
+               b[OURS2], b[HORUS], b[MEMREAD], rms);
+}
+
 int main(void)
 {
         static float centre[H], strength[H], width[H], centre2[H];
         struct llscene s;
         struct gn_frame on, off;
         struct timed t = {.r = {.centre = centre, .strength = strength, .width = width, .n = H}};
-        double b[KINDS], rms;
-        int visible, missed, spurious;
+        double b[KINDS];
 
         ll_open(&s, W, H, 1.2e3, 0);
         ll_render(&s, true, false, 8, 1, &on);
@@ -174,22 +196,7 @@ int main(void)
         ref_rms(&s, &t, HORUS, "Horus port");
         ref_rms(&s, &t, TUNED, "tuned OpenCV");
         time_all(&t, b);
-        rms = ll_score(&s, &t.r, &visible, &missed, &spurious);
-        printf("laserline: %dx%d RGB8, on minus off: ours %.3f ms/frame on two threads (a half "
-               "of the rows each), %.3f ms on one; reading both frames (one thread) %.3f ms: ours "
-               "on one thread %.2fx that\n",
-               W, H, b[OURS2], b[OURS], b[MEMREAD], b[OURS] / b[MEMREAD]);
-        printf("Horus port reference: %.3f ms with OpenCV's threads (%.1fx ours on two), %.3f ms "
-               "on one thread (%.1fx ours on one)\n",
-               b[HORUS], b[HORUS] / b[OURS2], b[HORUS1], b[HORUS1] / b[OURS]);
-        printf("tuned OpenCV reference: %.3f ms with OpenCV's threads (%.1fx ours on two), %.3f ms "
-               "on one thread (%.1fx ours on one)\n",
-               b[TUNED], b[TUNED] / b[OURS2], b[TUNED1], b[TUNED1] / b[OURS]);
-        printf("accuracy: %d rows with the line seen, %d missed, %d spurious, RMS %.4f px\n",
-               visible, missed, spurious, rms);
-        printf("{\"bench\":\"laserline\",\"ms_per_frame\":%.4f,\"reference_ms\":%.4f,"
-               "\"memread_ms\":%.4f,\"rms_px\":%.4f}\n",
-               b[OURS2], b[HORUS], b[MEMREAD], rms);
+        report(&s, &t.r, b);
         t.quit = true;
         sem_post(&t.go);
         pthread_join(t.worker, NULL);

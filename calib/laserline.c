@@ -2,7 +2,9 @@
  *
  * DESIGN. Each row (or column) is read once: d[x] = max(on[x] - off[x], 0) in the laser's
  * channel, into a stack buffer, with the maximum of every block of LL_BLOCK samples (the only
- * full passes; both are vectorised, compiled for AVX2 and plain x86-64 by target_clones).
+ * full passes; both are vectorised, compiled for AVX2 and plain x86-64 by target_clones). With
+ * an off frame, a row whose on samples (every channel) all lie under min_peak is skipped first,
+ * its off row unread.
  * Candidates are then taken from the brightest block down. From a candidate's top (or its run
  * of clipped samples) the profile is followed down each side to its foot, at most max_width
  * px; the higher foot is the local baseline (it removes ambient light in one-frame mode). The
@@ -11,7 +13,9 @@
  * candidate (speckle, a step, a patch of light) is left out of the search and the next one
  * is tried. A second plausible peak at least `ambiguity` as high as the first rejects the
  * row. Clipped peaks are centred by the centre of mass of the run and its flanks (the
- * clipped profile is symmetric about the centre); others by the chosen estimator. */
+ * clipped profile is symmetric about the centre); others by the chosen estimator, by default
+ * the centre of mass, refined by a kernel-weighted centroid where the noise beside the peak
+ * (ambient light's shot noise) is not negligible. */
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
