@@ -2,7 +2,9 @@
  *
  * DESIGN. Each row (or column) is read once: d[x] = max(on[x] - off[x], 0) in the laser's
  * channel, into a stack buffer, with the maximum of every block of LL_BLOCK samples (the only
- * full passes; both are vectorised, compiled for AVX2 and plain x86-64 by target_clones).
+ * full passes; both are vectorised, compiled for AVX2 and plain x86-64 by target_clones). With
+ * an off frame, a row whose on samples (every channel) all lie under min_peak is skipped first,
+ * its off row unread.
  * Candidates are then taken from the brightest block down. From a candidate's top (or its run
  * of clipped samples) the profile is followed down each side to its foot, at most max_width
  * px; the higher foot is the local baseline (it removes ambient light in one-frame mode). The
@@ -11,7 +13,9 @@
  * candidate (speckle, a step, a patch of light) is left out of the search and the next one
  * is tried. A second plausible peak at least `ambiguity` as high as the first rejects the
  * row. Clipped peaks are centred by the centre of mass of the run and its flanks (the
- * clipped profile is symmetric about the centre); others by the chosen estimator. */
+ * clipped profile is symmetric about the centre); others by the chosen estimator, by default
+ * the centre of mass, refined by a kernel-weighted centroid where the noise beside the peak
+ * (ambient light's shot noise) is not negligible. */
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>
@@ -19,10 +23,14 @@
 
 #include "laserline.h"
 
-#define LL_BLOCK      64 /* samples per block of the candidate search */
-#define LL_CANDIDATES 16 /* candidates tried per row */
-#define LL_NOISE_GAP  24 /* px between a peak's top and the windows its noise comes from */
-#define LL_NOISE_LEN  16 /* px in each of those windows */
+#define LL_BLOCK      64  /* samples per block of the candidate search */
+#define LL_CANDIDATES 16  /* candidates tried per row */
+#define LL_NOISE_GAP  24  /* px between a peak's top and the windows its noise comes from */
+#define LL_NOISE_LEN  16  /* px in each of those windows */
+#define LL_KERNEL     1.1 /* LASERLINE_WEIGHTED: the kernel's sigma, in units of the line's, */
+#define LL_KERNEL_MIN 1.5 /*   and at least this (px): a narrower kernel is biased by sampling */
+#define LL_REFINE     2   /* LASERLINE_WEIGHTED: iterations */
+#define LL_NOISY      200 /* LASERLINE_WEIGHTED: weighted where the noise is 1/200 of the height */
 
 struct line {
         const uint8_t *on8; /* the on frame's samples (one of on8, on16) */
@@ -39,13 +47,14 @@ struct line {
 
 struct peak {
         double centre, strength, width;
+        double noise; /* mean |d[x] - d[x-1]| beside the peak (DN) */
 };
 
 void laserline_opts_default(struct laserline_opts *o, int channel)
 {
         *o = (struct laserline_opts){
                 .channel = channel,
-                .estimator = LASERLINE_COM,
+                .estimator = LASERLINE_WEIGHTED,
                 .min_peak = 0.03,
                 .snr = 8,
                 .min_width = 1.5,
@@ -91,6 +100,26 @@ diff16(const uint16_t *on, const uint16_t *off, size_t step, int n, uint16_t *d)
                 DIFF_LOOP(on, off, step, n, d);
 }
 
+/* The largest of n contiguous samples (every channel of a row): a bound on the laser channel's
+ * peak that reads the row at memory speed. */
+__attribute__((target_clones("avx2", "default"))) static unsigned max8(const uint8_t *p, size_t n)
+{
+        uint8_t m = 0;
+
+        for (size_t i = 0; i < n; i++)
+                m = p[i] > m ? p[i] : m;
+        return m;
+}
+
+__attribute__((target_clones("avx2", "default"))) static unsigned max16(const uint16_t *p, size_t n)
+{
+        uint16_t m = 0;
+
+        for (size_t i = 0; i < n; i++)
+                m = p[i] > m ? p[i] : m;
+        return m;
+}
+
 /* Block maxima of d (the tail block padded with the last sample). */
 __attribute__((target_clones("avx2", "default"))) static void block_maxima(struct line *l)
 {
@@ -118,14 +147,14 @@ static uint32_t noise_at(const struct line *l, int x)
         return sad;
 }
 
-/* Least height of a peak whose top spans s0..s1: min_peak, or snr times the noise (mean
- * |d[x] - d[x-1]|) of the noisier of two windows LL_NOISE_GAP px beyond the top. */
-static double threshold(const struct line *l, const struct laserline_opts *o, int s0, int s1)
+/* The noise beside a peak whose top spans s0..s1: the mean |d[x] - d[x-1]| of the noisier of
+ * two windows LL_NOISE_GAP px beyond the top. */
+static double noise_beside(const struct line *l, int s0, int s1)
 {
         uint32_t lo = noise_at(l, s0 - LL_NOISE_GAP - LL_NOISE_LEN),
                  hi = noise_at(l, s1 + LL_NOISE_GAP);
 
-        return fmax(l->floor, o->snr * (lo > hi ? lo : hi) / (LL_NOISE_LEN - 1));
+        return (double)(lo > hi ? lo : hi) / (LL_NOISE_LEN - 1);
 }
 
 static int top_block(const struct line *l)
@@ -203,17 +232,27 @@ static double crossing(const struct line *l, int x, int foot, double level)
 }
 
 /* The baseline under x: linear between the feet. */
+static void baseline(const struct line *l, int lo, int hi, double *b0, double *slope)
+{
+        *slope = hi > lo ? (double)(l->d[hi] - l->d[lo]) / (hi - lo) : 0;
+        *b0 = l->d[lo] - *slope * lo;
+}
+
 static double base_at(const struct line *l, int lo, int hi, double x)
 {
-        return hi > lo ? l->d[lo] + (l->d[hi] - l->d[lo]) * (x - lo) / (hi - lo) : l->d[lo];
+        double b0, slope;
+
+        baseline(l, lo, hi, &b0, &slope);
+        return b0 + slope * x;
 }
 
 static double centre_com(const struct line *l, int x, int w, int lo, int hi)
 {
-        double s = 0, sx = 0;
+        double s = 0, sx = 0, b0, slope;
 
+        baseline(l, lo, hi, &b0, &slope);
         for (int u = x - w < 0 ? 0 : x - w; u <= x + w && u < l->n; u++) {
-                double v = l->d[u] - base_at(l, lo, hi, u);
+                double v = l->d[u] - b0 - slope * u;
                 if (v > 0) {
                         s += v;
                         sx += v * u;
@@ -222,14 +261,48 @@ static double centre_com(const struct line *l, int x, int w, int lo, int hi)
         return s > 0 ? sx / s : x;
 }
 
-/* Sub-pixel centre of the unclipped peak whose top sample is x (0 < x < n - 1). */
-static double centre_of(const struct line *l, const struct laserline_opts *o, int x, int w, int lo,
-                        int hi)
+/* Refines c, the centre of a line of width (at half height) fwhm, by a centroid weighted with a
+ * triweight kernel (1 - t^2)^3, t = (u - c) / (3 sigma_k), close to a Gaussian of sigma_k =
+ * LL_KERNEL times the line's: a matched filter, so that the samples far from the centre, where
+ * there is noise but little line, weigh little. The weighted centroid of a Gaussian line lies
+ * sigma_k^2 / (sigma^2 + sigma_k^2) of the way from c to the line's centre: each step is scaled
+ * up by the inverse. A symmetric kernel on a symmetric line is unbiased at the fixed point.
+ * Keeps c if a step would leave the line (no signal under the kernel). */
+static double centre_weighted(const struct line *l, double c, double fwhm, int lo, int hi)
+{
+        double sigma = fwhm / 2.3548, kernel = fmax(LL_KERNEL * sigma, LL_KERNEL_MIN);
+        double reach = 3 * kernel, gain = 1 + sigma * sigma / (kernel * kernel);
+        double r2 = 1 / (reach * reach), b0, slope;
+
+        baseline(l, lo, hi, &b0, &slope);
+        for (int k = 0; k < LL_REFINE; k++) {
+                double s = 0, su = 0, step;
+                int u0 = (int)ceil(c - reach), u1 = (int)floor(c + reach);
+                for (int u = u0 < 0 ? 0 : u0; u <= u1 && u < l->n; u++) {
+                        double t = 1 - (u - c) * (u - c) * r2;
+                        double v = t * t * t * (l->d[u] - b0 - slope * u);
+                        s += v;
+                        su += v * (u - c);
+                }
+                step = s > 0 ? gain * su / s : INFINITY;
+                if (!(fabs(step) < fwhm / 2))
+                        break;
+                c += step;
+        }
+        return c;
+}
+
+/* Sub-pixel centre of the unclipped peak p whose top sample is x (0 < x < n - 1); w: the centre
+ * of mass's half window. LASERLINE_WEIGHTED: the centre of mass where the noise beside the peak
+ * is low, else the weighted centroid. */
+static double centre_of(const struct line *l, const struct laserline_opts *o, int x, int w,
+                        const struct peak *p, int lo, int hi)
 {
         double b = base_at(l, lo, hi, x);
         double a = l->d[x - 1] - b, m = l->d[x] - b, c = l->d[x + 1] - b, den;
 
-        if (o->estimator == LASERLINE_COM)
+        if (o->estimator == LASERLINE_COM ||
+            (o->estimator == LASERLINE_WEIGHTED && p->noise * LL_NOISY < p->strength))
                 return centre_com(l, x, w, lo, hi);
         if (o->estimator == LASERLINE_GAUSS3 && a > 0 && c > 0) {
                 den = log(a) - 2 * log(m) + log(c);
@@ -237,7 +310,8 @@ static double centre_of(const struct line *l, const struct laserline_opts *o, in
                         return x + 0.5 * (log(a) - log(c)) / den;
         }
         den = a - 2 * m + c;
-        return den < 0 ? x + 0.5 * (a - c) / den : x;
+        b = den < 0 ? x + 0.5 * (a - c) / den : x; /* the parabola */
+        return o->estimator == LASERLINE_WEIGHTED ? centre_weighted(l, b, p->width, lo, hi) : b;
 }
 
 /* Measures the candidate whose top sample is x: *lo, *hi get its feet. Returns whether it is
@@ -261,7 +335,8 @@ static bool peak_eval(const struct line *l, const struct laserline_opts *o, int 
         left = crossing(l, s0, *lo, level);
         right = crossing(l, s1, *hi, level);
         p->width = right - left;
-        if (p->strength < threshold(l, o, s0, s1) || p->width < o->min_width ||
+        p->noise = noise_beside(l, s0, s1);
+        if (p->strength < fmax(l->floor, o->snr * p->noise) || p->width < o->min_width ||
             p->width > o->max_width || s0 == 0 || s1 == l->n - 1)
                 return false;
         mid = (s0 + s1) / 2; /* clipped: the run and its flanks, symmetric about the centre */
@@ -269,8 +344,9 @@ static bool peak_eval(const struct line *l, const struct laserline_opts *o, int 
                 p->centre =
                         centre_com(l, mid, mid - *lo > *hi - mid ? mid - *lo : *hi - mid, *lo, *hi);
         else
-                p->centre = centre_of(
-                        l, o, x, o->window > 0 ? o->window : (int)ceil(1.3 * p->width), *lo, *hi);
+                p->centre =
+                        centre_of(l, o, x, o->window > 0 ? o->window : (int)ceil(1.3 * p->width), p,
+                                  *lo, *hi);
         return true;
 }
 
@@ -325,12 +401,27 @@ static int check_args(const struct gn_frame *on, const struct gn_frame *off,
         return len > LASERLINE_MAX_LEN ? -E2BIG : 0;
 }
 
-/* Loads line i of the frames into l: d and its block maxima. */
-static void line_load(struct line *l, const struct gn_frame *on, const struct gn_frame *off,
+/* Whether row i of the on frame is too dark for a line (every sample of every channel under
+ * the least peak height, so no difference can reach it): such a row is not loaded and its
+ * off row never read. */
+static bool row_dark(const struct line *l, const struct gn_frame *on, int i)
+{
+        size_t n = (size_t)on->width * on->channels;
+
+        if (l->on8)
+                return max8(on->data + (size_t)i * on->stride, n) < l->floor;
+        return max16((const uint16_t *)(on->data + (size_t)i * on->stride), n) < l->floor;
+}
+
+/* Loads line i of the frames into l: d and its block maxima. Returns false for a dark row (not
+ * loaded: it has no line). */
+static bool line_load(struct line *l, const struct gn_frame *on, const struct gn_frame *off,
                       const struct laserline_opts *o, int i)
 {
         size_t row = on->stride / (size_t)(on->bits / 8);
 
+        if (off && !o->columns && row_dark(l, on, i))
+                return false;
         l->first =
                 o->columns ? (size_t)i * on->channels + o->channel : (size_t)i * row + o->channel;
         l->step = o->columns ? row : (size_t)on->channels;
@@ -340,6 +431,7 @@ static void line_load(struct line *l, const struct gn_frame *on, const struct gn
                 diff16(l->on16 + l->first, off ? (const uint16_t *)off->data + l->first : NULL,
                        l->step, l->n, l->d);
         block_maxima(l);
+        return true;
 }
 
 int laserline_extract(const struct gn_frame *on, const struct gn_frame *off,
@@ -362,8 +454,8 @@ int laserline_extract(const struct gn_frame *on, const struct gn_frame *off,
         out->n = o->columns ? on->width : on->height;
         out->points = out->ambiguous = 0;
         for (int i = 0; i < out->n; i++) {
-                line_load(&l, on, off, o, i);
-                bool found = line_peak(&l, o, &p, &amb);
+                amb = false;
+                bool found = line_load(&l, on, off, o, i) && line_peak(&l, o, &p, &amb);
                 out->centre[i] = found ? (float)p.centre : NAN;
                 if (out->strength)
                         out->strength[i] = found ? (float)p.strength : 0;

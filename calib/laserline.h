@@ -18,6 +18,8 @@ enum laserline_estimator {
         LASERLINE_GAUSS3,   /* Gaussian through the top 3 samples (log-parabola) */
         LASERLINE_COM,      /* centre of mass above the local baseline, window of +-window px */
         LASERLINE_PARABOLA, /* parabola through the top 3 samples */
+        LASERLINE_WEIGHTED, /* LASERLINE_COM refined by a centroid weighted with a kernel as wide
+                             * as the line itself (its sigma from the width at half height) */
 };
 
 struct laserline_opts {
@@ -31,7 +33,8 @@ struct laserline_opts {
         double saturation; /* an on-frame sample at or above this fraction of full scale is clipped
                             */
         double ambiguity;  /* a second plausible peak this fraction as high rejects the row */
-        int window; /* LASERLINE_COM half window, px; 0: 1.3 x the width at half height (3 sigma) */
+        int window; /* LASERLINE_COM (and LASERLINE_WEIGHTED's first estimate) half window, px;
+                     * 0: 1.3 x the width at half height (3 sigma) */
 };
 
 /* Per row (or column) results, arrays owned by the caller, each of n elements. */
