@@ -215,8 +215,9 @@ static void test_drops(struct cam *c)
         stream_ok(c, 4, &seq);
 }
 
-/* vimc holding each frame: for 1 s, the capture waits for it and its timestamp is that late;
- * past LCCAM_TIMEOUT_MS, the capture gives up at the bound with -ETIMEDOUT naming the
+/* vimc holding each frame: for 1 s, the capture waits for it and its timestamp is that late,
+ * and a stream's cam_stream_next() gives up at its bound, then gets the frame with a longer
+ * one; past LCCAM_TIMEOUT_MS, the capture gives up at the bound with -ETIMEDOUT naming the
  * camera; without the delay, captures are quick again. */
 static void test_delay(struct cam *c)
 {
@@ -227,6 +228,12 @@ static void test_delay(struct cam *c)
         CHECK_INT(cam_capture(c, NULL, &fr), 0);
         CHECK(fr.timestamp_ns > t0 + 1000000000ull);
         gn_frame_free_data(&fr);
+        CHECK_INT(cam_stream_start(c, NULL), 0);
+        CHECK_INT(cam_stream_next(c, 300, &fr), -ETIMEDOUT);
+        CHECK_STR_CONTAINS(c->last_error, BY_ID "dequeue a frame: no frame within 300 ms");
+        CHECK_INT(cam_stream_next(c, 3000, &fr), 0);
+        gn_frame_free_data(&fr);
+        cam_stream_stop(c);
         set_vimc("delay_ms", LCCAM_TIMEOUT_MS + 2000);
         m0 = gn_monotonic_ns();
         CHECK_INT(cam_capture(c, NULL, &fr), -ETIMEDOUT);
