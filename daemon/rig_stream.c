@@ -3,7 +3,7 @@
  * confirmed-pose exposures of rig_expose.c.
  *
  * DESIGN: a stream is a chain of jobs on the camera's bus worker: START, then one NEXT
- * (a blocking dequeue, bounded by the backend) after another, each queued when the
+ * (a blocking dequeue, cam_stream_next: bounded) after another, each queued when the
  * previous one's frame is back on the loop, until rig_stream_stop queues STOP. A frame
  * that comes back after the stop is dropped. The caller owns the rig meanwhile. */
 #include <errno.h>
@@ -12,6 +12,9 @@
 
 #include "common/log.h"
 #include "rig_internal.h"
+
+/* Longest wait for a stream's next frame, beyond its exposure. */
+#define RIG_STREAM_WAIT_MS 5000
 
 int rig_stream_job_call(struct job *j)
 {
@@ -23,7 +26,8 @@ int rig_stream_job_call(struct job *j)
         case J_STREAM_START:
                 return cam_stream_start(c, &j->creq);
         case J_STREAM_NEXT:
-                return cam_stream_dequeue(c, &j->frame);
+                return cam_stream_next(c, RIG_STREAM_WAIT_MS + j->creq.exposure_us / 1000,
+                                       &j->frame);
         default:
                 cam_stream_stop(c);
                 return 0;
@@ -97,7 +101,7 @@ void rig_stream_job_done(struct job *j, int result)
                 return; /* stopped meanwhile: the frame is dropped */
         if (result < 0)
                 return stream_failed(rig, j->idx, result, job_message(j, result, msg, sizeof(msg)));
-        if ((r = submit(rig, J_STREAM_NEXT, j->idx, NULL)) < 0)
+        if ((r = submit(rig, J_STREAM_NEXT, j->idx, &j->creq)) < 0)
                 return stream_failed(rig, j->idx, r, "the camera's queue is full");
         st->next = true;
         if (j->kind == J_STREAM_NEXT)

@@ -1,10 +1,13 @@
 /* camera.c - the camera class: backend lookup, request checks against the backend's
  * option table (the one source of control ranges), logging wrappers with the backend's
  * cause, and the optional streaming ops. Backends live in drivers/camera/<backend>/. */
+#include <errno.h>
+#include <poll.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 
+#include "common/clock.h"
 #include "common/log.h"
 #include "drivers/bus/bus.h"
 #include "drivers/camera/camera.h"
@@ -192,6 +195,28 @@ int cam_stream_dequeue(struct cam *c, struct gn_frame *out)
         c->cause[0] = '\0';
         r = c->ops->stream_dequeue(c, out);
         return r < 0 && r != -EAGAIN ? fail(c, r, "dequeue a frame") : r;
+}
+
+int cam_stream_next(struct cam *c, int timeout_ms, struct gn_frame *out)
+{
+        uint64_t deadline = gn_monotonic_ns() + (uint64_t)timeout_ms * 1000000;
+        int r;
+
+        while ((r = cam_stream_dequeue(c, out)) == -EAGAIN) {
+                struct pollfd p = {.fd = cam_stream_fd(c), .events = POLLIN};
+                uint64_t now = gn_monotonic_ns();
+
+                if (p.fd < 0)
+                        return r;
+                if (now >= deadline)
+                        return cam_log_full(c, GN_LOG_ERR, -ETIMEDOUT,
+                                            "Failed to dequeue a frame: no frame within %d ms",
+                                            timeout_ms);
+                if (poll(&p, 1, (int)((deadline - now + 999999) / 1000000)) < 0 && errno != EINTR)
+                        return cam_log_full(c, GN_LOG_ERR, -errno,
+                                            "Failed to dequeue a frame: poll: %m");
+        }
+        return r;
 }
 
 void cam_stream_stop(struct cam *c)

@@ -99,6 +99,12 @@ int cam_stream_fd(struct cam *c);
 int cam_stream_dequeue(struct cam *c, struct gn_frame *out);
 void cam_stream_stop(struct cam *c);
 
+/* The stream's next frame, waiting for it: cam_stream_dequeue, and while that gives -EAGAIN,
+ * poll on cam_stream_fd for at most timeout_ms in all; then -ETIMEDOUT, logged ("no frame
+ * within N ms"). A backend without an fd blocks in its dequeue (bounded by itself). Bus
+ * worker; 0 or -errno as cam_stream_dequeue. */
+int cam_stream_next(struct cam *c, int timeout_ms, struct gn_frame *out);
+
 /* For backends: records the detail of the current op's failure without logging (see
  * axis_set_cause()). Returns -abs(err). */
 int cam_set_cause(struct cam *c, int err, const char *fmt, ...)

@@ -6,22 +6,8 @@
 # laser through gonioctl, their effect read back where the "hardware" shows it (the board's
 # state file, gpio-sim's sysfs), and a capture whose rows match their files and the commands.
 set -eu
-sim=$1 goniod=$2 gonioctl=$3 emu=$4 rig=$5
-dir=$(mktemp -d /tmp/gonio-lab.XXXXXX)
-pids=
-# goniod and gonio-sim are stopped and waited for before their files go (goniod closes its
-# dataset on the way out)
-cleanup() {
-        for p in $pids; do kill "$p" 2> /dev/null || true; done
-        for p in $pids; do wait "$p" 2> /dev/null || true; done
-        rm -rf "$dir" || true
-}
-trap cleanup EXIT
-fail() { echo "lab-goniod: $*" >&2; cat "$dir/log" >&2 2> /dev/null || true; exit 1; }
-ctl() {
-        "$gonioctl" --socket "$dir/sock" --timeout 30 "$@" 2> "$dir/ctl.err" ||
-                { cat "$dir/ctl.err" >&2; return 1; }
-}
+name=lab-goniod sim=$1 goniod=$2 gonioctl=$3 emu=$4 rig=$5
+. "$(dirname "$0")/goniod-lib.sh"
 sim_line() { set -- $(gpiofind "$1") "$2"; cat "/sys/bus/gpio/devices/$1/sim_gpio$2/$3"; }
 relays() { echo $((0x$(cat "$dir/relays.state"))); }
 
@@ -29,18 +15,8 @@ relays() { echo $((0x$(cat "$dir/relays.state"))); }
 export GONIO_SIM_DIR="$dir" GONIO_LAB_DRIVES="$dir/drives" GONIO_LAB_RELAYS=LAB01 \
         GONIO_LAB_GPIOCHIP=gonio-gpio GONIO_LAB_LASER=laser \
         GONIO_LAB_CAM0=platform:vivid-000 GONIO_LAB_CAM1=platform:vivid-001
-"$sim" --rig "$rig" --dir "$dir" --time-scale 5 > "$dir/sim.out" 2>&1 &
-pids=$!
-i=0
-until grep -q ready "$dir/sim.out"; do
-        i=$((i + 1)); [ $i -lt 100 ] || fail "gonio-sim: $(cat "$dir/sim.out")"; sleep 0.1
-done
-"$goniod" --rig "$rig" --socket "$dir/sock" --data "$dir/data" 2> "$dir/log" &
-pids="$pids $!"
-i=0
-until ctl --quiet status 2> /dev/null; do
-        i=$((i + 1)); [ $i -lt 150 ] || fail "goniod did not come up"; sleep 0.1
-done
+start_sim "$rig" --time-scale 5
+start_goniod "$rig"
 st=$(ctl --json status)
 echo "$st" | grep -q '"state": *"idle"' || fail "not idle at start: $st"
 

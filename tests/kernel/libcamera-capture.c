@@ -3,22 +3,28 @@
  * rig file's size in rgb8 with the colour bars of vimc's test pattern in order, timestamps
  * on the wall clock and increasing, streaming through the eventfd, controls vimc lacks
  * refused by the option table, and clear errors for a wrong id, a wrong index, a size vimc
- * does not offer and a camera already in use.
+ * does not offer and a camera already in use. Then the faults vimc's injector
+ * (tests/kernel/vimc-faults.patch) gives on command: frames dropped mid-stream, frames late,
+ * and frames later than the capture's bound.
  *
  * Usage: kl-libcamera-capture (in the guest; writes libcamera-rig.yaml in the current
  * directory). */
 #include <errno.h>
 #include <poll.h>
 #include <stdio.h>
+#include <string.h>
 
 #include "common/clock.h"
 #include "common/rigconf.h"
 #include "drivers/bus/bus.h"
 #include "drivers/camera/camera.h"
+#include "drivers/camera/libcamera/api.h"
 #include "drivers/registry.h"
 #include "tests/test.h"
 
 #define VIMC_ID "platform/vimc.0 Sensor B"
+/* How the first camera's errors begin (bus_log_dev) */
+#define BY_ID "camera 'by-id' [libcamera@cams]: Failed to "
 
 static const char rig_yaml[] =
         "rig: libcamera-vimc\n"
@@ -95,6 +101,16 @@ static void test_capture(struct cam *c)
         gn_frame_free_data(&fr[1]);
 }
 
+/* Waits (5 s at most) for the stream's next frame and dequeues it: 0 or the dequeue's error. */
+static int next_frame(struct cam *c, struct gn_frame *fr)
+{
+        struct pollfd p = {.fd = cam_stream_fd(c), .events = POLLIN};
+
+        CHECK(p.fd >= 0);
+        CHECK_INT(poll(&p, 1, 5000), 1);
+        return cam_stream_dequeue(c, fr);
+}
+
 static void test_stream(struct cam *c)
 {
         struct gn_frame fr[8] = {}; /* more than the camera's buffers: each is requeued */
@@ -105,11 +121,7 @@ static void test_stream(struct cam *c)
         CHECK_INT(cam_stream_start(c, NULL), -EBUSY);
         CHECK_INT(cam_capture(c, NULL, &fr[0]), -EBUSY);
         for (int i = 0; i < 8; i++) {
-                struct pollfd p = {.fd = cam_stream_fd(c), .events = POLLIN};
-
-                CHECK(p.fd >= 0);
-                CHECK_INT(poll(&p, 1, 5000), 1);
-                CHECK_INT(cam_stream_dequeue(c, &fr[i]), 0);
+                CHECK_INT(next_frame(c, &fr[i]), 0);
                 check_frame(&fr[i], 480, 360);
                 if (i > 0) {
                         CHECK(fr[i].seq > fr[i - 1].seq);
@@ -144,6 +156,97 @@ static void test_controls(struct cam *c)
         CHECK_STR_CONTAINS(c->last_error, "16-bit samples");
 }
 
+/* Sets vimc's fault injector parameter name (tests/kernel/vimc-faults.patch) to v. */
+static void set_vimc(const char *name, unsigned v)
+{
+        char path[128];
+        FILE *f;
+
+        snprintf(path, sizeof(path), "/sys/module/vimc/parameters/%s", name);
+        f = fopen(path, "w");
+        CHECK(f && fprintf(f, "%u\n", v) > 0 && fclose(f) == 0);
+}
+
+/* Streams n frames in sequence (the last one's seq in *seq) and stops. */
+static void stream_ok(struct cam *c, int n, uint64_t *seq)
+{
+        struct gn_frame fr = {};
+
+        CHECK_INT(cam_stream_start(c, NULL), 0);
+        for (int i = 0; i < n; i++) {
+                CHECK_INT(next_frame(c, &fr), 0);
+                CHECK(i == 0 || fr.seq == *seq + 1);
+                *seq = fr.seq;
+                gn_frame_free_data(&fr);
+        }
+        cam_stream_stop(c);
+}
+
+/* Two frames dropped by vimc mid-stream: the dequeue at the gap fails with -EIO naming the
+ * camera and exactly the frames lost; the count goes on after it; the stream, ended as a
+ * fault, starts again and runs without a gap. */
+static void test_drops(struct cam *c)
+{
+        unsigned long long at, after;
+        uint64_t seq = 0;
+        struct gn_frame fr = {};
+        int r, n = 0;
+
+        stream_ok(c, 3, &seq);
+        CHECK_INT(cam_stream_start(c, NULL), 0);
+        CHECK_INT(next_frame(c, &fr), 0);
+        seq = fr.seq;
+        gn_frame_free_data(&fr);
+        set_vimc("drop_frames", 2);
+        while ((r = next_frame(c, &fr)) == 0 && n++ < 8) { /* the frames filled already */
+                seq = fr.seq;
+                gn_frame_free_data(&fr);
+        }
+        CHECK_INT(r, -EIO);
+        CHECK_STR_CONTAINS(c->last_error, BY_ID "dequeue a frame: 2 frames dropped (sequence ");
+        CHECK(sscanf(strstr(c->last_error, "(sequence "), "(sequence %llu after %llu)", &at,
+                     &after) == 2);
+        CHECK_INT(after, seq);
+        CHECK_INT(at, seq + 3);
+        CHECK_INT(next_frame(c, &fr), 0);
+        CHECK_INT(fr.seq, at + 1);
+        gn_frame_free_data(&fr);
+        cam_stream_stop(c);
+        stream_ok(c, 4, &seq);
+}
+
+/* vimc holding each frame: for 1 s, the capture waits for it and its timestamp is that late,
+ * and a stream's cam_stream_next() gives up at its bound, then gets the frame with a longer
+ * one; past LCCAM_TIMEOUT_MS, the capture gives up at the bound with -ETIMEDOUT naming the
+ * camera; without the delay, captures are quick again. */
+static void test_delay(struct cam *c)
+{
+        uint64_t t0 = gn_realtime_ns(), m0;
+        struct gn_frame fr = {};
+
+        set_vimc("delay_ms", 1000);
+        CHECK_INT(cam_capture(c, NULL, &fr), 0);
+        CHECK(fr.timestamp_ns > t0 + 1000000000ull);
+        gn_frame_free_data(&fr);
+        CHECK_INT(cam_stream_start(c, NULL), 0);
+        CHECK_INT(cam_stream_next(c, 300, &fr), -ETIMEDOUT);
+        CHECK_STR_CONTAINS(c->last_error, BY_ID "dequeue a frame: no frame within 300 ms");
+        CHECK_INT(cam_stream_next(c, 3000, &fr), 0);
+        gn_frame_free_data(&fr);
+        cam_stream_stop(c);
+        set_vimc("delay_ms", LCCAM_TIMEOUT_MS + 2000);
+        m0 = gn_monotonic_ns();
+        CHECK_INT(cam_capture(c, NULL, &fr), -ETIMEDOUT);
+        CHECK(gn_monotonic_ns() - m0 >= LCCAM_TIMEOUT_MS * 1000000ull);
+        CHECK(gn_monotonic_ns() - m0 < (LCCAM_TIMEOUT_MS + 1000) * 1000000ull); /* stopped */
+        CHECK_STR_CONTAINS(c->last_error, BY_ID "capture: no frame within 5000 ms");
+        set_vimc("delay_ms", 0);
+        t0 = gn_realtime_ns();
+        CHECK_INT(cam_capture(c, NULL, &fr), 0);
+        CHECK(fr.timestamp_ns < t0 + 1000000000ull);
+        gn_frame_free_data(&fr);
+}
+
 /* Opening camera i fails with err and a last_error holding what. */
 static void check_open_fails(struct fixture *f, size_t i, int err, const char *what)
 {
@@ -172,6 +275,8 @@ int main(void)
         test_capture(c);
         test_stream(c);
         test_controls(c);
+        test_drops(c);
+        test_delay(c);
         check_open_fails(&f, 1, -EBUSY, "cannot acquire " VIMC_ID);
         c = cam_free(c);
 
