@@ -261,14 +261,19 @@ struct pass {
         struct fit_ctx *c;
         bool pilot;
         size_t next;
+        int workers; /* started: the next one's slot in c->scratch */
 };
 
 static void *pass_worker(void *arg)
 {
         struct pass *p = arg;
         struct fit_ctx *c = p->c;
+        struct fit_scratch **s;
         int r;
 
+        pthread_mutex_lock(&c->lock);
+        s = &c->scratch[p->workers++];
+        pthread_mutex_unlock(&c->lock);
         for (;;) {
                 size_t i;
                 pthread_mutex_lock(&c->lock);
@@ -278,7 +283,7 @@ static void *pass_worker(void *arg)
                 pthread_mutex_unlock(&c->lock);
                 if (i >= c->n_views)
                         return NULL;
-                r = fit_view(c, i, p->pilot);
+                r = fit_view(c, i, p->pilot, s);
                 if (r < 0) /* kept when a sentence came first */
                         fit_fail(c, r, "view %zu (%s): %s", i, c->rc->cameras[c->views[i].cam].name,
                                  strerror(-r));
@@ -288,7 +293,7 @@ static void *pass_worker(void *arg)
 /* Fits the views (pilot: only the pilot views) on o->threads threads. */
 static int run_pass(struct fit_ctx *c, bool pilot)
 {
-        struct pass p = {c, pilot, 0};
+        struct pass p = {c, pilot, 0, 0};
         pthread_t t[16];
         int n = 0;
 
@@ -373,6 +378,8 @@ static void ctx_free(struct fit_ctx *c)
                 free(c->views[i].kept);
                 free(c->views[i].kept_pix);
         }
+        for (size_t i = 0; i < sizeof(c->scratch) / sizeof(c->scratch[0]); i++)
+                fit_scratch_free(c->scratch[i]);
         free(c->views);
         free(c->all);
         free(c->sample);

@@ -42,6 +42,9 @@ struct fit_mesh {
         size_t n_v, n_tri;
 };
 
+/* A worker's buffers, kept from one view to the next (fit_view). */
+struct fit_scratch;
+
 struct fit_ctx {
         const struct ap_fit_opts *o;
         const char *dir; /* the dataset's */
@@ -61,10 +64,11 @@ struct fit_ctx {
         size_t stride; /* one masked pixel in `stride` of a pilot view is sampled */
         double sse_sh; /* the SH fit's squared residuals over the sampled pixels */
         size_t n_sse;
-        size_t masked_saturated; /* pixels masked for a saturated sample */
-        double cond_max;         /* the worst condition number of a tile's solve */
-        char notes[1024];        /* fit_note's sentences, for the model's notes */
-        char err[512];           /* the first worker's error */
+        size_t masked_saturated;         /* pixels masked for a saturated sample */
+        double cond_max;                 /* the worst condition number of a tile's solve */
+        struct fit_scratch *scratch[16]; /* each worker's buffers, kept over both passes */
+        char notes[1024];                /* fit_note's sentences, for the model's notes */
+        char err[512];                   /* the first worker's error */
         int error;
 };
 
@@ -102,11 +106,16 @@ int fit_tile_points(const struct fit_ctx *c, struct fit_view *v);
 int fit_read_image(const char *dir, const struct ds_capture *r, struct gn_frame *f, char *err,
                    size_t errlen);
 
+/* Frees s. NULL is a no-op. */
+void fit_scratch_free(struct fit_scratch *s);
+
 /* Fits view i: its images (merged, dark subtracted, normalised) to coefficients, masked; in
  * the pilot pass adds its sample vectors to c and keeps them in the view; in the final pass
  * projects them (the kept ones, else fitted again) on the model's basis into the model's
- * view i. Returns 0 or -errno (with c->err when it has a sentence). Any thread. */
-int fit_view(struct fit_ctx *c, size_t i, bool pilot_pass);
+ * view i. *s: the calling worker's buffers (NULL: allocated here; free with
+ * fit_scratch_free). Returns 0 or -errno (with c->err when it has a sentence). Any thread,
+ * one *s per thread. */
+int fit_view(struct fit_ctx *c, size_t i, bool pilot_pass, struct fit_scratch **s);
 
 /* Mean and K principal components of c's sample into the model; c->model->rms_pca. Returns
  * 0, -ENODATA (fewer vectors than 2) or -ENOMEM. */
