@@ -3,8 +3,8 @@
  * L x 3N matrix whose columns are grouped by tile; per tile the light matrix of SH values at
  * the directions from the tile's surface point (scaled by intensity and distance), its
  * regularised pseudo-inverse, and one product with the tile's columns; pixels masked where
- * the object is not or a sample saturated. The pilot pass samples coefficient vectors for the
- * PCA; the final pass projects every vector on the basis with one product per view. */
+ * the object is not or a sample saturated; a pilot view's residuals for the model's figures;
+ * the vectors projected on the basis with one product per view. */
 #include <cblas.h>
 #include <errno.h>
 #include <float.h>
@@ -44,8 +44,20 @@ struct vdata {
         int lay[3]; /* the W, H and T col is laid out for */
 };
 
+/* The coefficient vectors of a view's masked pixels, compact: vector i is pixel pix[i]. */
+struct vcoef {
+        float *coef; /* n x 3M */
+        uint32_t *pix;
+        size_t n;
+        double sse; /* squared residuals of the sampled pixels (a pilot view) */
+        size_t n_sse;
+        double cond; /* the worst tile's condition number */
+};
+
 struct fit_scratch {
         struct vdata d;
+        struct vcoef vc; /* the last view solved, until kept or projected */
+        size_t cap;      /* vectors vc has room for */
 };
 
 static void vdata_free_px(struct vdata *d)
@@ -64,6 +76,8 @@ void fit_scratch_free(struct fit_scratch *s)
                 vdata_free_px(&s->d);
                 free(s->d.D);
                 free(s->d.lut);
+                free(s->vc.coef);
+                free(s->vc.pix);
                 free(s);
         }
 }
@@ -334,16 +348,6 @@ static void light_matrix(const struct fit_ctx *c, const struct fit_view *v, size
         }
 }
 
-/* The coefficient vectors of a view's masked pixels, compact: vector i is pixel pix[i]. */
-struct vcoef {
-        float *coef; /* n x 3M */
-        uint32_t *pix;
-        size_t n;
-        double sse; /* squared residuals of the sampled pixels (pilot pass) */
-        size_t n_sse;
-        double cond; /* the worst tile's condition number */
-};
-
 /* d->in: each pixel takes part or not: the object seen (some light above the background), no
  * saturated sample, a surface point for its tile. */
 static void mask_pixels(const struct fit_ctx *c, const struct fit_view *v, struct vdata *d)
@@ -407,8 +411,9 @@ static int solve_tile(const struct fit_ctx *c, const struct fit_view *v, const s
         return 0;
 }
 
+/* Solves every tile of view v into vc (room for cap vectors, grown to the view's pixels). */
 static int solve_view(const struct fit_ctx *c, const struct fit_view *v, const struct vdata *d,
-                      struct vcoef *vc)
+                      struct vcoef *vc, size_t *cap)
 {
         size_t n = (size_t)d->W * d->H, T2 = (size_t)d->T * d->T;
         _cleanup_free_ double *A = malloc((size_t)d->L * c->M * sizeof(double));
@@ -416,9 +421,17 @@ static int solve_view(const struct fit_ctx *c, const struct fit_view *v, const s
         _cleanup_free_ float *Ct = malloc(3 * T2 * c->M * sizeof(float));
         int r = 0;
 
-        vc->coef = malloc(n * 3 * c->M * sizeof(float));
-        vc->pix = malloc(n * sizeof(uint32_t));
-        if (!A || !P || !Ct || !vc->coef || !vc->pix)
+        if (n > *cap || !vc->coef) {
+                free(vc->coef), free(vc->pix);
+                *cap = 0;
+                vc->coef = malloc(n * 3 * c->M * sizeof(float));
+                vc->pix = malloc(n * sizeof(uint32_t));
+                if (!vc->coef || !vc->pix)
+                        return -ENOMEM;
+                *cap = n;
+        }
+        *vc = (struct vcoef){.coef = vc->coef, .pix = vc->pix};
+        if (!A || !P || !Ct)
                 return -ENOMEM;
         for (int ty = 0; r == 0 && ty < d->th; ty++)
                 for (int tx = 0; r == 0 && tx < d->tw; tx++)
@@ -426,13 +439,12 @@ static int solve_view(const struct fit_ctx *c, const struct fit_view *v, const s
         return r;
 }
 
-/* Pilot pass: every stride-th vector into c's sample, with its residual. */
-static int add_sample(struct fit_ctx *c, const struct fit_view *v, const struct vdata *d,
-                      struct vcoef *vc)
+/* A pilot view: the residuals of every stride-th vector (those fit_pca samples) into c. */
+static int add_residuals(struct fit_ctx *c, const struct fit_view *v, const struct vdata *d,
+                         struct vcoef *vc)
 {
-        size_t M3 = 3 * (size_t)c->M, n = (vc->n + c->stride - 1) / c->stride;
+        size_t M3 = 3 * (size_t)c->M;
         _cleanup_free_ double *A = malloc((size_t)d->L * c->M * sizeof(double));
-        int r = 0;
 
         if (!A)
                 return -ENOMEM;
@@ -442,23 +454,13 @@ static int add_sample(struct fit_ctx *c, const struct fit_view *v, const struct 
                 residual(c, d, A, p, vc->coef + i * M3, vc);
         }
         pthread_mutex_lock(&c->lock);
-        if (c->n_sample + n > c->cap_sample) {
-                size_t cap = MAX(2 * c->cap_sample, c->n_sample + n);
-                float *s = realloc(c->sample, cap * M3 * sizeof(float));
-                if (s)
-                        c->sample = s, c->cap_sample = cap;
-                else
-                        r = -ENOMEM;
-        }
-        for (size_t i = 0; r == 0 && i < vc->n; i += c->stride)
-                memcpy(c->sample + c->n_sample++ * M3, vc->coef + i * M3, M3 * sizeof(float));
         c->sse_sh += vc->sse;
         c->n_sse += vc->n_sse;
         pthread_mutex_unlock(&c->lock);
-        return r;
+        return 0;
 }
 
-/* Final pass: the weights and mask of model view mv from the vectors. */
+/* The weights and mask of model view mv from the vectors. */
 static int project(struct fit_ctx *c, struct ap_view *mv, const struct fit_view *v,
                    const struct vcoef *vc)
 {
@@ -479,57 +481,51 @@ static int project(struct fit_ctx *c, struct ap_view *mv, const struct fit_view 
         return 0;
 }
 
-/* Pilot pass: keeps the view's vectors for the final pass (a pilot view is read once). */
-static void keep(const struct fit_ctx *c, struct fit_view *v, struct vcoef *vc)
+void fit_view_keep(struct fit_ctx *c, size_t i, struct fit_scratch *s)
 {
-        float *coef = realloc(vc->coef, (vc->n + 1) * 3 * c->M * sizeof(float));
+        struct fit_view *v = &c->views[i];
+        float *coef = realloc(s->vc.coef, (s->vc.n + 1) * 3 * c->M * sizeof(float));
 
-        v->kept = coef ?: vc->coef;
-        v->kept_pix = vc->pix;
-        v->n_kept = vc->n;
-        vc->coef = NULL;
-        vc->pix = NULL;
+        v->kept = coef ?: s->vc.coef;
+        v->kept_pix = s->vc.pix;
+        v->n_kept = s->vc.n;
+        s->vc = (struct vcoef){0};
+        s->cap = 0;
 }
 
-/* Loads and solves view v into vc (the worker's buffers d); counts its saturated pixels. */
-static int solve(struct fit_ctx *c, struct fit_view *v, struct vdata *d, struct vcoef *vc,
-                 bool pilot_pass)
+int fit_view_solve(struct fit_ctx *c, size_t i, struct fit_scratch **sp)
 {
-        int r = vdata_init(d, c, v);
+        struct fit_view *v = &c->views[i];
+        struct fit_scratch *s = *sp ?: (*sp = calloc(1, sizeof(**sp)));
+        struct vdata *d = s ? &s->d : NULL;
+        int r = s ? vdata_init(d, c, v) : -ENOMEM;
 
         for (int j = 0; r == 0 && j < d->L; j++)
                 r = load_light(c, v, j, d);
         if (r == 0) {
                 mask_pixels(c, v, d);
-                r = solve_view(c, v, d, vc);
+                r = solve_view(c, v, d, &s->vc, &s->cap);
         }
         for (size_t p = 0; r == 0 && p < (size_t)d->W * d->H; p++)
                 v->n_sat += d->sat[p] && d->maxv[p] >= c->o->background;
-        if (r == 0 && pilot_pass)
-                r = add_sample(c, v, d, vc);
-        pthread_mutex_lock(&c->lock);
-        c->cond_max = fmax(c->cond_max, vc->cond);
-        pthread_mutex_unlock(&c->lock);
+        if (r == 0 && v->pilot)
+                r = add_residuals(c, v, d, &s->vc);
+        if (r == 0) {
+                pthread_mutex_lock(&c->lock);
+                c->cond_max = fmax(c->cond_max, s->vc.cond);
+                pthread_mutex_unlock(&c->lock);
+        }
         return r;
 }
 
-int fit_view(struct fit_ctx *c, size_t i, bool pilot_pass, struct fit_scratch **s)
+int fit_view_project(struct fit_ctx *c, size_t i, struct fit_scratch *s)
 {
         struct fit_view *v = &c->views[i];
-        struct vcoef vc = {.coef = v->kept, .pix = v->kept_pix, .n = v->n_kept};
-        int r = 0;
+        struct vcoef kept = {.coef = v->kept, .pix = v->kept_pix, .n = v->n_kept};
+        int r = project(c, &c->model->views[i], v, v->kept ? &kept : &s->vc);
 
+        free(v->kept), free(v->kept_pix);
         v->kept = NULL, v->kept_pix = NULL;
-        if (!vc.coef && !*s && !(*s = calloc(1, sizeof(**s))))
-                r = -ENOMEM;
-        if (r == 0 && !vc.coef)
-                r = solve(c, v, &(*s)->d, &vc, pilot_pass);
-        if (r == 0 && pilot_pass)
-                keep(c, v, &vc);
-        else if (r == 0)
-                r = project(c, &c->model->views[i], v, &vc);
-        free(vc.coef);
-        free(vc.pix);
         return r;
 }
 
