@@ -1,14 +1,17 @@
 /* fit.c - the appearance fit of a dataset (fit.h): its rows grouped into views and lights,
- * the geometry (fit_geom.c), a pilot pass over every few views whose coefficient vectors
- * sample the PCA (fit_pca.c), then every view fitted and projected (fit_view.c), views in
- * parallel; every fallback stated in the model's notes.
+ * the geometry (fit_geom.c), the pilot views (every few views) fitted first and their
+ * coefficient vectors sampled for the PCA (fit_pca.c), every view fitted and projected
+ * (fit_view.c), views in parallel; every fallback stated in the model's notes.
  *
  * DESIGN: the coefficient vectors of a whole seed-scale dataset (76 views x 720 x 480 x 108
  * floats, 11 GB) do not fit in memory, and the basis must be known before any view can be
  * projected. The pilot views (one in AP_PILOT_EVERY, at least one) are fitted first; their
- * vectors are sampled for the PCA and kept (about 60 MB a view at seed scale) until the final
- * pass projects them with the others: every image is read once. Each worker holds one view's
- * L x 3N matrix (about 400 MB at seed scale). */
+ * vectors are kept (about 60 MB a view at seed scale) for the PCA's sample and projected
+ * last: every image is read once. No barrier: the worker that fits the last pilot fits the
+ * PCA while the others go on with the next views, keeping their vectors while the basis is
+ * not known. Each worker holds one view's L x 3N matrix (about 400 MB at seed scale), kept
+ * from view to view: faulting it in afresh for each view cost more than a tenth of the fit
+ * (bench/fit). */
 #include <cblas.h>
 #include <errno.h>
 #include <math.h>
@@ -194,34 +197,37 @@ static int group_views(struct fit_ctx *c)
 }
 
 /* Views that have image rows but none lit by one lamp: stated as skipped. */
-static void note_unlit_views(struct fit_ctx *c)
+static int note_unlit_views(struct fit_ctx *c)
 {
-        size_t skipped = 0;
+        _cleanup_free_ struct rowkey *k = malloc((c->n_all + 1) * sizeof(*k));
+        size_t n = 0, skipped = 0;
 
+        if (!k)
+                return -ENOMEM;
         for (size_t i = 0; i < c->n_all; i++) {
                 const struct ds_capture *r = &c->all[i];
-                struct rowkey k = {.r = r,
-                                   .cam = camera_index(c->rc, r->camera),
-                                   .tt = mdeg(r->pose.deg[GN_ROLE_TURNTABLE]),
-                                   .ca = mdeg(r->pose.deg[GN_ROLE_CAMERA_ARM])};
+                k[n] = (struct rowkey){.r = r,
+                                       .cam = camera_index(c->rc, r->camera),
+                                       .tt = mdeg(r->pose.deg[GN_ROLE_TURNTABLE]),
+                                       .ca = mdeg(r->pose.deg[GN_ROLE_CAMERA_ARM])};
+                n += strcmp(r->kind, "image") == 0 && k[n].cam >= 0;
+        }
+        qsort(k, n, sizeof(*k), cmp_key);
+        for (size_t i = 0; i < n; i++) {
                 bool seen = false;
-                if (strcmp(r->kind, "image") != 0 || k.cam < 0)
+                if (i > 0 && same_view(&k[i], &k[i - 1])) /* counted once: its first row */
                         continue;
-                for (size_t j = 0; j < i && !seen; j++) /* counted once: its first row */
-                        seen = strcmp(c->all[j].kind, "image") == 0 &&
-                               strcmp(c->all[j].camera, r->camera) == 0 &&
-                               mdeg(c->all[j].pose.deg[GN_ROLE_TURNTABLE]) == k.tt &&
-                               mdeg(c->all[j].pose.deg[GN_ROLE_CAMERA_ARM]) == k.ca;
                 for (size_t v = 0; v < c->n_views && !seen; v++) {
                         struct rowkey w = {.cam = c->views[v].cam,
                                            .tt = mdeg(c->views[v].tt_deg),
                                            .ca = mdeg(c->views[v].arm_deg)};
-                        seen = same_view(&k, &w);
+                        seen = same_view(&k[i], &w);
                 }
                 skipped += !seen;
         }
         if (skipped)
                 fit_note(c, "%zu views without a lamp-lit capture skipped", skipped);
+        return 0;
 }
 
 /* Drops views with fewer than 4 lights, and lowers the order to what the fewest lights of a
@@ -255,48 +261,126 @@ static int choose_order(struct fit_ctx *c)
         return 0;
 }
 
-/* ---- running the passes ---- */
+/* ---- the views on o->threads workers ---- */
 
-struct pass {
+/* The pilot views are solved first (their vectors kept for the PCA's sample), then the others
+ * solved and projected, then the kept ones projected. The worker that solves the last pilot
+ * fits the PCA meanwhile; a view solved before the basis is known is kept while views remain
+ * to be solved, else its worker waits for the basis. */
+struct run {
         struct fit_ctx *c;
-        bool pilot;
-        size_t next;
+        size_t next_pilot, next, next_kept; /* the next view of each stage */
+        size_t pilots_left;                 /* pilot views not solved yet */
+        bool basis;                         /* the PCA is fitted */
+        int workers;                        /* started: the next one's slot in c->scratch */
+        pthread_cond_t ready;               /* the basis, or an error */
 };
 
-static void *pass_worker(void *arg)
+/* Views other than pilots remain to be solved. Under c->lock. */
+static bool unsolved_left(struct run *u)
 {
-        struct pass *p = arg;
-        struct fit_ctx *c = p->c;
-        int r;
+        while (u->next < u->c->n_views && u->c->views[u->next].pilot)
+                u->next++;
+        return u->next < u->c->n_views;
+}
 
+/* Waits for the basis or an error (c->error). Under c->lock. */
+static int wait_basis(struct run *u)
+{
+        while (!u->basis && !u->c->error)
+                pthread_cond_wait(&u->ready, &u->c->lock);
+        return u->c->error;
+}
+
+/* The next view to work on, *solve whether to solve it (else to project its kept vectors);
+ * n_views: none left or an error. Under c->lock. */
+static size_t next_view(struct run *u, bool *solve)
+{
+        struct fit_ctx *c = u->c;
+
+        *solve = true;
+        while (u->next_pilot < c->n_views && !c->views[u->next_pilot].pilot)
+                u->next_pilot++;
+        if (u->next_pilot < c->n_views)
+                return u->next_pilot++;
+        if (unsolved_left(u))
+                return u->next++;
+        *solve = false;
+        if (wait_basis(u) < 0)
+                return c->n_views;
+        while (u->next_kept < c->n_views && !c->views[u->next_kept].kept)
+                u->next_kept++;
+        return u->next_kept < c->n_views ? u->next_kept++ : c->n_views;
+}
+
+/* View i solved into s: kept, or projected (once the basis is known); the PCA fitted after
+ * the last pilot. */
+static int after_solve(struct run *u, size_t i, struct fit_scratch *s)
+{
+        struct fit_ctx *c = u->c;
+        bool pilot = c->views[i].pilot, keep, pca;
+        int r = 0;
+
+        pthread_mutex_lock(&c->lock);
+        keep = pilot || (!u->basis && unsolved_left(u));
+        if (keep)
+                fit_view_keep(c, i, s);
+        pca = pilot && --u->pilots_left == 0;
+        pthread_mutex_unlock(&c->lock);
+        if (pca && (r = fit_pca(c)) < 0)
+                fit_fail(c, r, "the PCA failed: %zu sample vectors", c->n_sample);
+        pthread_mutex_lock(&c->lock);
+        u->basis |= pca && r == 0;
+        pthread_cond_broadcast(&u->ready);
+        if (r == 0 && !keep)
+                r = wait_basis(u);
+        pthread_mutex_unlock(&c->lock);
+        return r < 0 || keep ? r : fit_view_project(c, i, s);
+}
+
+static void *run_worker(void *arg)
+{
+        struct run *u = arg;
+        struct fit_ctx *c = u->c;
+        struct fit_scratch **s;
+
+        pthread_mutex_lock(&c->lock);
+        s = &c->scratch[u->workers++];
         for (;;) {
-                size_t i;
-                pthread_mutex_lock(&c->lock);
-                while (p->next < c->n_views && p->pilot && !c->views[p->next].pilot)
-                        p->next++;
-                i = c->error ? c->n_views : p->next++;
+                bool solve = false;
+                size_t i = c->error ? c->n_views : next_view(u, &solve);
+                int r;
                 pthread_mutex_unlock(&c->lock);
                 if (i >= c->n_views)
                         return NULL;
-                r = fit_view(c, i, p->pilot);
+                r = solve ? fit_view_solve(c, i, s) : fit_view_project(c, i, NULL);
+                if (r == 0 && solve)
+                        r = after_solve(u, i, *s);
                 if (r < 0) /* kept when a sentence came first */
                         fit_fail(c, r, "view %zu (%s): %s", i, c->rc->cameras[c->views[i].cam].name,
                                  strerror(-r));
+                pthread_mutex_lock(&c->lock);
+                if (c->error)
+                        pthread_cond_broadcast(&u->ready);
         }
 }
 
-/* Fits the views (pilot: only the pilot views) on o->threads threads. */
-static int run_pass(struct fit_ctx *c, bool pilot)
+/* Fits, samples, fits the PCA on and projects every view, on o->threads threads. */
+static int run_views(struct fit_ctx *c)
 {
-        struct pass p = {c, pilot, 0};
+        struct run u = {.c = c};
         pthread_t t[16];
         int n = 0;
 
-        while (n < c->o->threads - 1 && pthread_create(&t[n], NULL, pass_worker, &p) == 0)
+        for (size_t i = 0; i < c->n_views; i++)
+                u.pilots_left += c->views[i].pilot;
+        pthread_cond_init(&u.ready, NULL);
+        while (n < c->o->threads - 1 && pthread_create(&t[n], NULL, run_worker, &u) == 0)
                 n++;
-        pass_worker(&p);
+        run_worker(&u);
         while (n > 0)
                 pthread_join(t[--n], NULL);
+        pthread_cond_destroy(&u.ready);
         return c->error;
 }
 
@@ -318,7 +402,7 @@ static void choose_pilots(struct fit_ctx *c)
 
 /* ---- the model ---- */
 
-/* The model's header and views (their weights come from the final pass). */
+/* The model's header and views (their weights come from run_views). */
 static int model_new(struct fit_ctx *c)
 {
         int k = MIN(c->o->k, 3 * c->M), r;
@@ -373,9 +457,10 @@ static void ctx_free(struct fit_ctx *c)
                 free(c->views[i].kept);
                 free(c->views[i].kept_pix);
         }
+        for (size_t i = 0; i < sizeof(c->scratch) / sizeof(c->scratch[0]); i++)
+                fit_scratch_free(c->scratch[i]);
         free(c->views);
         free(c->all);
-        free(c->sample);
         fit_mesh_free(&c->mesh);
         rigconf_free(c->rc);
         ap_model_free(c->model);
@@ -401,13 +486,13 @@ static int load_views(struct fit_ctx *c, struct ds *d)
         return group_views(c);
 }
 
-/* Everything but the passes: the rig, the rows, views, order, geometry, points, model. */
+/* Everything but fitting the views: the rig, the rows, views, order, geometry, points, model. */
 static int prepare(struct fit_ctx *c, struct ds *d)
 {
         int r = load_views(c, d);
 
         if (r == 0)
-                note_unlit_views(c);
+                r = note_unlit_views(c);
         if (r == 0)
                 r = choose_order(c);
         if (r == 0)
@@ -440,12 +525,8 @@ int ap_fit(struct ds *d, const struct ap_fit_opts *o, struct ap_model **ret, cha
         r = prepare(&c, d);
         if (r == 0) {
                 choose_pilots(&c);
-                r = run_pass(&c, true);
+                r = run_views(&c);
         }
-        if (r == 0 && (r = fit_pca(&c)) < 0)
-                fit_fail(&c, r, "the PCA failed: %zu sample vectors", c.n_sample);
-        if (r == 0)
-                r = run_pass(&c, false);
         if (r == 0) {
                 model_finish(&c, ts.tv_sec + ts.tv_nsec * 1e-9);
                 *ret = TAKE_PTR(c.model);

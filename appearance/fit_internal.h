@@ -29,7 +29,7 @@ struct fit_view {
         size_t n_lights;
         float *points; /* 3 per tile: the tile's surface point (object frame); NAN: none */
         bool pilot;    /* its coefficient vectors feed the PCA's sample */
-        float *kept;   /* a pilot's vectors (3M each) kept for the final pass */
+        float *kept;   /* its vectors (3M each) kept: a pilot's, or solved before the basis */
         uint32_t *kept_pix;
         size_t n_kept;
         size_t n_sat; /* pixels masked for a saturated sample */
@@ -41,6 +41,9 @@ struct fit_mesh {
         uint32_t *tri;
         size_t n_v, n_tri;
 };
+
+/* A worker's buffers, kept from one view to the next (fit_view). */
+struct fit_scratch;
 
 struct fit_ctx {
         const struct ap_fit_opts *o;
@@ -54,17 +57,16 @@ struct fit_ctx {
         int order, M;
         double exposure_ref, gain_ref, d_ref, i_ref;
         struct ap_model *model;
-        /* the PCA's sample: 3M floats a vector (fit_view.c adds, fit_pca.c uses) */
         pthread_mutex_t lock;
-        float *sample;
-        size_t n_sample, cap_sample;
-        size_t stride; /* one masked pixel in `stride` of a pilot view is sampled */
-        double sse_sh; /* the SH fit's squared residuals over the sampled pixels */
+        size_t n_sample; /* the PCA's sample: vectors (fit_pca) */
+        size_t stride;   /* one masked pixel in `stride` of a pilot view is sampled */
+        double sse_sh;   /* the SH fit's squared residuals over the sampled pixels */
         size_t n_sse;
-        size_t masked_saturated; /* pixels masked for a saturated sample */
-        double cond_max;         /* the worst condition number of a tile's solve */
-        char notes[1024];        /* fit_note's sentences, for the model's notes */
-        char err[512];           /* the first worker's error */
+        size_t masked_saturated;         /* pixels masked for a saturated sample */
+        double cond_max;                 /* the worst condition number of a tile's solve */
+        struct fit_scratch *scratch[16]; /* each worker's buffers (fit.c's run_views) */
+        char notes[1024];                /* fit_note's sentences, for the model's notes */
+        char err[512];                   /* the first worker's error */
         int error;
 };
 
@@ -102,14 +104,27 @@ int fit_tile_points(const struct fit_ctx *c, struct fit_view *v);
 int fit_read_image(const char *dir, const struct ds_capture *r, struct gn_frame *f, char *err,
                    size_t errlen);
 
-/* Fits view i: its images (merged, dark subtracted, normalised) to coefficients, masked; in
- * the pilot pass adds its sample vectors to c and keeps them in the view; in the final pass
- * projects them (the kept ones, else fitted again) on the model's basis into the model's
- * view i. Returns 0 or -errno (with c->err when it has a sentence). Any thread. */
-int fit_view(struct fit_ctx *c, size_t i, bool pilot_pass);
+/* Frees s. NULL is a no-op. */
+void fit_scratch_free(struct fit_scratch *s);
 
-/* Mean and K principal components of c's sample into the model; c->model->rms_pca. Returns
- * 0, -ENODATA (fewer vectors than 2) or -ENOMEM. */
+/* Fits view i: its images (merged, dark subtracted, normalised) to coefficient vectors of
+ * its masked pixels, held in *s (the calling worker's buffers; NULL: allocated here, free
+ * with fit_scratch_free) until fit_view_keep or fit_view_project; a pilot view's residuals
+ * added to c. Returns 0 or -errno (with c->err when it has a sentence). Any thread, one *s
+ * per thread. */
+int fit_view_solve(struct fit_ctx *c, size_t i, struct fit_scratch **s);
+
+/* Moves the vectors of view i held in s into the view (v->kept), for fit_pca's sample or
+ * for projecting once the basis is known. Any thread. */
+void fit_view_keep(struct fit_ctx *c, size_t i, struct fit_scratch *s);
+
+/* Projects the vectors of view i (kept in the view, else held in s) on the model's basis
+ * into the model's view i; frees the kept ones. Returns 0 or -ENOMEM. Any thread. */
+int fit_view_project(struct fit_ctx *c, size_t i, struct fit_scratch *s);
+
+/* Mean and K principal components into the model of the sample: every c->stride-th vector
+ * kept by each pilot view, in view order (c->n_sample); c->model->rms_pca. Returns 0,
+ * -ENODATA (fewer vectors than 2) or -ENOMEM. */
 int fit_pca(struct fit_ctx *c);
 
 /* Projects n coefficient vectors coef (n x 3M) on the model's basis into w (n x K): one

@@ -11,18 +11,31 @@
 #include "appearance/fit_internal.h"
 #include "common/cleanup.h"
 
-/* The mean of the n sample vectors of dimension D into mean, the centred sample into X. */
-static void centre(const float *s, size_t n, int D, double *mean, double *X)
+/* The sample's vectors (dimension D): every stride-th vector kept by each pilot view, in
+ * view order, into X; their number. X NULL: only counted. */
+static size_t gather(const struct fit_ctx *c, int D, double *X)
+{
+        size_t n = 0;
+
+        for (size_t v = 0; v < c->n_views; v++)
+                for (size_t i = 0; c->views[v].pilot && i < c->views[v].n_kept; i += c->stride, n++)
+                        for (int j = 0; X && j < D; j++)
+                                X[n * D + j] = c->views[v].kept[i * D + j];
+        return n;
+}
+
+/* The mean of the n sample vectors X (dimension D) into mean; X centred. */
+static void centre(double *X, size_t n, int D, double *mean)
 {
         memset(mean, 0, D * sizeof(double));
         for (size_t i = 0; i < n; i++)
                 for (int j = 0; j < D; j++)
-                        mean[j] += s[i * D + j];
+                        mean[j] += X[i * D + j];
         for (int j = 0; j < D; j++)
                 mean[j] /= (double)n;
         for (size_t i = 0; i < n; i++)
                 for (int j = 0; j < D; j++)
-                        X[i * D + j] = s[i * D + j] - mean[j];
+                        X[i * D + j] -= mean[j];
 }
 
 /* The RMS of the sample's residual after projection on the model's basis. */
@@ -50,7 +63,7 @@ int fit_pca(struct fit_ctx *c)
 {
         struct ap_model *m = c->model;
         int D = 3 * c->M;
-        size_t n = c->n_sample;
+        size_t n = c->n_sample = gather(c, D, NULL);
         _cleanup_free_ double *X = calloc(n * D, sizeof(double));
         _cleanup_free_ double *cov = calloc((size_t)D * D, sizeof(double));
         _cleanup_free_ double *mean = malloc(D * sizeof(double));
@@ -60,7 +73,8 @@ int fit_pca(struct fit_ctx *c)
                 return -ENODATA;
         if (!X || !cov || !mean || !ev)
                 return -ENOMEM;
-        centre(c->sample, n, D, mean, X);
+        gather(c, D, X);
+        centre(X, n, D, mean);
         cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, D, (int)n, 1.0 / (n - 1), X, D, 0, cov,
                     D);
         if (LAPACKE_dsyevd(LAPACK_ROW_MAJOR, 'V', 'U', D, cov, D, ev) != 0)

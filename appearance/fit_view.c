@@ -3,8 +3,8 @@
  * L x 3N matrix whose columns are grouped by tile; per tile the light matrix of SH values at
  * the directions from the tile's surface point (scaled by intensity and distance), its
  * regularised pseudo-inverse, and one product with the tile's columns; pixels masked where
- * the object is not or a sample saturated. The pilot pass samples coefficient vectors for the
- * PCA; the final pass projects every vector on the basis with one product per view. */
+ * the object is not or a sample saturated; a pilot view's residuals for the model's figures;
+ * the vectors projected on the basis with one product per view. */
 #include <cblas.h>
 #include <errno.h>
 #include <float.h>
@@ -26,7 +26,9 @@
 #define PNG_MAX         ((size_t)1 << 30)
 #define HUGE_PAGE_BYTES ((size_t)2 << 20)
 
-/* A view's images in memory, columns by tile. */
+/* A view's images in memory, columns by tile: a worker's buffers (struct fit_scratch), kept
+ * from one view to the next so that the hundreds of MB of samples are not faulted in (and
+ * zeroed by the kernel) again for each view. */
 struct vdata {
         int W, H, T, tw, th;
         size_t N;          /* 3 x pixels: the columns */
@@ -35,21 +37,53 @@ struct vdata {
         uint32_t *col;     /* pixel (image order) -> its first column */
         float *maxv;       /* per pixel: the largest sample over lights and channels */
         uint8_t *sat;      /* per pixel: a sample saturated in some light */
+        uint8_t *in;       /* per pixel: takes part (mask_pixels) */
         float *acc, *wsum; /* 3 per pixel: the merge of one light's brackets */
+        float *lut;        /* a raw sample's value (direct), 2^16 */
+        size_t cap_D, cap_px;
+        int lay[3]; /* the W, H and T col is laid out for */
 };
 
-static void vdata_free(struct vdata *d)
+/* The coefficient vectors of a view's masked pixels, compact: vector i is pixel pix[i]. */
+struct vcoef {
+        float *coef; /* n x 3M */
+        uint32_t *pix;
+        size_t n;
+        double sse; /* squared residuals of the sampled pixels (a pilot view) */
+        size_t n_sse;
+        double cond; /* the worst tile's condition number */
+};
+
+struct fit_scratch {
+        struct vdata d;
+        struct vcoef vc; /* the last view solved, until kept or projected */
+        size_t cap;      /* vectors vc has room for */
+};
+
+static void vdata_free_px(struct vdata *d)
 {
-        free(d->D);
         free(d->col);
         free(d->maxv);
         free(d->sat);
+        free(d->in);
         free(d->acc);
         free(d->wsum);
 }
 
+void fit_scratch_free(struct fit_scratch *s)
+{
+        if (s) {
+                vdata_free_px(&s->d);
+                free(s->d.D);
+                free(s->d.lut);
+                free(s->vc.coef);
+                free(s->vc.pix);
+                free(s);
+        }
+}
+
 /* A view's L x N samples (hundreds of MB at seed scale) on transparent huge pages where the
- * kernel has them: 512 times fewer page faults for each view's fresh buffer (bench/fit). */
+ * kernel has them: 512 times fewer page faults (bench/fit). */
 static float *alloc_samples(size_t n)
 {
         void *p = NULL;
@@ -60,25 +94,33 @@ static float *alloc_samples(size_t n)
         return p;
 }
 
-static int vdata_init(struct vdata *d, const struct fit_ctx *c, const struct fit_view *v)
+/* The per-pixel buffers of d for n pixels, grown when the view has more than the last. */
+static int vdata_grow(struct vdata *d, size_t n)
 {
-        size_t n = (size_t)v->geom.width * v->geom.height, base = 0;
-
-        *d = (struct vdata){.W = v->geom.width,
-                            .H = v->geom.height,
-                            .T = c->o->tile,
-                            .N = 3 * n,
-                            .L = (int)v->n_lights};
-        d->tw = (d->W + d->T - 1) / d->T;
-        d->th = (d->H + d->T - 1) / d->T;
-        d->D = alloc_samples((size_t)d->L * d->N);
+        if (n <= d->cap_px)
+                return 0;
+        vdata_free_px(d);
+        d->cap_px = 0;
+        d->lay[0] = 0; /* col to be laid out again */
         d->col = malloc(n * sizeof(uint32_t));
-        d->maxv = calloc(n, sizeof(float));
-        d->sat = calloc(n, 1);
+        d->maxv = malloc(n * sizeof(float));
+        d->sat = malloc(n);
+        d->in = malloc(n);
         d->acc = malloc(3 * n * sizeof(float));
         d->wsum = malloc(3 * n * sizeof(float));
-        if (!d->D || !d->col || !d->maxv || !d->sat || !d->acc || !d->wsum)
+        if (!d->col || !d->maxv || !d->sat || !d->in || !d->acc || !d->wsum)
                 return -ENOMEM;
+        d->cap_px = n;
+        return 0;
+}
+
+/* The columns of each pixel of a W x H view in tiles of T (skipped when d has them). */
+static void vdata_layout(struct vdata *d)
+{
+        size_t base = 0;
+
+        if (d->lay[0] == d->W && d->lay[1] == d->H && d->lay[2] == d->T)
+                return;
         for (int ty = 0; ty < d->th; ty++)
                 for (int tx = 0; tx < d->tw; tx++) {
                         int x0 = tx * d->T, y0 = ty * d->T, w = MIN(d->T, d->W - x0);
@@ -86,6 +128,32 @@ static int vdata_init(struct vdata *d, const struct fit_ctx *c, const struct fit
                                 for (int x = x0; x < x0 + w; x++, base += 3)
                                         d->col[(size_t)y * d->W + x] = (uint32_t)base;
                 }
+        d->lay[0] = d->W, d->lay[1] = d->H, d->lay[2] = d->T;
+}
+
+/* d sized and laid out for view v (every row of D is written by load_light). */
+static int vdata_init(struct vdata *d, const struct fit_ctx *c, const struct fit_view *v)
+{
+        size_t n = (size_t)v->geom.width * v->geom.height;
+
+        d->W = v->geom.width, d->H = v->geom.height, d->T = c->o->tile;
+        d->N = 3 * n, d->L = (int)v->n_lights;
+        d->tw = (d->W + d->T - 1) / d->T;
+        d->th = (d->H + d->T - 1) / d->T;
+        if ((size_t)d->L * d->N > d->cap_D) {
+                free(d->D);
+                d->cap_D = 0;
+                if (!(d->D = alloc_samples((size_t)d->L * d->N)))
+                        return -ENOMEM;
+                d->cap_D = (size_t)d->L * d->N;
+        }
+        if (!d->lut && !(d->lut = malloc((1 << 16) * sizeof(float))))
+                return -ENOMEM;
+        if (vdata_grow(d, n) < 0)
+                return -ENOMEM;
+        memset(d->maxv, 0, n * sizeof(float));
+        memset(d->sat, 0, n);
+        vdata_layout(d);
         return 0;
 }
 
@@ -166,28 +234,56 @@ static void merge_bracket(const struct fit_ctx *c, const struct ds_capture *r,
         }
 }
 
-/* One image f without dark frame nor other brackets straight into row (the layout of d). */
+/* Image row src (n pixels of nc channels of bits bits; step 0: grey) through lut into out
+ * (3 floats a pixel); sat and maxv of its pixels updated (raw values from qsat saturate). */
+static inline void direct_run(const uint8_t *restrict src, int bits, int nc, int step, int n,
+                              const float *restrict lut, unsigned qsat, float *restrict out,
+                              uint8_t *restrict sat, float *restrict maxv)
+{
+        for (int x = 0; x < n; x++, out += 3) {
+                uint8_t s = sat[x];
+                float m = maxv[x];
+                for (int ch = 0; ch < 3; ch++) {
+                        size_t i = (size_t)x * nc + ch * step;
+                        unsigned q = bits == 8 ? src[i] : ((const uint16_t *)src)[i];
+                        out[ch] = lut[q];
+                        s |= q >= qsat;
+                        m = out[ch] > m ? out[ch] : m;
+                }
+                sat[x] = s, maxv[x] = m;
+        }
+}
+
+/* One image f without dark frame nor other brackets straight into row (the layout of d):
+ * each raw value's sample through d->lut, a tile's part of an image row at a time. */
 static void direct(const struct fit_ctx *c, const struct ds_capture *r, const struct gn_frame *f,
                    struct vdata *d, float *row)
 {
         double gain = r->gain > 0 ? r->gain : 1, e = r->exposure_us > 0 ? r->exposure_us : 0;
         float k = (float)((e > 0 ? c->exposure_ref / e : 1) * c->gain_ref / gain);
         float sat = (float)c->o->saturation;
-        int step = f->channels == 3 ? 1 : 0;
+        unsigned nv = 1u << f->bits, qsat = nv;
+        int step = f->channels == 3 ? 1 : 0, nc = f->channels, W = f->width, T = d->T;
 
-        for (int y = 0; y < f->height; y++) {
-                const uint8_t *src = f->data + (size_t)y * f->stride;
-                for (int x = 0; x < f->width; x++) {
-                        size_t p = (size_t)y * f->width + x;
-                        float *out = row + d->col[p];
-                        for (int ch = 0; ch < 3; ch++) {
-                                float v = sample(f, src, (size_t)x * f->channels + ch * step);
-                                d->sat[p] |= v >= sat;
-                                out[ch] = v * k;
-                                d->maxv[p] = out[ch] > d->maxv[p] ? out[ch] : d->maxv[p];
-                        }
-                }
+        for (unsigned q = nv; q-- > 0;) { /* sample() of q, and the first saturated q */
+                uint16_t q16 = (uint16_t)q;
+                uint8_t q8 = (uint8_t)q;
+                float v = sample(f, f->bits == 8 ? &q8 : (const uint8_t *)&q16, 0);
+                d->lut[q] = v * k;
+                qsat = v >= sat ? q : qsat;
         }
+        for (int y = 0; y < f->height; y++)
+                for (int x0 = 0; x0 < W; x0 += T) {
+                        size_t p = (size_t)y * W + x0;
+                        const uint8_t *src =
+                                f->data + (size_t)y * f->stride + (size_t)x0 * nc * (f->bits / 8);
+                        if (f->bits == 8 && nc == 3)
+                                direct_run(src, 8, 3, 1, MIN(T, W - x0), d->lut, qsat,
+                                           row + d->col[p], d->sat + p, d->maxv + p);
+                        else
+                                direct_run(src, f->bits, nc, step, MIN(T, W - x0), d->lut, qsat,
+                                           row + d->col[p], d->sat + p, d->maxv + p);
+                }
 }
 
 /* Reads light j of view v (its brackets, each minus its dark frame) into row j of d. */
@@ -252,24 +348,17 @@ static void light_matrix(const struct fit_ctx *c, const struct fit_view *v, size
         }
 }
 
-/* The coefficient vectors of a view's masked pixels, compact: vector i is pixel pix[i]. */
-struct vcoef {
-        float *coef; /* n x 3M */
-        uint32_t *pix;
-        size_t n;
-        double sse; /* squared residuals of the sampled pixels (pilot pass) */
-        size_t n_sse;
-        double cond; /* the worst tile's condition number */
-};
-
-/* Pixel p takes part: the object seen (some light above the background), no saturated
- * sample, a surface point for its tile. */
-static bool masked_in(const struct fit_ctx *c, const struct fit_view *v, const struct vdata *d,
-                      size_t p)
+/* d->in: each pixel takes part or not: the object seen (some light above the background), no
+ * saturated sample, a surface point for its tile. */
+static void mask_pixels(const struct fit_ctx *c, const struct fit_view *v, struct vdata *d)
 {
-        size_t t = (p / d->W) / d->T * d->tw + (p % d->W) / d->T;
+        float bg = (float)c->o->background;
 
-        return !d->sat[p] && d->maxv[p] >= c->o->background && !isnan(v->points[3 * t]);
+        for (int y = 0; y < d->H; y++)
+                for (int x = 0; x < d->W; x++) {
+                        size_t p = (size_t)y * d->W + x, t = (size_t)(y / d->T) * d->tw + x / d->T;
+                        d->in[p] = !d->sat[p] && d->maxv[p] >= bg && !isnan(v->points[3 * t]);
+                }
 }
 
 /* Residual of pixel p's vector x (3M) against its data: adds to vc->sse. */
@@ -298,7 +387,7 @@ static int solve_tile(const struct fit_ctx *c, const struct fit_view *v, const s
 
         for (int y = y0; y < y0 + h && !any; y++)
                 for (int x = x0; x < x0 + w && !any; x++)
-                        any = masked_in(c, v, d, (size_t)y * d->W + x);
+                        any = d->in[(size_t)y * d->W + x];
         if (!any)
                 return 0;
         light_matrix(c, v, (size_t)ty * d->tw + tx, A);
@@ -312,7 +401,7 @@ static int solve_tile(const struct fit_ctx *c, const struct fit_view *v, const s
                 for (int x = x0; x < x0 + w; x++) {
                         size_t p = (size_t)y * d->W + x, lp = (size_t)(y - y0) * w + (x - x0);
                         float *out = vc->coef + vc->n * M3;
-                        if (!masked_in(c, v, d, p))
+                        if (!d->in[p])
                                 continue;
                         for (int m = 0; m < c->M; m++)
                                 for (int ch = 0; ch < 3; ch++)
@@ -322,8 +411,9 @@ static int solve_tile(const struct fit_ctx *c, const struct fit_view *v, const s
         return 0;
 }
 
+/* Solves every tile of view v into vc (room for cap vectors, grown to the view's pixels). */
 static int solve_view(const struct fit_ctx *c, const struct fit_view *v, const struct vdata *d,
-                      struct vcoef *vc)
+                      struct vcoef *vc, size_t *cap)
 {
         size_t n = (size_t)d->W * d->H, T2 = (size_t)d->T * d->T;
         _cleanup_free_ double *A = malloc((size_t)d->L * c->M * sizeof(double));
@@ -331,9 +421,17 @@ static int solve_view(const struct fit_ctx *c, const struct fit_view *v, const s
         _cleanup_free_ float *Ct = malloc(3 * T2 * c->M * sizeof(float));
         int r = 0;
 
-        vc->coef = malloc(n * 3 * c->M * sizeof(float));
-        vc->pix = malloc(n * sizeof(uint32_t));
-        if (!A || !P || !Ct || !vc->coef || !vc->pix)
+        if (n > *cap || !vc->coef) {
+                free(vc->coef), free(vc->pix);
+                *cap = 0;
+                vc->coef = malloc(n * 3 * c->M * sizeof(float));
+                vc->pix = malloc(n * sizeof(uint32_t));
+                if (!vc->coef || !vc->pix)
+                        return -ENOMEM;
+                *cap = n;
+        }
+        *vc = (struct vcoef){.coef = vc->coef, .pix = vc->pix};
+        if (!A || !P || !Ct)
                 return -ENOMEM;
         for (int ty = 0; r == 0 && ty < d->th; ty++)
                 for (int tx = 0; r == 0 && tx < d->tw; tx++)
@@ -341,13 +439,12 @@ static int solve_view(const struct fit_ctx *c, const struct fit_view *v, const s
         return r;
 }
 
-/* Pilot pass: every stride-th vector into c's sample, with its residual. */
-static int add_sample(struct fit_ctx *c, const struct fit_view *v, const struct vdata *d,
-                      struct vcoef *vc)
+/* A pilot view: the residuals of every stride-th vector (those fit_pca samples) into c. */
+static int add_residuals(struct fit_ctx *c, const struct fit_view *v, const struct vdata *d,
+                         struct vcoef *vc)
 {
-        size_t M3 = 3 * (size_t)c->M, n = (vc->n + c->stride - 1) / c->stride;
+        size_t M3 = 3 * (size_t)c->M;
         _cleanup_free_ double *A = malloc((size_t)d->L * c->M * sizeof(double));
-        int r = 0;
 
         if (!A)
                 return -ENOMEM;
@@ -357,23 +454,13 @@ static int add_sample(struct fit_ctx *c, const struct fit_view *v, const struct 
                 residual(c, d, A, p, vc->coef + i * M3, vc);
         }
         pthread_mutex_lock(&c->lock);
-        if (c->n_sample + n > c->cap_sample) {
-                size_t cap = MAX(2 * c->cap_sample, c->n_sample + n);
-                float *s = realloc(c->sample, cap * M3 * sizeof(float));
-                if (s)
-                        c->sample = s, c->cap_sample = cap;
-                else
-                        r = -ENOMEM;
-        }
-        for (size_t i = 0; r == 0 && i < vc->n; i += c->stride)
-                memcpy(c->sample + c->n_sample++ * M3, vc->coef + i * M3, M3 * sizeof(float));
         c->sse_sh += vc->sse;
         c->n_sse += vc->n_sse;
         pthread_mutex_unlock(&c->lock);
-        return r;
+        return 0;
 }
 
-/* Final pass: the weights and mask of model view mv from the vectors. */
+/* The weights and mask of model view mv from the vectors. */
 static int project(struct fit_ctx *c, struct ap_view *mv, const struct fit_view *v,
                    const struct vcoef *vc)
 {
@@ -394,53 +481,51 @@ static int project(struct fit_ctx *c, struct ap_view *mv, const struct fit_view 
         return 0;
 }
 
-/* Pilot pass: keeps the view's vectors for the final pass (a pilot view is read once). */
-static void keep(const struct fit_ctx *c, struct fit_view *v, struct vcoef *vc)
+void fit_view_keep(struct fit_ctx *c, size_t i, struct fit_scratch *s)
 {
-        float *coef = realloc(vc->coef, (vc->n + 1) * 3 * c->M * sizeof(float));
+        struct fit_view *v = &c->views[i];
+        float *coef = realloc(s->vc.coef, (s->vc.n + 1) * 3 * c->M * sizeof(float));
 
-        v->kept = coef ?: vc->coef;
-        v->kept_pix = vc->pix;
-        v->n_kept = vc->n;
-        vc->coef = NULL;
-        vc->pix = NULL;
+        v->kept = coef ?: s->vc.coef;
+        v->kept_pix = s->vc.pix;
+        v->n_kept = s->vc.n;
+        s->vc = (struct vcoef){0};
+        s->cap = 0;
 }
 
-/* Loads and solves view v into vc; counts its saturated pixels. */
-static int solve(struct fit_ctx *c, struct fit_view *v, struct vcoef *vc, bool pilot_pass)
+int fit_view_solve(struct fit_ctx *c, size_t i, struct fit_scratch **sp)
 {
-        _cleanup_(vdata_free) struct vdata d = {0};
-        int r = vdata_init(&d, c, v);
+        struct fit_view *v = &c->views[i];
+        struct fit_scratch *s = *sp ?: (*sp = calloc(1, sizeof(**sp)));
+        struct vdata *d = s ? &s->d : NULL;
+        int r = s ? vdata_init(d, c, v) : -ENOMEM;
 
-        for (int j = 0; r == 0 && j < d.L; j++)
-                r = load_light(c, v, j, &d);
-        if (r == 0)
-                r = solve_view(c, v, &d, vc);
-        for (size_t p = 0; r == 0 && p < (size_t)d.W * d.H; p++)
-                v->n_sat += d.sat[p] && d.maxv[p] >= c->o->background;
-        if (r == 0 && pilot_pass)
-                r = add_sample(c, v, &d, vc);
-        pthread_mutex_lock(&c->lock);
-        c->cond_max = fmax(c->cond_max, vc->cond);
-        pthread_mutex_unlock(&c->lock);
+        for (int j = 0; r == 0 && j < d->L; j++)
+                r = load_light(c, v, j, d);
+        if (r == 0) {
+                mask_pixels(c, v, d);
+                r = solve_view(c, v, d, &s->vc, &s->cap);
+        }
+        for (size_t p = 0; r == 0 && p < (size_t)d->W * d->H; p++)
+                v->n_sat += d->sat[p] && d->maxv[p] >= c->o->background;
+        if (r == 0 && v->pilot)
+                r = add_residuals(c, v, d, &s->vc);
+        if (r == 0) {
+                pthread_mutex_lock(&c->lock);
+                c->cond_max = fmax(c->cond_max, s->vc.cond);
+                pthread_mutex_unlock(&c->lock);
+        }
         return r;
 }
 
-int fit_view(struct fit_ctx *c, size_t i, bool pilot_pass)
+int fit_view_project(struct fit_ctx *c, size_t i, struct fit_scratch *s)
 {
         struct fit_view *v = &c->views[i];
-        struct vcoef vc = {.coef = v->kept, .pix = v->kept_pix, .n = v->n_kept};
-        int r = 0;
+        struct vcoef kept = {.coef = v->kept, .pix = v->kept_pix, .n = v->n_kept};
+        int r = project(c, &c->model->views[i], v, v->kept ? &kept : &s->vc);
 
+        free(v->kept), free(v->kept_pix);
         v->kept = NULL, v->kept_pix = NULL;
-        if (!vc.coef)
-                r = solve(c, v, &vc, pilot_pass);
-        if (r == 0 && pilot_pass)
-                keep(c, v, &vc);
-        else if (r == 0)
-                r = project(c, &c->model->views[i], v, &vc);
-        free(vc.coef);
-        free(vc.pix);
         return r;
 }
 
@@ -448,7 +533,7 @@ int ap_fit_pinv(const double *A, int L, int M, enum ap_reg reg, double param, fl
                 double *cond)
 {
         enum { MM = AP_ORDER_MAX * AP_ORDER_MAX };
-        double N[MM * MM], ev[MM], G[MM * MM], top;
+        double N[MM * MM], NF[MM * MM], ev[MM], G[MM * MM], top;
 
         if (L < 1 || M < 1 || M > MM || param < 0)
                 return -EINVAL;
@@ -458,16 +543,18 @@ int ap_fit_pinv(const double *A, int L, int M, enum ap_reg reg, double param, fl
                 return -EDOM;
         top = fmax(ev[M - 1], DBL_MIN);
         /* G = V diag(f) V^T, f the regularised inverse of each eigenvalue (sigma^2) */
+        for (int i = 0; i < M; i++) {
+                double e = fmax(ev[i], 0);
+                double f = reg == AP_REG_TSVD ? (e > param * param * top ? 1 / e : 0)
+                                              : 1 / (e + param * param * top);
+                for (int a = 0; a < M; a++)
+                        NF[a * M + i] = N[a * M + i] * f;
+        }
         for (int a = 0; a < M; a++)
                 for (int b = a; b < M; b++) {
                         double x = 0;
-                        for (int i = 0; i < M; i++) {
-                                double e = fmax(ev[i], 0);
-                                double f = reg == AP_REG_TSVD
-                                                   ? (e > param * param * top ? 1 / e : 0)
-                                                   : 1 / (e + param * param * top);
-                                x += N[a * M + i] * f * N[b * M + i];
-                        }
+                        for (int i = 0; i < M; i++)
+                                x += NF[a * M + i] * N[b * M + i];
                         G[a * M + b] = G[b * M + a] = x;
                 }
         for (int m = 0; m < M; m++) /* pinv = G A^T */

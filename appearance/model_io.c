@@ -9,6 +9,7 @@
 #include <fcntl.h>
 #include <jansson.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -215,8 +216,8 @@ static int put_mask(int dfd, const struct ap_view *v, size_t i)
         return ap_io_put_file(dfd, name, png, len);
 }
 
-/* Writes view i's images into views/ (vfd) and appends its entry to views. */
-static int put_view(int vfd, const struct ap_model *m, size_t i, json_t *views)
+/* Writes view i's images into views/ (vfd) and its entry into *entry. */
+static int put_view(int vfd, const struct ap_model *m, size_t i, json_t **entry)
 {
         const struct ap_view *v = &m->views[i];
         float scale[AP_K_MAX], offset[AP_K_MAX];
@@ -228,9 +229,62 @@ static int put_view(int vfd, const struct ap_model *m, size_t i, json_t *views)
                 r = put_weights(vfd, v, i, m->k, g, scale, offset);
         if (r == 0)
                 r = put_mask(vfd, v, i);
-        if (r == 0 && json_array_append_new(views, view_json(v, m->k, scale, offset)) < 0)
+        if (r == 0 && !(*entry = view_json(v, m->k, scale, offset)))
                 r = -ENOMEM;
         return r;
+}
+
+/* The views of a model written by PUT_THREADS threads (the PNG encoding is most of a model's
+ * write: bench/fit). */
+#define PUT_THREADS 2
+
+struct put_job {
+        int vfd;
+        const struct ap_model *m;
+        json_t **entries; /* one per view */
+        size_t next;
+        int r; /* the first error */
+        pthread_mutex_t lock;
+};
+
+static void *put_worker(void *arg)
+{
+        struct put_job *j = arg;
+
+        for (;;) {
+                size_t i;
+                int r;
+                pthread_mutex_lock(&j->lock);
+                i = j->r < 0 ? j->m->n_views : j->next++;
+                pthread_mutex_unlock(&j->lock);
+                if (i >= j->m->n_views)
+                        return NULL;
+                r = put_view(j->vfd, j->m, i, &j->entries[i]);
+                pthread_mutex_lock(&j->lock);
+                j->r = j->r < 0 ? j->r : r;
+                pthread_mutex_unlock(&j->lock);
+        }
+}
+
+/* Writes every view's images into views/ (vfd) and appends their entries to views, in order. */
+static int put_views(int vfd, const struct ap_model *m, json_t *views)
+{
+        _cleanup_free_ json_t **entries = calloc(m->n_views + 1, sizeof(*entries));
+        struct put_job j = {vfd, m, entries, 0, 0, PTHREAD_MUTEX_INITIALIZER};
+        pthread_t t[PUT_THREADS - 1];
+        int n = 0;
+
+        if (!entries)
+                return -ENOMEM;
+        while (n < PUT_THREADS - 1 && pthread_create(&t[n], NULL, put_worker, &j) == 0)
+                n++;
+        put_worker(&j);
+        while (n > 0)
+                pthread_join(t[--n], NULL);
+        for (size_t i = 0; i < m->n_views; i++)
+                if (entries[i] && json_array_append_new(views, entries[i]) < 0)
+                        j.r = j.r < 0 ? j.r : -ENOMEM;
+        return j.r;
 }
 
 static int put_basis(int dfd, const struct ap_model *m)
@@ -261,11 +315,9 @@ static int put_model(int dfd, const struct ap_model *m)
         vfd = openat(dfd, "views", O_RDONLY | O_DIRECTORY | O_CLOEXEC);
         if (vfd < 0)
                 return -errno;
-        for (size_t i = 0; i < m->n_views; i++) {
-                r = put_view(vfd, m, i, views);
-                if (r < 0)
-                        return r;
-        }
+        r = put_views(vfd, m, views);
+        if (r < 0)
+                return r;
         if (fsync(vfd) < 0)
                 return -errno;
         r = put_basis(dfd, m);

@@ -3,6 +3,7 @@
 #include <spng.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <zlib.h>
 
 #include "appearance/model_png.h"
 #include "common/cleanup.h"
@@ -32,6 +33,12 @@ int ap_png_encode(int width, int height, int channels, const uint16_t *u16, cons
                 r = spng_set_option(ctx, SPNG_ENCODE_TO_BUFFER, 1);
         if (r == 0)
                 r = spng_set_option(ctx, SPNG_IMG_COMPRESSION_LEVEL, 1);
+        /* one filter (up) and run-length coding: a fifth of the time of trying every filter
+         * per row with deflate's matching, files no larger (a model's weights, bench/fit) */
+        if (r == 0)
+                r = spng_set_option(ctx, SPNG_FILTER_CHOICE, SPNG_FILTER_CHOICE_UP);
+        if (r == 0)
+                r = spng_set_option(ctx, SPNG_IMG_COMPRESSION_STRATEGY, Z_RLE);
         /* SPNG_FMT_PNG: 16-bit samples in host order, swapped to big-endian by spng */
         if (r == 0)
                 r = spng_encode_image(ctx, img, bytes, SPNG_FMT_PNG, SPNG_ENCODE_FINALIZE);

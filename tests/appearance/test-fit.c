@@ -1,6 +1,7 @@
 /* test-fit.c - the appearance fit (appearance/fit.h) on synthetic datasets (apscene.h). */
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 #include <time.h>
 
 #include "appearance/fit.h"
@@ -335,6 +336,94 @@ static void test_no_lamps(void)
         fo.backends = registry_backends;
         fo.order = 0;
         CHECK_INT(ap_fit(d, &fo, &m, err, sizeof(err)), -EINVAL);
+        aps_close(&s);
+}
+
+/* Models a and b equal to the bit: basis, mean, every view's weights and mask. */
+static void check_same_model(const struct ap_model *a, const struct ap_model *b)
+{
+        size_t D = 3 * (size_t)a->n_coef;
+
+        CHECK_INT(a->k, b->k);
+        CHECK_INT(a->n_views, b->n_views);
+        CHECK(memcmp(a->mean, b->mean, D * sizeof(float)) == 0);
+        CHECK(memcmp(a->basis, b->basis, D * a->k * sizeof(float)) == 0);
+        for (size_t v = 0; v < a->n_views; v++) {
+                size_t n = (size_t)a->views[v].cam.width * a->views[v].cam.height;
+                CHECK(memcmp(a->views[v].mask, b->views[v].mask, n) == 0);
+                CHECK(memcmp(a->views[v].weights, b->views[v].weights, n * a->k * sizeof(float)) ==
+                      0);
+        }
+}
+
+/* Overwrites the image of the row of camera c0 at turntable angle tt lit by lamp 0. */
+static void spoil_image(const char *path, double tt)
+{
+        _cleanup_(ds_closep) struct ds *d = NULL;
+        _cleanup_free_ struct ds_capture *rows = NULL;
+        size_t n;
+        bool done = false;
+
+        CHECK_INT(ds_open(path, &d), 0);
+        CHECK_INT(ds_rows_collect(d, NULL, NULL, &rows, &n), 0);
+        for (size_t i = 0; i < n && !done; i++)
+                if (fabs(rows[i].pose.deg[GN_ROLE_TURNTABLE] - tt) < 1e-6 &&
+                    rows[i].pose.lamps == 1) {
+                        char file[1024];
+                        FILE *f;
+                        snprintf(file, sizeof(file), "%s/%s", path, rows[i].file);
+                        CHECK((f = fopen(file, "w")) != NULL);
+                        fputs("not a PNG", f);
+                        fclose(f);
+                        done = true;
+                }
+        CHECK(done);
+}
+
+/* The views on 1, 2 and 3 threads: the same model to the bit (the pilot views, the PCA
+ * fitted while the other views go on, views kept until the basis is known). An unreadable
+ * image in a pilot view or another: the fit fails with its name, whatever the threads. */
+static void test_threads(void)
+{
+        _cleanup_(rm_rfp) char *dir = tu_tmpdir();
+        _cleanup_(ap_model_freep) struct ap_model *one = NULL;
+        static const int threads[] = {1, 2, 3};
+        struct aps_opts o;
+        struct apscene s;
+        char err[512];
+        const char *path;
+
+        aps_opts_default(&o, APS_GLOSSY);
+        o.turntable_angles = 10, o.n_lamps = 3, o.arm_angles = 6; /* pilots: 0, 2, 4, 6, 8 */
+        path = make(dir, "views", &o, &s);
+        for (int t = 0; t < 3; t++) {
+                _cleanup_(ds_closep) struct ds *d = NULL;
+                _cleanup_(ap_model_freep) struct ap_model *m = NULL;
+                struct ap_fit_opts fo;
+                CHECK_INT(ds_open(path, &d), 0);
+                ap_fit_opts_default(&fo);
+                fo.backends = registry_backends;
+                fo.order = 4, fo.k = 8, fo.tile = 4, fo.threads = threads[t];
+                CHECK_INT(ap_fit(d, &fo, t ? &m : &one, err, sizeof(err)), 0);
+                CHECK_INT(one->n_views, 10);
+                if (m)
+                        check_same_model(one, m);
+        }
+        for (int bad = 0; bad < 2; bad++) { /* view 1, then the pilot view 8 */
+                spoil_image(path, bad ? 288 : 36);
+                for (int t = 0; t < 2; t++) {
+                        _cleanup_(ds_closep) struct ds *d = NULL;
+                        struct ap_model *m = NULL;
+                        struct ap_fit_opts fo;
+                        CHECK_INT(ds_open(path, &d), 0);
+                        ap_fit_opts_default(&fo);
+                        fo.backends = registry_backends;
+                        fo.order = 4, fo.k = 8, fo.tile = 4, fo.threads = threads[t];
+                        CHECK_INT(ap_fit(d, &fo, &m, err, sizeof(err)), -EBADMSG);
+                        CHECK_STR_CONTAINS(err, ".png: ");
+                        CHECK(!m);
+                }
+        }
         aps_close(&s);
 }
 
@@ -714,6 +803,7 @@ int main(int argc, char **argv)
                 {"few-lights", test_few_lights},
                 {"one-side", test_one_side},
                 {"no-lamps", test_no_lamps},
+                {"threads", test_threads},
                 {"gonioctl", test_gonioctl},
 #ifdef AP_CALFILE
                 {"calibration", test_calibration},
