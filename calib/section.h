@@ -60,7 +60,7 @@ struct sec_ctx {
         size_t n_pts, cap_pts;
         struct sec_line *lines;
         size_t n_lines, cap_lines;
-        size_t rejected; /* centres with no usable ray (grazing, behind, undistortion failed) */
+        size_t rejected;  /* centres with no usable ray (grazing, behind, undistortion failed) */
         size_t unvouched; /* centres at a run's end or a kink (sec_add_line): left out */
 };
 
@@ -81,10 +81,10 @@ void sec_rig_laser_plane(double azimuth_deg, double p[3], double n[3]);
 
 /* Triangulates every centre of r (a centre per row, or per column with columns) that its
  * neighbours vouch for (both have the line, and it is within SEC_MAX_KINK_PX of their mean:
- * others are counted in unvouched) seen by the context's camera with laser `laser` at turntable angle turntable_deg, and appends the points
- * in the object frame, coloured from texture (8 or 16 bits, 1 or 3 channels, the camera's
- * size; NULL: none). Returns the number of points added, -EINVAL (bad laser, r larger than
- * the image, texture of another size) or -ENOMEM. */
+ * others are counted in unvouched) seen by the context's camera with laser `laser` at turntable
+ * angle turntable_deg, and appends the points in the object frame, coloured from texture (8 or 16
+ * bits, 1 or 3 channels, the camera's size; NULL: none). Returns the number of points added,
+ * -EINVAL (bad laser, r larger than the image, texture of another size) or -ENOMEM. */
 int sec_add_line(struct sec_ctx *c, int laser, double turntable_deg,
                  const struct laserline_result *r, bool columns, const struct gn_frame *texture);
 

@@ -11,8 +11,8 @@
 
 #define SCAN_W          800
 #define SCAN_H          600
-#define SCAN_WORST_MM   0.5  /* no point farther from the true surface */
-#define SCAN_FAR_MM     0.1  /* and at most SCAN_FAR_SHARE of the points farther than this */
+#define SCAN_WORST_MM   0.5 /* no point farther from the true surface */
+#define SCAN_FAR_MM     0.1 /* and at most SCAN_FAR_SHARE of the points farther than this */
 #define SCAN_FAR_SHARE  0.02
 #define SCAN_MAX_LASERS 3
 
