@@ -66,41 +66,6 @@ static void fill_cell(struct ap_atlas *a, size_t k, int per_row)
                 }
 }
 
-/* Triangle t's normal times twice its area (unnormalised). */
-static void face_normal(const struct ap_mesh *m, size_t t, float n[3])
-{
-        const float *p0 = &m->pos[3 * m->idx[3 * t]], *p1 = &m->pos[3 * m->idx[3 * t + 1]],
-                    *p2 = &m->pos[3 * m->idx[3 * t + 2]];
-        float u[3], v[3];
-
-        for (int j = 0; j < 3; j++)
-                u[j] = p1[j] - p0[j], v[j] = p2[j] - p0[j];
-        n[0] = u[1] * v[2] - u[2] * v[1];
-        n[1] = u[2] * v[0] - u[0] * v[2];
-        n[2] = u[0] * v[1] - u[1] * v[0];
-}
-
-/* Area-weighted vertex normals (the faces' normal times area summed, then normalised),
- * outwards on a closed mesh wound clockwise (front -1, raster.h's ap_mesh_orient). */
-static void vertex_normals(struct ap_atlas *a)
-{
-        const struct ap_mesh *m = &a->mesh;
-        float sign = m->front < 0 ? -1.f : 1.f;
-
-        for (size_t t = 0; t < m->nt; t++) {
-                float n[3];
-                face_normal(m, t, n);
-                for (int c = 0; c < 3; c++)
-                        for (int j = 0; j < 3; j++)
-                                a->vnormal[3 * m->idx[3 * t + c] + j] += n[j];
-        }
-        for (size_t i = 0; i < m->nv; i++) {
-                float *n = &a->vnormal[3 * i], l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-                for (int j = 0; j < 3 && l > 0; j++)
-                        n[j] *= sign / l;
-        }
-}
-
 int ap_atlas_build(struct ap_mesh *mesh, int cell, struct ap_atlas *a)
 {
         size_t cells = (mesh->nt + 1) / 2, n;
@@ -125,7 +90,7 @@ int ap_atlas_build(struct ap_mesh *mesh, int cell, struct ap_atlas *a)
         memset(a->tri, 0xff, n * sizeof(int32_t));
         for (size_t k = 0; k < cells; k++)
                 fill_cell(a, k, per_row);
-        vertex_normals(a);
+        ap_mesh_vertex_normals(&a->mesh, a->vnormal);
         return 0;
 }
 
@@ -154,7 +119,7 @@ bool ap_atlas_point(const struct ap_atlas *a, size_t i, float p[3], float n[3])
         }
         l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
         if (!(l > 0)) { /* vertices of degenerate faces only: the face's own normal */
-                face_normal(&a->mesh, (size_t)t, n);
+                ap_mesh_face_normal(&a->mesh, (size_t)t, n);
                 l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) * (a->mesh.front < 0 ? -1 : 1);
         }
         for (int j = 0; j < 3 && l > 0; j++)

@@ -86,6 +86,37 @@ void ap_mesh_bounds(const struct ap_mesh *m, double lo[3], double hi[3])
                 }
 }
 
+void ap_mesh_face_normal(const struct ap_mesh *m, size_t t, float n[3])
+{
+        const float *p0 = &m->pos[3 * m->idx[3 * t]], *p1 = &m->pos[3 * m->idx[3 * t + 1]],
+                    *p2 = &m->pos[3 * m->idx[3 * t + 2]];
+        float u[3], v[3];
+
+        for (int j = 0; j < 3; j++)
+                u[j] = p1[j] - p0[j], v[j] = p2[j] - p0[j];
+        n[0] = u[1] * v[2] - u[2] * v[1];
+        n[1] = u[2] * v[0] - u[0] * v[2];
+        n[2] = u[0] * v[1] - u[1] * v[0];
+}
+
+void ap_mesh_vertex_normals(const struct ap_mesh *m, float *out)
+{
+        float sign = m->front < 0 ? -1.f : 1.f;
+
+        for (size_t t = 0; t < m->nt; t++) {
+                float n[3];
+                ap_mesh_face_normal(m, t, n);
+                for (int c = 0; c < 3; c++)
+                        for (int j = 0; j < 3; j++)
+                                out[3 * m->idx[3 * t + c] + j] += n[j];
+        }
+        for (size_t i = 0; i < m->nv; i++) {
+                float *n = &out[3 * i], l = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+                for (int j = 0; j < 3 && l > 0; j++)
+                        n[j] *= sign / l;
+        }
+}
+
 int ap_mesh_orient(struct ap_mesh *m)
 {
         _cleanup_free_ uint32_t *weld = malloc((m->nv + 1) * sizeof(uint32_t));

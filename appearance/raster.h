@@ -32,6 +32,13 @@ void ap_mesh_free(struct ap_mesh *m);
 /* The corners lo and hi of m's bounding box (object frame, mm); empty: +inf and -inf. */
 void ap_mesh_bounds(const struct ap_mesh *m, double lo[3], double hi[3]);
 
+/* Triangle t's normal times twice its area (unnormalised), by its winding. */
+void ap_mesh_face_normal(const struct ap_mesh *m, size_t t, float n[3]);
+
+/* Area-weighted unit vertex normals into out (3 * nv floats, zeroed by the caller): the faces'
+ * normals times area summed, then normalised; outwards on a closed mesh (m->front). */
+void ap_mesh_vertex_normals(const struct ap_mesh *m, float *out);
+
 /* Sets m->front to 1 or -1 when m is a closed surface (its vertices welded where their
  * positions agree to AP_MESH_WELD, collapsed faces ignored, every edge run by exactly two
  * faces in opposite directions) enclosing a positive or negative volume, else to 0: a camera

@@ -94,46 +94,20 @@ static int build_planes(struct ap_renderer *r)
         return 0;
 }
 
-/* The vertex normals of a closed mesh (its winding says out): the area-weighted mean of the
- * faces around each vertex, so that what depends on the normal varies smoothly across faces.
- * An open mesh keeps the faces' normals (vnormals NULL). */
+/* The vertex normals of a closed mesh (its winding says out: ap_mesh_vertex_normals), so that
+ * what depends on the normal varies smoothly across faces. An open mesh keeps the faces'
+ * normals (vnormals NULL). */
 static int build_vertex_normals(struct ap_renderer *r)
 {
-        const struct ap_mesh *me = r->mesh;
-        double *acc;
-
-        if (!me->front)
+        if (!r->mesh->front)
                 return 0;
-        acc = calloc(3 * me->nv, sizeof(*acc));
-        r->vnormals = malloc(3 * me->nv * sizeof(float));
-        if (!acc || !r->vnormals) {
-                free(acc);
+        r->vnormals = calloc(3 * r->mesh->nv, sizeof(float));
+        if (!r->vnormals)
                 return -ENOMEM;
-        }
-        for (size_t t = 0; t < me->nt; t++) {
-                const float *a = &me->pos[3 * me->idx[3 * t]],
-                            *b = &me->pos[3 * me->idx[3 * t + 1]],
-                            *c = &me->pos[3 * me->idx[3 * t + 2]];
-                double u[3], v[3], n[3];
-                for (int j = 0; j < 3; j++)
-                        u[j] = b[j] - a[j], v[j] = c[j] - a[j];
-                n[0] = u[1] * v[2] - u[2] * v[1]; /* twice the area, along the normal */
-                n[1] = u[2] * v[0] - u[0] * v[2];
-                n[2] = u[0] * v[1] - u[1] * v[0];
-                for (int k = 0; k < 3; k++)
-                        for (int j = 0; j < 3; j++)
-                                acc[3 * me->idx[3 * t + k] + j] += me->front * n[j];
-        }
-        for (size_t i = 0; i < me->nv; i++) {
-                double *n = &acc[3 * i], len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-                for (int j = 0; j < 3; j++)
-                        r->vnormals[3 * i + j] = len > 0 ? (float)(n[j] / len) : 0;
-        }
-        free(acc);
+        ap_mesh_vertex_normals(r->mesh, r->vnormals);
         return 0;
 }
 
-/* View i in single precision, its depth map rasterised in its pinhole space with a margin. */
 static int build_view(struct ap_renderer *r, size_t i)
 {
         const struct ap_camera *c = &r->m->views[i].cam;
